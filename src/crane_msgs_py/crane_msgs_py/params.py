@@ -1,0 +1,90 @@
+"""Crane model parameters: the one validated parameter set every package shares.
+
+Pure Python (no ROS import). Defaults are Table 1 of Boscariol & Richiedei
+(2018) with g = 9.81 m/s^2 and an axis-servo time constant tau = 0.01 s
+(the contract's default model). SI units throughout.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+
+#: Names of the model parameters, in the contract's order.
+PARAMETER_NAMES = ('L1', 'L2', 'm1', 'm2', 'g', 'tau')
+
+#: Human descriptions (units included), reused for CLI help and ROS parameter descriptors.
+PARAMETER_DESCRIPTIONS = {
+    'L1': 'upper cable length L1 (m), > 0',
+    'L2': 'lower cable length L2 (m), > 0',
+    'm1': 'upper mass m1 (kg), > 0',
+    'm2': 'lower mass (load) m2 (kg), > 0',
+    'g': 'gravitational acceleration g (m/s^2), > 0',
+    'tau': 'axis servo time constant tau (s) of Eq. 6, >= 0 (0 = ideal tracking)',
+}
+
+
+class ParameterError(ValueError):
+    """A parameter value is out of its domain; the message names the parameter."""
+
+
+def check_finite(name: str, value) -> float:
+    """Return ``value`` as float, or raise ParameterError naming ``name``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f'{name} must be a number, got {value!r}') from None
+    if not math.isfinite(v):
+        raise ParameterError(f'{name} must be finite, got {v}')
+    return v
+
+
+def check_positive(name: str, value) -> float:
+    v = check_finite(name, value)
+    if v <= 0.0:
+        raise ParameterError(f'{name} must be > 0, got {v}')
+    return v
+
+
+def check_nonnegative(name: str, value) -> float:
+    v = check_finite(name, value)
+    if v < 0.0:
+        raise ParameterError(f'{name} must be >= 0, got {v}')
+    return v
+
+
+@dataclass(frozen=True)
+class CraneParams:
+    """Double-pendulum crane (paper Fig. 1, Table 1) plus the axis servo of Eq. 6.
+
+    Attributes:
+        L1: upper cable length (m).
+        L2: lower cable length (m).
+        m1: upper mass (kg).
+        m2: lower mass, the load (kg).
+        g: gravitational acceleration (m/s^2).
+        tau: first-order servo time constant (s); 0 means the cart follows
+            the reference exactly.
+    """
+
+    L1: float = 0.470
+    L2: float = 0.391
+    m1: float = 0.192
+    m2: float = 0.201
+    g: float = 9.81
+    tau: float = 0.01
+
+    def __post_init__(self):
+        for f in fields(self):
+            check = check_nonnegative if f.name == 'tau' else check_positive
+            # frozen dataclass: normalise to float through object.__setattr__
+            object.__setattr__(self, f.name, check(f.name, getattr(self, f.name)))
+
+    def replace(self, **changes) -> 'CraneParams':
+        """A copy with ``changes`` applied (validated); unknown names are an error."""
+        unknown = set(changes) - set(PARAMETER_NAMES)
+        if unknown:
+            raise ParameterError(f'unknown model parameter(s): {", ".join(sorted(unknown))}')
+        return replace(self, **changes)
+
+    def as_dict(self) -> dict:
+        return asdict(self)

@@ -1,0 +1,79 @@
+"""What every planning method returns: a plan that can be sampled at any period.
+
+A *plan* is the cart reference fed to the axis controller (contract): position,
+velocity, acceleration and jerk of the reference as functions of time, from
+rest at 0 (t = 0) to rest at ``displacement`` (t = ``duration``). Plans are
+relative: the ROS layer adds the start position and start stamp.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class PlanError(ValueError):
+    """A plan cannot be made; the message says why (bad request, solver status, limit)."""
+
+
+@dataclass(frozen=True)
+class Samples:
+    """Reference samples: time (s), position (m), velocity (m/s), acceleration (m/s^2), jerk (m/s^3)."""
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    jerk: np.ndarray
+
+
+def time_grid(duration: float, period: float) -> np.ndarray:
+    """Times 0, period, 2 period, ... and exactly ``duration`` as the last one.
+
+    A regular point closer than period/1000 to the end is dropped so the last
+    interval is never degenerate.
+    """
+    if not period > 0.0:
+        raise PlanError(f'sample period must be > 0, got {period}')
+    n = int(np.floor(duration / period + 1e-9))
+    t = np.arange(n + 1) * period
+    t = t[t < duration - 1e-3 * period]
+    return np.append(t, duration)
+
+
+@dataclass
+class Plan(ABC):
+    """A rest-to-rest cart reference of one method.
+
+    Attributes:
+        method: method name (``nvf``, ``rvf``, ``zv``, ...).
+        displacement: D (m), the position reached at ``duration``.
+        duration: T (s).
+        info: method-specific facts (solver status, iterations, solve time,
+            shaper impulses ...), JSON-serialisable.
+    """
+
+    method: str
+    displacement: float
+    duration: float
+    info: dict = field(default_factory=dict)
+
+    @abstractmethod
+    def _evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity, acceleration, jerk at times ``t`` within [0, duration]."""
+
+    def evaluate(self, t) -> Samples:
+        """Exact reference at arbitrary times; at rest at 0 before 0 and at D after T."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        tc = np.clip(t, 0.0, self.duration)
+        p, v, a, j = (np.asarray(x, dtype=float) for x in self._evaluate(tc))
+        outside = (t < 0.0) | (t > self.duration)
+        if outside.any():
+            p = np.where(t < 0.0, 0.0, np.where(t > self.duration, self.displacement, p))
+            v, a, j = (np.where(outside, 0.0, x) for x in (v, a, j))
+        return Samples(t, p, v, a, j)
+
+    def sample(self, period: float) -> Samples:
+        """Samples every ``period`` seconds, the last exactly at ``duration``."""
+        return self.evaluate(time_grid(self.duration, period))

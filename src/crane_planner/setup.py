@@ -1,0 +1,26 @@
+from setuptools import find_packages, setup
+
+package_name = 'crane_planner'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    install_requires=['setuptools', 'numpy', 'scipy', 'casadi', 'matplotlib', 'crane_msgs_py', 'crane_sim'],
+    zip_safe=True,
+    maintainer='Crane trajectory server team',
+    maintainer_email='crane@example.com',
+    description='Anti-sway reference planner, CLI, planner and streamer nodes',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'planner = crane_planner.planner_node:main',
+            'streamer = crane_planner.streamer_node:main',
+            'crane-plan = crane_planner.cli:main',
+        ],
+    },
+)
