@@ -1,0 +1,134 @@
+"""One entry point for every method: validate a request, dispatch, cache solvers.
+
+Used by the ``crane-plan`` CLI and the planner node alike, so both accept and
+refuse exactly the same requests with the same messages.
+"""
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, field
+
+from crane_msgs_py.params import CraneParams, ParameterError, check_nonnegative, check_positive
+
+from .model import modal_frequencies
+from .plan import Plan, PlanError
+
+#: The paper's variational formulations (optimal control).
+VARIATIONAL_METHODS = ('nvf', 'rvf')
+#: Input shapers, cascaded over both pendulum modes (see ``shapers.SHAPERS``).
+SHAPER_METHODS = ('zv', 'nzv', 'zvd', 'ei', 'mzv', 'zvdd')
+METHODS = VARIATIONAL_METHODS + SHAPER_METHODS
+
+#: Parameters RVF may be made insensitive to.
+ROBUST_PARAMETERS = ('L1', 'L2', 'm1', 'm2', 'tau')
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """Method options beyond the model (contract: ``crane-plan`` model options).
+
+    Attributes:
+        omega: shaper design frequencies (rad/s), one per mode; None = from the
+            linearized model.
+        damping: shaper design damping ratio (>= 0, < 1).
+        robust: parameters RVF is made insensitive to.
+        intervals: collocation intervals for NVF/RVF; None = solver default.
+        solver: ``direct`` (CasADi collocation + IPOPT) or ``indirect``
+            (the paper's TPBVP, scipy solve_bvp).
+        max_velocity: axis limit |v| (m/s), None = no limit.
+        max_acceleration: axis limit |a_ref| (m/s^2), None = no limit.
+    """
+
+    omega: tuple[float, ...] | None = None
+    damping: float = 0.0
+    robust: tuple[str, ...] = ('L1',)
+    intervals: int | None = None
+    solver: str = 'direct'
+    max_velocity: float | None = None
+    max_acceleration: float | None = None
+
+    def __post_init__(self):
+        if self.omega is not None:
+            omega = tuple(check_positive('omega', w) for w in self.omega)
+            if len(omega) == 0:
+                raise ParameterError('omega needs at least one frequency')
+            object.__setattr__(self, 'omega', omega)
+        damping = check_nonnegative('damping', self.damping)
+        if damping >= 1.0:
+            raise ParameterError(f'damping must be < 1, got {damping}')
+        object.__setattr__(self, 'damping', damping)
+        robust = tuple(self.robust)
+        bad = [r for r in robust if r not in ROBUST_PARAMETERS]
+        if bad:
+            raise ParameterError(
+                f'robust parameter(s) {", ".join(bad)} not among {", ".join(ROBUST_PARAMETERS)}')
+        if len(set(robust)) != len(robust) or not robust:
+            raise ParameterError('robust needs one or more distinct parameters')
+        object.__setattr__(self, 'robust', robust)
+        if self.intervals is not None:
+            if int(self.intervals) != self.intervals or not 4 <= int(self.intervals) <= 2000:
+                raise ParameterError(f'intervals must be an integer in [4, 2000], got {self.intervals}')
+            object.__setattr__(self, 'intervals', int(self.intervals))
+        if self.solver not in ('direct', 'indirect'):
+            raise ParameterError(f"solver must be 'direct' or 'indirect', got {self.solver!r}")
+        for name in ('max_velocity', 'max_acceleration'):
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, check_positive(name, v))
+
+
+def check_request(method: str, displacement, duration) -> tuple[float, float]:
+    """Validate the method name and a (D, T) pair; return them as floats."""
+    if method not in METHODS:
+        raise PlanError(f'unknown method {method!r}; choose from {", ".join(METHODS)}')
+    try:
+        displacement = float(displacement)
+        duration = float(duration)
+    except (TypeError, ValueError):
+        raise PlanError('displacement and duration must be numbers') from None
+    if not math.isfinite(displacement):
+        raise PlanError(f'displacement must be finite, got {displacement}')
+    if not math.isfinite(duration):
+        raise PlanError(f'duration must be finite, got {duration}')
+    if duration <= 0.0:
+        raise PlanError(f'duration must be > 0, got {duration}')
+    return displacement, duration
+
+
+@dataclass
+class Planner:
+    """Makes plans of every method; thread-safe.
+
+    Variational solvers are expensive to build, so one is kept per
+    (method, intervals, robust set, limits) and reused; each has its own lock,
+    so requests for different methods run concurrently.
+    """
+
+    _variational: dict = field(default_factory=dict, init=False, repr=False)
+    _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
+
+    def plan(self, method: str, displacement: float, duration: float,
+             params: CraneParams | None = None, options: PlanOptions | None = None) -> Plan:
+        """A rest-to-rest plan from 0 to ``displacement`` (m) in ``duration`` (s).
+
+        Raises PlanError (or its ParameterError sibling, both ValueError) with a
+        message naming the problem.
+        """
+        params = params or CraneParams()
+        options = options or PlanOptions()
+        displacement, duration = check_request(method, displacement, duration)
+        if method in SHAPER_METHODS:
+            from .shaped import shaped_plan
+            omegas = options.omega or modal_frequencies(params)
+            return shaped_plan(method, displacement, duration, omegas, options.damping)
+        return self._variational_solver(method, options).solve(displacement, duration, params)
+
+    def _variational_solver(self, method: str, options: PlanOptions):
+        from .ocp import VariationalSolver
+        key = VariationalSolver.key(method, options)
+        with self._lock:
+            solver = self._variational.get(key)
+            if solver is None:
+                solver = self._variational[key] = VariationalSolver(method, options)
+        return solver
