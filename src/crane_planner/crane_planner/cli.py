@@ -1,0 +1,303 @@
+"""``crane-plan``: plan, compare and sweep anti-sway cart references offline (no ROS).
+
+Exit status 0 on success, 2 on bad input or an impossible plan (one line on
+stderr naming the problem), never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+import time
+
+import numpy as np
+
+from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
+
+from .evaluate import DEFAULT_SETTLE, plan_report, residual_load_mm, simulate_plan, vary_parameter
+from .plan import Plan
+from .planning import METHODS, ROBUST_PARAMETERS, Planner, PlanOptions
+
+PROG = 'crane-plan'
+
+
+class UsageError(Exception):
+    """Bad command line; reported as one line on stderr with exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse would print usage too: the contract wants one line
+        raise UsageError(message)
+
+
+def _finite(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number') from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f'must be finite, got {text}')
+    return v
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not an integer') from None
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f'must be > 0, got {v}')
+    return v
+
+
+def _method_list(text: str) -> list[str]:
+    methods = [m.strip() for m in text.split(',') if m.strip()]
+    bad = [m for m in methods if m not in METHODS]
+    if bad or not methods:
+        raise argparse.ArgumentTypeError(
+            f'unknown method(s) {", ".join(bad) or repr(text)}; choose from {", ".join(METHODS)}')
+    return methods
+
+
+def _robust_list(text: str) -> tuple[str, ...]:
+    names = tuple(n.strip() for n in text.split(',') if n.strip())
+    bad = [n for n in names if n not in ROBUST_PARAMETERS]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(
+            f'unknown parameter(s) {", ".join(bad) or repr(text)}; choose from {", ".join(ROBUST_PARAMETERS)}')
+    return names
+
+
+def _add_model_options(p: argparse.ArgumentParser):
+    g = p.add_argument_group('model (the planning model; defaults: paper Table 1, tau 0.01 s)')
+    defaults = CraneParams()
+    for name in PARAMETER_NAMES:
+        g.add_argument(f'--{name}', type=_finite, default=getattr(defaults, name),
+                       metavar='X', help=f'{PARAMETER_DESCRIPTIONS[name]} (default {getattr(defaults, name)})')
+    g.add_argument('--omega', type=_finite, nargs=2, metavar=('W1', 'W2'),
+                   help='shaper design frequencies (rad/s); default: linearized model')
+    g.add_argument('--damping', type=_finite, default=0.0, metavar='Z',
+                   help='shaper design damping ratio (default 0)')
+    g.add_argument('--robust', type=_robust_list, default=('L1',), metavar='P[,P...]',
+                   help=f'parameters RVF is made insensitive to, from {",".join(ROBUST_PARAMETERS)} (default L1)')
+    g.add_argument('--intervals', type=_positive_int, metavar='N',
+                   help='collocation intervals for nvf/rvf (default: solver default)')
+    g.add_argument('--solver', choices=('direct', 'indirect'), default='direct',
+                   help='nvf/rvf solver: direct collocation + IPOPT, or the paper\'s indirect TPBVP')
+    g.add_argument('--max-velocity', type=_finite, metavar='V', help='axis limit |v| (m/s) for nvf/rvf')
+    g.add_argument('--max-acceleration', type=_finite, metavar='A', help='axis limit |a_ref| (m/s^2) for nvf/rvf')
+
+
+def _add_plant_options(p: argparse.ArgumentParser):
+    g = p.add_argument_group('evaluation (the simulated plant; defaults to the model)')
+    for name in ('L1', 'L2', 'm1', 'm2', 'tau'):
+        g.add_argument(f'--plant-{name}', type=_finite, metavar='X', help=f'plant {PARAMETER_DESCRIPTIONS[name]}')
+    g.add_argument('--settle', type=_finite, default=DEFAULT_SETTLE, metavar='S',
+                   help=f'seconds observed after the motion (default {DEFAULT_SETTLE:g})')
+
+
+def _add_task_options(p: argparse.ArgumentParser):
+    p.add_argument('--displacement', type=_finite, required=True, metavar='D', help='cart displacement (m)')
+    p.add_argument('--duration', type=_finite, required=True, metavar='T', help='motion duration (s), > 0')
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog=PROG, description=__doc__.splitlines()[0].split(': ', 1)[1])
+    sub = parser.add_subparsers(dest='command', required=True, metavar='{plan,compare,sweep}', parser_class=_Parser)
+
+    p = sub.add_parser('plan', help='make one plan and evaluate it on the plant')
+    p.add_argument('--method', choices=METHODS, required=True)
+    _add_task_options(p)
+    _add_model_options(p)
+    _add_plant_options(p)
+    p.add_argument('--json', action='store_true', help='print the contract JSON object')
+    p.add_argument('--csv', metavar='FILE', help='write time, position, velocity, acceleration, jerk, theta1, theta2 (1 ms)')
+    p.add_argument('--plot', metavar='FILE', help='write a PNG of the plan profiles and the swing')
+
+    p = sub.add_parser('compare', help='make and evaluate plans of several methods')
+    _add_task_options(p)
+    p.add_argument('--methods', type=_method_list, default=list(METHODS), metavar='M,M,...',
+                   help=f'methods to compare (default all: {",".join(METHODS)})')
+    _add_model_options(p)
+    _add_plant_options(p)
+    p.add_argument('--json', action='store_true', help='print a JSON list of plan objects')
+    p.add_argument('--plot', metavar='FILE', help='write a PNG: velocity, acceleration and load swing per method')
+
+    p = sub.add_parser('sweep', help='residual load swing while one plant parameter varies')
+    p.add_argument('--param', choices=('L1', 'L2', 'm1', 'm2', 'tau'), default='L1')
+    p.add_argument('--span', type=_finite, default=0.3, metavar='R', help='relative span, values x (1 +- R) (default 0.3)')
+    p.add_argument('--points', type=int, default=61, metavar='N', help='number of values (>= 2, default 61)')
+    _add_task_options(p)
+    p.add_argument('--methods', type=_method_list, default=list(METHODS), metavar='M,M,...')
+    _add_model_options(p)
+    _add_plant_options(p)
+    p.add_argument('--json', action='store_true', help='print the sweep JSON object')
+    p.add_argument('--csv', metavar='FILE', help='write value and one residual column (mm) per method')
+    p.add_argument('--plot', metavar='FILE', help='write a PNG of residual load swing vs the parameter')
+    return parser
+
+
+def _model_and_options(args) -> tuple[CraneParams, PlanOptions]:
+    model = CraneParams(**{n: getattr(args, n) for n in PARAMETER_NAMES})
+    options = PlanOptions(omega=tuple(args.omega) if args.omega else None, damping=args.damping,
+                          robust=args.robust, intervals=args.intervals, solver=args.solver,
+                          max_velocity=args.max_velocity, max_acceleration=args.max_acceleration)
+    return model, options
+
+
+def _plant(args, model: CraneParams) -> CraneParams:
+    changes = {n: getattr(args, f'plant_{n}') for n in ('L1', 'L2', 'm1', 'm2', 'tau')
+               if getattr(args, f'plant_{n}') is not None}
+    return model.replace(**changes)
+
+
+def _timed_plan(planner: Planner, method, args, model, options) -> tuple[Plan, float]:
+    t0 = time.perf_counter()
+    plan = planner.plan(method, args.displacement, args.duration, model, options)
+    return plan, time.perf_counter() - t0
+
+
+def _print_table(reports: list[dict]):
+    head = (f'{"method":<7}{"plan s":>8}{"peak v":>9}{"peak a":>9}{"rms a":>9}{"peak j":>9}'
+            f'{"peak th1":>10}{"peak th2":>10}{"resid mm":>10}')
+    print(head)
+    print('-' * len(head))
+    for r in reports:
+        pk, rm = r['peak'], r['rms']
+        print(f'{r["method"]:<7}{r["plan_time_s"]:>8.3f}{pk["velocity"]:>9.4f}{pk["acceleration"]:>9.4f}'
+              f'{rm["acceleration"]:>9.4f}{pk["jerk"]:>9.3f}{pk["theta1"]:>10.5f}{pk["theta2"]:>10.5f}'
+              f'{r["residual"]["load_mm"]:>10.4f}')
+    print('units: m/s, m/s^2, m/s^3, rad, mm (peaks and RMS over the motion, residual after it)')
+
+
+def _check_settle(args):
+    if args.settle < 0:
+        raise UsageError(f'argument --settle: must be >= 0, got {args.settle}')
+
+
+def cmd_plan(args) -> int:
+    _check_settle(args)
+    model, options = _model_and_options(args)
+    plant = _plant(args, model)
+    plan, plan_time = _timed_plan(Planner(), args.method, args, model, options)
+    ev = simulate_plan(plan, plant, args.settle)
+    report = plan_report(ev, plan_time)
+    if args.json:
+        print(json.dumps(report))
+    else:
+        _print_table([report])
+    if args.csv:
+        _write_plan_csv(args.csv, ev)
+        _say(args, f'wrote {args.csv}')
+    if args.plot:
+        from .figures import plot_plan
+        plot_plan(ev, args.plot)
+        _say(args, f'wrote {args.plot}')
+    return 0
+
+
+def _say(args, text: str):
+    # With --json stdout carries only JSON; notes go to stderr.
+    print(text, file=sys.stderr if getattr(args, 'json', False) else sys.stdout)
+
+
+def _write_plan_csv(path: str, ev):
+    plan_s = ev.plan.evaluate(ev.sim.t)
+    with open(path, 'w', newline='') as f:
+        w = csv.writer(f)
+        w.writerow(['time', 'position', 'velocity', 'acceleration', 'jerk', 'theta1', 'theta2'])
+        cols = np.column_stack([ev.sim.t, plan_s.position, plan_s.velocity, plan_s.acceleration,
+                                plan_s.jerk, ev.sim.theta1[0], ev.sim.theta2[0]])
+        w.writerows(cols.tolist())
+
+
+def cmd_compare(args) -> int:
+    _check_settle(args)
+    model, options = _model_and_options(args)
+    plant = _plant(args, model)
+    planner = Planner()
+    reports, evaluations = [], []
+    for method in args.methods:
+        plan, plan_time = _timed_plan(planner, method, args, model, options)
+        ev = simulate_plan(plan, plant, args.settle)
+        evaluations.append(ev)
+        reports.append(plan_report(ev, plan_time))
+    if args.json:
+        print(json.dumps(reports))
+    else:
+        print(f'{args.displacement:g} m in {args.duration:g} s; model {_describe(model)}; plant {_describe(plant)}')
+        _print_table(reports)
+    if args.plot:
+        from .figures import plot_compare
+        plot_compare(evaluations, args.plot)
+        _say(args, f'wrote {args.plot}')
+    return 0
+
+
+def _describe(p: CraneParams) -> str:
+    return ' '.join(f'{n}={getattr(p, n):g}' for n in PARAMETER_NAMES)
+
+
+def cmd_sweep(args) -> int:
+    if args.points < 2:
+        raise UsageError(f'argument --points: a sweep needs at least 2 points, got {args.points}')
+    if not 0.0 < args.span < 1.0:
+        raise UsageError(f'argument --span: must be in (0, 1), got {args.span}')
+    _check_settle(args)
+    model, options = _model_and_options(args)
+    base_plant = _plant(args, model)
+    values, plants = vary_parameter(base_plant, args.param, args.span, args.points)
+    planner = Planner()
+    result = {'param': args.param, 'values': values.tolist(), 'methods': {}}
+    for method in args.methods:
+        plan = planner.plan(method, args.displacement, args.duration, model, options)
+        ev = simulate_plan(plan, plants, args.settle)
+        result['methods'][method] = {'load_mm': residual_load_mm(ev).tolist()}
+    if args.json:
+        print(json.dumps(result))
+    else:
+        _print_sweep(result)
+    if args.csv:
+        with open(args.csv, 'w', newline='') as f:
+            w = csv.writer(f)
+            w.writerow([args.param] + [f'{m}_load_mm' for m in result['methods']])
+            w.writerows(np.column_stack([values] + [v['load_mm'] for v in result['methods'].values()]).tolist())
+        _say(args, f'wrote {args.csv}')
+    if args.plot:
+        from .figures import plot_sweep
+        plot_sweep(result, args.plot, nominal=getattr(model, args.param))
+        _say(args, f'wrote {args.plot}')
+    return 0
+
+
+def _print_sweep(result: dict):
+    methods = list(result['methods'])
+    print(f'residual load swing (mm) vs plant {result["param"]}')
+    print(f'{result["param"]:>10}' + ''.join(f'{m:>9}' for m in methods))
+    for i, v in enumerate(result['values']):
+        print(f'{v:>10.4f}' + ''.join(f'{result["methods"][m]["load_mm"][i]:>9.3f}' for m in methods))
+
+
+COMMANDS = {'plan': cmd_plan, 'compare': cmd_compare, 'sweep': cmd_sweep}
+
+
+def main(argv=None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        return COMMANDS[args.command](args)
+    except (UsageError, ValueError) as e:
+        # ValueError covers ParameterError and PlanError: bad values, impossible plans.
+        print(f'{PROG}: error: {e}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted', file=sys.stderr)
+        return 130
+    except OSError as e:
+        print(f'{PROG}: error: {e}', file=sys.stderr)
+        return 2
+
+
+if __name__ == '__main__':
+    sys.exit(main())

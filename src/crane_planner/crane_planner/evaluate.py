@@ -1,0 +1,68 @@
+"""Judge a plan on a plant: drive the independent simulator and report the contract's figures.
+
+The plan's own peaks (velocity, acceleration, jerk) are of the reference; the
+swing figures come from ``crane_sim`` integrating Eqs. 18-19 plus the servo,
+driven by the plan's acceleration as an axis controller would see it
+(linear interpolation between 1 ms samples).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from crane_msgs_py.params import CraneParams
+from crane_sim.metrics import peak, rms, swing_metrics
+from crane_sim.simulator import SimResult, simulate
+
+from .plan import Plan, Samples
+
+#: Simulation step and reference sample period used to evaluate plans (s).
+EVAL_STEP = 1e-3
+#: Seconds observed after the motion by default (contract: ``--settle``).
+DEFAULT_SETTLE = 10.0
+
+
+@dataclass
+class Evaluation:
+    """A plan, its 1 ms samples and the simulated response of one or more plants."""
+
+    plan: Plan
+    samples: Samples
+    sim: SimResult
+    metrics: list  # one contract dict per plant
+
+
+def simulate_plan(plan: Plan, plants, settle: float = DEFAULT_SETTLE) -> Evaluation:
+    """Simulate ``plants`` (one CraneParams or a sequence) driven by ``plan`` over [0, T + settle]."""
+    plants = [plants] if isinstance(plants, CraneParams) else list(plants)
+    samples = plan.sample(EVAL_STEP)
+    sim = simulate(samples.t, samples.acceleration, plants, dt=EVAL_STEP,
+                   t_end=plan.duration + settle, interpolation='linear')
+    return Evaluation(plan, samples, sim, swing_metrics(sim, plants, plan.duration, settle))
+
+
+def plan_report(ev: Evaluation, plan_time_s: float, index: int = 0) -> dict:
+    """The contract's JSON object for ``crane-plan plan`` (plant ``index`` of the batch)."""
+    s, m = ev.samples, ev.metrics[index]
+    return {
+        'method': ev.plan.method,
+        'displacement': ev.plan.displacement,
+        'duration': ev.plan.duration,
+        'peak': {'velocity': peak(s.velocity), 'acceleration': peak(s.acceleration),
+                 'jerk': peak(s.jerk), **m['peak']},
+        'rms': {'velocity': rms(s.velocity), 'acceleration': rms(s.acceleration), **m['rms']},
+        'residual': dict(m['residual']),
+        'plan_time_s': plan_time_s,
+    }
+
+
+def vary_parameter(model: CraneParams, param: str, span: float, points: int):
+    """Plants with ``param`` at model value x (1 + linspace(-span, span, points))."""
+    values = getattr(model, param) * (1.0 + np.linspace(-span, span, points))
+    return values, [model.replace(**{param: float(v)}) for v in values]
+
+
+def residual_load_mm(ev: Evaluation) -> np.ndarray:
+    """Residual load excursion (mm) of every plant in the batch."""
+    return np.array([m['residual']['load_mm'] for m in ev.metrics])

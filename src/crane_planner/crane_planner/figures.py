@@ -1,0 +1,78 @@
+"""PNG figures of plans, comparisons and sweeps (matplotlib, headless Agg backend)."""
+from __future__ import annotations
+
+import os
+
+import matplotlib
+
+matplotlib.use('Agg')  # no display on servers and CI
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def _save(fig, path: str):
+    folder = os.path.dirname(os.path.abspath(path))
+    os.makedirs(folder, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_plan(ev, path: str):
+    """Reference position, velocity, acceleration, jerk and the simulated swing of one plan."""
+    s, sim, plan = ev.samples, ev.sim, ev.plan
+    fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    for ax, (y, label) in zip(axes.flat[:4], [(s.position, 'position (m)'), (s.velocity, 'velocity (m/s)'),
+                                              (s.acceleration, 'acceleration (m/s²)'), (s.jerk, 'jerk (m/s³)')]):
+        ax.plot(s.t, y)
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+    axes[2, 0].plot(sim.t, sim.theta1[0], label='θ1')
+    axes[2, 0].plot(sim.t, sim.theta2[0], label='θ2 (relative)')
+    axes[2, 0].set_ylabel('swing (rad)')
+    axes[2, 0].legend()
+    axes[2, 1].plot(sim.t, 1e3 * sim.load_excursion[0])
+    axes[2, 1].set_ylabel('load excursion (mm)')
+    for ax in axes.flat:
+        ax.axvline(plan.duration, color='k', lw=0.6, ls=':')
+        ax.grid(True, alpha=0.3)
+    axes[2, 0].set_xlabel('time (s)')
+    axes[2, 1].set_xlabel('time (s)')
+    fig.suptitle(f'{plan.method.upper()}: {plan.displacement:g} m in {plan.duration:g} s')
+    _save(fig, path)
+
+
+def plot_compare(evaluations, path: str):
+    """Velocity and acceleration per method (paper Figs. 2-3) and the load swing each leaves."""
+    fig, axes = plt.subplots(3, 1, figsize=(9, 10), sharex=True)
+    for ev in evaluations:
+        label = ev.plan.method.upper()
+        axes[0].plot(ev.samples.t, ev.samples.velocity, label=label)
+        axes[1].plot(ev.samples.t, ev.samples.acceleration, label=label)
+        axes[2].plot(ev.sim.t, 1e3 * ev.sim.load_excursion[0], label=label)
+    axes[0].set_ylabel('reference velocity (m/s)')
+    axes[1].set_ylabel('reference acceleration (m/s²)')
+    axes[2].set_ylabel('load excursion (mm)')
+    axes[2].set_xlabel('time (s)')
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(ncol=4, fontsize=8)
+    if evaluations:
+        p = evaluations[0].plan
+        axes[0].set_title(f'{p.displacement:g} m in {p.duration:g} s')
+    _save(fig, path)
+
+
+def plot_sweep(result: dict, path: str, nominal: float | None = None):
+    """Residual load swing vs the varied plant parameter, one curve per method (paper Fig. 4)."""
+    fig, ax = plt.subplots(figsize=(9, 5.5))
+    values = np.asarray(result['values'])
+    for method, r in result['methods'].items():
+        ax.plot(values, r['load_mm'], marker='.', label=method.upper())
+    if nominal is not None:
+        ax.axvline(nominal, color='k', lw=0.6, ls=':')
+    ax.set_xlabel(f'plant {result["param"]}')
+    ax.set_ylabel('residual load swing (mm)')
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    _save(fig, path)

@@ -1,0 +1,84 @@
+"""crane-plan, run as the installed console script: errors, JSON shape, files written."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+CRANE_PLAN = str(Path(sys.executable).parent / 'crane-plan')
+
+
+def run(*args, timeout=120):
+    return subprocess.run([CRANE_PLAN, *args], capture_output=True, text=True, timeout=timeout)
+
+
+TASK = ['--displacement', '0.3', '--duration', '3']
+
+
+@pytest.mark.parametrize('args, needle', [
+    (['plan', '--method', 'zv', '--displacement', '0.3', '--duration', '0'], 'duration must be > 0'),
+    (['plan', '--method', 'zv', '--displacement', '0.3', '--duration', '-1'], 'duration must be > 0'),
+    (['plan', '--method', 'zv', '--displacement', 'nan', '--duration', '3'], '--displacement'),
+    (['plan', '--method', 'zv', '--displacement', '0.3', '--duration', 'inf'], '--duration'),
+    (['plan', '--method', 'zv', *TASK, '--L1', 'nan'], '--L1'),
+    (['plan', '--method', 'zv', *TASK, '--omega', '3.6', 'inf'], '--omega'),
+    (['plan', '--method', 'zv', *TASK, '--L1', '0'], 'L1 must be > 0'),
+    (['plan', '--method', 'zv', *TASK, '--L2', '-0.3'], 'L2 must be > 0'),
+    (['plan', '--method', 'zv', *TASK, '--m1', '0'], 'm1 must be > 0'),
+    (['plan', '--method', 'zv', *TASK, '--m2', '-1'], 'm2 must be > 0'),
+    (['plan', '--method', 'zv', *TASK, '--tau', '-0.01'], 'tau must be >= 0'),
+    (['plan', '--method', 'zv', *TASK, '--plant-L1', '-0.4'], 'L1 must be > 0'),
+    (['plan', '--method', 'warp', *TASK], 'warp'),
+    (['compare', *TASK, '--methods', 'zv,warp'], 'warp'),
+    (['sweep', *TASK, '--methods', 'zv', '--points', '1'], 'at least 2 points'),
+    (['plan', '--method', 'zvd', '--displacement', '0.3', '--duration', '2'], 'zvd'),
+    (['plan', '--method', 'zv', *TASK, '--settle', '-1'], '--settle'),
+])
+def test_bad_input_is_one_line_exit_2(args, needle):
+    r = run(*args)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    assert 'Traceback' not in r.stderr
+    assert needle in lines[0]
+    assert lines[0].startswith('crane-plan: error:')
+
+
+def test_help_exits_0():
+    r = run('plan', '--help')
+    assert r.returncode == 0
+    assert '--plant-L1' in r.stdout and '--omega' in r.stdout
+
+
+def test_plan_json_csv_plot(tmp_path):
+    csv_path, png_path = tmp_path / 'zv.csv', tmp_path / 'zv.png'
+    r = run('plan', '--method', 'zv', *TASK, '--tau', '0', '--json', '--csv', str(csv_path),
+            '--plot', str(png_path))
+    assert r.returncode == 0, r.stderr
+    report = json.loads(r.stdout)
+    assert report['method'] == 'zv' and report['displacement'] == 0.3 and report['duration'] == 3.0
+    assert set(report['peak']) == {'velocity', 'acceleration', 'jerk', 'theta1', 'theta2'}
+    assert set(report['rms']) == {'velocity', 'acceleration', 'theta1', 'theta2'}
+    assert set(report['residual']) == {'theta1', 'theta2', 'load_mm'}
+    # A rest-to-rest motion of D in T needs a mean speed D/T, so the peak is above it.
+    assert report['peak']['velocity'] > 0.3 / 3
+    assert report['residual']['load_mm'] < 0.5
+    header = csv_path.read_text().splitlines()[0]
+    assert header == 'time,position,velocity,acceleration,jerk,theta1,theta2'
+    assert png_path.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_compare_and_sweep_json(tmp_path):
+    r = run('compare', *TASK, '--methods', 'zv,nzv', '--json')
+    assert r.returncode == 0, r.stderr
+    assert [o['method'] for o in json.loads(r.stdout)] == ['zv', 'nzv']
+    r = run('sweep', '--param', 'L1', '--span', '0.3', '--points', '5', *TASK, '--methods', 'zv,zvd',
+            '--json', '--plot', str(tmp_path / 's.png'))
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out['param'] == 'L1' and len(out['values']) == 5
+    assert out['values'][2] == pytest.approx(0.47)
+    zv, zvd = out['methods']['zv']['load_mm'], out['methods']['zvd']['load_mm']
+    # ZVD is the robust shaper: at +-30 % of L1 it must leave less swing than ZV.
+    assert zvd[0] < zv[0] and zvd[-1] < zv[-1]
