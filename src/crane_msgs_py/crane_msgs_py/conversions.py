@@ -1,0 +1,242 @@
+"""Plans and states <-> standard ROS messages, the contract's conventions as code.
+
+- A plan's samples (any object with arrays ``t``, ``position``, ``velocity``,
+  ``acceleration``, like ``crane_planner.plan.Samples``; plans are relative,
+  from 0 at t = 0) become a ``nav_msgs/Path`` (one ``PoseStamped`` per knot,
+  stamp = start + t_k, ``position.x`` = start position + reference position,
+  identity orientation) or a ``trajectory_msgs/JointTrajectory`` (joint
+  ``cart``, positions/velocities/accelerations, ``time_from_start`` = t_k,
+  header stamp = start stamp).
+- The streamer's one-sample ``reference`` (a one-point JointTrajectory or a
+  ``Float64MultiArray`` [position]) is filled in place and read back here.
+- ``sensor_msgs/JointState`` <-> arrays in a given joint order.
+
+Times are integer nanoseconds (as ``rclpy.time.Time.nanoseconds``) so that
+stamps never lose precision. rclpy converts every pose and point to a Python
+object, so builders pre-size their lists, do the arithmetic on whole numpy
+arrays and touch each element once; sequence fields take array.array/numpy
+directly.
+"""
+from __future__ import annotations
+
+import array
+import math
+
+import numpy as np
+from builtin_interfaces.msg import Duration, Time
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from .names import (CART_JOINT, DEFAULT_FRAME_ID, OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, OUTPUTS,
+                    SIM_JOINTS)
+
+NS = 1_000_000_000
+
+
+def stamp_ns(stamp) -> int:
+    """``builtin_interfaces/Time`` or ``Duration`` as integer nanoseconds."""
+    return stamp.sec * NS + stamp.nanosec
+
+
+def set_stamp(stamp, ns: int):
+    """Write ``ns`` into an existing Time/Duration message (sec, nanosec >= 0); return it."""
+    sec, nanosec = divmod(int(ns), NS)
+    stamp.sec = sec
+    stamp.nanosec = nanosec
+    return stamp
+
+
+def time_msg(ns: int) -> Time:
+    return set_stamp(Time(), ns)
+
+
+def duration_msg(ns: int) -> Duration:
+    return set_stamp(Duration(), ns)
+
+
+def _offsets_ns(t) -> np.ndarray:
+    """Sample times (s) as integer nanosecond offsets, rounded."""
+    return np.rint(np.asarray(t, dtype=float) * NS).astype(np.int64)
+
+
+def samples_to_path(samples, start_position: float = 0.0, start_ns: int = 0,
+                    frame_id: str = DEFAULT_FRAME_ID) -> Path:
+    """Path of a relative plan started at ``start_position`` (m) at ``start_ns``."""
+    stamps = start_ns + _offsets_ns(samples.t)
+    secs, nsecs = np.divmod(stamps, NS)
+    secs, nsecs = secs.tolist(), nsecs.tolist()
+    xs = (start_position + np.asarray(samples.position, dtype=float)).tolist()
+    poses = [None] * len(xs)
+    for k, x in enumerate(xs):
+        pose = PoseStamped()
+        header = pose.header
+        header.frame_id = frame_id
+        header.stamp.sec = secs[k]
+        header.stamp.nanosec = nsecs[k]
+        pose.pose.position.x = x  # orientation defaults to identity (w = 1)
+        poses[k] = pose
+    path = Path()
+    path.header.frame_id = frame_id
+    set_stamp(path.header.stamp, start_ns)
+    path.poses = poses
+    return path
+
+
+def path_to_arrays(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(t, x): knot times (s) relative to the path's header stamp, positions (m)."""
+    n = len(path.poses)
+    stamps = np.empty(n, dtype=np.int64)
+    x = np.empty(n)
+    for k, pose in enumerate(path.poses):
+        stamps[k] = stamp_ns(pose.header.stamp)
+        x[k] = pose.pose.position.x
+    return (stamps - stamp_ns(path.header.stamp)) * 1e-9, x
+
+
+def samples_to_joint_trajectory(samples, start_position: float = 0.0, start_ns: int = 0,
+                                frame_id: str = DEFAULT_FRAME_ID,
+                                joint: str = CART_JOINT) -> JointTrajectory:
+    """One-joint trajectory of a relative plan started at ``start_position`` at ``start_ns``."""
+    offsets = _offsets_ns(samples.t)
+    secs, nsecs = np.divmod(offsets, NS)
+    secs, nsecs = secs.tolist(), nsecs.tolist()
+    p = (start_position + np.asarray(samples.position, dtype=float)).tolist()
+    v = np.asarray(samples.velocity, dtype=float).tolist()
+    a = np.asarray(samples.acceleration, dtype=float).tolist()
+    points = [None] * len(p)
+    for k in range(len(p)):
+        point = JointTrajectoryPoint()
+        point.positions = array.array('d', (p[k],))
+        point.velocities = array.array('d', (v[k],))
+        point.accelerations = array.array('d', (a[k],))
+        point.time_from_start.sec = secs[k]
+        point.time_from_start.nanosec = nsecs[k]
+        points[k] = point
+    msg = JointTrajectory()
+    msg.header.frame_id = frame_id
+    set_stamp(msg.header.stamp, start_ns)
+    msg.joint_names = [joint]
+    msg.points = points
+    return msg
+
+
+def joint_trajectory_to_arrays(msg: JointTrajectory, joint: str = CART_JOINT):
+    """(t, position, velocity, acceleration) of ``joint``; t = time_from_start (s).
+
+    Raises ValueError naming what is missing: the joint, or velocities and
+    accelerations (needed for quintic Hermite interpolation).
+    """
+    try:
+        j = list(msg.joint_names).index(joint)
+    except ValueError:
+        raise ValueError(f'trajectory has no joint {joint!r} (joints: {list(msg.joint_names)})') from None
+    n = len(msg.points)
+    t = np.empty(n)
+    p, v, a = np.empty(n), np.empty(n), np.empty(n)
+    width = len(msg.joint_names)
+    for k, point in enumerate(msg.points):
+        if len(point.positions) != width:
+            raise ValueError(f'point {k} has {len(point.positions)} positions for {width} joints')
+        if len(point.velocities) != width or len(point.accelerations) != width:
+            raise ValueError(f'point {k} lacks velocities or accelerations')
+        t[k] = stamp_ns(point.time_from_start) * 1e-9
+        p[k] = point.positions[j]
+        v[k] = point.velocities[j]
+        a[k] = point.accelerations[j]
+    return t, p, v, a
+
+
+def reference_message(output: str = OUTPUT_JOINT_TRAJECTORY, frame_id: str = DEFAULT_FRAME_ID,
+                      joint: str = CART_JOINT):
+    """A reusable one-sample reference message of the streamer's ``output`` type."""
+    if output == OUTPUT_JOINT_TRAJECTORY:
+        msg = JointTrajectory()
+        msg.header.frame_id = frame_id
+        msg.joint_names = [joint]
+        point = JointTrajectoryPoint()
+        point.positions = array.array('d', (0.0,))
+        point.velocities = array.array('d', (0.0,))
+        point.accelerations = array.array('d', (0.0,))
+        msg.points = [point]
+        return msg
+    if output == OUTPUT_FLOAT64_ARRAY:
+        msg = Float64MultiArray()
+        msg.data = array.array('d', (0.0,))
+        return msg
+    raise ValueError(f'output must be one of {", ".join(OUTPUTS)}, got {output!r}')
+
+
+def fill_reference(msg, stamp: int, position: float, velocity: float, acceleration: float):
+    """Write one sample into a message from ``reference_message`` in place (no allocation).
+
+    A Float64MultiArray carries the position only (a forward command controller's input).
+    """
+    if type(msg) is JointTrajectory:
+        s = msg.header.stamp
+        s.sec, s.nanosec = divmod(stamp, NS)
+        point = msg.points[0]
+        point.positions[0] = position
+        point.velocities[0] = velocity
+        point.accelerations[0] = acceleration
+    else:
+        msg.data[0] = position
+
+
+def read_reference(msg) -> tuple[int | None, float, float, float]:
+    """(stamp ns or None, position, velocity, acceleration) of a reference message.
+
+    A Float64MultiArray has no stamp, velocity or acceleration: None, NaN, NaN.
+    A message that is not one sample of one joint raises ValueError.
+    """
+    if type(msg) is JointTrajectory:
+        if len(msg.points) != 1 or len(msg.joint_names) != 1:
+            raise ValueError(f'reference must be one point of one joint, got {len(msg.points)} '
+                             f'point(s) of {len(msg.joint_names)} joint(s)')
+        point = msg.points[0]
+        if len(point.positions) != 1:
+            raise ValueError('reference point has no position')
+        v = point.velocities[0] if len(point.velocities) == 1 else math.nan
+        a = point.accelerations[0] if len(point.accelerations) == 1 else math.nan
+        return stamp_ns(msg.header.stamp), point.positions[0], v, a
+    if len(msg.data) != 1:
+        raise ValueError(f'reference array must hold one position, got {len(msg.data)} values')
+    return None, msg.data[0], math.nan, math.nan
+
+
+def joint_state_message(names=None) -> JointState:
+    """A reusable JointState with position and velocity pre-sized for ``names``."""
+    names = list(names or SIM_JOINTS)
+    msg = JointState()
+    msg.name = names
+    msg.position = array.array('d', bytes(8 * len(names)))
+    msg.velocity = array.array('d', bytes(8 * len(names)))
+    return msg
+
+
+def fill_joint_state(msg: JointState, stamp: int, position, velocity):
+    """Write stamp, positions and velocities (sequences in ``msg.name`` order) in place."""
+    s = msg.header.stamp
+    s.sec, s.nanosec = divmod(stamp, NS)
+    pos, vel = msg.position, msg.velocity
+    for k in range(len(pos)):
+        pos[k] = position[k]
+        vel[k] = velocity[k]
+
+
+def joint_state_to_arrays(msg: JointState, names) -> tuple[np.ndarray, np.ndarray]:
+    """(position, velocity) ordered as ``names``; ValueError names a missing joint.
+
+    A state without velocities gives NaN velocities.
+    """
+    index = {name: k for k, name in enumerate(msg.name)}
+    missing = [n for n in names if n not in index]
+    if missing:
+        raise ValueError(f'joint state lacks joint(s) {", ".join(missing)}')
+    order = [index[n] for n in names]
+    pos = np.asarray(msg.position, dtype=float)[order]
+    vel = (np.asarray(msg.velocity, dtype=float)[order] if len(msg.velocity) == len(msg.name)
+           else np.full(len(order), math.nan))
+    return pos, vel
