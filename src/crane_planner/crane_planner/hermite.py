@@ -1,0 +1,72 @@
+"""Quintic Hermite interpolation of trajectory knots (position, velocity, acceleration).
+
+Between two knots the unique quintic matching position, velocity and
+acceleration at both ends; exact wherever the sampled motion is a polynomial
+of degree <= 5 on the segment (a quintic base profile, any shaped copy of it
+between impulse times), and C2 across knots. Like ros2_controllers'
+joint_trajectory_controller the sampler is kept apart from the node, but it
+is vectorized: the streamer samples a whole motion at its tick times at once.
+Pure numpy, no ROS import.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+class QuinticHermite:
+    """Interpolant through knots ``t`` (s, strictly increasing) with p, v, a at each.
+
+    Before the first knot and after the last the end knot's state is held.
+    Raises ValueError if the knots are not finite, not increasing or of
+    different lengths.
+    """
+
+    def __init__(self, t, position, velocity, acceleration):
+        t, p, v, a = (np.array(x, dtype=float).ravel() for x in (t, position, velocity, acceleration))
+        if not t.size or not (t.size == p.size == v.size == a.size):
+            raise ValueError('knots need as many positions, velocities and accelerations as times, at least one')
+        if not all(np.isfinite(x).all() for x in (t, p, v, a)):
+            raise ValueError('knot times and states must be finite')
+        if np.any(np.diff(t) <= 0.0):
+            raise ValueError('knot times must increase strictly')
+        self.t, self.position, self.velocity, self.acceleration = t, p, v, a
+        # Per segment, p(s) = sum c_i s^i with s = (t - t_k) / h in [0, 1]
+        # matching p, h p', h^2 p'' at both ends (the quintic Hermite basis).
+        h = np.diff(t)
+        dp = np.diff(p)
+        v0, v1 = h * v[:-1], h * v[1:]
+        a0, a1 = h * h * a[:-1], h * h * a[1:]
+        self._h = h
+        self._c = np.stack([
+            p[:-1],
+            v0,
+            0.5 * a0,
+            10.0 * dp - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1,
+            -15.0 * dp + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1,
+            6.0 * dp - 3.0 * (v0 + v1) - 0.5 * (a0 - a1),
+        ])
+
+    @property
+    def duration(self) -> float:
+        """Time from the first knot to the last (s)."""
+        return float(self.t[-1] - self.t[0])
+
+    def __call__(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration at times ``t`` (array-like)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.t.size == 1:
+            return (np.full(t.shape, self.position[0]), np.full(t.shape, self.velocity[0]),
+                    np.full(t.shape, self.acceleration[0]))
+        tc = np.clip(t, self.t[0], self.t[-1])
+        k = np.clip(np.searchsorted(self.t, tc, side='right') - 1, 0, self._h.size - 1)
+        h = self._h[k]
+        s = (tc - self.t[k]) / h
+        c0, c1, c2, c3, c4, c5 = self._c[:, k]
+        p = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
+        v = (c1 + s * (2.0 * c2 + s * (3.0 * c3 + s * (4.0 * c4 + s * 5.0 * c5)))) / h
+        a = (2.0 * c2 + s * (6.0 * c3 + s * (12.0 * c4 + s * 20.0 * c5))) / (h * h)
+        # knots are met exactly at s = 0; the last one (s = 1) would carry rounding
+        end = tc >= self.t[-1]
+        if end.any():
+            p[end], v[end], a[end] = self.position[-1], self.velocity[-1], self.acceleration[-1]
+        return p, v, a
