@@ -49,6 +49,21 @@ def test_paper_base_durations():
     assert shaped_plan('nzv', 0.3, 3.0, PAPER_OMEGAS, 0.0).info['base_duration'] == pytest.approx(2.192, abs=1e-3)
 
 
+@pytest.mark.parametrize('zeta', [0.0, 0.1])
+@pytest.mark.parametrize('method', METHODS)
+def test_plan_is_the_sum_of_shifted_quintics(method, zeta):
+    # the definition, summed term by term (the plan re-expands it piece by piece)
+    plan = plan_for(method, D=0.45, zeta=zeta)
+    t = np.linspace(-0.5, plan.duration + 0.5, 2001)
+    kinks = np.concatenate((plan.shaper.times, plan.shaper.times + plan.base_duration))
+    t = t[np.min(np.abs(t[:, None] - kinks), axis=1) > 1e-9]  # jerk jumps there
+    terms = [quintic(t - ti, 0.45, plan.base_duration) for ti in plan.shaper.times]
+    got = plan.evaluate(t)
+    for n, name in enumerate(('position', 'velocity', 'acceleration', 'jerk')):
+        ref = sum(A * q[n] for A, q in zip(plan.shaper.amplitudes, terms))
+        np.testing.assert_allclose(getattr(got, name), ref, rtol=0, atol=1e-13 * np.max(np.abs(ref)), err_msg=name)
+
+
 @pytest.mark.parametrize('method', METHODS)
 def test_info_describes_the_impulses(method):
     plan = plan_for(method)

@@ -8,21 +8,24 @@ from __future__ import annotations
 
 import numpy as np
 
+from numpy.polynomial import polynomial as poly
+
+#: P(s) = 10 s^3 - 15 s^4 + 6 s^5: from P = P' = P'' = 0 at s = 0 to P = 1, P' = P'' = 0 at s = 1.
+#: Ascending coefficients of P and of its derivatives, indexed by order.
+QUINTIC = tuple(poly.polyder([0.0, 0.0, 0.0, 10.0, -15.0, 6.0], k) for k in range(6))
+
 
 def quintic(t, displacement: float, duration: float):
-    """Rest-to-rest quintic D (10 s^3 - 15 s^4 + 6 s^5), s = t / T (paper §4).
+    """Rest-to-rest quintic D P(t / T) (paper §4): position, velocity, acceleration, jerk.
 
-    Exact position, velocity, acceleration and jerk at times ``t`` (any
-    shape). Outside [0, T] the profile is at rest at 0 (before) or D (after).
-    Jerk jumps at both ends; it is taken right-continuous, i.e. nonzero on
-    [0, T) only, so the instant the motion ends is already at rest.
+    Exact at times ``t`` (any shape). Outside [0, T] the profile is at rest
+    at 0 (before) or D (after). Jerk jumps at both ends; it is taken
+    right-continuous, i.e. nonzero on [0, T) only, so the instant the motion
+    ends is already at rest.
     """
     t = np.asarray(t, dtype=float)
     D, T = float(displacement), float(duration)
+    # at the clipped ends P', P'' vanish exactly (integer coefficients), so v, a are at rest too
     s = np.clip(t / T, 0.0, 1.0)
-    r = 1.0 - s
-    p = D * s**3 * (10.0 + s * (6.0 * s - 15.0))
-    v = (30.0 * D / T) * (s * r) ** 2
-    a = (60.0 * D / T**2) * s * r * (r - s)
-    j = np.where((t >= 0.0) & (t < T), (60.0 * D / T**3) * (1.0 - 6.0 * s * r), 0.0)
-    return p, v, a, j
+    p, v, a, j = (D / T**k * poly.polyval(s, QUINTIC[k]) for k in range(4))
+    return p, v, a, np.where((t >= 0.0) & (t < T), j, 0.0)

@@ -7,13 +7,17 @@ T - t_N so that the whole motion ends exactly at the requested T (the paper's
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.polynomial.polynomial import polyder, polyval
 
 from .plan import Plan, PlanError
-from .profiles import quintic
+from .profiles import QUINTIC
 from .shapers import Shaper, design
+
+#: Taylor coefficients kept per piece: the sum is a quintic between breaks.
+_ORDER = 5
 
 
 @dataclass(kw_only=True)
@@ -27,11 +31,35 @@ class ShapedPlan(Plan):
 
     shaper: Shaper
     base_duration: float
+    _breaks: np.ndarray = field(init=False, repr=False, compare=False)
+    _coefficients: list = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        # sum_i A_i q(t - t_i) changes form only where a shifted quintic starts or
+        # ends; in between it is one quintic, kept as its Taylor coefficients at
+        # the piece's start so a sample costs one polynomial, not one per impulse.
+        starts, Tb, D = self.shaper.times, self.base_duration, self.displacement
+        ends = starts + Tb
+        ends[-1] = self.duration  # equal up to rounding; exact so T lands in the resting piece
+        breaks = np.unique(np.concatenate((starts, ends)))
+        # which quintics move on a piece, judged inside it (never at a rounded edge)
+        inside = np.append(0.5 * (breaks[:-1] + breaks[1:]), np.inf)[:, None]
+        moving = (starts <= inside) & (inside < ends)
+        s = (breaks[:, None] - starts) / Tb
+        taylor = np.empty((breaks.size, _ORDER + 1))
+        for k in range(_ORDER + 1):
+            dk = np.where(moving, polyval(s, QUINTIC[k]) * (D / Tb**k / math.factorial(k)), 0.0)
+            if k == 0:
+                dk += np.where(inside >= ends, D, 0.0)
+            taylor[:, k] = dk @ self.shaper.amplitudes
+        self._breaks = breaks
+        # position, velocity, acceleration, jerk per piece, in powers of (t - break)
+        self._coefficients = [polyder(taylor, n, axis=1) for n in range(4)]
 
     def _evaluate(self, t):
-        # one shifted quintic per impulse (columns), weighted by the amplitudes
-        shifted = quintic(t[:, None] - self.shaper.times, self.displacement, self.base_duration)
-        return tuple(x @ self.shaper.amplitudes for x in shifted)
+        piece = np.searchsorted(self._breaks, t, side='right') - 1
+        x = t - self._breaks[piece]
+        return tuple(polyval(x, c[piece].T, tensor=False) for c in self._coefficients)
 
 
 def shaped_plan(method: str, displacement: float, duration: float, omegas, zeta: float) -> ShapedPlan:
