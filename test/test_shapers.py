@@ -158,15 +158,14 @@ def test_ei_flanking_zeros_closed_form_undamped():
 
 def test_ei_is_more_insensitive_than_zvd():
     # width of the band where the residual stays below 5 % (Singhose's insensitivity)
-    omega = 1.0
-    w = np.linspace(0.5, 1.5, 20001)
+    w = np.linspace(0.6, 1.4, 401)
 
     def band(s):
-        ok = np.array([oscillator_residual(s, x, 0.0) for x in w[::20]]) <= 0.05 + 1e-12
-        return w[::20][ok].max() - w[::20][ok].min()
+        ok = np.array([oscillator_residual(s, x, 0.0) for x in w]) <= 0.05 + 1e-12
+        return w[ok].max() - w[ok].min()
 
-    assert band(zvd(omega)) == pytest.approx(0.287, abs=0.002)  # 4 asin(sqrt .05) / pi
-    assert band(ei(omega)) > 1.3 * band(zvd(omega))
+    assert band(zvd(1.0)) == pytest.approx(0.287, abs=0.004)  # 4 asin(sqrt .05) / pi
+    assert band(ei(1.0)) > 1.3 * band(zvd(1.0))
 
 
 @pytest.mark.parametrize('zeta', DAMPINGS)

@@ -54,12 +54,15 @@ class Shaper:
         return float(self.times[-1])
 
 
-def _check_mode(omega, zeta) -> tuple[float, float]:
-    omega = check_positive('omega', omega)
+def _check_zeta(zeta) -> float:
     zeta = check_nonnegative('zeta', zeta)
     if zeta >= 1.0:
         raise ParameterError(f'zeta must be < 1, got {zeta}')
-    return omega, zeta
+    return zeta
+
+
+def _check_mode(omega, zeta) -> tuple[float, float]:
+    return check_positive('omega', omega), _check_zeta(zeta)
 
 
 def _phasor(amplitudes, times, omega, zeta, derivative=False):
@@ -85,7 +88,7 @@ def residual_vibration(shaper: Shaper, omega, zeta: float = 0.0):
     1 means as much as an unshaped unit impulse leaves, 0 none. Vectorized
     over ``omega``.
     """
-    zeta = _check_mode(1.0, zeta)[1]
+    zeta = _check_zeta(zeta)
     V = np.abs(_phasor(shaper.amplitudes, shaper.times, omega, zeta))
     return float(V) if V.ndim == 0 else V
 
@@ -244,7 +247,9 @@ def ei(omega, zeta=0.0, V=EI_TOLERANCE) -> Shaper:
     Residual exactly V at the design frequency, flat there (dV/domega = 0)
     and zero at two flanking frequencies (``ei_flanking_frequencies``), which
     widens the band of low residual beyond ZVD's at the same length. For
-    zeta = 0: [(1+V)/4, (1-V)/2, (1+V)/4] at [0, T/2, T].
+    zeta = 0: [(1+V)/4, (1-V)/2, (1+V)/4] at [0, T/2, T]. With damping the
+    conditions are solved numerically; for V = 0.05 such a shaper exists up
+    to zeta of about 0.6, beyond that this is a ParameterError.
     """
     omega, zeta = _check_mode(omega, zeta)
     a1, a2, t2, t3, _, _ = _ei_unit(zeta, _check_tolerance(V))
