@@ -18,9 +18,10 @@ $(DEPS): requirements.txt | $(PY)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt
 	touch $@
 
-# Editable installs: console scripts land in .venv/bin, sources stay in src/.
-$(PKGS): $(DEPS) $(wildcard src/*/setup.py src/*/setup.cfg src/*/package.xml)
-	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation \
+# Editable installs: sources stay in src/; tools/venv-scripts.cfg overrides the
+# ROS-style script dir of setup.cfg so console scripts land in .venv/bin.
+$(PKGS): $(DEPS) tools/venv-scripts.cfg $(wildcard src/*/setup.py src/*/setup.cfg src/*/package.xml)
+	DIST_EXTRA_CONFIG=$(CURDIR)/tools/venv-scripts.cfg $(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation \
 	    -e src/crane_msgs_py -e src/crane_sim -e src/crane_planner
 	touch $@
 
