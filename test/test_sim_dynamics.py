@@ -1,0 +1,98 @@
+"""crane_sim.dynamics against the paper's Eqs. 18-19 and the Lagrangian energy."""
+import numpy as np
+import pytest
+
+from crane_msgs_py.params import CraneParams
+from crane_sim.dynamics import load_excursion, swing_accelerations
+from crane_sim.simulator import simulate
+
+P = CraneParams()
+
+
+def eq18_eq19_residuals(th1, th2, d1, d2, dd1, dd2, a, p):
+    """Eqs. 18-19 exactly as printed in the paper, left minus right side."""
+    mt = p.m1 + p.m2
+    r18 = (mt * (p.L1 * dd1 + p.g * np.sin(th1))
+           + p.m2 * p.L2 * ((dd1 + dd2) * np.cos(th2) - (d1 + d2) ** 2 * np.sin(th2))
+           - a * mt * np.cos(th1))
+    r19 = (p.L2 * (dd1 + dd2) + p.g * np.sin(th1 + th2)
+           + p.L1 * (d1 ** 2 * np.sin(th2) + dd1 * np.cos(th2))
+           - a * np.cos(th1 + th2))
+    return r18, r19
+
+
+def lagrangian_energy(th1, th2, d1, d2, p):
+    """Kinetic plus potential energy of the two masses, cart at rest (Fig. 1 kinematics).
+
+    x_m1 = -L1 sin th1, z_m1 = -L1 cos th1, x_m2 = x_m1 - L2 sin(th1+th2),
+    z_m2 = z_m1 - L2 cos(th1+th2); potential measured from the hanging rest.
+    """
+    phi, dphi = th1 + th2, d1 + d2
+    vx1, vz1 = -p.L1 * np.cos(th1) * d1, p.L1 * np.sin(th1) * d1
+    vx2, vz2 = vx1 - p.L2 * np.cos(phi) * dphi, vz1 + p.L2 * np.sin(phi) * dphi
+    z1 = -p.L1 * np.cos(th1)
+    z2 = z1 - p.L2 * np.cos(phi)
+    kinetic = 0.5 * p.m1 * (vx1**2 + vz1**2) + 0.5 * p.m2 * (vx2**2 + vz2**2)
+    rest = -p.g * (p.m1 * p.L1 + p.m2 * (p.L1 + p.L2))
+    return kinetic + p.g * (p.m1 * z1 + p.m2 * z2) - rest
+
+
+def test_accelerations_satisfy_eqs_18_19():
+    rng = np.random.default_rng(7)
+    th1, th2 = rng.uniform(-1.2, 1.2, (2, 500))
+    d1, d2 = rng.uniform(-3.0, 3.0, (2, 500))
+    a = rng.uniform(-5.0, 5.0, 500)
+    for p in (P, CraneParams(L1=0.2, L2=0.9, m1=1.5, m2=0.05, g=3.7)):
+        dd1, dd2 = swing_accelerations(th1, th2, d1, d2, a, p.L1, p.L2, p.m1, p.m2, p.g)
+        r18, r19 = eq18_eq19_residuals(th1, th2, d1, d2, dd1, dd2, a, p)
+        assert np.abs(r18).max() < 1e-11
+        assert np.abs(r19).max() < 1e-11
+
+
+def test_accelerations_broadcast():
+    L1 = np.array([0.3, 0.47, 0.6])
+    dd1, dd2 = swing_accelerations(0.1, -0.2, 0.3, 0.0, 1.0, L1, P.L2, P.m1, P.m2, P.g)
+    assert dd1.shape == dd2.shape == (3,)
+    for i, L in enumerate(L1):
+        s1, s2 = swing_accelerations(0.1, -0.2, 0.3, 0.0, 1.0, L, P.L2, P.m1, P.m2, P.g)
+        assert dd1[i] == pytest.approx(float(s1), rel=1e-13)
+        assert dd2[i] == pytest.approx(float(s2), rel=1e-13)
+    # a column of plants against a row of states gives the outer product of shapes
+    dd1, _ = swing_accelerations(np.zeros(4), 0.0, 0.0, 0.0, 1.0, L1[:, None], P.L2, P.m1, P.m2, P.g)
+    assert dd1.shape == (3, 4)
+
+
+def test_cart_acceleration_makes_the_load_lag():
+    """From rest, a positive cart acceleration swings the upper cable back (theta1'' = a / L1 > 0).
+
+    The lower mass hangs on a vertical cable, so at first its absolute angle
+    does not accelerate: theta1'' + theta2'' = 0.
+    """
+    dd1, dd2 = swing_accelerations(0.0, 0.0, 0.0, 0.0, 1.0, P.L1, P.L2, P.m1, P.m2, P.g)
+    assert dd1 == pytest.approx(1.0 / P.L1, rel=1e-14)
+    assert dd1 + dd2 == pytest.approx(0.0, abs=1e-14)
+
+
+def test_load_excursion_is_the_kinematic_offset():
+    th1, th2 = 0.2, -0.35
+    x_m2 = -P.L1 * np.sin(th1) - P.L2 * np.sin(th1 + th2)  # cart at 0
+    assert load_excursion(th1, th2, P.L1, P.L2) == pytest.approx(-x_m2, rel=1e-15)
+    assert load_excursion(0.1, 0.0, P.L1, P.L2) > 0.0
+
+
+def test_unforced_energy_is_conserved():
+    """Cart held at rest: the Lagrangian energy stays constant over 20 s at 1 ms.
+
+    Two releases in one batch: theta1 = 0.3 alone, and both angles and rates nonzero.
+    """
+    starts = np.array([[0.0, 0.0, 0.0, 0.3, 0.0, 0.0, 0.0],
+                       [0.0, 0.0, 0.0, 0.3, -0.6, 0.5, -1.0]])
+    r = simulate([0.0, 20.0], [0.0, 0.0], [P, P], dt=1e-3, record_every=10, initial_state=starts)
+    assert r.t[-1] == pytest.approx(20.0)
+    assert np.all(r.y == 0.0) and np.all(r.v == 0.0) and np.all(r.a == 0.0)
+    for i in range(2):
+        e = lagrangian_energy(r.theta1[i], r.theta2[i], r.dtheta1[i], r.dtheta2[i], P)
+        assert np.abs(r.theta1[i]).max() > 0.25          # it really swings
+        assert np.abs(r.theta2[i]).max() > 0.05
+        drift = np.abs(e - e[0]).max() / e[0]
+        assert drift < 1e-6, f'start {i}: relative energy drift {drift:.2e}'
