@@ -16,8 +16,8 @@ import numpy as np
 
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
 
-from .evaluate import DEFAULT_SETTLE, plan_report, residual_load_mm, simulate_plan, vary_parameter
-from .plan import Plan
+from .evaluate import DEFAULT_SETTLE, plan_report, residual_load_mm, simulate_plan, simulate_plans, vary_parameter
+from .plan import Plan, PlanError
 from .planning import METHODS, ROBUST_PARAMETERS, Planner, PlanOptions
 
 PROG = 'crane-plan'
@@ -118,8 +118,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser('compare', help='make and evaluate plans of several methods')
     _add_task_options(p)
-    p.add_argument('--methods', type=_method_list, default=list(METHODS), metavar='M,M,...',
-                   help=f'methods to compare (default all: {",".join(METHODS)})')
+    p.add_argument('--methods', type=_method_list, metavar='M,M,...',
+                   help=f'methods to compare (default: all of {",".join(METHODS)} that fit the duration)')
     _add_model_options(p)
     _add_plant_options(p)
     p.add_argument('--json', action='store_true', help='print a JSON list of plan objects')
@@ -130,7 +130,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--span', type=_finite, default=0.3, metavar='R', help='relative span, values x (1 +- R) (default 0.3)')
     p.add_argument('--points', type=int, default=61, metavar='N', help='number of values (>= 2, default 61)')
     _add_task_options(p)
-    p.add_argument('--methods', type=_method_list, default=list(METHODS), metavar='M,M,...')
+    p.add_argument('--methods', type=_method_list, metavar='M,M,...',
+                   help='methods to sweep (default: all that fit the duration)')
     _add_model_options(p)
     _add_plant_options(p)
     p.add_argument('--json', action='store_true', help='print the sweep JSON object')
@@ -213,17 +214,32 @@ def _write_plan_csv(path: str, ev):
         w.writerows(cols.tolist())
 
 
+def _plans(args, model, options) -> tuple[list[Plan], list[float]]:
+    """Plans of ``args.methods``; with the default (all) methods, impossible ones are skipped with a note."""
+    planner, plans, times = Planner(), [], []
+    explicit = args.methods_given
+    for method in args.methods:
+        try:
+            plan, plan_time = _timed_plan(planner, method, args, model, options)
+        except PlanError as e:
+            if explicit:
+                raise
+            print(f'{PROG}: skipped {method}: {e}', file=sys.stderr)
+            continue
+        plans.append(plan)
+        times.append(plan_time)
+    if not plans:
+        raise PlanError('no method could make this plan')
+    return plans, times
+
+
 def cmd_compare(args) -> int:
     _check_settle(args)
     model, options = _model_and_options(args)
     plant = _plant(args, model)
-    planner = Planner()
-    reports, evaluations = [], []
-    for method in args.methods:
-        plan, plan_time = _timed_plan(planner, method, args, model, options)
-        ev = simulate_plan(plan, plant, args.settle)
-        evaluations.append(ev)
-        reports.append(plan_report(ev, plan_time))
+    plans, times = _plans(args, model, options)
+    evaluations = simulate_plans(plans, plant, args.settle)
+    reports = [plan_report(ev, t) for ev, t in zip(evaluations, times)]
     if args.json:
         print(json.dumps(reports))
     else:
@@ -249,12 +265,10 @@ def cmd_sweep(args) -> int:
     model, options = _model_and_options(args)
     base_plant = _plant(args, model)
     values, plants = vary_parameter(base_plant, args.param, args.span, args.points)
-    planner = Planner()
-    result = {'param': args.param, 'values': values.tolist(), 'methods': {}}
-    for method in args.methods:
-        plan = planner.plan(method, args.displacement, args.duration, model, options)
-        ev = simulate_plan(plan, plants, args.settle)
-        result['methods'][method] = {'load_mm': residual_load_mm(ev).tolist()}
+    plans, _ = _plans(args, model, options)
+    result = {'param': args.param, 'values': values.tolist(), 'methods': {
+        ev.plan.method: {'load_mm': residual_load_mm(ev).tolist()}
+        for ev in simulate_plans(plans, plants, args.settle)}}
     if args.json:
         print(json.dumps(result))
     else:
@@ -286,6 +300,9 @@ COMMANDS = {'plan': cmd_plan, 'compare': cmd_compare, 'sweep': cmd_sweep}
 def main(argv=None) -> int:
     try:
         args = build_parser().parse_args(argv)
+        args.methods_given = getattr(args, 'methods', None) is not None
+        if args.command != 'plan' and not args.methods_given:
+            args.methods = list(METHODS)
         return COMMANDS[args.command](args)
     except (UsageError, ValueError) as e:
         # ValueError covers ParameterError and PlanError: bad values, impossible plans.

@@ -13,6 +13,7 @@ from crane_msgs_py.params import CraneParams, ParameterError, check_nonnegative,
 
 from .model import modal_frequencies
 from .plan import Plan, PlanError
+from .shaped import shaped_plan
 
 #: The paper's variational formulations (optimal control).
 VARIATIONAL_METHODS = ('nvf', 'rvf')
@@ -119,7 +120,6 @@ class Planner:
         options = options or PlanOptions()
         displacement, duration = check_request(method, displacement, duration)
         if method in SHAPER_METHODS:
-            from .shaped import shaped_plan
             omegas = options.omega or modal_frequencies(params)
             return shaped_plan(method, displacement, duration, omegas, options.damping)
         return self._variational_solver(method, options).solve(displacement, duration, params)
