@@ -1,0 +1,162 @@
+"""CasADi model of the double-pendulum crane used for planning (paper §2-3).
+
+The one place in the planner where Eqs. 18-19 live. It is deliberately
+independent of ``crane_sim``'s numpy implementation so that the two
+cross-check each other (test/test_dynamics.py).
+
+Two state-space forms of Eqs. 7-8, both with the *reference* as what the
+planner chooses:
+
+* ideal tracking (tau = 0): x = [y, v, a, theta1, theta2, dtheta1, dtheta2],
+  u = cart jerk a' (the cart is the reference);
+* servo (tau > 0, Eq. 6): x = [y, v, a, a_ref, theta1, ...], u = reference
+  jerk a_ref', with tau a' + a = a_ref.
+
+``augment`` adds the sensitivity states of Eqs. 13-14 / 25-26.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+#: Order of the model parameter vector ``p`` of every model here.
+PARAMETERS = ('L1', 'L2', 'm1', 'm2', 'g', 'tau')
+SWING_STATES = ('theta1', 'theta2', 'dtheta1', 'dtheta2')
+IDEAL_STATES = ('y', 'v', 'a') + SWING_STATES
+SERVO_STATES = ('y', 'v', 'a', 'a_ref') + SWING_STATES
+
+
+def swing_accelerations(theta1, theta2, dtheta1, dtheta2, a, L1, L2, m1, m2, g):
+    """(theta1'', theta2'') of Eqs. 18-19 for the cart acceleration ``a``.
+
+    Eqs. 18-19 are linear in the angular accelerations:
+        [(m1+m2) L1 + m2 L2 c2,  m2 L2 c2] [th1'']   [(m1+m2)(a cos th1 - g sin th1) + m2 L2 (th1'+th2')^2 s2]
+        [L1 c2 + L2,             L2      ] [th2''] = [a cos(th1+th2) - g sin(th1+th2) - L1 th1'^2 s2         ]
+    with c2 = cos th2, s2 = sin th2. The determinant is L1 L2 (m1 + m2 s2^2) > 0,
+    so Cramer's rule is safe for every configuration. Works on CasADi
+    symbols and on floats.
+    """
+    c2, s2 = ca.cos(theta2), ca.sin(theta2)
+    mt = m1 + m2
+    m11, m12 = mt * L1 + m2 * L2 * c2, m2 * L2 * c2
+    m21, m22 = L1 * c2 + L2, L2
+    r1 = mt * (a * ca.cos(theta1) - g * ca.sin(theta1)) + m2 * L2 * (dtheta1 + dtheta2) ** 2 * s2
+    r2 = a * ca.cos(theta1 + theta2) - g * ca.sin(theta1 + theta2) - L1 * dtheta1 ** 2 * s2
+    det = L1 * L2 * (m1 + m2 * s2 ** 2)
+    return (m22 * r1 - m12 * r2) / det, (m11 * r2 - m21 * r1) / det
+
+
+@dataclass(frozen=True)
+class CraneOde:
+    """x' = f(x, u, p) as CasADi SX expressions.
+
+    Attributes:
+        states: names of the entries of ``x``; a sensitivity state of state
+            ``s`` to parameter ``q`` is named ``'d<s>/d<q>'``.
+        x, u, p: symbols (p ordered as ``PARAMETERS``).
+        f: the right-hand side.
+        servo: True for the tau > 0 form (Eq. 6 included).
+        robust: parameters whose sensitivities are in the state.
+    """
+
+    states: tuple
+    x: ca.SX
+    u: ca.SX
+    p: ca.SX
+    f: ca.SX
+    servo: bool
+    robust: tuple = ()
+
+    def index(self, name: str) -> int:
+        return self.states.index(name)
+
+    def function(self) -> ca.Function:
+        return ca.Function('f', [self.x, self.u, self.p], [self.f], ['x', 'u', 'p'], ['xdot'])
+
+
+def crane_ode(servo: bool) -> CraneOde:
+    """The crane of Eqs. 18-19 driven by the cart acceleration, in the form of Eqs. 7-8.
+
+    With ``servo`` the cart acceleration obeys Eq. 6, tau a' = a_ref - a, and
+    the input is the reference jerk; otherwise the input is the cart jerk.
+    """
+    names = SERVO_STATES if servo else IDEAL_STATES
+    x = ca.SX.sym('x', len(names))
+    u = ca.SX.sym('u')
+    p = ca.SX.sym('p', len(PARAMETERS))
+    s = dict(zip(names, ca.vertsplit(x)))
+    L1, L2, m1, m2, g, tau = ca.vertsplit(p)
+    dd1, dd2 = swing_accelerations(s['theta1'], s['theta2'], s['dtheta1'], s['dtheta2'], s['a'],
+                                   L1, L2, m1, m2, g)
+    if servo:
+        cart = [s['v'], s['a'], (s['a_ref'] - s['a']) / tau, u]
+    else:
+        cart = [s['v'], s['a'], u]
+    f = ca.vertcat(*cart, s['dtheta1'], s['dtheta2'], dd1, dd2)
+    return CraneOde(names, x, u, p, f, servo)
+
+
+def _closure(seed: set, edges: dict) -> set:
+    out, todo = set(seed), list(seed)
+    while todo:
+        for j in edges[todo.pop()]:
+            if j not in out:
+                out.add(j)
+                todo.append(j)
+    return out
+
+
+def sensitivity_states(ode: CraneOde, parameter: str) -> tuple:
+    """States whose sensitivity to ``parameter`` the robust problem must carry.
+
+    These are the states that depend on the parameter (directly or through
+    other states) and that the swing depends on: the cart position and
+    velocity never feed back, and their sensitivities at T follow from that
+    of the acceleration (y + tau v and v + tau a are fixed by the reference),
+    so adding them would only duplicate boundary conditions. For L1, L2, m1,
+    m2 this gives the four swing states of Eq. 26; for tau (servo form) also a.
+    """
+    k = PARAMETERS.index(parameter)
+    n = len(ode.states)
+    jx = ca.jacobian(ode.f, ode.x)
+    jp = ca.jacobian(ode.f, ode.p[k])
+    uses = {i: [j for j in range(n) if not jx[i, j].is_zero()] for i in range(n)}
+    used_by = {j: [i for i in range(n) if j in uses[i]] for j in range(n)}
+    direct = {i for i in range(n) if not jp[i].is_zero()}
+    dependent = _closure(direct, used_by)
+    swing = {ode.index(name) for name in SWING_STATES}
+    relevant = _closure(swing, uses)
+    return tuple(ode.states[i] for i in range(n) if i in dependent and i in relevant)
+
+
+def augment(ode: CraneOde, robust) -> CraneOde:
+    """The crane augmented with the sensitivity functions of Eqs. 13-14.
+
+    For each parameter mu in ``robust`` the sensitivity S = dx/dmu of the
+    states listed by ``sensitivity_states`` obeys S' = f_x S + f_mu (Eq. 14),
+    with the sensitivities of the other states zero or not needed.
+
+    m1 and m2 enter Eqs. 18-19 only through m2 / (m1 + m2), so their
+    sensitivities are proportional; with both in ``robust`` only m1's is
+    carried (carrying both would duplicate boundary conditions).
+    """
+    robust = tuple(robust)
+    if 'm1' in robust and 'm2' in robust:
+        robust = tuple(q for q in robust if q != 'm2')
+    if 'tau' in robust and not ode.servo:
+        raise ValueError('sensitivity to tau needs the servo model (tau > 0)')
+    blocks, names, sdot = [], list(ode.states), []
+    for q in robust:
+        sel = [ode.index(s) for s in sensitivity_states(ode, q)]
+        S = ca.SX.sym('S_' + q, len(sel))
+        full = ca.SX(len(ode.states), 1)
+        for r, i in enumerate(sel):
+            full[i] = S[r]
+        dS = ca.jtimes(ode.f, ode.x, full) + ca.jacobian(ode.f, ode.p[PARAMETERS.index(q)])
+        blocks.append(S)
+        sdot.append(dS[sel])
+        names += [f'd{ode.states[i]}/d{q}' for i in sel]
+    x = ca.vertcat(ode.x, *blocks)
+    f = ca.vertcat(ode.f, *sdot)
+    return CraneOde(tuple(names), x, ode.u, ode.p, f, ode.servo, robust)
