@@ -1,0 +1,167 @@
+"""The paper's own solution route (§2.1): Pontryagin's necessary conditions as a TPBVP.
+
+With the Hamiltonian H = g + lambda^T f (Eq. 16) of a ``crane_planner.ocp.Problem``
+(the same scaled problem the direct solver discretizes), the necessary
+conditions (Eq. 17) are x' = dH/dlambda, lambda' = -dH/dx and dH/du = 0; H is
+quadratic in the single input u, so dH/du = 0 gives u in closed form. Rest at
+both ends fixes all 2 n boundary conditions. The boundary value problem is
+solved by ``scipy.integrate.solve_bvp`` (4th-order collocation with mesh
+refinement) with CasADi-generated right-hand side and Jacobian.
+
+The start is either the linearized problem (the dynamics linearized about
+rest, a linear TPBVP solved the same way from zero; independent of the
+direct solver) or the direct solution with costates estimated from IPOPT's
+multipliers. It is the baseline for correctness and speed, not the fast path.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+from scipy.integrate import simpson, solve_bvp
+
+from crane_msgs_py.params import CraneParams
+
+from .ocp import Problem, Weights
+from .plan import Plan, PlanError
+
+
+class Tpbvp:
+    """The necessary conditions (Eq. 17) of a Problem as CasADi functions of z = [x; lambda].
+
+    Attributes:
+        rhs, jac: z' (per unit s = t/T) and its Jacobian dz'/dz, functions of (z, P).
+        control: the minimizing input u(z, P) (dH/du = 0), scaled.
+        cost: the cost integrand at that input.
+    """
+
+    def __init__(self, problem: Problem, linearized: bool = False):
+        X, U, P = problem.X, problem.U, problem.P
+        nx = problem.nx
+        lam = ca.SX.sym('lam', nx)
+        F = problem.F(X, U, P)
+        if linearized:  # about rest: the LQ problem, whose TPBVP is linear
+            rest = ca.DM.zeros(nx + 1)
+            Fx, Fu = (ca.substitute(ca.jacobian(F, v), ca.vertcat(X, U), rest) for v in (X, U))
+            F = Fx @ X + Fu @ U
+        G = problem.G(X, U, P)
+        H = G + ca.dot(lam, F)  # Eq. 16
+        Hu = ca.gradient(H, U)
+        Huu = ca.hessian(H, U)[0]
+        if ca.depends_on(Huu, U):
+            raise ValueError('the Hamiltonian must be quadratic in the input')
+        u = -ca.substitute(Hu, U, 0) / Huu  # dH/du = 0, exact for a quadratic H
+        z = ca.vertcat(X, lam)
+        zdot = ca.substitute(ca.vertcat(F, -ca.gradient(H, X)), U, u)
+        self.nx = nx
+        self.rhs = ca.Function('rhs', [z, P], [zdot])
+        self.jac = ca.Function('rhs_jacobian', [z, P], [ca.jacobian(zdot, z)])
+        self.control = ca.Function('control', [z, P], [u])
+        self.cost = ca.Function('cost', [z, P], [ca.substitute(G, U, u)])
+
+
+def _solve(tp: Tpbvp, pvec, x0, xT, s, z, tol, max_nodes):
+    n = 2 * tp.nx
+    pcol = pvec[:, None]
+
+    def fun(_s, zz):
+        return np.asarray(tp.rhs(zz, pcol))
+
+    def fun_jac(_s, zz):
+        m = zz.shape[1]
+        return np.asarray(tp.jac(zz, pcol)).reshape(n, m, n).transpose(0, 2, 1)
+
+    def bc(za, zb):
+        return np.concatenate([za[:tp.nx] - x0, zb[:tp.nx] - xT])
+
+    ea = np.zeros((n, n))
+    ea[np.arange(tp.nx), np.arange(tp.nx)] = 1.0
+    eb = np.zeros((n, n))
+    eb[tp.nx + np.arange(tp.nx), np.arange(tp.nx)] = 1.0
+
+    def bc_jac(_za, _zb):
+        return ea, eb
+
+    return solve_bvp(fun, bc, s, z, fun_jac=fun_jac, bc_jac=bc_jac, tol=tol, max_nodes=max_nodes)
+
+
+@dataclass
+class BvpPlan(Plan):
+    """A plan evaluated from solve_bvp's C1 cubic interpolant of the TPBVP solution."""
+
+    solution: object = field(default=None, repr=False)
+    control: ca.Function = field(default=None, repr=False)
+    pvec: np.ndarray = field(default=None, repr=False)
+    sx: np.ndarray = field(default=None, repr=False)
+    su: float = 1.0
+    states: tuple = ()
+    tau: float = 0.0
+    servo: bool = False
+
+    def _evaluate(self, t):
+        z = self.solution.sol(t / self.duration)
+        x = dict(zip(self.states, z[:len(self.states)] * self.sx[:, None]))
+        u = self.su * np.asarray(self.control(z, self.pvec[:, None])).ravel()
+        if self.servo:
+            return x['y'] + self.tau * x['v'], x['v'] + self.tau * x['a'], x['a_ref'], u
+        return x['y'], x['v'], x['a'], u
+
+
+class IndirectSolver:
+    """TPBVP solutions of one Problem; the CasADi functions are built once."""
+
+    #: solve_bvp's relative residual tolerance (fine enough for 1e-5 m agreement with the direct solver).
+    tol = 1e-6
+    max_nodes = 200_000
+
+    def __init__(self, problem: Problem):
+        t0 = time.perf_counter()
+        self.problem = problem
+        self.tpbvp = Tpbvp(problem)
+        self.linearized = Tpbvp(problem, linearized=True)
+        self.build_time = time.perf_counter() - t0
+
+    def solve(self, displacement: float, duration: float, params: CraneParams, weights: Weights,
+              method: str, mesh: np.ndarray, start=None) -> BvpPlan:
+        """Solve the TPBVP for one request.
+
+        Args:
+            mesh: initial mesh (fractions of T, e.g. the direct solver's).
+            start: None for the linearized start, or (s, X, Lambda): scaled
+                states and costates at normalized times s (e.g. the direct solution).
+        Raises PlanError naming solve_bvp's status message if it fails.
+        """
+        pb = self.problem
+        t0 = time.perf_counter()
+        pvec = pb.parameters(displacement, duration, params, weights)
+        x0, xT = pb.boundary(displacement)
+        if start is None:
+            s = np.concatenate([[0.0], np.cumsum(mesh)])
+            s[-1] = 1.0
+            lin = _solve(self.linearized, pvec, x0, xT, s, np.zeros((2 * pb.nx, s.size)),
+                         self.tol, self.max_nodes)
+            if not lin.success:
+                raise PlanError(f'indirect {method}: the linearized TPBVP failed: {lin.message}')
+            s, z = lin.x, lin.y
+        else:
+            s, X, L = start
+            z = np.vstack([X, L])
+        sol = _solve(self.tpbvp, pvec, x0, xT, s, z, self.tol, self.max_nodes)
+        elapsed = time.perf_counter() - t0
+        if not sol.success:
+            raise PlanError(f'indirect {method} solver did not converge for D={displacement:g} m, '
+                            f'T={duration:g} s (solve_bvp status {sol.status}: {sol.message})')
+        sx, su = pb.scales(pvec)
+        sx, su = np.asarray(sx, dtype=float).ravel(), float(su)
+        # J = T (P/T^3)^2 int_0^1 G ds, by Simpson's rule on twice the final mesh
+        sm = np.sort(np.concatenate([sol.x, (sol.x[1:] + sol.x[:-1]) / 2]))
+        objective = float(simpson(np.asarray(self.tpbvp.cost(sol.sol(sm), pvec[:, None])).ravel(), x=sm))
+        info = {'solver': 'indirect', 'status': sol.message, 'iterations': int(sol.niter),
+                'solve_time_s': elapsed, 'objective': objective * duration * su ** 2,
+                'intervals': int(sol.x.size - 1), 'robust': list(pb.robust), 'servo_model': pb.servo,
+                'start': 'linearized' if start is None else 'direct'}
+        return BvpPlan(method, float(displacement), float(duration), info, solution=sol,
+                       control=self.tpbvp.control, pvec=pvec, sx=sx, su=su, states=pb.states,
+                       tau=params.tau, servo=pb.servo)
