@@ -29,7 +29,8 @@ install: $(PKGS)
 
 demo: install
 	@mkdir -p $(OUT)
-	$(VENV)/bin/crane-plan compare --displacement 0.3 --duration 3 --plot $(OUT)/compare.png
+	$(VENV)/bin/crane-plan compare --displacement 0.3 --duration 3 --methods nvf,rvf,zv,nzv,zvd --plot $(OUT)/compare.png
+	$(VENV)/bin/crane-demo --out $(OUT)
 
 test: install
 	$(PY) -m pytest -q test

@@ -21,6 +21,7 @@ setup(
             'planner = crane_planner.planner_node:main',
             'streamer = crane_planner.streamer_node:main',
             'crane-plan = crane_planner.cli:main',
+            'crane-demo = crane_planner.demo:main',
         ],
     },
 )

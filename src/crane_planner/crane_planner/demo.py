@@ -1,0 +1,430 @@
+"""``crane-demo``: the paper's experiment end to end over ROS 2.
+
+Starts the planner, streamer and sim nodes in one namespace of a private ROS
+graph, then for every case (nominal plant, L1 = 0.42 m as in paper §5.2, each
+with and without Ethernet-like impairment) and every method requests a move
+over the planner service, lets the streamer stream it at 1 kHz, and measures
+the residual load swing from the sim's 50 Hz joint_states. Prints one table,
+writes figures, stops every node it started. Exit status 0, 1 when a node
+fails to come up or dies (the reason on stderr), 2 on bad options.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from crane_msgs_py.params import CraneParams
+
+from .processes import NodeDied, NodeGroup, PLANNER, SIM, STREAMER, find_executable, isolated_ros_env
+
+PROG = 'crane-demo'
+DEMO_METHODS = ('nvf', 'rvf', 'zv', 'nzv', 'zvd')
+#: Paper §5.2: the upper cable shortened to 0.42 m.
+PERTURBED_L1 = 0.42
+#: An Ethernet link to a closed controller: a few ms of delay with jitter, rare losses.
+NETWORK = {'network.delay': 0.002, 'network.jitter': 0.0005, 'network.distribution': 'normal',
+           'network.loss': 0.01}
+NETWORK_OFF = {'network.delay': 0.0, 'network.jitter': 0.0, 'network.loss': 0.0}
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    L1: float
+    network: bool
+
+
+CASES = {
+    'nominal': Case('nominal', CraneParams().L1, False),
+    'perturbed': Case('perturbed', PERTURBED_L1, False),
+    'nominal+net': Case('nominal+net', CraneParams().L1, True),
+    'perturbed+net': Case('perturbed+net', PERTURBED_L1, True),
+}
+
+
+class DemoError(RuntimeError):
+    """The demo cannot go on; the message says why."""
+
+
+@dataclass
+class Run:
+    """One measured motion."""
+
+    case: str
+    method: str
+    plan_time_s: float
+    peak_acceleration: float
+    residual_mm: float
+    t: np.ndarray = field(repr=False)             # joint_states times (s) from the motion start
+    load_mm: np.ndarray = field(repr=False)       # load excursion (mm) at those times
+    plan_t: np.ndarray = field(repr=False)        # served plan: knot times (s)
+    plan_v: np.ndarray = field(repr=False)
+    plan_a: np.ndarray = field(repr=False)
+
+    def row(self) -> dict:
+        return {'case': self.case, 'method': self.method, 'plan_time_s': self.plan_time_s,
+                'peak_acceleration': self.peak_acceleration, 'residual_mm': self.residual_mm}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0].split(': ', 1)[1])
+    p.add_argument('--methods', default=','.join(DEMO_METHODS), metavar='M,M,...',
+                   help=f'methods to run (default {",".join(DEMO_METHODS)})')
+    p.add_argument('--cases', default=','.join(CASES), metavar='C,C,...',
+                   help=f'cases to run, from {",".join(CASES)} (default all)')
+    p.add_argument('--displacement', type=float, default=0.3, metavar='D', help='cart move (m), default 0.3')
+    p.add_argument('--duration', type=float, default=2.5, metavar='T', help='motion time (s), default 2.5 (paper §5)')
+    p.add_argument('--settle', type=float, default=3.0, metavar='S',
+                   help='seconds of swing observed after each motion (default 3)')
+    p.add_argument('--return-duration', type=float, default=2.0, metavar='T',
+                   help='time (s) of the unmeasured move back between runs (default 2)')
+    p.add_argument('--out', default='out', help='folder for figures and results (default out)')
+    p.add_argument('--namespace', default='/crane_demo', help='namespace of the three nodes')
+    p.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID (default: random, with localhost discovery)')
+    p.add_argument('--sweep-points', type=int, default=31, metavar='N',
+                   help='points of the L1 +-30 %% sweep figure (crane-plan sweep), 0 = skip (default 31)')
+    p.add_argument('--no-figures', action='store_true', help='write results.json only')
+    p.add_argument('--startup-timeout', type=float, default=30.0, metavar='S',
+                   help='seconds for the nodes to come up (default 30)')
+    return p
+
+
+def _parse(argv) -> argparse.Namespace:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from .planning import METHODS
+    methods = [m.strip() for m in args.methods.split(',') if m.strip()]
+    cases = [c.strip() for c in args.cases.split(',') if c.strip()]
+    bad = [m for m in methods if m not in METHODS] + [c for c in cases if c not in CASES]
+    if bad or not methods or not cases:
+        parser.exit(2, f'{PROG}: error: unknown method or case {", ".join(bad) or "(none given)"}\n')
+    for name in ('displacement', 'duration', 'settle', 'return_duration'):
+        value = getattr(args, name)
+        if not np.isfinite(value) or (value <= 0 and name != 'displacement') or value == 0:
+            parser.exit(2, f'{PROG}: error: argument --{name.replace("_", "-")}: bad value {value}\n')
+    args.methods, args.cases = methods, [CASES[c] for c in cases]
+    return args
+
+
+def progress(text: str):
+    print(f'[{PROG}] {text}', file=sys.stderr, flush=True)
+
+
+class DemoDriver:
+    """The demo's own rclpy node: plans over the service, switches the plant, records joint_states."""
+
+    def __init__(self, namespace: str, nodes: NodeGroup):
+        import rclpy
+        from rclpy.callback_groups import ReentrantCallbackGroup
+        from rclpy.executors import MultiThreadedExecutor
+        from rclpy.parameter_client import AsyncParameterClient
+        from sensor_msgs.msg import JointState
+        from std_srvs.srv import Trigger
+        from trajectory_msgs.msg import JointTrajectory
+
+        from crane_msgs_py.client import PlannerClient
+        from crane_msgs_py.names import (JOINT_STATES_TOPIC, PLANNER_NODE, RESET_SERVICE, SIM_NODE,
+                                         STREAMER_NODE, TRAJECTORY_TOPIC, service_of)
+        from crane_msgs_py.qos import JOINT_STATES_QOS, TRAJECTORY_QOS
+
+        self._rclpy = rclpy
+        self._nodes = nodes
+        rclpy.init()
+        self.node = rclpy.create_node('crane_demo', namespace=namespace)
+        group = ReentrantCallbackGroup()
+        self.planner = PlannerClient(self.node, PLANNER_NODE, callback_group=group)
+        self._sim_params = AsyncParameterClient(self.node, SIM_NODE, callback_group=group)
+        self._streamer_params = AsyncParameterClient(self.node, STREAMER_NODE, callback_group=group)
+        self._reset = self.node.create_client(Trigger, service_of(SIM_NODE, RESET_SERVICE), callback_group=group)
+        self._lock = threading.Lock()
+        self._states: list = []  # (stamp ns, theta1, theta2, cart)
+        self._trajectories: dict = {}  # start stamp ns -> JointTrajectory
+        self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state, JOINT_STATES_QOS,
+                                      callback_group=group)
+        self.node.create_subscription(JointTrajectory, TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS,
+                                      callback_group=group)
+        self._executor = MultiThreadedExecutor(num_threads=3)
+        self._executor.add_node(self.node)
+        self._spinner = threading.Thread(target=self._executor.spin, daemon=True)
+        self._spinner.start()
+
+    # -- callbacks
+    def _on_state(self, msg):
+        from crane_msgs_py.conversions import joint_state_to_arrays, stamp_ns
+        from crane_msgs_py.names import SIM_JOINTS
+        pos, _ = joint_state_to_arrays(msg, SIM_JOINTS)
+        with self._lock:
+            self._states.append((stamp_ns(msg.header.stamp), pos[1], pos[2], pos[0]))
+
+    def _on_trajectory(self, msg):
+        from crane_msgs_py.conversions import stamp_ns
+        with self._lock:
+            self._trajectories[stamp_ns(msg.header.stamp)] = msg
+
+    # -- helpers
+    def now_ns(self) -> int:
+        return self.node.get_clock().now().nanoseconds
+
+    def _wait(self, future, timeout: float, what: str):
+        deadline = time.monotonic() + timeout
+        while not future.done():
+            self._nodes.check_alive()
+            if time.monotonic() > deadline:
+                raise DemoError(f'no answer from {what} within {timeout:g} s')
+            time.sleep(0.01)
+        return future.result()
+
+    def sleep(self, seconds: float):
+        """Sleep while watching the nodes: a node that dies ends the demo at once."""
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self._nodes.check_alive()
+            time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
+
+    def wait_until_up(self, methods, timeout: float):
+        deadline = time.monotonic() + timeout
+        waits = [(f'planner service plan/{m}', lambda m=m: self.planner.wait_for_service(m, 0.1)) for m in methods]
+        waits += [('sim parameters', lambda: self._sim_params.wait_for_services(0.1)),
+                  ('streamer parameters', lambda: self._streamer_params.wait_for_services(0.1)),
+                  ('sim reset service', lambda: self._reset.wait_for_service(0.1)),
+                  ('joint_states', lambda: bool(self._states))]
+        for what, ready in waits:
+            while not ready():
+                self._nodes.check_alive()
+                if time.monotonic() > deadline:
+                    raise DemoError(f'{what} not up within {timeout:g} s')
+
+    def set_parameters(self, target: str, values: dict):
+        from rclpy.parameter import Parameter
+        client = self._sim_params if target == 'sim' else self._streamer_params
+        params = [Parameter(k, value=v) for k, v in values.items()]
+        result = self._wait(client.set_parameters(params), 5.0, f'{target} parameter service')
+        refused = [f'{p.name}: {r.reason}' for p, r in zip(params, result.results) if not r.successful]
+        if refused:
+            raise DemoError(f'{target} refused parameters: {"; ".join(refused)}')
+
+    def reset_sim(self):
+        from std_srvs.srv import Trigger
+        response = self._wait(self._reset.call_async(Trigger.Request()), 5.0, 'sim reset service')
+        if not response.success:
+            raise DemoError(f'sim reset failed: {response.message}')
+
+    def move(self, method: str, start: float, goal: float, duration: float, lead: float = 0.3):
+        """Plan a move starting ``lead`` s from now; (start stamp ns, round-trip s, served trajectory)."""
+        start_ns = self.now_ns() + round(lead * 1e9)
+        t0 = time.perf_counter()
+        # The client raises PlanError with the planner's reason on a refused plan.
+        self.planner.plan(method, start, goal, duration, start_ns=start_ns, timeout=30.0)
+        plan_time = time.perf_counter() - t0
+        if self.now_ns() > start_ns:
+            raise DemoError(f'planning {method} took {plan_time:.2f} s, past the motion start; raise the lead')
+        deadline = time.monotonic() + 5.0
+        while True:
+            with self._lock:
+                traj = self._trajectories.get(start_ns)
+            if traj is not None:
+                return start_ns, plan_time, traj
+            self._nodes.check_alive()
+            if time.monotonic() > deadline:
+                raise DemoError(f'the {method} plan never appeared on the trajectory topic')
+            time.sleep(0.01)
+
+    def states_between(self, begin_ns: int, end_ns: int) -> np.ndarray:
+        with self._lock:
+            rows = [r for r in self._states if begin_ns <= r[0] <= end_ns]
+            self._states = [r for r in self._states if r[0] > end_ns]
+        return np.array(rows).reshape(-1, 4)
+
+    def close(self):
+        self._executor.shutdown()
+        self.node.destroy_node()
+        self._rclpy.try_shutdown()
+
+
+def run_case_method(driver: DemoDriver, case: Case, method: str, args, L2: float) -> Run:
+    from crane_msgs_py.conversions import joint_trajectory_to_arrays
+    from crane_sim.dynamics import load_excursion
+    from crane_sim.metrics import residual_load_mm
+
+    D, T = args.displacement, args.duration
+    start_ns, plan_time, traj = driver.move(method, 0.0, D, T)
+    # One 50 Hz sample beyond the window, so the record covers all of it.
+    end_ns = start_ns + round((T + args.settle + 0.05) * 1e9)
+    driver.sleep((end_ns - driver.now_ns()) * 1e-9 + 0.05)
+    rec = driver.states_between(start_ns, end_ns)
+    if len(rec) < 10:
+        raise DemoError(f'only {len(rec)} joint_states during the {method} motion: is the sim publishing?')
+    t = (rec[:, 0] - start_ns) * 1e-9
+    residual = float(residual_load_mm(t, rec[:, 1], rec[:, 2], case.L1, L2, after=T, until=T + args.settle))
+    plan_t, _, plan_v, plan_a = joint_trajectory_to_arrays(traj)
+    # Move back (not measured), then zero the swing: the simulated crane has no damping to wait for.
+    back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration)
+    driver.sleep((back_ns - driver.now_ns()) * 1e-9 + args.return_duration + 0.1)
+    driver.reset_sim()
+    return Run(case.name, method, plan_time, float(np.max(np.abs(plan_a))), residual, t,
+               1e3 * load_excursion(rec[:, 1], rec[:, 2], case.L1, L2), plan_t, plan_v, plan_a)
+
+
+def print_table(runs: list[Run], cases, methods):
+    width = 24
+    print('cells: peak reference acceleration (m/s^2) | residual load swing (mm) | plan round trip (ms)')
+    print(f'{"method":<8}' + ''.join(f'{c.name:>{width}}' for c in cases))
+    by_key = {(r.case, r.method): r for r in runs}
+    for m in methods:
+        cells = []
+        for c in cases:
+            r = by_key.get((c.name, m))
+            cells.append(f'{r.peak_acceleration:6.3f} |{r.residual_mm:7.2f} |{1e3 * r.plan_time_s:5.0f}'
+                         if r else '-')
+        print(f'{m:<8}' + ''.join(f'{cell:>{width}}' for cell in cells))
+
+
+def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    out = Path(args.out)
+    written = []
+    first_case = args.cases[0].name
+    fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+    for r in runs:
+        if r.case == first_case:
+            axes[0].plot(r.plan_t, r.plan_v, label=r.method.upper())
+            axes[1].plot(r.plan_t, r.plan_a, label=r.method.upper())
+    axes[0].set_ylabel('reference velocity (m/s)')
+    axes[1].set_ylabel('reference acceleration (m/s²)')
+    axes[1].set_xlabel('time (s)')
+    axes[0].set_title(f'served plans: {args.displacement:g} m in {args.duration:g} s (paper Figs. 2-3)')
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(ncol=5, fontsize=8)
+    written.append(_save(fig, out / 'demo_plans.png'))
+
+    n = len(args.cases)
+    fig, axes = plt.subplots(n, 1, figsize=(9, 2.6 * n + 0.6), sharex=True, squeeze=False)
+    for ax, case in zip(axes[:, 0], args.cases):
+        for r in runs:
+            if r.case == case.name:
+                ax.plot(r.t, r.load_mm, label=f'{r.method.upper()} ({r.residual_mm:.2f} mm)')
+        ax.axvline(args.duration, color='k', lw=0.6, ls=':')
+        ax.set_ylabel('load (mm)')
+        ax.set_title(f'{case.name}: L1 = {case.L1:g} m' + (', network impairment' if case.network else ''),
+                     fontsize=10)
+        ax.set_ylim(-12, 12)
+        ax.grid(True, alpha=0.3)
+        ax.legend(ncol=3, fontsize=7)
+    axes[-1, 0].set_xlabel('time from motion start (s); measured at 50 Hz (paper Figs. 6-15)')
+    written.append(_save(fig, out / 'demo_swing.png'))
+
+    if timing_log and timing_log.exists():
+        lateness = np.asarray(json.loads(timing_log.read_text()).get('lateness_us', []), dtype=float)
+        if lateness.size:
+            fig, ax = plt.subplots(figsize=(8, 4.5))
+            ax.hist(lateness, bins=200, log=True)
+            p50, p99 = np.percentile(lateness, [50, 99])
+            ax.set_title(f'streamer tick lateness: {lateness.size} ticks, p50 {p50:.0f} µs, '
+                         f'p99 {p99:.0f} µs, max {lateness.max():.0f} µs', fontsize=10)
+            ax.set_xlabel('lateness of the tick (µs)')
+            ax.set_ylabel('ticks')
+            written.append(_save(fig, out / 'demo_tick_timing.png'))
+    return written
+
+
+def _save(fig, path: Path) -> Path:
+    import matplotlib.pyplot as plt
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def run_sweep(args) -> Path | None:
+    """Paper Fig. 4 from ``crane-plan sweep`` (offline; run after the nodes stop, to keep the stream steady)."""
+    if args.sweep_points < 2 or args.no_figures:
+        return None
+    path = Path(args.out) / 'demo_sweep_L1.png'
+    cmd = [find_executable('crane_planner', 'crane-plan'), 'sweep', '--param', 'L1', '--span', '0.3',
+           '--points', str(args.sweep_points), '--displacement', str(args.displacement),
+           '--duration', str(args.duration), '--methods', ','.join(args.methods), '--settle', str(args.settle),
+           '--plot', str(path), '--json']
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise DemoError(f'crane-plan sweep failed: {r.stderr.strip()}')
+    (Path(args.out) / 'sweep_L1.json').write_text(r.stdout)
+    return path
+
+
+def main(argv=None) -> int:
+    args = _parse(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t_start = time.monotonic()
+    runs: list[Run] = []
+    env = isolated_ros_env(args.domain_id)
+    os.environ.clear()  # this process joins the same private graph as its nodes
+    os.environ.update(env)
+    log_dir = Path(tempfile.mkdtemp(prefix='crane-demo-'))
+    timing_log = (out / 'streamer_timing.json').resolve()
+    progress(f'ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, namespace {args.namespace}, node logs in {log_dir}')
+    driver = None
+    try:
+        with NodeGroup(env, log_dir) as nodes:
+            nodes.start(*PLANNER, namespace=args.namespace)
+            nodes.start(*STREAMER, namespace=args.namespace, params={'timing_log': str(timing_log)})
+            nodes.start(*SIM, namespace=args.namespace)
+            driver = DemoDriver(args.namespace, nodes)
+            driver.wait_until_up(args.methods, args.startup_timeout)
+            progress(f'nodes up in {time.monotonic() - t_start:.1f} s')
+            L2 = CraneParams().L2
+            total, k = len(args.cases) * len(args.methods), 0
+            for case in args.cases:
+                driver.set_parameters('sim', {'L1': case.L1})
+                driver.set_parameters('streamer', NETWORK if case.network else NETWORK_OFF)
+                driver.reset_sim()
+                for method in args.methods:
+                    k += 1
+                    run = run_case_method(driver, case, method, args, L2)
+                    runs.append(run)
+                    progress(f'[{k:2d}/{total}] {case.name:<14} {method:<4} residual {run.residual_mm:6.2f} mm, '
+                             f'peak a_ref {run.peak_acceleration:.3f} m/s^2, plan {1e3 * run.plan_time_s:.0f} ms')
+            driver.close()
+            driver = None
+        # The nodes are stopped here, so the streamer has written its timing log.
+        print_table(runs, args.cases, args.methods)
+        (out / 'results.json').write_text(json.dumps([r.row() for r in runs], indent=1) + '\n')
+        written = [out / 'results.json']
+        if not args.no_figures:
+            written += write_figures(runs, args, timing_log)
+            sweep = run_sweep(args)
+            if sweep:
+                written.append(sweep)
+        for path in written:
+            print(f'wrote {path}')
+        progress(f'done in {time.monotonic() - t_start:.0f} s')
+        return 0
+    except (NodeDied, DemoError, ValueError, TimeoutError) as e:
+        # ValueError includes PlanError (a plan the planner refused).
+        print(f'{PROG}: error: {e}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted', file=sys.stderr)
+        return 130
+    finally:
+        if driver is not None:
+            driver.close()
+
+
+if __name__ == '__main__':
+    sys.exit(main())
