@@ -1,0 +1,256 @@
+"""Planner node: ``nav_msgs/srv/GetPlan`` services for every method (contract: ROS 2 nodes, planner).
+
+Services ``~/plan`` (the ``method`` parameter) and ``~/plan/<method>`` answer
+with a ``nav_msgs/Path``; the last successful plan is latched on
+``trajectory`` for the streamer; every request gets one status on
+``/diagnostics``. Requests run concurrently (MultiThreadedExecutor, one
+reentrant group): the planning facade serializes per solver only.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from trajectory_msgs.msg import JointTrajectory
+
+from crane_msgs_py.conversions import samples_to_joint_trajectory, samples_to_path, stamp_ns
+from crane_msgs_py.diagnostics import ERROR, OK, DiagnosticsPublisher
+from crane_msgs_py.names import DEFAULT_FRAME_ID, PLANNER_NODE, TRAJECTORY_TOPIC, plan_service
+from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError,
+                                  check_positive)
+from crane_msgs_py.qos import TRAJECTORY_QOS
+from crane_msgs_py.runner import run
+
+from .planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, Planner, PlanOptions, check_request
+from .plan import PlanError
+
+#: The diagnostic task of requests (status ``crane_planner: plan``); parameter changes report as ``parameters``.
+PLAN_TASK = 'plan'
+PARAMETERS_TASK = 'parameters'
+
+
+def _float_range(lo, hi):
+    return [FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)]
+
+
+#: name -> (default, description, range descriptor fields). Ranges are the
+#: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by the
+#: node, which names the reason and reports it on /diagnostics.
+PARAMETERS = {
+    'L1': (CraneParams.L1, PARAMETER_DESCRIPTIONS['L1'], {'floating_point_range': _float_range(0.0, 100.0)}),
+    'L2': (CraneParams.L2, PARAMETER_DESCRIPTIONS['L2'], {'floating_point_range': _float_range(0.0, 100.0)}),
+    'm1': (CraneParams.m1, PARAMETER_DESCRIPTIONS['m1'], {'floating_point_range': _float_range(0.0, 1e5)}),
+    'm2': (CraneParams.m2, PARAMETER_DESCRIPTIONS['m2'], {'floating_point_range': _float_range(0.0, 1e5)}),
+    'g': (CraneParams.g, PARAMETER_DESCRIPTIONS['g'], {'floating_point_range': _float_range(0.0, 100.0)}),
+    'tau': (CraneParams.tau, PARAMETER_DESCRIPTIONS['tau'], {'floating_point_range': _float_range(0.0, 10.0)}),
+    'method': ('rvf', f'method of ~/plan: one of {", ".join(METHODS)}',
+               {'additional_constraints': f'one of {", ".join(METHODS)}'}),
+    'robust_parameters': (['L1'], f'parameters RVF is made insensitive to, among {", ".join(ROBUST_PARAMETERS)}',
+                          {'additional_constraints': f'distinct names among {", ".join(ROBUST_PARAMETERS)}'}),
+    'shaper_frequencies': ([], 'shaper design frequencies (rad/s), one per mode; empty = the linearized '
+                               "model's modal frequencies", {'additional_constraints': 'each > 0'}),
+    'shaper_damping': (0.0, 'shaper design damping ratio, >= 0 and < 1',
+                       {'floating_point_range': _float_range(0.0, 1.0)}),
+    'intervals': (0, 'collocation intervals of NVF/RVF, 4..2000; 0 = the solver default',
+                  {'integer_range': [IntegerRange(from_value=0, to_value=2000, step=1)]}),
+    'sample_period': (0.01, 'knot spacing of returned plans (s), > 0; the last knot is exactly at the end',
+                      {'floating_point_range': _float_range(1e-4, 1.0)}),
+    'frame_id': (DEFAULT_FRAME_ID, 'frame of returned paths and trajectories', {}),
+    'max_duration': (60.0, 'longest motion served (s), > 0', {'floating_point_range': _float_range(0.0, 3600.0)}),
+    'max_displacement': (10.0, 'largest |goal - start| served (m), > 0',
+                         {'floating_point_range': _float_range(0.0, 1e4)}),
+    'max_velocity': (0.0, 'axis limit |v| of the reference (m/s); 0 = no limit',
+                     {'floating_point_range': _float_range(0.0, 1e3)}),
+    'max_acceleration': (0.0, 'axis limit |a| of the reference (m/s^2); 0 = no limit',
+                         {'floating_point_range': _float_range(0.0, 1e4)}),
+}
+
+
+@dataclass(frozen=True)
+class Config:
+    """One consistent set of the node's parameters, validated; swapped whole on a change."""
+
+    params: CraneParams
+    options: PlanOptions
+    method: str
+    sample_period: float
+    frame_id: str
+    max_duration: float
+    max_displacement: float
+
+    @classmethod
+    def from_values(cls, v: dict) -> 'Config':
+        """From parameter values by name; ParameterError names the bad one."""
+        params = CraneParams(**{name: v[name] for name in PARAMETER_NAMES})
+        if v['method'] not in METHODS:
+            raise ParameterError(f'method must be one of {", ".join(METHODS)}, got {v["method"]!r}')
+        intervals = int(v['intervals'])
+        options = PlanOptions(
+            omega=tuple(v['shaper_frequencies']) or None, damping=v['shaper_damping'],
+            robust=tuple(v['robust_parameters']), intervals=intervals or None,
+            max_velocity=v['max_velocity'] or None, max_acceleration=v['max_acceleration'] or None)
+        if not v['frame_id']:
+            raise ParameterError('frame_id must not be empty')
+        return cls(params, options, v['method'], check_positive('sample_period', v['sample_period']),
+                   v['frame_id'], check_positive('max_duration', v['max_duration']),
+                   check_positive('max_displacement', v['max_displacement']))
+
+
+class PlannerNode(Node):
+    """The ``crane_planner`` node."""
+
+    def __init__(self, **kwargs):
+        super().__init__(PLANNER_NODE, **kwargs)
+        for name, (default, description, extra) in PARAMETERS.items():
+            descriptor = ParameterDescriptor(description=description, **extra)
+            if name == 'shaper_frequencies':  # rclpy would type an empty list as a byte array
+                self.declare_parameter(name, Parameter.Type.DOUBLE_ARRAY, descriptor)
+                if self.get_parameter_or(name).type_ == Parameter.Type.NOT_SET:  # no override given
+                    self.set_parameters([Parameter(name, Parameter.Type.DOUBLE_ARRAY, [])])
+            else:
+                self.declare_parameter(name, default, descriptor)
+        self._diagnostics = DiagnosticsPublisher(self)
+        self._config = Config.from_values(self._values())  # bad overrides: ParameterError, see main()
+        self.add_pre_set_parameters_callback(self._report_bad_parameters)
+        self.add_on_set_parameters_callback(self._check_parameters)
+        self._planner = Planner()
+        self._trajectory = self.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
+        group = ReentrantCallbackGroup()
+        self._services = [self.create_service(GetPlan, plan_service(), self._serve_default, callback_group=group)]
+        for method in METHODS:
+            self._services.append(self.create_service(
+                GetPlan, plan_service(method), lambda req, res, m=method: self._serve(m, req, res),
+                callback_group=group))
+        self.get_logger().info(f'serving {", ".join(METHODS)} on {self.get_fully_qualified_name()}/plan/<method>')
+        self._warmup = threading.Thread(target=self._build_solvers, name='solver-warmup', daemon=True)
+        self._warmup.start()
+
+    # -- parameters -------------------------------------------------------
+
+    def _values(self, changes=()) -> dict:
+        values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        values.update((p.name, p.value) for p in changes)
+        return values
+
+    def _validate(self, changes) -> tuple[Config | None, str]:
+        try:
+            return Config.from_values(self._values(changes)), ''
+        except (ParameterError, TypeError, ValueError) as exc:
+            return None, str(exc)
+
+    def _report_bad_parameters(self, changes):
+        # Runs before rclpy's own range checks, which would otherwise refuse silently.
+        config, reason = self._validate(changes)
+        if config is None:
+            self.get_logger().error(f'parameter change refused: {reason}')
+            self._diagnostics.report(PARAMETERS_TASK, ERROR, reason, error=reason,
+                                     **{p.name: p.value for p in changes})
+        return changes
+
+    def _check_parameters(self, changes) -> SetParametersResult:
+        config, reason = self._validate(changes)
+        if config is None:
+            return SetParametersResult(successful=False, reason=reason)
+        self._config = config  # applies to the next request
+        self.get_logger().info('parameters set: ' + ', '.join(f'{p.name}={p.value}' for p in changes))
+        return SetParametersResult(successful=True)
+
+    # -- requests ---------------------------------------------------------
+
+    def _build_solvers(self):
+        """Build every method once with the start-up configuration, so first requests are warm."""
+        config = self._config
+        for method in METHODS:
+            # long enough for every shaper; the variational solvers at a typical request
+            duration = min(3.0 if method in VARIATIONAL_METHODS else 10.0, config.max_duration)
+            t0 = time.perf_counter()
+            try:
+                plan = self._planner.plan(method, min(0.3, config.max_displacement), duration,
+                                          config.params, config.options)
+            except Exception as exc:  # a warm-up failure only means building on first use
+                self.get_logger().warn(f'{method} warm-up failed: {exc}')
+                continue
+            build = plan.info.get('build_time_s')
+            self.get_logger().info(f'{method} ready in {time.perf_counter() - t0:.2f} s'
+                                   + (f' (solver built in {build:.2f} s)' if build else ''))
+
+    def _serve_default(self, request, response):
+        return self._serve(None, request, response)
+
+    def _serve(self, method, request, response):
+        config = self._config
+        method = method or config.method
+        t0 = time.perf_counter()
+        start = request.start.pose.position.x
+        goal = request.goal.pose.position.x
+        start_ns = stamp_ns(request.start.header.stamp)
+        duration = (stamp_ns(request.goal.header.stamp) - start_ns) * 1e-9
+        values = {'method': method, 'start': start, 'goal': goal, 'displacement': goal - start,
+                  'duration': duration}
+        try:
+            samples, plan = self._plan(config, method, start, goal, duration)
+        except ValueError as exc:  # PlanError, ParameterError: the request cannot be served
+            return self._refuse(response, str(exc), values, t0)
+        except Exception as exc:  # a solver bug must not kill the node or leave the caller waiting
+            self.get_logger().error(f'{method}: unexpected {type(exc).__name__} while planning')
+            return self._refuse(response, f'internal error: {type(exc).__name__}: {exc}', values, t0)
+        solved = time.perf_counter()
+        response.plan = samples_to_path(samples, start, start_ns, config.frame_id)
+        self._trajectory.publish(samples_to_joint_trajectory(samples, start, start_ns, config.frame_id))
+        done = time.perf_counter()
+        info = plan.info
+        self._diagnostics.report(
+            PLAN_TASK, OK, f'{method}: {len(samples.t)} knots', **values,
+            solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
+            iterations=info.get('iterations', 0), plan_time=solved - t0, message_time=done - solved,
+            knots=len(samples.t), error='')
+        self.get_logger().info(f'{method}: {start:g} -> {goal:g} m in {duration:g} s, {len(samples.t)} knots, '
+                               f'planned in {solved - t0:.3f} s')
+        return response
+
+    def _plan(self, config: Config, method: str, start: float, goal: float, duration: float):
+        if not (math.isfinite(start) and math.isfinite(goal)):
+            raise PlanError(f'start and goal positions must be finite, got start={start}, goal={goal}')
+        displacement, duration = check_request(method, goal - start, duration)
+        if duration > config.max_duration:
+            raise PlanError(f'duration {duration:g} s exceeds max_duration {config.max_duration:g} s')
+        if abs(displacement) > config.max_displacement:
+            raise PlanError(f'displacement {displacement:g} m exceeds max_displacement '
+                            f'{config.max_displacement:g} m')
+        plan = self._planner.plan(method, displacement, duration, config.params, config.options)
+        samples = plan.sample(config.sample_period)
+        for name, limit, values in (('max_velocity', config.options.max_velocity, samples.velocity),
+                                    ('max_acceleration', config.options.max_acceleration, samples.acceleration)):
+            peak = float(np.max(np.abs(values)))
+            if limit is not None and peak > limit * (1.0 + 1e-6):
+                raise PlanError(f'{method} plan exceeds {name} {limit:g} (peak {peak:g}); '
+                                'lengthen the duration or raise the limit')
+        return samples, plan
+
+    def _refuse(self, response, reason: str, values: dict, t0: float):
+        response.plan.header.frame_id = self._config.frame_id
+        self.get_logger().error(f'{values["method"]} request refused: {reason}')
+        self._diagnostics.report(PLAN_TASK, ERROR, reason, **values, solve_time=0.0,
+                                 plan_time=time.perf_counter() - t0, iterations=0, knots=0, error=reason)
+        return response
+
+
+    def destroy_node(self):
+        # CasADi must not be building in the warm-up thread while the interpreter exits
+        if self._warmup.is_alive():
+            self.get_logger().info('waiting for the solver warm-up to finish')
+            self._warmup.join()
+        super().destroy_node()
+
+
+def main(args=None):
+    return run(PlannerNode, MultiThreadedExecutor, args, num_threads=len(METHODS) + 2)

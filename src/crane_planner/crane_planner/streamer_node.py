@@ -1,0 +1,376 @@
+"""Streamer node: the plan on ``trajectory`` as a 1 kHz ``reference`` (contract: ROS 2 nodes, streamer).
+
+A motion is sampled once, when its trajectory arrives, at every tick it will
+occupy (quintic Hermite through the knots, ``hermite.QuinticHermite``); the
+loop thread then only looks samples up. The loop runs on its own thread at
+absolute deadlines of the monotonic clock, never waits on the executor,
+fills one pre-allocated message per tick and, with network impairment on,
+holds samples in a ``impairment.DelayLine`` and publishes them itself when
+they are due. Between motions it publishes the hold position.
+"""
+from __future__ import annotations
+
+import json
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory
+
+from crane_msgs_py.conversions import fill_reference, joint_trajectory_to_arrays, reference_message, stamp_ns
+from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from crane_msgs_py.names import (OUTPUT_JOINT_TRAJECTORY, OUTPUTS, REFERENCE_TOPIC,
+                                 START_SERVICE, STOP_SERVICE, STREAMER_NODE, TRAJECTORY_TOPIC)
+from crane_msgs_py.params import ParameterError
+from crane_msgs_py.qos import REFERENCE_QOS, TRAJECTORY_QOS
+from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until, tune_thread
+from crane_msgs_py.runner import run
+
+from .hermite import QuinticHermite
+from .impairment import DISTRIBUTIONS, DelayLine, Impairment
+
+STREAM_TASK = 'stream'
+TRAJECTORY_TASK = 'trajectory'
+
+
+def _range(lo, hi):
+    return {'floating_point_range': [FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)]}
+
+
+PARAMETERS = {
+    'rate': (1000.0, 'publishing rate of reference (Hz); fixed at start-up', {**_range(1.0, 10000.0), 'read_only': True}),
+    'output': (OUTPUT_JOINT_TRAJECTORY, 'reference type: joint_trajectory (one point: position, velocity, '
+               'acceleration) or float64_array (Float64MultiArray [position]); fixed at start-up',
+               {'additional_constraints': f'one of {", ".join(OUTPUTS)}', 'read_only': True}),
+    'auto_start': (True, 'start streaming at start-up (else wait for ~/start)', {'read_only': True}),
+    'initial_position': (0.0, 'hold position (m) before the first motion', {'read_only': True}),
+    'start_tolerance': (1e-6, 'largest distance (m) between a trajectory\'s first position and the hold '
+                        'position; farther is a jump and the trajectory is refused', _range(0.0, 1.0)),
+    'busy_wait': (1e-4, 'the last part (s) of each tick period spent spinning instead of sleeping, for '
+                  'wake-up precision at the cost of CPU', _range(0.0, 1e-3)),
+    'sched_priority': (50, 'SCHED_FIFO priority of the loop thread, 1..99 (as ros2_control\'s controller '
+                       'manager; without the privilege a warning and normal scheduling); 0 = normal scheduling',
+                       {'integer_range': [IntegerRange(from_value=0, to_value=99, step=1)], 'read_only': True}),
+    'timing_log': ('', 'file to write every tick lateness (JSON, us) to at shutdown; empty = off',
+                   {'read_only': True}),
+    'network.delay': (0.0, 'impairment: fixed delay (s) of every message', _range(0.0, 10.0)),
+    'network.jitter': (0.0, 'impairment: standard deviation (s) of the random delay', _range(0.0, 10.0)),
+    'network.distribution': ('normal', f'impairment: jitter distribution, one of {", ".join(DISTRIBUTIONS)} '
+                             '(normal/uniform zero-mean, exponential one-sided)',
+                             {'additional_constraints': f'one of {", ".join(DISTRIBUTIONS)}'}),
+    'network.loss': (0.0, 'impairment: probability that a message is lost', _range(0.0, 1.0)),
+    'network.reorder': (False, 'impairment: let messages overtake each other (false = FIFO delivery)', {}),
+    'network.seed': (0, 'impairment: seed of the random draws', {}),
+}
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A trajectory sampled at the ticks it occupies: tick ``first_tick + i`` publishes sample i."""
+
+    first_tick: int
+    position: list
+    velocity: list
+    acceleration: list
+    summary: str
+
+    @property
+    def end_position(self) -> float:
+        return self.position[-1]
+
+
+class StreamerNode(Node):
+    """The ``crane_streamer`` node."""
+
+    def __init__(self, **kwargs):
+        super().__init__(STREAMER_NODE, **kwargs)
+        for name, (default, description, extra) in PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=description, **extra))
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        if p['output'] not in OUTPUTS:
+            raise ParameterError(f'output must be one of {", ".join(OUTPUTS)}, got {p["output"]!r}')
+        self._impairment = self._impairment_of(p)  # ParameterError on a bad override
+        self.add_pre_set_parameters_callback(self._report_bad_parameters)
+        self.add_on_set_parameters_callback(self._check_parameters)
+        self._ticker = Ticker(round(1e9 / p['rate']))
+        self._period_ns = self._ticker.period
+        self._busy_wait_ns = round(p['busy_wait'] * 1e9)
+        self._start_tolerance = p['start_tolerance']
+        self._priority = p['sched_priority']
+        self._timing_log = p['timing_log']
+        self._diagnostics = DiagnosticsPublisher(self)
+        msg_type = JointTrajectory if p['output'] == OUTPUT_JOINT_TRAJECTORY else Float64MultiArray
+        self._msg = reference_message(p['output'])
+        self._publisher = self.create_publisher(msg_type, REFERENCE_TOPIC, REFERENCE_QOS)
+
+        # State shared with the loop thread. The loop owns _hold, _motion and
+        # the ticker; the executor hands motions over through _incoming.
+        self._lock = threading.Lock()
+        self._hold = float(p['initial_position'])
+        self._motion: Motion | None = None
+        self._incoming: Motion | None = None
+        self._epoch_ros = 0  # ROS time (ns) of tick 0
+        self._running = threading.Event()
+        self._shutdown = threading.Event()
+        self._created_ns = self.get_clock().now().nanoseconds
+        self._lateness = Lateness(keep_all=bool(self._timing_log))
+        self.ticks = self.sent = self.dropped = self.reordered = self.skipped = 0
+        self.accepted = self.refused = 0
+        self._ticks_window = 0
+        self._window_start = time.monotonic()
+
+        self.create_subscription(JointTrajectory, TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS)
+        self.create_service(Trigger, START_SERVICE, self._on_start)
+        self.create_service(Trigger, STOP_SERVICE, self._on_stop)
+        self.create_timer(1.0, self._report)
+        self._thread = threading.Thread(target=self._loop, name='reference-loop', daemon=True)
+        if p['auto_start']:
+            self._running.set()
+        self._thread.start()
+        self.get_logger().info(f'streaming {p["output"]} on {self.resolve_topic_name(REFERENCE_TOPIC)} at '
+                               f'{p["rate"]:g} Hz, hold {self._hold:g} m'
+                               + ('' if p['auto_start'] else ' (waiting for ~/start)'))
+
+    # -- parameters -------------------------------------------------------
+
+    @staticmethod
+    def _impairment_of(values: dict) -> Impairment:
+        return Impairment(delay=values['network.delay'], jitter=values['network.jitter'],
+                          distribution=values['network.distribution'], loss=values['network.loss'],
+                          reorder=values['network.reorder'], seed=values['network.seed'])
+
+    def _validate(self, changes) -> tuple[Impairment | None, str]:
+        values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        values.update((c.name, c.value) for c in changes)
+        try:
+            return self._impairment_of(values), ''
+        except (ParameterError, TypeError, ValueError) as exc:
+            return None, str(exc)
+
+    def _report_bad_parameters(self, changes):
+        impairment, reason = self._validate(changes)
+        if impairment is None:
+            self.get_logger().error(f'parameter change refused: {reason}')
+            self._diagnostics.report('parameters', ERROR, reason, error=reason, **{c.name: c.value for c in changes})
+        return changes
+
+    def _check_parameters(self, changes) -> SetParametersResult:
+        impairment, reason = self._validate(changes)
+        if impairment is None:
+            return SetParametersResult(successful=False, reason=reason)
+        for c in changes:
+            if c.name == 'start_tolerance':
+                self._start_tolerance = c.value
+            elif c.name == 'busy_wait':
+                self._busy_wait_ns = round(c.value * 1e9)
+        if impairment != self._impairment:
+            self._impairment = impairment  # the loop picks it up at its next tick
+            self.get_logger().info(f'network impairment: {impairment}')
+        return SetParametersResult(successful=True)
+
+    # -- trajectories (executor thread) -------------------------------------
+
+    def _on_trajectory(self, msg: JointTrajectory, info: dict):
+        now_ns = self.get_clock().now().nanoseconds
+        try:
+            motion = self._motion_of(msg, now_ns, info)
+        except ValueError as exc:
+            self.refused += 1
+            self.get_logger().error(f'trajectory refused: {exc}')
+            self._diagnostics.report(TRAJECTORY_TASK, ERROR, f'trajectory refused: {exc}', error=str(exc),
+                                     hold_position=self._hold, points=len(msg.points))
+            return
+        self.accepted += 1
+        self.get_logger().info(f'trajectory accepted: {motion.summary}')
+        self._diagnostics.report(TRAJECTORY_TASK, OK, f'trajectory accepted: {motion.summary}',
+                                 hold_position=self._hold, points=len(msg.points), error='')
+
+    def _motion_of(self, msg: JointTrajectory, now_ns: int, info: dict) -> Motion:
+        """Check a trajectory and hand it to the loop as a Motion; ValueError says why not.
+
+        The motion starts at the header stamp plus the first point's time (a
+        zero stamp: at once), from the first tick at or after it. A start the
+        loop has already passed is shifted to the next tick whole: never a jump.
+        """
+        if info.get('source_timestamp', now_ns) < self._created_ns:
+            raise ValueError('published before this streamer started (a latched old plan is not replayed)')
+        t, p, v, a = joint_trajectory_to_arrays(msg)
+        interp = QuinticHermite(t, p, v, a)  # ValueError: no points, not increasing, not finite
+        duration_ns = round((t[-1] - t[0]) * 1e9)
+        header_ns = stamp_ns(msg.header.stamp)
+        start_ns = header_ns + round(t[0] * 1e9) if header_ns else 0
+        if start_ns and start_ns + duration_ns < now_ns:
+            raise ValueError(f'it ended {(now_ns - start_ns - duration_ns) * 1e-9:.3f} s ago')
+        period = self._period_ns
+        with self._lock:
+            if not self._running.is_set():
+                raise ValueError('the streamer is stopped (call ~/start)')
+            if self._motion is not None or self._incoming is not None:
+                raise ValueError('a motion is streaming; a new one is accepted only after it ends')
+            if abs(p[0] - self._hold) > self._start_tolerance:
+                raise ValueError(f'it starts at {p[0]:.6g} m, not at the hold position {self._hold:.6g} m '
+                                 f'(a jump of {p[0] - self._hold:.3g} m)')
+            first = self._ticker.tick + 2  # a tick the loop cannot have reached yet
+            offset, note = 0, ''    # offset: time (ns) into the motion at the first tick
+            if start_ns:
+                due = -(-(start_ns - self._epoch_ros) // period)  # first tick at or after the start
+                if due >= first:
+                    first, offset = due, self._epoch_ros + due * period - start_ns
+                else:
+                    note = f', started {(self._epoch_ros + first * period - start_ns) * 1e-9:.3f} s late'
+            n = max(0, -(-(duration_ns - offset) // period)) + 1  # the last sample at or past the end
+            pos, vel, acc = interp(t[0] + (offset + period * np.arange(n)) * 1e-9)
+            self._incoming = Motion(first, pos.tolist(), vel.tolist(), acc.tolist(),
+                                    f'{p[0]:.6g} -> {p[-1]:.6g} m in {duration_ns * 1e-9:.3f} s, {n} ticks{note}')
+            return self._incoming
+
+    # -- services ------------------------------------------------------------
+
+    def _on_start(self, request, response):
+        response.success = True
+        if self._running.is_set():
+            response.message = 'already streaming'
+        else:
+            self._running.set()
+            response.message = f'streaming, hold {self._hold:g} m'
+        self.get_logger().info(response.message)
+        return response
+
+    def _on_stop(self, request, response):
+        response.success = True
+        if not self._running.is_set():
+            response.message = 'already stopped'
+        else:
+            with self._lock:
+                self._running.clear()
+            response.message = 'stopped'
+        self.get_logger().info(response.message)
+        return response
+
+    # -- the loop (its own thread) -----------------------------------------
+
+    def _loop(self):
+        for warning in tune_thread(self._priority):
+            self.get_logger().warn(warning)
+        while not self._shutdown.is_set():
+            if not self._running.wait(0.1):
+                continue
+            self._run()
+
+    def _run(self):
+        """Stream until stopped; ticks count from a fresh epoch."""
+        ticker = self._ticker
+        with self._lock:
+            ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
+            self._epoch_ros = ros_now + (epoch - time.monotonic_ns())
+        impairment = line = None
+        msg, publisher, lateness = self._msg, self._publisher, self._lateness
+        while self._running.is_set() and not self._shutdown.is_set():
+            if self._impairment is not impairment:
+                impairment = self._impairment
+                if line is not None:  # flush what was in flight on the old link
+                    self._deliver(line, math.inf)
+                line = DelayLine(impairment) if impairment.active else None
+            k, deadline = ticker.tick, ticker.deadline
+            now = self._wait(deadline, line)
+            lateness.add(now - deadline)
+            self.ticks += 1
+            position, velocity, acceleration = self._sample(k)
+            stamp = self._epoch_ros + k * ticker.period
+            if line is None:
+                fill_reference(msg, stamp, position, velocity, acceleration)
+                if not self._publish(msg, publisher):
+                    return
+            else:
+                line.send(now * 1e-9, (stamp, position, velocity, acceleration))
+                self._deliver(line, now * 1e-9)
+            self.skipped += ticker.advance(now)
+        with self._lock:  # stopped: an unfinished motion is dropped where it was
+            if self._motion is not None:
+                self.get_logger().warn(f'stopped during a motion; holding {self._hold:g} m')
+            self._motion = self._incoming = None
+        if line is not None:
+            self._deliver(line, math.inf)
+
+    def _wait(self, deadline: int, line: DelayLine | None) -> int:
+        """Sleep until the tick's deadline, delivering delayed messages that fall due meanwhile."""
+        while line is not None and len(line):
+            due = round(line.next_due() * 1e9)
+            if due >= deadline:
+                break
+            self._deliver(line, sleep_until(due, self._busy_wait_ns) * 1e-9)
+        return sleep_until(deadline, self._busy_wait_ns)
+
+    def _deliver(self, line: DelayLine, now_s: float):
+        msg, publisher = self._msg, self._publisher
+        for stamp, position, velocity, acceleration in line.deliver(now_s):
+            fill_reference(msg, stamp, position, velocity, acceleration)
+            self._publish(msg, publisher)
+        self.dropped, self.reordered = line.lost, line.reordered
+
+    def _publish(self, msg, publisher) -> bool:
+        try:
+            publisher.publish(msg)
+        except Exception:  # the context is shut down (SIGINT): end quietly
+            self._shutdown.set()
+            return False
+        self.sent += 1
+        return True
+
+    def _sample(self, k: int) -> tuple[float, float, float]:
+        """Position, velocity, acceleration due at tick k; takes over and ends motions."""
+        motion = self._motion
+        if motion is None:
+            motion = self._incoming
+            if motion is None or k < motion.first_tick:
+                return self._hold, 0.0, 0.0
+            with self._lock:
+                self._motion, self._incoming = motion, None
+        i = k - motion.first_tick
+        if i < len(motion.position):
+            self._hold = motion.position[i]
+            return motion.position[i], motion.velocity[i], motion.acceleration[i]
+        with self._lock:
+            self._hold = motion.end_position
+            self._motion = None
+        return self._hold, 0.0, 0.0
+
+    # -- diagnostics (executor thread) --------------------------------------
+
+    def _report(self):
+        now = time.monotonic()
+        ticks, elapsed = self.ticks, now - self._window_start
+        rate = (ticks - self._ticks_window) / elapsed if elapsed > 0 else 0.0
+        self._ticks_window, self._window_start = ticks, now
+        summary = lateness_summary_us(self._lateness.take())
+        running = self._running.is_set()
+        state = ('streaming' if self._motion is not None else 'holding') if running else 'stopped'
+        level = WARN if self.skipped else OK
+        imp = self._impairment
+        self._diagnostics.report(
+            STREAM_TASK, level, f'{state} at {rate:.1f} Hz', state=state, rate_hz=rate,
+            target_rate_hz=1e9 / self._period_ns, **summary, ticks=self.ticks, sent=self.sent, dropped=self.dropped,
+            reordered=self.reordered, skipped=self.skipped, hold_position=self._hold,
+            trajectories_accepted=self.accepted, trajectories_refused=self.refused,
+            network_delay=imp.delay, network_jitter=imp.jitter, network_distribution=imp.distribution,
+            network_loss=imp.loss, network_reorder=imp.reorder)
+
+    def destroy_node(self):
+        self._shutdown.set()
+        self._running.set()  # wake a stopped loop so it sees the shutdown
+        self._thread.join(timeout=2.0)
+        if self._timing_log and self._lateness.all is not None:
+            with open(self._timing_log, 'w') as f:
+                json.dump({'rate_hz': 1e9 / self._period_ns, 'lateness_us': [x * 1e-3 for x in self._lateness.all]}, f)
+        super().destroy_node()
+
+
+def main(args=None):
+    return run(StreamerNode, SingleThreadedExecutor, args)

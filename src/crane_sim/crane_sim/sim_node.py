@@ -1,0 +1,286 @@
+"""Simulator node: the crane driven by ``reference`` in real time (contract: ROS 2 nodes, sim).
+
+The plant (``crane_sim.simulator.CraneSimulator``: Eqs. 18-19 plus the servo
+of Eq. 6) is stepped every ``step`` seconds on its own thread at absolute
+deadlines of the monotonic clock and publishes ``joint_states`` every
+1/``publish_rate`` of simulated time. References arrive on the executor,
+are checked there (non-finite, stale and out-of-order ones are ignored and
+counted) and handed to the loop through a queue; the loop alone touches the
+simulator, so parameter changes and resets are handed over too.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import deque
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory
+
+from crane_msgs_py.conversions import fill_joint_state, joint_state_message, read_reference
+from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from crane_msgs_py.names import JOINT_STATES_TOPIC, REFERENCE_TOPIC, RESET_SERVICE, SIM_NODE
+from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError
+from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_QOS
+from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until, tune_thread
+from crane_msgs_py.runner import run
+
+from .simulator import INTERPOLATIONS, JOINT_NAMES, SOURCES, CraneSimulator, CraneState, PositionDifferentiator
+
+SIM_TASK = 'sim'
+#: ``reference_type`` values: the streamer's two outputs, or whatever the topic's publisher sends.
+REFERENCE_TYPES = {'joint_trajectory': JointTrajectory, 'float64_array': Float64MultiArray}
+_TYPE_NAMES = {'trajectory_msgs/msg/JointTrajectory': 'joint_trajectory',
+               'std_msgs/msg/Float64MultiArray': 'float64_array'}
+
+
+def _range(lo, hi):
+    return {'floating_point_range': [FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)]}
+
+
+PARAMETERS = {
+    **{name: (getattr(CraneParams, name), f'true plant: {PARAMETER_DESCRIPTIONS[name]}; may change while running',
+              _range(0.0, 10.0 if name == 'tau' else 1e4)) for name in PARAMETER_NAMES},
+    'step': (1e-3, 'integration step (s), also the real-time loop period; fixed at start-up',
+             {**_range(1e-4, 0.1), 'read_only': True}),
+    'publish_rate': (50.0, 'joint_states rate (Hz) in simulated time; fixed at start-up',
+                     {**_range(0.1, 1000.0), 'read_only': True}),
+    'reference_source': ('acceleration', "'acceleration': the reference's acceleration; 'position': "
+                         'second differences of received positions (a controller that only gets positions)',
+                         {'additional_constraints': f'one of {", ".join(SOURCES)}'}),
+    'interpolation': ('zoh', "between references: 'zoh' holds the newest, 'linear' ramps to it over a step",
+                      {'additional_constraints': f'one of {", ".join(INTERPOLATIONS)}'}),
+    'reference_type': ('auto', "'auto' (the type of reference's publisher), 'joint_trajectory' or "
+                       "'float64_array'; fixed at start-up",
+                       {'additional_constraints': 'auto, joint_trajectory or float64_array', 'read_only': True}),
+    'reference_timeout': (0.1, 'a reference older than this (s) is stale and ignored; without a fresh one '
+                          'for this long the reference acceleration falls back to 0', _range(1e-3, 10.0)),
+    'sched_priority': (50, 'SCHED_FIFO priority of the stepping thread, 1..99 (without the privilege a '
+                       'warning and normal scheduling); 0 = normal scheduling',
+                       {'integer_range': [IntegerRange(from_value=0, to_value=99, step=1)], 'read_only': True}),
+}
+
+
+class SimNode(Node):
+    """The ``crane_sim`` node."""
+
+    def __init__(self, **kwargs):
+        super().__init__(SIM_NODE, **kwargs)
+        for name, (default, description, extra) in PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=description, **extra))
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        self._check(p)  # ParameterError on a bad override, see main()
+        self.add_pre_set_parameters_callback(self._report_bad_parameters)
+        self.add_on_set_parameters_callback(self._check_parameters)
+        self._ticker = Ticker(round(p['step'] * 1e9))
+        self._sim = CraneSimulator(CraneParams(**{n: p[n] for n in PARAMETER_NAMES}), dt=self._ticker.period * 1e-9)
+        self._publish_every = max(1, round(1.0 / (p['publish_rate'] * p['step'])))
+        self._source, self._interpolation = p['reference_source'], p['interpolation']
+        self._timeout_ns = round(p['reference_timeout'] * 1e9)
+        self._priority = p['sched_priority']
+        self._diagnostics = DiagnosticsPublisher(self)
+        self._joint_state = joint_state_message(JOINT_NAMES)
+        self._joint_states = self.create_publisher(JointState, JOINT_STATES_TOPIC, JOINT_STATES_QOS)
+
+        # Handed from the executor to the loop; deque append/popleft are atomic.
+        self._inbox: deque = deque(maxlen=1000)   # (stamp ns, position, acceleration), checked
+        self._pending_params: CraneParams | None = None
+        self._reset_requested = threading.Event()
+        self._shutdown = threading.Event()
+        self._last_stamp = -math.inf
+        self.counts = dict.fromkeys(('received', 'accepted', 'nonfinite', 'stale', 'out_of_order', 'malformed',
+                                     'timeouts', 'steps', 'skipped', 'published'), 0)
+        self._lateness = Lateness()
+        self._window = (time.monotonic(), 0, 0)  # (time, steps, published) at the last report
+
+        self._reference_sub = None
+        self._reference_type = p['reference_type']
+        if self._reference_type == 'auto':
+            self._type_timer = self.create_timer(0.2, self._detect_reference_type)
+            self._detect_reference_type()
+        else:
+            self._subscribe(self._reference_type)
+        self.create_service(Trigger, RESET_SERVICE, self._on_reset)
+        self.create_timer(1.0, self._report)
+        self._thread = threading.Thread(target=self._loop, name='sim-loop', daemon=True)
+        self._thread.start()
+        self.get_logger().info(f'simulating {self._sim.params} every {p["step"] * 1e3:g} ms, joint_states at '
+                               f'{p["publish_rate"]:g} Hz, reference source {self._source}, {self._interpolation}')
+
+    # -- parameters -------------------------------------------------------
+
+    @staticmethod
+    def _check(values: dict) -> CraneParams:
+        """The plant of a full set of values; ParameterError names a bad value."""
+        for name, choices in (('reference_source', SOURCES), ('interpolation', INTERPOLATIONS),
+                              ('reference_type', ('auto', *REFERENCE_TYPES))):
+            if values[name] not in choices:
+                raise ParameterError(f'{name} must be one of {", ".join(choices)}, got {values[name]!r}')
+        return CraneParams(**{name: values[name] for name in PARAMETER_NAMES})
+
+    def _validate(self, changes) -> tuple[CraneParams | None, str]:
+        values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        values.update((c.name, c.value) for c in changes)
+        try:
+            return self._check(values), ''
+        except (ParameterError, TypeError, ValueError) as exc:
+            return None, str(exc)
+
+    def _report_bad_parameters(self, changes):
+        params, reason = self._validate(changes)
+        if params is None:
+            self.get_logger().error(f'parameter change refused: {reason}')
+            self._diagnostics.report('parameters', ERROR, reason, error=reason, **{c.name: c.value for c in changes})
+        return changes
+
+    def _check_parameters(self, changes) -> SetParametersResult:
+        params, reason = self._validate(changes)
+        if params is None:
+            return SetParametersResult(successful=False, reason=reason)
+        names = {c.name for c in changes}
+        if names & set(PARAMETER_NAMES):
+            self._pending_params = params  # the loop applies it before its next step
+        for c in changes:
+            if c.name == 'reference_source':
+                self._source = c.value
+            elif c.name == 'interpolation':
+                self._interpolation = c.value
+            elif c.name == 'reference_timeout':
+                self._timeout_ns = round(c.value * 1e9)
+        self.get_logger().info('parameters set: ' + ', '.join(f'{c.name}={c.value}' for c in changes))
+        return SetParametersResult(successful=True)
+
+    # -- references (executor thread) ----------------------------------------
+
+    def _detect_reference_type(self):
+        for info in self.get_publishers_info_by_topic(self.resolve_topic_name(REFERENCE_TOPIC)):
+            kind = _TYPE_NAMES.get(info.topic_type)
+            if kind is not None:
+                self._type_timer.cancel()
+                self._subscribe(kind)
+                return
+
+    def _subscribe(self, kind: str):
+        self._reference_type = kind
+        self._reference_sub = self.create_subscription(REFERENCE_TYPES[kind], REFERENCE_TOPIC,
+                                                       self._on_reference, REFERENCE_QOS)
+        self.get_logger().info(f'reference type {kind}')
+
+    def _on_reference(self, msg):
+        counts = self.counts
+        counts['received'] += 1
+        now = self.get_clock().now().nanoseconds
+        try:
+            stamp, position, _, acceleration = read_reference(msg)
+        except ValueError:
+            counts['malformed'] += 1
+            return
+        if stamp is None:  # Float64MultiArray: only positions, timed by their arrival
+            stamp, acceleration = now, 0.0
+        elif self._source == 'position':
+            acceleration = 0.0
+        if not (math.isfinite(position) and math.isfinite(acceleration)):
+            counts['nonfinite'] += 1
+        elif now - stamp > self._timeout_ns:
+            counts['stale'] += 1
+        elif stamp <= self._last_stamp:
+            counts['out_of_order'] += 1
+        else:
+            self._last_stamp = stamp
+            counts['accepted'] += 1
+            self._inbox.append((stamp, position, acceleration))
+
+    def _on_reset(self, request, response):
+        self._reset_requested.set()
+        response.success = True
+        response.message = 'plant at rest where the cart is, from the next step'
+        return response
+
+    # -- the loop (its own thread) -------------------------------------------
+
+    def _loop(self):
+        for warning in tune_thread(self._priority):
+            self.get_logger().warn(warning)
+        sim, ticker, counts, lateness = self._sim, self._ticker, self.counts, self._lateness
+        inbox = self._inbox
+        differentiator = PositionDifferentiator()
+        ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
+        epoch_ros = ros_now + (epoch - time.monotonic_ns())
+        dt_ns = ticker.period
+        a_ref = 0.0          # reference acceleration at the end of the last step
+        fresh_until = 0      # ROS time (ns) until which the last reference counts as current
+        timed_out = True     # no current reference: a_ref is 0
+        source = self._source
+        while not self._shutdown.is_set():
+            deadline = ticker.deadline
+            now = sleep_until(deadline, 0)
+            lateness.add(now - deadline)
+            t_ns = epoch_ros + ticker.tick * dt_ns  # simulated time = nominal wall time of the step
+            if self._pending_params is not None:
+                params, self._pending_params = self._pending_params, None
+                sim.set_params(params)
+            if self._reset_requested.is_set():
+                self._reset_requested.clear()
+                sim.reset(CraneState(y=sim.state.y))
+                differentiator.reset()
+                a_ref = 0.0
+            if self._source != source:
+                source = self._source
+                differentiator.reset()
+            a_begin = a_ref
+            while inbox:
+                stamp, position, acceleration = inbox.popleft()
+                if source == 'position':
+                    acceleration = differentiator.update((stamp - epoch_ros) * 1e-9, position)
+                a_ref = acceleration
+                fresh_until, timed_out = stamp + self._timeout_ns, False
+            if not timed_out and t_ns > fresh_until:  # the stream stopped: do not hold an acceleration
+                counts['timeouts'] += 1
+                a_ref, timed_out = 0.0, True
+                differentiator.reset()
+            sim.step(a_ref if self._interpolation == 'zoh' else a_begin, a_ref)
+            counts['steps'] += 1
+            if ticker.tick % self._publish_every == 0:
+                positions, velocities = sim.joint_state()
+                fill_joint_state(self._joint_state, t_ns + dt_ns, positions, velocities)
+                try:
+                    self._joint_states.publish(self._joint_state)
+                except Exception:  # the context is shut down (SIGINT): end quietly
+                    return
+                counts['published'] += 1
+            counts['skipped'] += ticker.advance(time.monotonic_ns())
+
+    # -- diagnostics (executor thread) ----------------------------------------
+
+    def _report(self):
+        counts = dict(self.counts)
+        now = time.monotonic()
+        t0, steps0, published0 = self._window
+        self._window = (now, counts['steps'], counts['published'])
+        elapsed = now - t0
+        ignored = sum(counts[k] for k in ('nonfinite', 'stale', 'out_of_order', 'malformed'))
+        state = self._sim.state
+        level = WARN if counts['skipped'] else OK
+        self._diagnostics.report(
+            SIM_TASK, level, f'stepping at {(counts["steps"] - steps0) / elapsed:.1f} Hz, '
+            f'{ignored} references ignored', step_rate_hz=(counts['steps'] - steps0) / elapsed,
+            joint_states_rate_hz=(counts['published'] - published0) / elapsed,
+            **lateness_summary_us(self._lateness.take()), **counts, ignored=ignored,
+            reference_type=self._reference_type, reference_source=self._source,
+            interpolation=self._interpolation, y=state.y, theta1=state.theta1, theta2=state.theta2,
+            load_excursion=self._sim.load_excursion, **self._sim.params)
+
+    def destroy_node(self):
+        self._shutdown.set()
+        self._thread.join(timeout=2.0)
+        super().destroy_node()
+
+
+def main(args=None):
+    return run(SimNode, SingleThreadedExecutor, args)
