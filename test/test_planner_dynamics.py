@@ -111,9 +111,9 @@ def test_sensitivity_states():
     for q in ('L1', 'L2', 'm1', 'm2'):
         assert sensitivity_states(ideal, q) == SWING_STATES
         assert sensitivity_states(servo, q) == SWING_STATES
-    # the cart acceleration depends on tau and drives the swing; y and v do not feed back
-    assert sensitivity_states(servo, 'tau') == ('a',) + SWING_STATES
-    assert augment(servo, ('m1', 'm2')).robust == ('m1',)
+    # y and v do not feed back; the swing's end sensitivities to tau follow from the acceleration's
+    assert sensitivity_states(servo, 'tau') == ('a',)
+    assert augment(servo, ('m2', 'tau', 'L1')).robust == ('m2', 'tau')
     with pytest.raises(ValueError, match='tau'):
         augment(ideal, ('tau',))
 

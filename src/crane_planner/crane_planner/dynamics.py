@@ -115,7 +115,17 @@ def sensitivity_states(ode: CraneOde, parameter: str) -> tuple:
     velocity never feed back, and their sensitivities at T follow from that
     of the acceleration (y + tau v and v + tau a are fixed by the reference),
     so adding them would only duplicate boundary conditions. For L1, L2, m1,
-    m2 this gives the four swing states of Eq. 26; for tau (servo form) also a.
+    m2 this gives the four swing states of Eq. 26.
+
+    For tau (servo form) only the cart acceleration is carried. Its
+    sensitivity obeys S_a + tau S_a' = -a' and drives the swing
+    sensitivities through the linearized pendulum; for each mode
+    eigenvalue lambda, integrating against exp(-lambda t) with a(0) = a(T)
+    = 0 and the nominal rest-to-rest condition int a exp(-lambda t) dt = 0
+    gives (1 + tau lambda) int S_a exp(-lambda t) dt = -tau S_a(T) exp(-lambda T).
+    So the swing sensitivities vanish at T exactly when S_a(T) does (about
+    rest): their end conditions would repeat S_a(T) = 0 four times and make
+    the problem degenerate.
     """
     k = PARAMETERS.index(parameter)
     n = len(ode.states)
@@ -127,7 +137,33 @@ def sensitivity_states(ode: CraneOde, parameter: str) -> tuple:
     dependent = _closure(direct, used_by)
     swing = {ode.index(name) for name in SWING_STATES}
     relevant = _closure(swing, uses)
+    if parameter == 'tau':
+        relevant -= swing
     return tuple(ode.states[i] for i in range(n) if i in dependent and i in relevant)
+
+
+#: Parameters that act on the swing only through its two modal frequencies and shapes.
+PENDULUM_PARAMETERS = ('L1', 'L2', 'm1', 'm2')
+
+
+def carried_parameters(robust) -> tuple:
+    """The parameters whose sensitivities make a plan insensitive to all of ``robust``.
+
+    About rest, the crane's swing is two modes; a rest-to-rest motion leaves
+    mode i at rest iff c_i = int_0^T a(t) exp(-lambda_i t) dt = 0, and the
+    sensitivity of the end state to a parameter mu is
+    sum_i phi_i b_i (d lambda_i / d mu) int_0^T t a(t) exp(-lambda_i t) dt
+    (the terms with d phi_i/d mu and d b_i/d mu multiply c_i = 0). L1, L2 and
+    m2/(m1+m2) (the only way the masses enter Eqs. 18-19) all move both
+    frequencies, so the insensitivity conditions int t a exp(-lambda_i t) = 0
+    are the same for each of them: the first of them in ``robust`` stands for
+    all (to first order in the swing amplitude); carrying more would repeat
+    the same four end conditions and make the NLP degenerate. tau is
+    independent of them (see ``sensitivity_states``).
+    """
+    robust = tuple(robust)
+    pendulum = [q for q in robust if q in PENDULUM_PARAMETERS][:1]
+    return tuple(q for q in robust if q in pendulum or q not in PENDULUM_PARAMETERS)
 
 
 def augment(ode: CraneOde, robust) -> CraneOde:
@@ -135,15 +171,11 @@ def augment(ode: CraneOde, robust) -> CraneOde:
 
     For each parameter mu in ``robust`` the sensitivity S = dx/dmu of the
     states listed by ``sensitivity_states`` obeys S' = f_x S + f_mu (Eq. 14),
-    with the sensitivities of the other states zero or not needed.
-
-    m1 and m2 enter Eqs. 18-19 only through m2 / (m1 + m2), so their
-    sensitivities are proportional; with both in ``robust`` only m1's is
-    carried (carrying both would duplicate boundary conditions).
+    with the sensitivities of the other states zero or not needed. Only the
+    sensitivities of ``carried_parameters(robust)`` are added (the others
+    follow from them).
     """
-    robust = tuple(robust)
-    if 'm1' in robust and 'm2' in robust:
-        robust = tuple(q for q in robust if q != 'm2')
+    robust = carried_parameters(robust)
     if 'tau' in robust and not ode.servo:
         raise ValueError('sensitivity to tau needs the servo model (tau > 0)')
     blocks, names, sdot = [], list(ode.states), []

@@ -168,39 +168,45 @@ def radau_coefficients(degree: int):
     return nodes, C, B, basis
 
 
+def bernstein_matrix(degree: int) -> np.ndarray:
+    """Matrix from a polynomial's monomial coefficients on [0, 1] to its Bernstein coefficients.
+
+    The polynomial lies within the hull of its Bernstein coefficients.
+    """
+    return np.array([[math.comb(i, k) / math.comb(degree, k) if k <= i else 0.0 for k in range(degree + 1)]
+                     for i in range(degree + 1)])
+
+
 @dataclass
 class CollocationPlan(Plan):
-    """A plan sampled from the collocation polynomials of the cart states.
+    """A plan evaluated from the collocation polynomial of the reference acceleration.
 
-    ``nodes[k, r, :]`` holds y, v, a (and a_ref with the servo) in SI units at
-    the r-th collocation node of mesh interval k, which spans
-    [mesh[k], mesh[k+1]]. The reference is y + tau v, v + tau a, a_ref,
-    a_ref' with the servo and y, v, a, a' otherwise (tau a' + a = a_ref,
-    starting at rest).
+    On mesh interval k, [mesh[k], mesh[k+1]] of length h, the reference
+    acceleration is the collocation polynomial A_k(s) = sum_i coef[k, i] s^i
+    (s in [0, 1]) of a_ref (servo) or a (tau = 0); velocity and position
+    are its integrals from the interval's start values start[k] = (position,
+    velocity), and the jerk is A_k'/h. So the four samples are exactly one
+    trajectory; the integrals end exactly on the next interval's start
+    values because the Radau rule integrates these polynomials exactly, the
+    same way the collocation equations do.
     """
 
     mesh: np.ndarray = field(default=None, repr=False)
-    nodes: np.ndarray = field(default=None, repr=False)
-    basis: np.ndarray = field(default=None, repr=False)
-    tau: float = 0.0
+    coef: np.ndarray = field(default=None, repr=False)
+    start: np.ndarray = field(default=None, repr=False)
 
     def _evaluate(self, t):
         k = np.clip(np.searchsorted(self.mesh, t, side='right') - 1, 0, len(self.mesh) - 2)
         h = self.mesh[k + 1] - self.mesh[k]
-        s = (t - self.mesh[k]) / h
-        n = self.basis.shape[0]
-        powers = s[:, None] ** np.arange(n)
-        dpowers = np.zeros_like(powers)
-        dpowers[:, 1:] = powers[:, :-1] * np.arange(1, n)
-        w = powers @ self.basis.T  # (m, n) Lagrange weights
-        dw = dpowers @ self.basis.T / h[:, None]
-        vals = np.einsum('mr,mrq->mq', w, self.nodes[k])
-        last = np.einsum('mr,mr->m', dw, self.nodes[k][:, :, -1])
-        if self.nodes.shape[2] == 4:  # servo: y, v, a, a_ref
-            y, v, a, ar = vals.T
-            return y + self.tau * v, v + self.tau * a, ar, last
-        y, v, a = vals.T
-        return y, v, a, last
+        s = ((t - self.mesh[k]) / h)[:, None]
+        c = self.coef[k]
+        i = np.arange(c.shape[1])
+        acc = np.sum(c * s ** i, axis=1)
+        jerk = np.sum((c * i)[:, 1:] * s ** i[:-1], axis=1) / h
+        vel = self.start[k, 1] + h * np.sum(c * s ** (i + 1) / (i + 1), axis=1)
+        pos = (self.start[k, 0] + h * s[:, 0] * self.start[k, 1]
+               + h ** 2 * np.sum(c * s ** (i + 2) / ((i + 1) * (i + 2)), axis=1))
+        return pos, vel, acc, jerk
 
 
 class Transcription:
@@ -242,8 +248,20 @@ class Transcription:
                 J += frac[k] * self.B[j] * Gc[k * d + j - 1]
         g = [ca.vertcat(*res), xs[-1]]
         if limits:
-            v, a = problem.reference_va.map(N * d)(Xc, Pm)
-            g += [v.T, a.T]
+            # Bound the plan's reference velocity and acceleration polynomials
+            # (CollocationPlan) on whole intervals through their Bernstein
+            # coefficients (a polynomial lies in their hull), not just at the
+            # nodes: near-bang-bang solutions overshoot between nodes.
+            nodes = ca.horzcat(w[:nx], Xc)
+            v, a = problem.reference_va.map(N * d + 1)(nodes, ca.repmat(Pp, 1, N * d + 1))
+            to_bv, to_ba = bernstein_matrix(d + 1), bernstein_matrix(d)
+            bv, ba = [], []
+            for k in range(N):
+                coef = ca.mtimes(self.basis.T, a[0, k * d:k * d + d + 1].T)  # acceleration, monomials in s
+                vel = ca.vertcat(v[0, k * d], frac[k] * coef / np.arange(1, d + 2))
+                bv.append(ca.mtimes(to_bv, vel))
+                ba.append(ca.mtimes(to_ba, coef))
+            g += [ca.vertcat(*bv), ca.vertcat(*ba)]
         self.nlp = {'x': w, 'p': P, 'f': J, 'g': ca.vertcat(*g)}
         self.solver = ca.nlpsol('variational', 'ipopt', self.nlp, options)
         self.ng = self.nlp['g'].shape[0]
@@ -325,10 +343,11 @@ def axis_limit_error(displacement: float, duration: float, max_velocity, max_acc
     velocity limit is reached.
     """
     D, T = abs(displacement), duration
-    if max_velocity is not None and max_velocity * T <= D:
+    D_ = D * (1 + 1e-12)  # 0.1 m/s * 3 s is 0.30000000000000004 m
+    if max_velocity is not None and max_velocity * T <= D_:
         return PlanError(f'infeasible: max_velocity {max_velocity:g} m/s is too low to move {D:g} m in '
                          f'{T:g} s (needs more than {D / T:g} m/s)')
-    if max_acceleration is not None and max_acceleration * T ** 2 <= 4 * D:
+    if max_acceleration is not None and max_acceleration * T ** 2 <= 4 * D_:
         return PlanError(f'infeasible: max_acceleration {max_acceleration:g} m/s^2 is too low to move {D:g} m '
                          f'in {T:g} s (needs more than {4 * D / T ** 2:g} m/s^2)')
     if max_velocity is not None and max_acceleration is not None and max_velocity ** 2 < D * max_acceleration:
@@ -471,12 +490,13 @@ class VariationalSolver:
         end = tr.nres + pb.nx
         lbg[tr.nres:end] = ubg[tr.nres:end] = xT
         if tr.limits:
+            d = tr.degree
             vmax, amax = limits
-            nl = (tr.ng - end) // 2
             vmax = np.inf if vmax is None else vmax / sx[pb.states.index('v')]
             amax = np.inf if amax is None else amax / sx[pb.states.index('a')]
-            lbg[end:] = np.repeat([-vmax, -amax], nl)
-            ubg[end:] = np.repeat([vmax, amax], nl)
+            # less IPOPT's bound relaxation (1e-8 relative), so the limit itself holds
+            bound = np.repeat([vmax, amax], tr.intervals * np.array([d + 2, d + 1])) * (1 - 2e-8)
+            lbg[end:], ubg[end:] = -bound, bound
         return dict(lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
 
     def _solve_direct(self, displacement, duration, params):
@@ -502,10 +522,13 @@ class VariationalSolver:
         if not stats['success']:
             raise PlanError(self._failure_message(status, tr, displacement, duration, pvec, sx, cold))
         tr.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
-        names = ('y', 'v', 'a', 'a_ref') if servo else ('y', 'v', 'a')
-        cart = [pb.states.index(n) for n in names]
-        nodes = tr.interval_nodes(np.array(sol['x']).ravel())[:, :, cart] * sx[cart]
         N = tr.intervals
+        nodes = tr.interval_nodes(np.array(sol['x']).ravel()) * sx  # (N, d+1, nx), SI units
+        x = {n: nodes[:, :, i] for i, n in enumerate(pb.states)}
+        tau = params.tau
+        # the reference: y + tau v, v + tau a, a_ref (tau a' + a = a_ref from rest), or y, v, a
+        acc = x['a_ref'] if servo else x['a']
+        start = np.stack([x['y'][:, 0] + tau * x['v'][:, 0], x['v'][:, 0] + tau * x['a'][:, 0]], axis=1)
         mesh = duration * np.concatenate([[0.0], np.cumsum(frac)])
         mesh[-1] = duration
         info = {'solver': 'direct', 'status': status, 'iterations': int(stats['iter_count']),
@@ -513,7 +536,7 @@ class VariationalSolver:
                 'objective': float(sol['f']) * duration * su ** 2, 'intervals': N,
                 'robust': list(pb.robust), 'servo_model': servo}
         return CollocationPlan(self.method, float(displacement), float(duration), info,
-                               mesh=mesh, nodes=nodes, basis=tr.basis, tau=params.tau)
+                               mesh=mesh, coef=acc @ tr.basis, start=start)
 
     @staticmethod
     def _warm_start(tr: Transcription, displacement: float) -> dict:
