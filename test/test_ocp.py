@@ -57,7 +57,7 @@ def test_rest_to_rest(solver, method, params):
     # the reference acceleration is continuous: no step at the ends even with the servo
     near = plan.evaluate([1e-5, 3.0 - 1e-5])
     assert np.all(np.abs(near.acceleration) < 1e-5 * peaks(plan)[2] * 1.01)
-    assert plan.info['status'] == 'Solve_Succeeded'
+    assert plan.info['status'] in ('Solve_Succeeded', 'Solved_To_Acceptable_Level')
     for key in ('iterations', 'solve_time_s', 'build_time_s', 'objective', 'intervals', 'robust', 'solver'):
         assert key in plan.info
 

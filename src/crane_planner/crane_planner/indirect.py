@@ -92,21 +92,17 @@ class BvpPlan(Plan):
     """A plan evaluated from solve_bvp's C1 cubic interpolant of the TPBVP solution."""
 
     solution: object = field(default=None, repr=False)
-    control: ca.Function = field(default=None, repr=False)
+    solver: 'IndirectSolver' = field(default=None, repr=False)
     pvec: np.ndarray = field(default=None, repr=False)
-    sx: np.ndarray = field(default=None, repr=False)
-    su: float = 1.0
-    states: tuple = ()
     tau: float = 0.0
-    servo: bool = False
 
     def _evaluate(self, t):
+        pb = self.solver.problem
+        sx, su = (np.asarray(v, dtype=float) for v in pb.scales(self.pvec))
         z = self.solution.sol(t / self.duration)
-        x = dict(zip(self.states, z[:len(self.states)] * self.sx[:, None]))
-        u = self.su * np.asarray(self.control(z, self.pvec[:, None])).ravel()
-        if self.servo:
-            return x['y'] + self.tau * x['v'], x['v'] + self.tau * x['a'], x['a_ref'], u
-        return x['y'], x['v'], x['a'], u
+        x = dict(zip(pb.states, z[:pb.nx] * sx))
+        jerk = su.item() * np.asarray(self.solver.tpbvp.control(z, self.pvec[:, None])).ravel()
+        return (*pb.reference(x, self.tau), jerk)
 
 
 class IndirectSolver:
@@ -154,15 +150,13 @@ class IndirectSolver:
         if not sol.success:
             raise PlanError(f'indirect {method} solver did not converge for D={displacement:g} m, '
                             f'T={duration:g} s (solve_bvp status {sol.status}: {sol.message})')
-        sx, su = pb.scales(pvec)
-        sx, su = np.asarray(sx, dtype=float).ravel(), float(su)
+        su = float(pb.scales(pvec)[1])
         # J = T (P/T^3)^2 int_0^1 G ds, by Simpson's rule on twice the final mesh
         sm = np.sort(np.concatenate([sol.x, (sol.x[1:] + sol.x[:-1]) / 2]))
         objective = float(simpson(np.asarray(self.tpbvp.cost(sol.sol(sm), pvec[:, None])).ravel(), x=sm))
         info = {'solver': 'indirect', 'status': sol.message, 'iterations': int(sol.niter),
                 'solve_time_s': elapsed, 'objective': objective * duration * su ** 2,
-                'intervals': int(sol.x.size - 1), 'robust': list(pb.robust), 'servo_model': pb.servo,
+                'intervals': int(sol.x.size - 1), 'sensitivities': list(pb.robust), 'servo_model': pb.servo,
                 'start': 'linearized' if start is None else 'direct'}
-        return BvpPlan(method, float(displacement), float(duration), info, solution=sol,
-                       control=self.tpbvp.control, pvec=pvec, sx=sx, su=su, states=pb.states,
-                       tau=params.tau, servo=pb.servo)
+        return BvpPlan(method, float(displacement), float(duration), info, solution=sol, solver=self,
+                       pvec=pvec, tau=params.tau)

@@ -131,6 +131,16 @@ class Problem:
                       reference_jerk_weight=weights.reference_jerk)
         return np.array([values[k] for k in PROBLEM_PARAMETERS], dtype=float)
 
+    def reference(self, x: dict, tau: float) -> tuple:
+        """Reference position, velocity, acceleration from states in SI units (``x`` by name).
+
+        With the servo, tau a' + a = a_ref from rest gives y_ref = y + tau v and
+        v_ref = v + tau a exactly; with tau = 0 the cart is the reference.
+        """
+        if self.servo:
+            return x['y'] + tau * x['v'], x['v'] + tau * x['a'], x['a_ref']
+        return x['y'], x['v'], x['a']
+
     def boundary(self, displacement: float) -> tuple[np.ndarray, np.ndarray]:
         """Scaled states at s = 0 and s = 1: rest at 0 and at D."""
         x0 = np.zeros(self.nx)
@@ -315,23 +325,33 @@ def uniform_mesh(intervals: int) -> np.ndarray:
     return np.full(intervals, 1.0 / intervals)
 
 
-def graded_mesh(intervals: int, layer: float, ratio: float = 2.0) -> np.ndarray:
+def graded_mesh(intervals: int, layer: float, max_ratio: float = 2.0) -> np.ndarray:
     """Interval fractions that resolve boundary layers of relative width ``layer`` at both ends.
 
-    The end intervals are ``layer`` wide and grow geometrically by ``ratio``
-    until they reach the uniform width of the remaining interior.
+    m intervals at each end grow geometrically by r from ``layer`` to the
+    uniform width of the interior; m is the smallest with r <= ``max_ratio``,
+    but at most a fifth of the intervals, so a very thin layer costs a larger
+    ratio, not the interior's resolution.
     """
     if layer * intervals >= 1.0:
         return uniform_mesh(intervals)
-    graded = []
-    while 2 * len(graded) + 2 < intervals:
-        inner = (1.0 - 2 * sum(graded)) / (intervals - 2 * len(graded))
-        h = layer * ratio ** len(graded)
-        if h >= inner:
+
+    def grading(m):
+        # the interior width where the geometric ends r^i layer (i < m) meet it: r^m layer
+        lo, hi = 1.0 + 1e-12, 1e6
+        for _ in range(200):
+            r = math.sqrt(lo * hi)
+            ends = layer * (r ** m - 1.0) / (r - 1.0)
+            inner = (1.0 - 2.0 * ends) / (intervals - 2 * m)
+            lo, hi = (r, hi) if layer * r ** m < inner else (lo, r)
+        return r, inner
+
+    for m in range(1, max(intervals // 5, 1) + 1):
+        r, inner = grading(m)
+        if r <= max_ratio:
             break
-        graded.append(h)
-    inner = (1.0 - 2 * sum(graded)) / (intervals - 2 * len(graded))
-    return np.array(graded + [inner] * (intervals - 2 * len(graded)) + graded[::-1])
+    ends = list(layer * r ** np.arange(m))
+    return np.array(ends + [inner] * (intervals - 2 * m) + ends[::-1])
 
 
 def axis_limit_error(displacement: float, duration: float, max_velocity, max_acceleration):
@@ -375,8 +395,11 @@ class VariationalSolver:
     #: reported as not converged (a service should answer, even with an error).
     max_iter = 200
     max_wall_time = 10.0
-    #: IPOPT's tolerance on the NLP error (the variables are O(1), see the module docstring).
+    #: IPOPT's tolerance on the NLP error (the variables are O(1), see the module docstring),
+    #: and the level accepted after two iterations that stall above it on rounding noise
+    #: (the servo's 1/tau makes the KKT system stiff for small tau).
     tol = 1e-10
+    acceptable_tol = 1e-8
     #: End intervals of the servo mesh, as a multiple of the boundary-layer width (see ``mesh``).
     layer_resolution = 0.25
     #: Start of the indirect solver: 'linearized' (independent of IPOPT) or 'direct'.
@@ -420,6 +443,7 @@ class VariationalSolver:
         if servo not in self._transcriptions:
             opts = {'print_time': False, 'ipopt.print_level': 0, 'ipopt.sb': 'yes',
                     'ipopt.tol': self.tol, 'ipopt.max_iter': self.max_iter,
+                    'ipopt.acceptable_tol': self.acceptable_tol, 'ipopt.acceptable_iter': 2,
                     'ipopt.max_wall_time': self.max_wall_time,
                     'ipopt.nlp_scaling_method': 'none',  # scaled by construction
                     'ipopt.warm_start_init_point': 'yes',
@@ -484,7 +508,7 @@ class VariationalSolver:
             start = self.transcription(servo).costate_estimate(self.mesh(duration, params))
         plan = solver.solve(displacement, duration, params, self.weights, self.method,
                             self.mesh(duration, params), start)
-        plan.info['build_time_s'] = solver.build_time if built else 0.0
+        plan.info.update(build_time_s=solver.build_time if built else 0.0, robust=list(self.robust))
         return plan
 
     def _bounds(self, tr: Transcription, displacement: float, sx: np.ndarray, limits) -> dict:
@@ -531,19 +555,15 @@ class VariationalSolver:
         tr.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
         N = tr.intervals
         nodes = tr.interval_nodes(np.array(sol['x']).ravel()) * sx  # (N, d+1, nx), SI units
-        x = {n: nodes[:, :, i] for i, n in enumerate(pb.states)}
-        tau = params.tau
-        # the reference: y + tau v, v + tau a, a_ref (tau a' + a = a_ref from rest), or y, v, a
-        acc = x['a_ref'] if servo else x['a']
-        start = np.stack([x['y'][:, 0] + tau * x['v'][:, 0], x['v'][:, 0] + tau * x['a'][:, 0]], axis=1)
+        pos, vel, acc = pb.reference({n: nodes[:, :, i] for i, n in enumerate(pb.states)}, params.tau)
         mesh = duration * np.concatenate([[0.0], np.cumsum(frac)])
         mesh[-1] = duration
         info = {'solver': 'direct', 'status': status, 'iterations': int(stats['iter_count']),
                 'solve_time_s': solve_time, 'build_time_s': tr.build_time if built else 0.0,
                 'objective': float(sol['f']) * duration * su ** 2, 'intervals': N,
-                'robust': list(pb.robust), 'servo_model': servo}
+                'robust': list(self.robust), 'sensitivities': list(pb.robust), 'servo_model': servo}
         return CollocationPlan(self.method, float(displacement), float(duration), info,
-                               mesh=mesh, coef=acc @ tr.basis, start=start)
+                               mesh=mesh, coef=acc @ tr.basis, start=np.stack([pos[:, 0], vel[:, 0]], axis=1))
 
     @staticmethod
     def _warm_start(tr: Transcription, displacement: float) -> dict:
