@@ -22,12 +22,9 @@ from nav_msgs.msg import Path
 from nav_msgs.srv import GetPlan
 from rclpy.callback_groups import ReentrantCallbackGroup
 
-# The planner's error type, so callers catch one exception whether they plan
-# in-process (crane_planner.planning) or through the node.
-from crane_planner.plan import PlanError
-
 from .conversions import path_to_arrays, set_stamp
 from .diagnostics import ERROR, DiagnosticsReader, status_float, status_values
+from .errors import PlanError
 from .names import PLANNER_NODE, plan_service, service_of
 
 #: The planner's per-request diagnostic task (status ``<planner>: plan``).

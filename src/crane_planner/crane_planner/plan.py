@@ -12,9 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
-class PlanError(ValueError):
-    """A plan cannot be made; the message says why (bad request, solver status, limit)."""
+from crane_msgs_py.errors import PlanError  # noqa: F401  (the planner's error type, re-exported)
 
 
 @dataclass(frozen=True)
