@@ -147,6 +147,7 @@ class DemoDriver:
         self._streamer_params = AsyncParameterClient(self.node, STREAMER_NODE, callback_group=group)
         self._reset = self.node.create_client(Trigger, service_of(SIM_NODE, RESET_SERVICE), callback_group=group)
         self._lock = threading.Lock()
+        self._slowest_plan = 0.0
         self._states: list = []  # (stamp ns, theta1, theta2, cart)
         self._trajectories: dict = {}  # start stamp ns -> JointTrajectory
         self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state, JOINT_STATES_QOS,
@@ -219,15 +220,20 @@ class DemoDriver:
         if not response.success:
             raise DemoError(f'sim reset failed: {response.message}')
 
-    def move(self, method: str, start: float, goal: float, duration: float, lead: float = 0.3):
-        """Plan a move starting ``lead`` s from now; (start stamp ns, round-trip s, served trajectory)."""
-        start_ns = self.now_ns() + round(lead * 1e9)
+    def move(self, method: str, start: float, goal: float, duration: float):
+        """Plan a move starting a little later; (start stamp ns, round-trip s, served trajectory).
+
+        The start stamp leaves room for the round trip: three times the slowest
+        one seen so far, at least 0.5 s (a first solve builds the solver).
+        """
+        start_ns = self.now_ns() + round(max(0.5, 3.0 * self._slowest_plan) * 1e9)
         t0 = time.perf_counter()
         # The client raises PlanError with the planner's reason on a refused plan.
         self.planner.plan(method, start, goal, duration, start_ns=start_ns, timeout=30.0)
         plan_time = time.perf_counter() - t0
+        self._slowest_plan = max(self._slowest_plan, plan_time)
         if self.now_ns() > start_ns:
-            raise DemoError(f'planning {method} took {plan_time:.2f} s, past the motion start; raise the lead')
+            raise DemoError(f'planning {method} took {plan_time:.2f} s, past the motion start (machine overloaded?)')
         deadline = time.monotonic() + 5.0
         while True:
             with self._lock:
@@ -239,7 +245,20 @@ class DemoDriver:
                 raise DemoError(f'the {method} plan never appeared on the trajectory topic')
             time.sleep(0.01)
 
-    def states_between(self, begin_ns: int, end_ns: int) -> np.ndarray:
+    def states_between(self, begin_ns: int, end_ns: int, timeout: float = 3.0) -> np.ndarray:
+        """joint_states stamped in [begin, end], once one stamped after ``end_ns`` has arrived.
+
+        The sim stamps states with simulated time, which may trail the wall clock
+        (it plays references out by their stamps), so wait for the record to cover the window.
+        """
+        deadline = time.monotonic() + timeout
+        while True:
+            with self._lock:
+                covered = bool(self._states) and self._states[-1][0] >= end_ns
+            if covered or time.monotonic() > deadline:
+                break
+            self._nodes.check_alive()
+            time.sleep(0.02)
         with self._lock:
             rows = [r for r in self._states if begin_ns <= r[0] <= end_ns]
             self._states = [r for r in self._states if r[0] > end_ns]
