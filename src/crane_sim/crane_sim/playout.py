@@ -1,0 +1,94 @@
+"""Time-stamped references played out at a fixed delay: the simulator's jitter buffer.
+
+References arrive with their stamps (the streamer's tick times) but at
+uneven moments: transport latency, jitter and the receiving process's own
+scheduling hiccups delay some and bunch others. Applying the newest on
+arrival would hold a stale value through a hiccup and then skip the bunched
+ones, so the integrated velocity drifts by jerk * hiccup^2 / 2. Instead each
+step of the plant at time t uses the reference *as stamped* at t - delay:
+every sample counts for exactly its own interval, whatever the arrival
+pattern, as long as it arrives within ``delay``.
+
+Per step ``[t0, t1]`` the acceleration is the newest stamped <= t0 - delay
+(``zoh``), or interpolated between the samples bracketing t0 - delay and
+t1 - delay (``linear``). With ``source='position'`` the accelerations are
+the second differences of the positions (``simulator.PositionDifferentiator``:
+what a controller that only gets positions reconstructs). Without a sample
+newer than ``timeout`` the acceleration falls back to 0 (the stream stopped:
+never hold an acceleration). Times are seconds on any common clock. Pure
+Python, no ROS import.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+
+from .simulator import INTERPOLATIONS, SOURCES, PositionDifferentiator, SimulationError, _check_choice
+
+
+class ReferencePlayout:
+    """Accelerations for consecutive plant steps from stamped references.
+
+    Args:
+        delay: playout delay (s), >= 0.
+        timeout: age (s) beyond which the newest sample no longer counts, > 0.
+        interpolation: ``zoh`` or ``linear``.
+        source: ``acceleration`` (use each sample's acceleration) or ``position``.
+
+    ``timeouts`` counts the times the reference fell back to 0 after having had samples.
+    """
+
+    def __init__(self, delay: float, timeout: float, interpolation: str = 'zoh', source: str = 'acceleration'):
+        _check_choice('interpolation', interpolation, INTERPOLATIONS)
+        _check_choice('source', source, SOURCES)
+        if not (delay >= 0.0 and timeout > 0.0):
+            raise SimulationError(f'need delay >= 0 and timeout > 0, got {delay}, {timeout}')
+        self.delay, self.timeout = float(delay), float(timeout)
+        self.interpolation, self.source = interpolation, source
+        self.timeouts = 0
+        self._differentiator = PositionDifferentiator()
+        self.reset()
+
+    def reset(self):
+        """Forget every sample (the next position sample starts a motion from rest)."""
+        self._queue: deque = deque()   # (t, a) not yet reached by the playout time
+        self._last = -math.inf         # stamp of the last sample pushed
+        self._current = None           # (t, a): the newest sample at or before the playout time
+        self._live = False             # whether _current is recent enough to count
+        self._differentiator.reset()
+
+    def push(self, t: float, position: float, acceleration: float):
+        """A sample stamped ``t`` (after the previous one's stamp)."""
+        if not t > self._last:
+            raise SimulationError(f'reference stamps must increase: {t} after {self._last}')
+        self._last = float(t)
+        if self.source == 'position':
+            acceleration = self._differentiator.update(t, position)
+        self._queue.append((float(t), float(acceleration)))
+
+    def _advance(self, tau: float):
+        queue = self._queue
+        while queue and queue[0][0] <= tau:
+            self._current = queue.popleft()
+        live = self._current is not None and tau - self._current[0] <= self.timeout
+        if self._live and not live:
+            self.timeouts += 1
+            self._differentiator.reset()
+        self._live = live
+
+    def _at(self, tau: float) -> float:
+        self._advance(tau)
+        if not self._live:
+            return 0.0
+        t0, a0 = self._current
+        if self.interpolation == 'linear' and self._queue:
+            t1, a1 = self._queue[0]
+            return a0 + (a1 - a0) * (tau - t0) / (t1 - t0)
+        return a0
+
+    def step(self, t0: float, t1: float) -> tuple[float, float]:
+        """Reference acceleration at the beginning and the end of the plant step [t0, t1]."""
+        a0 = self._at(t0 - self.delay)
+        if self.interpolation == 'zoh':
+            return a0, a0
+        return a0, self._at(t1 - self.delay)
