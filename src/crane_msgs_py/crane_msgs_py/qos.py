@@ -19,13 +19,14 @@ TRAJECTORY_QOS = QoSProfile(
 #: discarded anyway, while reliable delivery would add acknowledgement traffic
 #: and head-of-line blocking behind a lost sample (latency spikes where the
 #: receiver needs freshness). Volatile: a late joiner must not get old
-#: setpoints. Depth 10 (10 ms of samples) lets a receiver whose executor
-#: hiccups for a few ms still get every sample in order instead of only the
-#: newest, which matters when the acceleration is reconstructed from positions.
-#: A best-effort publisher only matches best-effort subscribers: subscribe
-#: with this profile too.
+#: setpoints. Depth 100 (100 ms of samples): with best effort only the
+#: reader's queue matters, and a receiver that stalls for a few tens of ms
+#: (a busy machine, a virtual CPU descheduled by its host) then still gets
+#: every sample, in order, which matters to a plant that integrates each one
+#: (the sim) or differentiates positions. A best-effort publisher only
+#: matches best-effort subscribers: subscribe with this profile too.
 REFERENCE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10,
+    history=HistoryPolicy.KEEP_LAST, depth=100,
     reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
 
 #: ``joint_states``: measurements, newest wins (REP 2003 sensor data profile).
