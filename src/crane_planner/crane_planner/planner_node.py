@@ -23,7 +23,7 @@ from rclpy.parameter import Parameter
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.conversions import samples_to_joint_trajectory, samples_to_path, stamp_ns
-from crane_msgs_py.diagnostics import ERROR, OK, DiagnosticsPublisher
+from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import DEFAULT_FRAME_ID, PLANNER_NODE, TRAJECTORY_TOPIC, plan_service
 from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError,
                                   check_positive)
@@ -125,11 +125,10 @@ class PlannerNode(Node):
         self._planner = Planner()
         self._trajectory = self.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
         group = ReentrantCallbackGroup()
-        self._services = [self.create_service(GetPlan, plan_service(), self._serve_default, callback_group=group)]
+        self.create_service(GetPlan, plan_service(), self._serve_default, callback_group=group)
         for method in METHODS:
-            self._services.append(self.create_service(
-                GetPlan, plan_service(method), lambda req, res, m=method: self._serve(m, req, res),
-                callback_group=group))
+            self.create_service(GetPlan, plan_service(method), lambda req, res, m=method: self._serve(m, req, res),
+                                callback_group=group)
         self.get_logger().info(f'serving {", ".join(METHODS)} on {self.get_fully_qualified_name()}/plan/<method>')
         self._warmup = threading.Thread(target=self._build_solvers, name='solver-warmup', daemon=True)
         self._warmup.start()
@@ -167,8 +166,13 @@ class PlannerNode(Node):
     # -- requests ---------------------------------------------------------
 
     def _build_solvers(self):
-        """Build every method once with the start-up configuration, so first requests are warm."""
+        """Build every method once with the start-up configuration, so first requests are warm.
+
+        Reported on /diagnostics (task ``solvers``) when done, with the time each took.
+        """
         config = self._config
+        times, failed = {}, {}
+        t_all = time.perf_counter()
         for method in METHODS:
             # long enough for every shaper; the variational solvers at a typical request
             duration = min(3.0 if method in VARIATIONAL_METHODS else 10.0, config.max_duration)
@@ -177,11 +181,17 @@ class PlannerNode(Node):
                 plan = self._planner.plan(method, min(0.3, config.max_displacement), duration,
                                           config.params, config.options)
             except Exception as exc:  # a warm-up failure only means building on first use
+                failed[method] = str(exc)
                 self.get_logger().warn(f'{method} warm-up failed: {exc}')
                 continue
+            times[method] = time.perf_counter() - t0
             build = plan.info.get('build_time_s')
-            self.get_logger().info(f'{method} ready in {time.perf_counter() - t0:.2f} s'
+            self.get_logger().info(f'{method} ready in {times[method]:.2f} s'
                                    + (f' (solver built in {build:.2f} s)' if build else ''))
+        message = f'{len(times)} of {len(METHODS)} methods ready in {time.perf_counter() - t_all:.2f} s'
+        self._diagnostics.report('solvers', WARN if failed else OK, message,
+                                 **{f'{m}_s': v for m, v in times.items()},
+                                 **{f'{m}_error': e for m, e in failed.items()})
 
     def _serve_default(self, request, response):
         return self._serve(None, request, response)

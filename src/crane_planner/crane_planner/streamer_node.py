@@ -122,6 +122,7 @@ class StreamerNode(Node):
         self._created_ns = self.get_clock().now().nanoseconds
         self._lateness = Lateness(keep_all=bool(self._timing_log))
         self.ticks = self.sent = self.dropped = self.reordered = self.skipped = 0
+        self._counted = (0, 0)  # dropped, reordered before the current link
         self.accepted = self.refused = 0
         self._ticks_window = 0
         self._window_start = time.monotonic()
@@ -133,7 +134,8 @@ class StreamerNode(Node):
         self._thread = threading.Thread(target=self._loop, name='reference-loop', daemon=True)
         if p['auto_start']:
             self._running.set()
-        self._thread.start()
+        # Started once the executor spins: until then the main thread holds the GIL for long stretches.
+        self._kickoff = self.create_timer(0.05, self._start_loop)
         self.get_logger().info(f'streaming {p["output"]} on {self.resolve_topic_name(REFERENCE_TOPIC)} at '
                                f'{p["rate"]:g} Hz, hold {self._hold:g} m'
                                + ('' if p['auto_start'] else ' (waiting for ~/start)'))
@@ -212,6 +214,8 @@ class StreamerNode(Node):
         with self._lock:
             if not self._running.is_set():
                 raise ValueError('the streamer is stopped (call ~/start)')
+            if not self._epoch_ros:
+                raise ValueError('the stream has not started yet')
             if self._motion is not None or self._incoming is not None:
                 raise ValueError('a motion is streaming; a new one is accepted only after it ends')
             if abs(p[0] - self._hold) > self._start_tolerance:
@@ -277,6 +281,7 @@ class StreamerNode(Node):
                 impairment = self._impairment
                 if line is not None:  # flush what was in flight on the old link
                     self._deliver(line, math.inf)
+                self._counted = (self.dropped, self.reordered)  # the new link counts from 0
                 line = DelayLine(impairment) if impairment.active else None
             k, deadline = ticker.tick, ticker.deadline
             now = self._wait(deadline, line)
@@ -313,7 +318,7 @@ class StreamerNode(Node):
         for stamp, position, velocity, acceleration in line.deliver(now_s):
             fill_reference(msg, stamp, position, velocity, acceleration)
             self._publish(msg, publisher)
-        self.dropped, self.reordered = line.lost, line.reordered
+        self.dropped, self.reordered = self._counted[0] + line.lost, self._counted[1] + line.reordered
 
     def _publish(self, msg, publisher) -> bool:
         try:
@@ -362,10 +367,21 @@ class StreamerNode(Node):
             network_delay=imp.delay, network_jitter=imp.jitter, network_distribution=imp.distribution,
             network_loss=imp.loss, network_reorder=imp.reorder)
 
+    def _start_loop(self):
+        # Runs on the executor's thread. With a real-time loop, that thread gets the priority just
+        # below it: preempted by an ordinary process while holding the GIL, it would stall the loop.
+        self._kickoff.cancel()
+        if self._thread.ident is None:
+            if self._priority > 1:
+                for warning in tune_thread(self._priority - 1):
+                    self.get_logger().warn(f'executor thread: {warning}')
+            self._thread.start()
+
     def destroy_node(self):
         self._shutdown.set()
         self._running.set()  # wake a stopped loop so it sees the shutdown
-        self._thread.join(timeout=2.0)
+        if self._thread.ident is not None:
+            self._thread.join(timeout=2.0)
         if self._timing_log and self._lateness.all is not None:
             with open(self._timing_log, 'w') as f:
                 json.dump({'rate_hz': 1e9 / self._period_ns, 'lateness_us': [x * 1e-3 for x in self._lateness.all]}, f)
