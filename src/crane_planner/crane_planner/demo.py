@@ -94,8 +94,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--sweep-points', type=int, default=31, metavar='N',
                    help='points of the L1 +-30 %% sweep figure (crane-plan sweep), 0 = skip (default 31)')
     p.add_argument('--no-figures', action='store_true', help='write results.json only')
-    p.add_argument('--startup-timeout', type=float, default=30.0, metavar='S',
-                   help='seconds for the nodes to come up (default 30)')
+    p.add_argument('--startup-timeout', type=float, default=90.0, metavar='S',
+                   help='seconds for the nodes to come up and the planner to build its solvers (default 90)')
     return p
 
 
@@ -198,7 +198,11 @@ class DemoDriver:
         waits += [('sim parameters', lambda: self._sim_params.wait_for_services(0.1)),
                   ('streamer parameters', lambda: self._streamer_params.wait_for_services(0.1)),
                   ('sim reset service', lambda: self._reset.wait_for_service(0.1)),
-                  ('joint_states', lambda: bool(self._states))]
+                  ('joint_states', lambda: bool(self._states)),
+                  # The planner builds its solvers in the background at start-up;
+                  # planning before that is done would be slow and late.
+                  ('planner warm-up', lambda: self.planner.diagnostics.wait_for(
+                      name='crane_planner: solvers', timeout=0.1) is not None)]
         for what, ready in waits:
             while not ready():
                 self._nodes.check_alive()
@@ -266,6 +270,8 @@ class DemoDriver:
 
     def close(self):
         self._executor.shutdown()
+        # The spinning thread must be out of rcl before the node and context go.
+        self._spinner.join(timeout=5.0)
         self.node.destroy_node()
         self._rclpy.try_shutdown()
 
