@@ -84,15 +84,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f'cases to run, from {",".join(CASES)} (default all)')
     p.add_argument('--displacement', type=float, default=0.3, metavar='D', help='cart move (m), default 0.3')
     p.add_argument('--duration', type=float, default=2.5, metavar='T', help='motion time (s), default 2.5 (paper §5)')
-    p.add_argument('--settle', type=float, default=3.0, metavar='S',
-                   help='seconds of swing observed after each motion (default 3)')
-    p.add_argument('--return-duration', type=float, default=2.0, metavar='T',
-                   help='time (s) of the unmeasured move back between runs (default 2)')
+    p.add_argument('--settle', type=float, default=2.5, metavar='S',
+                   help='seconds of swing observed after each motion (default 2.5, over one period of '
+                        'the slow mode)')
+    p.add_argument('--return-duration', type=float, default=1.5, metavar='T',
+                   help='time (s) of the unmeasured move back between runs (default 1.5)')
     p.add_argument('--out', default='out', help='folder for figures and results (default out)')
     p.add_argument('--namespace', default='/crane_demo', help='namespace of the three nodes')
     p.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID (default: random, with localhost discovery)')
-    p.add_argument('--sweep-points', type=int, default=31, metavar='N',
-                   help='points of the L1 +-30 %% sweep figure (crane-plan sweep), 0 = skip (default 31)')
+    p.add_argument('--sweep-points', type=int, default=25, metavar='N',
+                   help='points of the L1 +-30 %% sweep figure (crane-plan sweep), 0 = skip (default 25)')
     p.add_argument('--no-figures', action='store_true', help='write results.json only')
     p.add_argument('--startup-timeout', type=float, default=90.0, metavar='S',
                    help='seconds for the nodes to come up and the planner to build its solvers (default 90)')
@@ -228,9 +229,9 @@ class DemoDriver:
         """Plan a move starting a little later; (start stamp ns, round-trip s, served trajectory).
 
         The start stamp leaves room for the round trip: three times the slowest
-        one seen so far, at least 0.5 s (a first solve builds the solver).
+        one seen so far, at least 0.3 s.
         """
-        start_ns = self.now_ns() + round(max(0.5, 3.0 * self._slowest_plan) * 1e9)
+        start_ns = self.now_ns() + round(max(0.3, 3.0 * self._slowest_plan) * 1e9)
         t0 = time.perf_counter()
         # The client raises PlanError with the planner's reason on a refused plan.
         self.planner.plan(method, start, goal, duration, start_ns=start_ns, timeout=30.0)
