@@ -67,7 +67,8 @@ def test_joint_trajectory_without_cart_or_accelerations_is_refused():
         cv.joint_trajectory_to_arrays(msg)
 
 
-@pytest.mark.parametrize('output, msg_type', [('joint_trajectory', JointTrajectory), ('float64_array', Float64MultiArray)])
+@pytest.mark.parametrize('output, msg_type', [('joint_trajectory', JointTrajectory),
+                                              ('float64_array', Float64MultiArray)])
 def test_reference_fill_in_place_and_read_back(output, msg_type):
     msg = cv.reference_message(output)
     assert type(msg) is msg_type

@@ -23,7 +23,7 @@ from crane_planner.shapers import design
 NS = '/crane_it'
 D = 0.3              # m, the paper's displacement
 SETTLE = 2.0         # s observed after each motion: more than the slow mode's 1.73 s period
-LEAD = 0.5           # s between a request and the motion start
+LEAD = 1.0           # s between a request and the motion start (room for a busy machine)
 NOMINAL = CraneParams()
 
 
@@ -117,12 +117,11 @@ class Crane:
 
     @contextmanager
     def references(self):
-        """Record the reference stream: rows (stamp ns, received ns, position, velocity, acceleration).
+        """Record the reference stream: rows (stamp ns, position, velocity, acceleration) in arrival order.
 
-        The 1 kHz stream gets a node and an EventsExecutor of its own: the
-        driver's multi-threaded executor is too slow per callback to keep up.
-        The receive time is the callback's system time (the ROS clock), so a
-        measured latency includes this process's executor delay.
+        The stream gets a node and an EventsExecutor of its own (the Python
+        executors cost this process most of a core at 1 kHz) and a queue of
+        1 s, so nothing is lost when this process lags.
         """
         import threading
 
@@ -132,17 +131,13 @@ class Crane:
 
         from crane_msgs_py.conversions import read_reference
         from crane_msgs_py.names import REFERENCE_TOPIC
-        from crane_msgs_py.qos import REFERENCE_QOS
+        from crane_msgs_py.qos import REFERENCE_EVERY_SAMPLE_QOS
         rows = []
-
-        def record(msg):  # (the EventsExecutor passes no message info)
-            stamp, position, velocity, acceleration = read_reference(msg)
-            rows.append((stamp, time.time_ns(), position, velocity, acceleration))
-
         # Everything is created before the executor spins, which is stopped before it is shut
         # down: the EventsExecutor takes neither a new entity nor a shutdown from another thread.
         node = rclpy.create_node('crane_it_recorder', namespace=NS)
-        node.create_subscription(JointTrajectory, REFERENCE_TOPIC, record, REFERENCE_QOS)
+        node.create_subscription(JointTrajectory, REFERENCE_TOPIC, lambda m: rows.append(read_reference(m)),
+                                 REFERENCE_EVERY_SAMPLE_QOS)
         executor = EventsExecutor()
         executor.add_node(node)
         stop = threading.Event()
@@ -174,10 +169,18 @@ class Crane:
         return pub
 
     def move(self, method: str, goal: float, duration: float):
-        """Plan hold -> goal starting LEAD s from now; the PathPlan, its start stamp and end stamp."""
+        """Plan hold -> goal starting LEAD s from now; the PathPlan and the stamps the motion starts and ends.
+
+        A trajectory reaching the streamer after its start stamp (a busy
+        machine) is streamed whole from the next tick: the stamps follow that.
+        """
+        from crane_msgs_py.diagnostics import OK, status_values
+        mark = self.diagnostics.mark()
         start_ns = self.now() + round(LEAD * 1e9)
         plan = self.planner.plan(method, self.hold, goal, duration, start_ns=start_ns)
-        assert self.now() < start_ns, 'planning took longer than the lead'
+        accepted = self.status('crane_streamer', 'trajectory', mark, level=OK,
+                               predicate=lambda s: int(status_values(s)['start_stamp']) == start_ns)
+        start_ns += round(float(status_values(accepted)['late_start']) * 1e9)
         self.hold = float(plan.position[-1])  # the goal up to rounding: what the streamer holds next
         return plan, start_ns, start_ns + round(duration * 1e9)
 
@@ -243,13 +246,14 @@ def test_method_is_planned_published_streamed_and_leaves_no_swing(crane, method)
     crane.driver.reset_sim()  # the simulated crane has no damping: start each motion at rest
     with crane.references() as refs:
         plan, start_ns, end_ns = crane.move(method, goal, T)
-        traj = crane.trajectory(start_ns)
+        traj = crane.trajectory(stamp_ns(plan.path.header.stamp))
         residual, travel = crane.swing_after(start_ns, T, NOMINAL.L1)
     # the service's Path: one pose per 10 ms knot, ending at the goal exactly at the requested time
     path = plan.path
-    assert path.header.frame_id == 'crane_base' and stamp_ns(path.header.stamp) == start_ns
+    plan_start = stamp_ns(path.header.stamp)
+    assert path.header.frame_id == 'crane_base' and plan.start_ns == plan_start
     assert len(path.poses) == round(T / 0.01) + 1
-    assert stamp_ns(path.poses[-1].header.stamp) == end_ns
+    assert stamp_ns(path.poses[-1].header.stamp) == plan_start + round(T * 1e9)
     assert plan.position[0] == pytest.approx(start, abs=1e-9)
     assert plan.position[-1] == pytest.approx(goal, abs=1e-9)
     assert path.poses[-1].pose.orientation.w == 1.0
@@ -265,8 +269,8 @@ def test_method_is_planned_published_streamed_and_leaves_no_swing(crane, method)
     assert during.sum() > 0.3 * T * 1000, f'only {during.sum()} references during the motion'
     tau = (stamps[during] - start_ns) * 1e-9
     expected = CubicHermiteSpline(t, p, v)(tau)
-    assert np.max(np.abs(rows[during, 2].astype(float) - expected)) < 1e-6
-    after = rows[stamps > end_ns, 2].astype(float)
+    assert np.max(np.abs(rows[during, 1].astype(float) - expected)) < 1e-6
+    after = rows[stamps > end_ns, 1].astype(float)
     assert after.size > 0 and np.all(after == p[-1])  # the last knot, held exactly
     # the plant: no residual swing on the nominal plant, and the cart travelled the displacement
     assert residual < 1.0, f'{method}: residual load swing {residual:.3f} mm'
@@ -301,26 +305,34 @@ def test_impaired_stream_shows_delay_and_loss_and_every_node_survives(crane):
                                              'network.loss': loss, 'network.seed': 7})
     try:
         mark = crane.diagnostics.mark()
-        before = crane.values('crane_streamer', 'stream', mark, lambda s: 'network_loss' in _values(s)
-                              and float(_values(s)['network_loss']) == loss)
+        impaired = lambda s: float(_values(s).get('network_loss', 0.0)) == loss  # noqa: E731
+        before = crane.values('crane_streamer', 'stream', mark, impaired)
+        sim_before = crane.values('crane_sim', 'sim', crane.diagnostics.mark())
         with crane.references() as refs:
             _, start_ns, end_ns = crane.move('zv', D if crane.hold < D / 2 else 0.0, 3.0)
             crane.sleep_until(end_ns + 300_000_000)
-        after = crane.values('crane_streamer', 'stream', crane.diagnostics.mark())
+        mark = crane.diagnostics.mark()
+        after = crane.values('crane_streamer', 'stream', mark)
+        sim_after = crane.values('crane_sim', 'sim', mark)
+        received = [_values(s) for s in crane.diagnostics.statuses('crane_sim: sim', after=0)
+                    if s.hardware_id == f'{NS}/crane_sim'][-4:]  # the last seconds, all impaired
     finally:
         crane.driver.set_parameters('streamer', {'network.delay': 0.0, 'network.jitter': 0.0, 'network.loss': 0.0})
-    rows = np.array(refs, dtype=object)
-    stamps, received = rows[:, 0].astype(np.int64), rows[:, 1].astype(np.int64)
-    latency = (received - stamps) * 1e-9
-    assert np.median(latency) > delay and np.median(latency) < delay + 10 * jitter, np.median(latency)
-    assert np.percentile(latency, 95) - np.percentile(latency, 5) > jitter  # spread of the jitter
-    ticks = (stamps.max() - stamps.min()) // 1_000_000 + 1
-    assert 1.0 - len(np.unique(stamps)) / ticks > 0.6 * loss  # gaps in the received stream
+    # the streamer's own account: 5 % of the samples lost on the link
     sent = int(after['sent']) - int(before['sent'])
     dropped = int(after['dropped']) - int(before['dropped'])
     assert dropped / (sent + dropped) == pytest.approx(loss, abs=0.02)
-    assert np.all(np.diff(stamps[np.argsort(received, kind='stable')]) > 0)  # FIFO: never reordered
-    assert rows[-1, 2] == crane.hold  # the motion completed
+    # the receiving sim measures it: latency above the delay, gaps of the lost samples
+    for window in received:
+        assert delay < float(window['reference_latency_p50_ms']) * 1e-3 < delay + 10 * jitter, window
+    accepted = int(sim_after['accepted']) - int(sim_before['accepted'])
+    missing = int(sim_after['missing']) - int(sim_before['missing'])
+    assert missing / (accepted + missing) == pytest.approx(loss, abs=0.02)
+    # and so does this recorder: gaps in the stamps, never out of order (FIFO link), the motion complete
+    stamps = np.array([r[0] for r in refs], dtype=np.int64)
+    assert np.all(np.diff(stamps) > 0)
+    assert 1.0 - len(stamps) / ((stamps[-1] - stamps[0]) // 1_000_000 + 1) == pytest.approx(loss, abs=0.02)
+    assert refs[-1][1] == crane.hold
     crane.nodes.check_alive()
     crane.planner.plan('zv', 5.0, 5.3, 3.0)  # the planner still answers
 
@@ -357,7 +369,7 @@ def test_streamer_refuses_a_jump_and_a_trajectory_arriving_mid_stream(crane):
     assert 'hold position' in jump.message and 'jump' in jump.message
     assert 'streaming' in mid.message
     rows = np.array(refs, dtype=object)
-    stamps, x = rows[:, 0].astype(np.int64), rows[:, 2].astype(float)
+    stamps, x = rows[:, 0].astype(np.int64), rows[:, 1].astype(float)
     assert np.all(x[stamps < start_ns] == hold) and np.all(x[stamps > end_ns] == crane.hold)
     # unbroken: between received samples the position moves no faster than the plan does
     vmax = np.max(np.abs(np.diff(plan.position) / np.diff(plan.t)))
@@ -430,14 +442,14 @@ def test_sim_ignores_and_counts_nonfinite_out_of_order_and_stale_references(cran
     pub = crane.publisher(JointTrajectory, REFERENCE_TOPIC, REFERENCE_QOS)
     try:
         before = crane.values('crane_sim', 'sim', crane.diagnostics.mark())
-        now = crane.now()
-        bad = [(now + k, math.nan, 0.0) for k in range(5)]                       # non-finite position
-        bad += [(now + k, crane.hold, math.inf) for k in range(5, 8)]            # non-finite acceleration
-        bad += [(now - 30_000_000 + k, crane.hold, 0.0) for k in range(4)]      # older than the stream
-        bad += [(now - 5_000_000_000 + k, crane.hold, 0.0) for k in range(2)]   # stale
-        for stamp, x, a in bad:
+        # stamps relative to the moment each is sent: (age ns, position, acceleration)
+        bad = [(0, math.nan, 0.0)] * 5                  # non-finite position
+        bad += [(0, crane.hold, math.inf)] * 3          # non-finite acceleration
+        bad += [(30_000_000, crane.hold, 0.0)] * 4      # older than the stream's newest sample
+        bad += [(5_000_000_000, crane.hold, 0.0)] * 2   # stale
+        for age, x, a in bad:
             msg = reference_message()
-            fill_reference(msg, stamp, x, 0.0, a)
+            fill_reference(msg, crane.now() - age, x, 0.0, a)
             pub.publish(msg)
             time.sleep(0.002)
         time.sleep(0.2)

@@ -5,8 +5,7 @@ them from here rather than spelling them out.
 """
 from __future__ import annotations
 
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
-                       qos_profile_sensor_data)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 #: ``trajectory``: the last successful plan is latched, so a streamer that
 #: (re)connects gets it, and it is never lost (one message per request, large).
@@ -19,18 +18,28 @@ TRAJECTORY_QOS = QoSProfile(
 #: discarded anyway, while reliable delivery would add acknowledgement traffic
 #: and head-of-line blocking behind a lost sample (latency spikes where the
 #: receiver needs freshness). Volatile: a late joiner must not get old
-#: setpoints. Depth 100 (100 ms of samples): with best effort only the
-#: reader's queue matters, and a receiver that stalls for a few tens of ms
-#: (a busy machine, a virtual CPU descheduled by its host) then still gets
-#: every sample, in order, which matters to a plant that integrates each one
-#: (the sim) or differentiates positions. A best-effort publisher only
-#: matches best-effort subscribers: subscribe with this profile too.
+#: setpoints. Depth 10 (10 ms): with best effort only the reader's queue
+#: matters; a receiver that wants the newest setpoint (a forward command
+#: controller) has a short backlog at most. A best-effort publisher only
+#: matches best-effort subscribers: subscribe with a best-effort profile.
 REFERENCE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=100,
+    history=HistoryPolicy.KEEP_LAST, depth=10,
     reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
 
-#: ``joint_states``: measurements, newest wins (REP 2003 sensor data profile).
-JOINT_STATES_QOS = qos_profile_sensor_data
+#: ``reference`` for receivers that need every sample (the sim integrates
+#: them, recorders count them): the same policies with a queue of 1 s, so a
+#: receiver stalled for hundreds of ms (a busy machine, a virtual CPU
+#: descheduled by its host) still gets every sample, in order.
+REFERENCE_EVERY_SAMPLE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1000,
+    reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
+
+#: ``joint_states``: measurements in the sensor data style (REP 2003: best
+#: effort, volatile) with a queue of 25 (0.5 s at 50 Hz) instead of 5, so a
+#: reader that stalls briefly still gets every sample of a 50 Hz stream.
+JOINT_STATES_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=25,
+    reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
 
 #: ``/diagnostics``: reliable, and transient local with a short history so a
 #: reader that has just joined (a ``PlannerClient`` created right before its

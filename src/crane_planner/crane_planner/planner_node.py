@@ -15,16 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 from nav_msgs.srv import GetPlan
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.conversions import samples_to_joint_trajectory, samples_to_path, stamp_ns
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import DEFAULT_FRAME_ID, PLANNER_NODE, TRAJECTORY_TOPIC, plan_service
+from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError,
                                   check_positive)
 from crane_msgs_py.qos import TRAJECTORY_QOS
@@ -33,25 +32,19 @@ from crane_msgs_py.runner import run
 from .planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, Planner, PlanOptions, check_request
 from .plan import PlanError
 
-#: The diagnostic task of requests (status ``crane_planner: plan``); parameter changes report as ``parameters``.
+#: The diagnostic task of requests (status ``crane_planner: plan``).
 PLAN_TASK = 'plan'
-PARAMETERS_TASK = 'parameters'
-
-
-def _float_range(lo, hi):
-    return [FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)]
-
 
 #: name -> (default, description, range descriptor fields). Ranges are the
 #: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by the
 #: node, which names the reason and reports it on /diagnostics.
 PARAMETERS = {
-    'L1': (CraneParams.L1, PARAMETER_DESCRIPTIONS['L1'], {'floating_point_range': _float_range(0.0, 100.0)}),
-    'L2': (CraneParams.L2, PARAMETER_DESCRIPTIONS['L2'], {'floating_point_range': _float_range(0.0, 100.0)}),
-    'm1': (CraneParams.m1, PARAMETER_DESCRIPTIONS['m1'], {'floating_point_range': _float_range(0.0, 1e5)}),
-    'm2': (CraneParams.m2, PARAMETER_DESCRIPTIONS['m2'], {'floating_point_range': _float_range(0.0, 1e5)}),
-    'g': (CraneParams.g, PARAMETER_DESCRIPTIONS['g'], {'floating_point_range': _float_range(0.0, 100.0)}),
-    'tau': (CraneParams.tau, PARAMETER_DESCRIPTIONS['tau'], {'floating_point_range': _float_range(0.0, 10.0)}),
+    'L1': (CraneParams.L1, PARAMETER_DESCRIPTIONS['L1'], float_range(0.0, 100.0)),
+    'L2': (CraneParams.L2, PARAMETER_DESCRIPTIONS['L2'], float_range(0.0, 100.0)),
+    'm1': (CraneParams.m1, PARAMETER_DESCRIPTIONS['m1'], float_range(0.0, 1e5)),
+    'm2': (CraneParams.m2, PARAMETER_DESCRIPTIONS['m2'], float_range(0.0, 1e5)),
+    'g': (CraneParams.g, PARAMETER_DESCRIPTIONS['g'], float_range(0.0, 100.0)),
+    'tau': (CraneParams.tau, PARAMETER_DESCRIPTIONS['tau'], float_range(0.0, 10.0)),
     'method': ('rvf', f'method of ~/plan: one of {", ".join(METHODS)}',
                {'additional_constraints': f'one of {", ".join(METHODS)}'}),
     'robust_parameters': (['L1'], f'parameters RVF is made insensitive to, among {", ".join(ROBUST_PARAMETERS)}',
@@ -59,19 +52,19 @@ PARAMETERS = {
     'shaper_frequencies': ([], 'shaper design frequencies (rad/s), one per mode; empty = the linearized '
                                "model's modal frequencies", {'additional_constraints': 'each > 0'}),
     'shaper_damping': (0.0, 'shaper design damping ratio, >= 0 and < 1',
-                       {'floating_point_range': _float_range(0.0, 1.0)}),
+                       float_range(0.0, 1.0)),
     'intervals': (0, 'collocation intervals of NVF/RVF, 4..2000; 0 = the solver default',
-                  {'integer_range': [IntegerRange(from_value=0, to_value=2000, step=1)]}),
+                  int_range(0, 2000)),
     'sample_period': (0.01, 'knot spacing of returned plans (s), > 0; the last knot is exactly at the end',
-                      {'floating_point_range': _float_range(1e-4, 1.0)}),
+                      float_range(1e-4, 1.0)),
     'frame_id': (DEFAULT_FRAME_ID, 'frame of returned paths and trajectories', {}),
-    'max_duration': (60.0, 'longest motion served (s), > 0', {'floating_point_range': _float_range(0.0, 3600.0)}),
+    'max_duration': (60.0, 'longest motion served (s), > 0', float_range(0.0, 3600.0)),
     'max_displacement': (10.0, 'largest |goal - start| served (m), > 0',
-                         {'floating_point_range': _float_range(0.0, 1e4)}),
+                         float_range(0.0, 1e4)),
     'max_velocity': (0.0, 'axis limit |v| of the reference (m/s); 0 = no limit',
-                     {'floating_point_range': _float_range(0.0, 1e3)}),
+                     float_range(0.0, 1e3)),
     'max_acceleration': (0.0, 'axis limit |a| of the reference (m/s^2); 0 = no limit',
-                         {'floating_point_range': _float_range(0.0, 1e4)}),
+                         float_range(0.0, 1e4)),
 }
 
 
@@ -110,18 +103,10 @@ class PlannerNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(PLANNER_NODE, **kwargs)
-        for name, (default, description, extra) in PARAMETERS.items():
-            descriptor = ParameterDescriptor(description=description, **extra)
-            if name == 'shaper_frequencies':  # rclpy would type an empty list as a byte array
-                self.declare_parameter(name, Parameter.Type.DOUBLE_ARRAY, descriptor)
-                if self.get_parameter_or(name).type_ == Parameter.Type.NOT_SET:  # no override given
-                    self.set_parameters([Parameter(name, Parameter.Type.DOUBLE_ARRAY, [])])
-            else:
-                self.declare_parameter(name, default, descriptor)
+        values = declare(self, PARAMETERS)
         self._diagnostics = DiagnosticsPublisher(self)
-        self._config = Config.from_values(self._values())  # bad overrides: ParameterError, see main()
-        self.add_pre_set_parameters_callback(self._report_bad_parameters)
-        self.add_on_set_parameters_callback(self._check_parameters)
+        self._config = Config.from_values(values)  # bad overrides: ParameterError, see main()
+        Guard(self, PARAMETERS, Config.from_values, self._apply, self._diagnostics)
         self._planner = Planner()
         self._trajectory = self.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
         group = ReentrantCallbackGroup()
@@ -133,35 +118,8 @@ class PlannerNode(Node):
         self._warmup = threading.Thread(target=self._build_solvers, name='solver-warmup', daemon=True)
         self._warmup.start()
 
-    # -- parameters -------------------------------------------------------
-
-    def _values(self, changes=()) -> dict:
-        values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        values.update((p.name, p.value) for p in changes)
-        return values
-
-    def _validate(self, changes) -> tuple[Config | None, str]:
-        try:
-            return Config.from_values(self._values(changes)), ''
-        except (ParameterError, TypeError, ValueError) as exc:
-            return None, str(exc)
-
-    def _report_bad_parameters(self, changes):
-        # Runs before rclpy's own range checks, which would otherwise refuse silently.
-        config, reason = self._validate(changes)
-        if config is None:
-            self.get_logger().error(f'parameter change refused: {reason}')
-            self._diagnostics.report(PARAMETERS_TASK, ERROR, reason, error=reason,
-                                     **{p.name: p.value for p in changes})
-        return changes
-
-    def _check_parameters(self, changes) -> SetParametersResult:
-        config, reason = self._validate(changes)
-        if config is None:
-            return SetParametersResult(successful=False, reason=reason)
+    def _apply(self, config: Config, values, changes):
         self._config = config  # applies to the next request
-        self.get_logger().info('parameters set: ' + ', '.join(f'{p.name}={p.value}' for p in changes))
-        return SetParametersResult(successful=True)
 
     # -- requests ---------------------------------------------------------
 

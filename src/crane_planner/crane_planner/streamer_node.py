@@ -17,7 +17,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
@@ -28,6 +27,7 @@ from crane_msgs_py.conversions import fill_reference, joint_trajectory_to_arrays
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (OUTPUT_JOINT_TRAJECTORY, OUTPUTS, REFERENCE_TOPIC,
                                  START_SERVICE, STOP_SERVICE, STREAMER_NODE, TRAJECTORY_TOPIC)
+from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import ParameterError
 from crane_msgs_py.qos import REFERENCE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until, tune_thread
@@ -40,32 +40,31 @@ STREAM_TASK = 'stream'
 TRAJECTORY_TASK = 'trajectory'
 
 
-def _range(lo, hi):
-    return {'floating_point_range': [FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)]}
-
-
 PARAMETERS = {
-    'rate': (1000.0, 'publishing rate of reference (Hz); fixed at start-up', {**_range(1.0, 10000.0), 'read_only': True}),
+    'rate': (1000.0, 'publishing rate of reference (Hz); fixed at start-up',
+             {**float_range(1.0, 10000.0), 'read_only': True}),
     'output': (OUTPUT_JOINT_TRAJECTORY, 'reference type: joint_trajectory (one point: position, velocity, '
                'acceleration) or float64_array (Float64MultiArray [position]); fixed at start-up',
                {'additional_constraints': f'one of {", ".join(OUTPUTS)}', 'read_only': True}),
     'auto_start': (True, 'start streaming at start-up (else wait for ~/start)', {'read_only': True}),
     'initial_position': (0.0, 'hold position (m) before the first motion', {'read_only': True}),
     'start_tolerance': (1e-6, 'largest distance (m) between a trajectory\'s first position and the hold '
-                        'position; farther is a jump and the trajectory is refused', _range(0.0, 1.0)),
+                        'position; farther is a jump and the trajectory is refused', float_range(0.0, 1.0)),
     'busy_wait': (1e-4, 'the last part (s) of each tick period spent spinning instead of sleeping, for '
-                  'wake-up precision at the cost of CPU', _range(0.0, 1e-3)),
+                  'wake-up precision at the cost of CPU', float_range(0.0, 1e-3)),
     'sched_priority': (50, 'SCHED_FIFO priority of the loop thread, 1..99 (as ros2_control\'s controller '
                        'manager; without the privilege a warning and normal scheduling); 0 = normal scheduling',
-                       {'integer_range': [IntegerRange(from_value=0, to_value=99, step=1)], 'read_only': True}),
-    'timing_log': ('', 'file to write every tick lateness (JSON, us) to at shutdown; empty = off',
+                       {**int_range(0, 99), 'read_only': True}),
+    'timing_log': ('', 'file to write every tick lateness to at shutdown, JSON {rate_hz, first_tick_ns (ROS '
+                   'time of the first tick), lateness_us: [...]}, ticks of later ~/start runs appended; '
+                   'empty = off',
                    {'read_only': True}),
-    'network.delay': (0.0, 'impairment: fixed delay (s) of every message', _range(0.0, 10.0)),
-    'network.jitter': (0.0, 'impairment: standard deviation (s) of the random delay', _range(0.0, 10.0)),
+    'network.delay': (0.0, 'impairment: fixed delay (s) of every message', float_range(0.0, 10.0)),
+    'network.jitter': (0.0, 'impairment: standard deviation (s) of the random delay', float_range(0.0, 10.0)),
     'network.distribution': ('normal', f'impairment: jitter distribution, one of {", ".join(DISTRIBUTIONS)} '
                              '(normal/uniform zero-mean, exponential one-sided)',
                              {'additional_constraints': f'one of {", ".join(DISTRIBUTIONS)}'}),
-    'network.loss': (0.0, 'impairment: probability that a message is lost', _range(0.0, 1.0)),
+    'network.loss': (0.0, 'impairment: probability that a message is lost', float_range(0.0, 1.0)),
     'network.reorder': (False, 'impairment: let messages overtake each other (false = FIFO delivery)', {}),
     'network.seed': (0, 'impairment: seed of the random draws', {}),
 }
@@ -79,11 +78,17 @@ class Motion:
     position: list
     velocity: list
     acceleration: list
-    summary: str
+    duration: float  # s
+    late: float      # s the start was shifted: the trajectory came after its start stamp
 
     @property
     def end_position(self) -> float:
         return self.position[-1]
+
+    @property
+    def summary(self) -> str:
+        return (f'{self.position[0]:.6g} -> {self.end_position:.6g} m in {self.duration:.3f} s, '
+                f'{len(self.position)} ticks' + (f', started {self.late:.3f} s late' if self.late else ''))
 
 
 class StreamerNode(Node):
@@ -91,14 +96,10 @@ class StreamerNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(STREAMER_NODE, **kwargs)
-        for name, (default, description, extra) in PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=description, **extra))
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        p = declare(self, PARAMETERS)
         if p['output'] not in OUTPUTS:
             raise ParameterError(f'output must be one of {", ".join(OUTPUTS)}, got {p["output"]!r}')
         self._impairment = self._impairment_of(p)  # ParameterError on a bad override
-        self.add_pre_set_parameters_callback(self._report_bad_parameters)
-        self.add_on_set_parameters_callback(self._check_parameters)
         self._ticker = Ticker(round(1e9 / p['rate']))
         self._period_ns = self._ticker.period
         self._busy_wait_ns = round(p['busy_wait'] * 1e9)
@@ -106,6 +107,7 @@ class StreamerNode(Node):
         self._priority = p['sched_priority']
         self._timing_log = p['timing_log']
         self._diagnostics = DiagnosticsPublisher(self)
+        Guard(self, PARAMETERS, self._impairment_of, self._apply, self._diagnostics)
         msg_type = JointTrajectory if p['output'] == OUTPUT_JOINT_TRAJECTORY else Float64MultiArray
         self._msg = reference_message(p['output'])
         self._publisher = self.create_publisher(msg_type, REFERENCE_TOPIC, REFERENCE_QOS)
@@ -121,6 +123,7 @@ class StreamerNode(Node):
         self._shutdown = threading.Event()
         self._created_ns = self.get_clock().now().nanoseconds
         self._lateness = Lateness(keep_all=bool(self._timing_log))
+        self._first_tick_ns = None
         self.ticks = self.sent = self.dropped = self.reordered = self.skipped = 0
         self._counted = (0, 0)  # dropped, reordered before the current link
         self.accepted = self.refused = 0
@@ -148,34 +151,12 @@ class StreamerNode(Node):
                           distribution=values['network.distribution'], loss=values['network.loss'],
                           reorder=values['network.reorder'], seed=values['network.seed'])
 
-    def _validate(self, changes) -> tuple[Impairment | None, str]:
-        values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        values.update((c.name, c.value) for c in changes)
-        try:
-            return self._impairment_of(values), ''
-        except (ParameterError, TypeError, ValueError) as exc:
-            return None, str(exc)
-
-    def _report_bad_parameters(self, changes):
-        impairment, reason = self._validate(changes)
-        if impairment is None:
-            self.get_logger().error(f'parameter change refused: {reason}')
-            self._diagnostics.report('parameters', ERROR, reason, error=reason, **{c.name: c.value for c in changes})
-        return changes
-
-    def _check_parameters(self, changes) -> SetParametersResult:
-        impairment, reason = self._validate(changes)
-        if impairment is None:
-            return SetParametersResult(successful=False, reason=reason)
-        for c in changes:
-            if c.name == 'start_tolerance':
-                self._start_tolerance = c.value
-            elif c.name == 'busy_wait':
-                self._busy_wait_ns = round(c.value * 1e9)
+    def _apply(self, impairment: Impairment, values, changes):
+        self._start_tolerance = values['start_tolerance']
+        self._busy_wait_ns = round(values['busy_wait'] * 1e9)
         if impairment != self._impairment:
             self._impairment = impairment  # the loop picks it up at its next tick
             self.get_logger().info(f'network impairment: {impairment}')
-        return SetParametersResult(successful=True)
 
     # -- trajectories (executor thread) -------------------------------------
 
@@ -192,7 +173,8 @@ class StreamerNode(Node):
         self.accepted += 1
         self.get_logger().info(f'trajectory accepted: {motion.summary}')
         self._diagnostics.report(TRAJECTORY_TASK, OK, f'trajectory accepted: {motion.summary}',
-                                 hold_position=self._hold, points=len(msg.points), error='')
+                                 hold_position=self._hold, points=len(msg.points),
+                                 start_stamp=stamp_ns(msg.header.stamp), late_start=motion.late, error='')
 
     def _motion_of(self, msg: JointTrajectory, now_ns: int, info: dict) -> Motion:
         """Check a trajectory and hand it to the loop as a Motion; ValueError says why not.
@@ -222,17 +204,16 @@ class StreamerNode(Node):
                 raise ValueError(f'it starts at {p[0]:.6g} m, not at the hold position {self._hold:.6g} m '
                                  f'(a jump of {p[0] - self._hold:.3g} m)')
             first = self._ticker.tick + 2  # a tick the loop cannot have reached yet
-            offset, note = 0, ''    # offset: time (ns) into the motion at the first tick
+            offset = late = 0  # offset: time (ns) into the motion at the first tick
             if start_ns:
                 due = -(-(start_ns - self._epoch_ros) // period)  # first tick at or after the start
                 if due >= first:
                     first, offset = due, self._epoch_ros + due * period - start_ns
                 else:
-                    note = f', started {(self._epoch_ros + first * period - start_ns) * 1e-9:.3f} s late'
+                    late = self._epoch_ros + first * period - start_ns
             n = max(0, -(-(duration_ns - offset) // period)) + 1  # the last sample at or past the end
             pos, vel, acc = interp(t[0] + (offset + period * np.arange(n)) * 1e-9)
-            self._incoming = Motion(first, pos.tolist(), vel.tolist(), acc.tolist(),
-                                    f'{p[0]:.6g} -> {p[-1]:.6g} m in {duration_ns * 1e-9:.3f} s, {n} ticks{note}')
+            self._incoming = Motion(first, pos.tolist(), vel.tolist(), acc.tolist(), duration_ns * 1e-9, late * 1e-9)
             return self._incoming
 
     # -- services ------------------------------------------------------------
@@ -274,6 +255,8 @@ class StreamerNode(Node):
         with self._lock:
             ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
             self._epoch_ros = ros_now + (epoch - time.monotonic_ns())
+            if self._first_tick_ns is None:  # where the timing log starts
+                self._first_tick_ns = self._epoch_ros
         impairment = line = None
         msg, publisher, lateness = self._msg, self._publisher, self._lateness
         while self._running.is_set() and not self._shutdown.is_set():
@@ -384,7 +367,8 @@ class StreamerNode(Node):
             self._thread.join(timeout=2.0)
         if self._timing_log and self._lateness.all is not None:
             with open(self._timing_log, 'w') as f:
-                json.dump({'rate_hz': 1e9 / self._period_ns, 'lateness_us': [x * 1e-3 for x in self._lateness.all]}, f)
+                json.dump({'rate_hz': 1e9 / self._period_ns, 'first_tick_ns': self._first_tick_ns,
+                           'lateness_us': [x * 1e-3 for x in self._lateness.all]}, f)
         super().destroy_node()
 
 

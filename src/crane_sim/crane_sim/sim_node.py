@@ -3,14 +3,15 @@
 The plant (``crane_sim.simulator.CraneSimulator``: Eqs. 18-19 plus the servo
 of Eq. 6) is stepped every ``step`` seconds on its own thread at absolute
 deadlines of the monotonic clock and publishes ``joint_states`` every
-1/``publish_rate`` of simulated time. References arrive on the executor,
-are checked there (non-finite, stale and out-of-order ones are ignored and
-counted) and handed to the loop through a queue; the loop plays them out by
-their stamps, ``playout_delay`` behind (``playout.ReferencePlayout``): the
-plant's time runs that far behind the clock, and ``joint_states`` carry plant
-time, so they line up with the reference stamps. The loop alone touches the simulator, so parameter changes and resets are handed
-over too. The EventsExecutor keeps the 1 kHz subscription at a fifth of the
-CPU the Python executors need.
+1/``publish_rate`` of simulated time. References arrive on the executor, are
+checked there (non-finite, stale and out-of-order ones are ignored and
+counted, latency and gaps measured) and handed to the loop through a queue;
+the loop plays them out by their stamps, ``playout_delay`` behind
+(``playout.ReferencePlayout``): the plant's time runs that far behind the
+clock, and ``joint_states`` carry plant time, so they line up with the
+reference stamps. The loop alone touches the simulator, so parameter changes
+and resets are handed over too. The EventsExecutor keeps the 1 kHz
+subscription at a fifth of the CPU the Python executors need.
 """
 from __future__ import annotations
 
@@ -19,7 +20,8 @@ import threading
 import time
 from collections import deque
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+import numpy as np
+
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -28,10 +30,11 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.conversions import fill_joint_state, joint_state_message, read_reference
-from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from crane_msgs_py.diagnostics import OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import JOINT_STATES_TOPIC, REFERENCE_TOPIC, RESET_SERVICE, SIM_NODE
+from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError
-from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_QOS
+from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until, tune_thread
 from crane_msgs_py.runner import run
 
@@ -45,17 +48,13 @@ _TYPE_NAMES = {'trajectory_msgs/msg/JointTrajectory': 'joint_trajectory',
                'std_msgs/msg/Float64MultiArray': 'float64_array'}
 
 
-def _range(lo, hi):
-    return {'floating_point_range': [FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)]}
-
-
 PARAMETERS = {
     **{name: (getattr(CraneParams, name), f'true plant: {PARAMETER_DESCRIPTIONS[name]}; may change while running',
-              _range(0.0, 10.0 if name == 'tau' else 1e4)) for name in PARAMETER_NAMES},
+              float_range(0.0, 10.0 if name == 'tau' else 1e4)) for name in PARAMETER_NAMES},
     'step': (1e-3, 'integration step (s), also the real-time loop period; fixed at start-up',
-             {**_range(1e-4, 0.1), 'read_only': True}),
+             {**float_range(1e-4, 0.1), 'read_only': True}),
     'publish_rate': (50.0, 'joint_states rate (Hz) in simulated time; fixed at start-up',
-                     {**_range(0.1, 1000.0), 'read_only': True}),
+                     {**float_range(0.1, 1000.0), 'read_only': True}),
     'reference_source': ('acceleration', "'acceleration': the reference's acceleration; 'position': "
                          'second differences of received positions (a controller that only gets positions)',
                          {'additional_constraints': f'one of {", ".join(SOURCES)}'}),
@@ -64,15 +63,16 @@ PARAMETERS = {
     'reference_type': ('auto', "'auto' (the type of reference's publisher), 'joint_trajectory' or "
                        "'float64_array'; fixed at start-up",
                        {'additional_constraints': 'auto, joint_trajectory or float64_array', 'read_only': True}),
-    'reference_timeout': (0.25, 'a reference older than this (s) on arrival is stale and ignored; without a '
-                          'fresh one for this long the reference acceleration falls back to 0', _range(1e-3, 10.0)),
-    'playout_delay': (0.05, 'the plant runs this far (s) behind the clock and applies each reference at its '
+    'reference_timeout': (0.5, 'a reference older than this (s) on arrival is stale and ignored; without a '
+                          'fresh one for this long the reference acceleration falls back to 0',
+                          float_range(1e-3, 10.0)),
+    'playout_delay': (0.2, 'the plant runs this far (s) behind the clock and applies each reference at its '
                       'stamp (a jitter buffer: every sample arriving within the delay counts for exactly its '
-                      'own interval); joint_states are stamped with plant time', _range(0.0, 1.0)),
-    'sched_priority': (0, 'SCHED_FIFO priority of the stepping thread, 1..99 (without the privilege a '
-                       'warning and normal scheduling); 0 = normal scheduling. The playout delay absorbs '
-                       'late steps, and a real-time stepper could starve the executor that feeds it',
-                       {'integer_range': [IntegerRange(from_value=0, to_value=99, step=1)], 'read_only': True}),
+                      'own interval); joint_states are stamped with plant time', float_range(0.0, 1.0)),
+    'sched_priority': (0, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
+                       'feeds it one below (without the privilege a warning and normal scheduling); '
+                       '0 = normal scheduling, enough: the playout delay absorbs late steps',
+                       {**int_range(0, 99), 'read_only': True}),
 }
 
 
@@ -81,12 +81,8 @@ class SimNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(SIM_NODE, **kwargs)
-        for name, (default, description, extra) in PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=description, **extra))
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        p = declare(self, PARAMETERS)
         self._check(p)  # ParameterError on a bad override, see main()
-        self.add_pre_set_parameters_callback(self._report_bad_parameters)
-        self.add_on_set_parameters_callback(self._check_parameters)
         # Late steps are caught up, never skipped (a skipped step would drop its references);
         # the playout delay keeps them in time up to a point, the lateness diagnostics show it.
         self._ticker = Ticker(round(p['step'] * 1e9), max_backlog=10**9)
@@ -96,6 +92,7 @@ class SimNode(Node):
         self._timeout_ns = round(p['reference_timeout'] * 1e9)
         self._priority = p['sched_priority']
         self._diagnostics = DiagnosticsPublisher(self)
+        Guard(self, PARAMETERS, self._check, self._apply, self._diagnostics)
         self._joint_state = joint_state_message(JOINT_NAMES)
         self._joint_states = self.create_publisher(JointState, JOINT_STATES_TOPIC, JOINT_STATES_QOS)
 
@@ -106,8 +103,12 @@ class SimNode(Node):
         self._shutdown = threading.Event()
         self._last_stamp = -math.inf
         self.counts = dict.fromkeys(('received', 'accepted', 'nonfinite', 'stale', 'out_of_order', 'malformed',
-                                     'timeouts', 'steps', 'skipped', 'published'), 0)
+                                     'missing', 'timeouts', 'steps', 'skipped', 'published'), 0)
         self._lateness = Lateness()
+        # The stream as received: latency (arrival - stamp, ns) and gaps; the sender's period is
+        # taken as the shortest interval seen between consecutive stamps.
+        self._latency: list[int] = []
+        self._interval = math.inf
         self._window = (time.monotonic(), 0, 0)  # (time, steps, published) at the last report
 
         self._reference_sub = None
@@ -144,35 +145,12 @@ class SimNode(Node):
         source = 'position' if self._reference_type == 'float64_array' else values['reference_source']
         return values['playout_delay'], values['reference_timeout'], values['interpolation'], source
 
-    def _validate(self, changes) -> tuple[CraneParams | None, str]:
-        values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        values.update((c.name, c.value) for c in changes)
-        try:
-            return self._check(values), ''
-        except (ParameterError, TypeError, ValueError) as exc:
-            return None, str(exc)
-
-    def _report_bad_parameters(self, changes):
-        params, reason = self._validate(changes)
-        if params is None:
-            self.get_logger().error(f'parameter change refused: {reason}')
-            self._diagnostics.report('parameters', ERROR, reason, error=reason, **{c.name: c.value for c in changes})
-        return changes
-
-    def _check_parameters(self, changes) -> SetParametersResult:
-        params, reason = self._validate(changes)
-        if params is None:
-            return SetParametersResult(successful=False, reason=reason)
-        names = {c.name for c in changes}
-        if names & set(PARAMETER_NAMES):
+    def _apply(self, params: CraneParams, values, changes):
+        if {c.name for c in changes} & set(PARAMETER_NAMES):
             self._pending_params = params  # the loop applies it before its next step
-        values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        values.update((c.name, c.value) for c in changes)
         self._source, self._interpolation = values['reference_source'], values['interpolation']
         self._timeout_ns = round(values['reference_timeout'] * 1e9)
         self._playout_args = self._playout_args_of(values)  # the loop swaps its playout when this changes
-        self.get_logger().info('parameters set: ' + ', '.join(f'{c.name}={c.value}' for c in changes))
-        return SetParametersResult(successful=True)
 
     # -- references (executor thread) ----------------------------------------
 
@@ -187,7 +165,7 @@ class SimNode(Node):
     def _subscribe(self, kind: str):
         self._reference_type = kind
         self._reference_sub = self.create_subscription(REFERENCE_TYPES[kind], REFERENCE_TOPIC,
-                                                       self._on_reference, REFERENCE_QOS)
+                                                       self._on_reference, REFERENCE_EVERY_SAMPLE_QOS)
         self.get_logger().info(f'reference type {kind}')
         if kind == 'float64_array':  # positions only, timed by their arrival
             self._playout_args = self._playout_args_of({name: self.get_parameter(name).value for name in PARAMETERS})
@@ -215,6 +193,11 @@ class SimNode(Node):
         elif stamp <= self._last_stamp:
             counts['out_of_order'] += 1
         else:
+            interval = stamp - self._last_stamp
+            if interval < math.inf:
+                self._interval = min(self._interval, interval)
+                counts['missing'] += max(0, round(interval / self._interval) - 1)
+            self._latency.append(now - stamp)
             self._last_stamp = stamp
             counts['accepted'] += 1
             self._inbox.append((stamp, position, acceleration))
@@ -278,6 +261,8 @@ class SimNode(Node):
         self._window = (now, counts['steps'], counts['published'])
         elapsed = now - t0
         ignored = sum(counts[k] for k in ('nonfinite', 'stale', 'out_of_order', 'malformed'))
+        latency, self._latency = np.asarray(self._latency, dtype=float) * 1e-6, []
+        p50, p99 = np.percentile(latency, [50, 99]) if latency.size else (math.nan, math.nan)
         state = self._sim.state
         level = WARN if counts['skipped'] else OK
         self._diagnostics.report(
@@ -285,14 +270,22 @@ class SimNode(Node):
             f'{ignored} references ignored', step_rate_hz=(counts['steps'] - steps0) / elapsed,
             joint_states_rate_hz=(counts['published'] - published0) / elapsed,
             **lateness_summary_us(self._lateness.take()), **counts, ignored=ignored,
+            reference_latency_p50_ms=p50, reference_latency_p99_ms=p99,
+            reference_interval_ms=self._interval * 1e-6,
             reference_type=self._reference_type, reference_source=self._source,
             playout_delay=self._playout_args[0],
             interpolation=self._interpolation, y=state.y, theta1=state.theta1, theta2=state.theta2,
             load_excursion=self._sim.load_excursion, **self._sim.params)
 
     def _start_loop(self):
+        # Runs on the executor's thread, which gets the priority just below the loop's: preempted by
+        # an ordinary process while holding the GIL it would stall the loop, and starved by the loop
+        # it would drop references.
         self._kickoff.cancel()
         if self._thread.ident is None:
+            if self._priority > 1:
+                for warning in tune_thread(self._priority - 1):
+                    self.get_logger().warn(f'executor thread: {warning}')
             self._thread.start()
 
     def destroy_node(self):

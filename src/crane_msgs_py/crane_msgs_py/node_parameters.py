@@ -1,0 +1,92 @@
+"""Node parameters as the contract wants them: declared with descriptions and ranges, validated as a set.
+
+Each node describes its parameters in a table ``name -> (default, description,
+descriptor fields)`` and validates a whole proposed set with one function
+that raises ParameterError (or ValueError) naming the problem. ``Guard``
+then refuses a bad change with that reason, logs it and reports it on
+/diagnostics, including changes rclpy itself refuses for being out of a
+declared range (those never reach an on-set callback).
+"""
+from __future__ import annotations
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.parameter import Parameter
+
+from .diagnostics import ERROR
+
+#: The diagnostic task of refused parameter changes (status ``<node>: parameters``).
+PARAMETERS_TASK = 'parameters'
+
+
+def float_range(lo: float, hi: float) -> dict:
+    """Descriptor fields of a double parameter in [lo, hi]."""
+    return {'floating_point_range': [FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)]}
+
+
+def int_range(lo: int, hi: int) -> dict:
+    """Descriptor fields of an integer parameter in [lo, hi]."""
+    return {'integer_range': [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]}
+
+
+def declare(node, table: dict) -> dict:
+    """Declare every parameter of ``table``; their values (overrides applied) by name.
+
+    An empty list default declares an empty double array (rclpy would type it
+    as a byte array).
+    """
+    for name, (default, description, extra) in table.items():
+        descriptor = ParameterDescriptor(description=description, **extra)
+        if isinstance(default, list) and not default:
+            node.declare_parameter(name, Parameter.Type.DOUBLE_ARRAY, descriptor)
+            if node.get_parameter_or(name).type_ == Parameter.Type.NOT_SET:  # no override given
+                node.set_parameters([Parameter(name, Parameter.Type.DOUBLE_ARRAY, [])])
+        else:
+            node.declare_parameter(name, default, descriptor)
+    return {name: node.get_parameter(name).value for name in table}
+
+
+class Guard:
+    """Validates every parameter change as part of the node's whole parameter set.
+
+    Args:
+        node: the node (its parameters of ``names`` are validated together).
+        names: the parameter names ``check`` needs.
+        check: ``check(values) -> result``; raises ParameterError/ValueError naming the problem.
+        apply: ``apply(result, values, changes)``, called for an accepted change before it is set.
+        diagnostics: the node's DiagnosticsPublisher.
+    """
+
+    def __init__(self, node, names, check, apply, diagnostics):
+        self._node, self._names = node, tuple(names)
+        self._check, self._apply, self._diagnostics = check, apply, diagnostics
+        node.add_pre_set_parameters_callback(self._report)
+        node.add_on_set_parameters_callback(self._decide)
+
+    def _proposed(self, changes) -> dict:
+        values = {name: self._node.get_parameter(name).value for name in self._names}
+        values.update((c.name, c.value) for c in changes)
+        return values
+
+    def _validate(self, changes):
+        values = self._proposed(changes)
+        try:
+            return self._check(values), values, ''
+        except (TypeError, ValueError) as exc:  # ParameterError is a ValueError
+            return None, values, str(exc)
+
+    def _report(self, changes):
+        # A pre-set callback runs before rclpy's range checks, so every refusal gets reported.
+        result, _, reason = self._validate(changes)
+        if reason:
+            self._node.get_logger().error(f'parameter change refused: {reason}')
+            self._diagnostics.report(PARAMETERS_TASK, ERROR, reason, error=reason,
+                                     **{c.name: c.value for c in changes})
+        return changes
+
+    def _decide(self, changes) -> SetParametersResult:
+        result, values, reason = self._validate(changes)
+        if reason:
+            return SetParametersResult(successful=False, reason=reason)
+        self._apply(result, values, changes)
+        self._node.get_logger().info('parameters set: ' + ', '.join(f'{c.name}={c.value}' for c in changes))
+        return SetParametersResult(successful=True)
