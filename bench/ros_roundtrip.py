@@ -1,0 +1,118 @@
+"""Planner service round trip over ROS: start-up time, warm round trips of NVF and RVF.
+
+Starts the real planner executable in a private ROS graph, measures how long
+until every ``~/plan/<method>`` service is advertised, waits for its solver
+warm-up, then times warm GetPlan round trips (T = 3 s, D = 0.3 m, the
+default 10 ms knots) and splits each into the solve time the planner reports
+on /diagnostics and the rest (request/response conversion, transport, Path
+building). Targets: median NVF <= 50 ms, RVF <= 120 ms, services up <= 5 s.
+Prints one JSON object.
+
+    .venv/bin/python bench/ros_roundtrip.py [--requests 20]
+"""
+import argparse
+import json
+import os
+import statistics
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+TARGETS_MS = {'nvf': 50.0, 'rvf': 120.0}
+STARTUP_TARGET_S = 5.0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--requests', type=int, default=20, help='timed requests per method (default 20)')
+    args = ap.parse_args()
+
+    from crane_planner.processes import PLANNER, NodeGroup, isolated_ros_env
+    env = isolated_ros_env()
+    os.environ.clear()
+    os.environ.update(env)  # this process joins the planner's private graph
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+
+    from crane_msgs_py.client import PlannerClient
+    from crane_msgs_py.diagnostics import status_float, status_values
+    from crane_planner.planning import METHODS
+
+    rclpy.init()
+    node = rclpy.create_node('ros_roundtrip_bench', namespace='/bench')
+    client = PlannerClient(node)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    result = {'requests': args.requests, 'duration_s': 3.0, 'displacement_m': 0.3}
+    try:
+        with NodeGroup(env, Path(tempfile.mkdtemp(prefix='ros-roundtrip-'))) as nodes:
+            t0 = time.monotonic()
+            nodes.start(*PLANNER, namespace='/bench')
+            for method in (None, *METHODS):
+                while not client.wait_for_service(method, timeout=0.05):
+                    nodes.check_alive()
+                    if time.monotonic() - t0 > 60.0:
+                        raise TimeoutError(f'service of {method or "~/plan"} not up in 60 s')
+            result['services_up_s'] = round(time.monotonic() - t0, 3)
+            warm = client.diagnostics.wait_for(None, 120.0, name='crane_planner: solvers')
+            result['warmup_s'] = round(time.monotonic() - t0, 3)
+            if warm is None:
+                raise TimeoutError('no solver warm-up status within 120 s')
+            for method in ('nvf', 'rvf', 'zv'):
+                round_trips, solve, plan_time, message_time = [], [], [], []
+                for k in range(args.requests + 2):  # two untimed: first use of this request shape
+                    start, goal = (0.0, 0.3) if k % 2 == 0 else (0.3, 0.0)
+                    mark = client.diagnostics.mark()
+                    t = time.perf_counter()
+                    path = client.call(method, start, goal, 3.0)
+                    rt = time.perf_counter() - t
+                    status = client.diagnostics.wait_for(
+                        lambda s: status_values(s).get('method') == method, 5.0, after=mark,
+                        name='crane_planner: plan')
+                    if not path.poses or status is None:
+                        raise RuntimeError(f'{method} request {k} failed: {status.message if status else "no status"}')
+                    if k >= 2:
+                        round_trips.append(rt)
+                        solve.append(status_float(status, 'solve_time'))
+                        plan_time.append(status_float(status, 'plan_time'))
+                        message_time.append(status_float(status, 'message_time'))
+                median_rt = statistics.median(round_trips)
+                median_solve = statistics.median(solve)
+                result[method] = {
+                    'round_trip_ms': {'median': _ms(median_rt), 'p90': _ms(_quantile(round_trips, 0.9)),
+                                      'max': _ms(max(round_trips))},
+                    'solve_ms_median': _ms(median_solve),
+                    'planner_plan_ms_median': _ms(statistics.median(plan_time)),
+                    'planner_message_ms_median': _ms(statistics.median(message_time)),
+                    'message_handling_ms_median': _ms(median_rt - median_solve),
+                    'knots': len(path.poses),
+                }
+            nodes.check_alive()
+        result['pass'] = {
+            'services_up': result['services_up_s'] <= STARTUP_TARGET_S,
+            **{m: result[m]['round_trip_ms']['median'] <= TARGETS_MS[m] for m in TARGETS_MS},
+        }
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    print(json.dumps(result))
+    return 0 if all(result['pass'].values()) else 1
+
+
+def _ms(seconds: float) -> float:
+    return round(1e3 * seconds, 2)
+
+
+def _quantile(values, q: float) -> float:
+    values = sorted(values)
+    return values[min(len(values) - 1, int(q * len(values)))]
+
+
+if __name__ == '__main__':
+    sys.exit(main())
