@@ -250,20 +250,25 @@ class DemoDriver:
                 raise DemoError(f'the {method} plan never appeared on the trajectory topic')
             time.sleep(0.01)
 
-    def states_between(self, begin_ns: int, end_ns: int, timeout: float = 3.0) -> np.ndarray:
-        """joint_states stamped in [begin, end], once one stamped after ``end_ns`` has arrived.
+    def wait_for_state_after(self, stamp_ns: int, timeout: float = 3.0):
+        """Wait until a joint_state stamped after ``stamp_ns`` has arrived.
 
-        The sim stamps states with simulated time, which may trail the wall clock
-        (it plays references out by their stamps), so wait for the record to cover the window.
+        The sim stamps states with simulated time, which trails the wall clock
+        (it plays references out by their stamps, after a jitter buffer).
         """
         deadline = time.monotonic() + timeout
         while True:
             with self._lock:
-                covered = bool(self._states) and self._states[-1][0] >= end_ns
-            if covered or time.monotonic() > deadline:
-                break
+                if self._states and self._states[-1][0] >= stamp_ns:
+                    return
             self._nodes.check_alive()
+            if time.monotonic() > deadline:
+                raise DemoError(f'no joint_states stamped past the motion within {timeout:g} s')
             time.sleep(0.02)
+
+    def states_between(self, begin_ns: int, end_ns: int) -> np.ndarray:
+        """joint_states stamped in [begin, end] (dropping everything older than ``end_ns``)."""
+        self.wait_for_state_after(end_ns)
         with self._lock:
             rows = [r for r in self._states if begin_ns <= r[0] <= end_ns]
             self._states = [r for r in self._states if r[0] > end_ns]
@@ -295,7 +300,9 @@ def run_case_method(driver: DemoDriver, case: Case, method: str, args, L2: float
     plan_t, _, plan_v, plan_a = joint_trajectory_to_arrays(traj)
     # Move back (not measured), then zero the swing: the simulated crane has no damping to wait for.
     back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration)
-    driver.sleep((back_ns - driver.now_ns()) * 1e-9 + args.return_duration + 0.1)
+    back_end_ns = back_ns + round((args.return_duration + 0.05) * 1e9)
+    driver.sleep((back_end_ns - driver.now_ns()) * 1e-9)
+    driver.wait_for_state_after(back_end_ns)
     driver.reset_sim()
     return Run(case.name, method, plan_time, float(np.max(np.abs(plan_a))), residual, t,
                1e3 * load_excursion(rec[:, 1], rec[:, 2], case.L1, L2), plan_t, plan_v, plan_a)
