@@ -461,3 +461,41 @@ def test_sim_ignores_and_counts_nonfinite_out_of_order_and_stale_references(cran
     # the plant did not see them: still at rest (reset above), stepping
     assert abs(float(after['theta1'])) < 1e-9 and abs(float(after['theta2'])) < 1e-9
     assert float(after['step_rate_hz']) > 500.0
+
+
+# --------------------------------------------------------------------------- position-only output
+
+
+def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_domain, tmp_path):
+    """A streamer with ``output: float64_array`` and a sim of their own: the sim detects the type
+    and reconstructs the acceleration from the positions, so the cart still ends at the goal."""
+    from trajectory_msgs.msg import JointTrajectory
+
+    from crane_msgs_py.diagnostics import status_values
+    from crane_msgs_py.qos import TRAJECTORY_QOS
+    from crane_planner.processes import SIM, STREAMER, NodeGroup
+    ns = f'{NS}_f64'
+    with NodeGroup(ros_domain, tmp_path) as nodes:
+        nodes.start(*STREAMER, namespace=ns, params={'output': 'float64_array'})
+        nodes.start(*SIM, namespace=ns)
+        sim_status = dict(name='crane_sim: sim', hardware_id=f'{ns}/crane_sim')
+        assert crane.diagnostics.wait_for(lambda s: status_values(s)['reference_type'] == 'float64_array',
+                                          30.0, after=crane.diagnostics.mark(), **sim_status) is not None
+        pub = crane.node.create_publisher(JointTrajectory, f'{ns}/trajectory', TRAJECTORY_QOS)
+        try:
+            deadline = time.monotonic() + 5.0
+            while pub.get_subscription_count() == 0:
+                assert time.monotonic() < deadline
+                time.sleep(0.01)
+            start_ns = crane.now() + 500_000_000
+            pub.publish(quintic_trajectory(0.0, D, 2.0, start_ns))
+            crane.sleep_until(start_ns + 3_500_000_000)  # 2 s motion, 0.2 s playout, a report
+            mark = crane.diagnostics.mark()
+            values = status_values(crane.diagnostics.wait_for(None, 3.0, after=mark, **sim_status))
+        finally:
+            crane.node.destroy_publisher(pub)
+        nodes.check_alive()
+    assert int(values['accepted']) > 2000 and values['reference_type'] == 'float64_array'
+    # unstamped samples are timed on a fixed grid: exact while they arrive in time (0.1 mm when the
+    # machine is quiet); a receiver stalled past the playout delay costs a few mm
+    assert float(values['y']) == pytest.approx(D, abs=5e-3)

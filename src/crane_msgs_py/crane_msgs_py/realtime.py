@@ -116,3 +116,13 @@ class Ticker:
             return backlog - 1
         self.tick += 1
         return 0
+
+
+def guarded(target, on_error):
+    """A thread target running ``target`` that hands an exception to ``on_error`` instead of dying unseen."""
+    def run():
+        try:
+            target()
+        except Exception as exc:  # reported by the node (log, /diagnostics), which stays up
+            on_error(exc)
+    return run

@@ -30,7 +30,7 @@ from crane_msgs_py.names import (OUTPUT_JOINT_TRAJECTORY, OUTPUTS, REFERENCE_TOP
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import ParameterError
 from crane_msgs_py.qos import REFERENCE_QOS, TRAJECTORY_QOS
-from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until, tune_thread
+from crane_msgs_py.realtime import Lateness, Ticker, guarded, lateness_summary_us, sleep_until, tune_thread
 from crane_msgs_py.runner import run
 
 from .hermite import QuinticHermite
@@ -134,7 +134,8 @@ class StreamerNode(Node):
         self.create_service(Trigger, START_SERVICE, self._on_start)
         self.create_service(Trigger, STOP_SERVICE, self._on_stop)
         self.create_timer(1.0, self._report)
-        self._thread = threading.Thread(target=self._loop, name='reference-loop', daemon=True)
+        self._loop_error = ''
+        self._thread = threading.Thread(target=guarded(self._loop, self._loop_failed), name='reference-loop', daemon=True)
         if p['auto_start']:
             self._running.set()
         # Started once the executor spins: until then the main thread holds the GIL for long stretches.
@@ -340,15 +341,20 @@ class StreamerNode(Node):
         summary = lateness_summary_us(self._lateness.take())
         running = self._running.is_set()
         state = ('streaming' if self._motion is not None else 'holding') if running else 'stopped'
-        level = WARN if self.skipped else OK
+        level = ERROR if self._loop_error else WARN if self.skipped else OK
+        message = f'the loop stopped: {self._loop_error}' if self._loop_error else f'{state} at {rate:.1f} Hz'
         imp = self._impairment
         self._diagnostics.report(
-            STREAM_TASK, level, f'{state} at {rate:.1f} Hz', state=state, rate_hz=rate,
+            STREAM_TASK, level, message, state=state, rate_hz=rate,
             target_rate_hz=1e9 / self._period_ns, **summary, ticks=self.ticks, sent=self.sent, dropped=self.dropped,
             reordered=self.reordered, skipped=self.skipped, hold_position=self._hold,
             trajectories_accepted=self.accepted, trajectories_refused=self.refused,
             network_delay=imp.delay, network_jitter=imp.jitter, network_distribution=imp.distribution,
             network_loss=imp.loss, network_reorder=imp.reorder)
+
+    def _loop_failed(self, exc: Exception):
+        self._loop_error = f'{type(exc).__name__}: {exc}'
+        self.get_logger().error(f'the loop stopped: {self._loop_error}')
 
     def _start_loop(self):
         # Runs on the executor's thread. With a real-time loop, that thread gets the priority just

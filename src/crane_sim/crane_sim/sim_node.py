@@ -30,16 +30,16 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.conversions import fill_joint_state, joint_state_message, read_reference
-from crane_msgs_py.diagnostics import OK, WARN, DiagnosticsPublisher
+from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import JOINT_STATES_TOPIC, REFERENCE_TOPIC, RESET_SERVICE, SIM_NODE
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError
 from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS
-from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until, tune_thread
+from crane_msgs_py.realtime import Lateness, Ticker, guarded, lateness_summary_us, sleep_until, tune_thread
 from crane_msgs_py.runner import run
 
 from .playout import ReferencePlayout
-from .simulator import INTERPOLATIONS, JOINT_NAMES, SOURCES, CraneSimulator, CraneState
+from .simulator import INTERPOLATIONS, JOINT_NAMES, SOURCES, CraneSimulator, CraneState, SimulationError
 
 SIM_TASK = 'sim'
 #: ``reference_type`` values: the streamer's two outputs, or whatever the topic's publisher sends.
@@ -69,6 +69,8 @@ PARAMETERS = {
     'playout_delay': (0.2, 'the plant runs this far (s) behind the clock and applies each reference at its '
                       'stamp (a jitter buffer: every sample arriving within the delay counts for exactly its '
                       'own interval); joint_states are stamped with plant time', float_range(0.0, 1.0)),
+    'unstamped_period': (1e-3, 'period (s) of references without stamps (float64_array): each is taken to come '
+                         'this long after the previous one, like commands at a fixed rate', float_range(1e-5, 1.0)),
     'sched_priority': (0, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
                        'feeds it one below (without the privilege a warning and normal scheduling); '
                        '0 = normal scheduling, enough: the playout delay absorbs late steps',
@@ -90,6 +92,7 @@ class SimNode(Node):
         self._publish_every = max(1, round(1.0 / (p['publish_rate'] * p['step'])))
         self._source, self._interpolation = p['reference_source'], p['interpolation']
         self._timeout_ns = round(p['reference_timeout'] * 1e9)
+        self._unstamped_period_ns = round(p['unstamped_period'] * 1e9)
         self._priority = p['sched_priority']
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._check, self._apply, self._diagnostics)
@@ -121,7 +124,8 @@ class SimNode(Node):
             self._subscribe(self._reference_type)
         self.create_service(Trigger, RESET_SERVICE, self._on_reset)
         self.create_timer(1.0, self._report)
-        self._thread = threading.Thread(target=self._loop, name='sim-loop', daemon=True)
+        self._loop_error = ''
+        self._thread = threading.Thread(target=guarded(self._loop, self._loop_failed), name='sim-loop', daemon=True)
         # Started once the executor spins: until then the main thread holds the GIL for long stretches.
         self._kickoff = self.create_timer(0.05, self._start_loop)
         self.get_logger().info(f'simulating {self._sim.params} every {p["step"] * 1e3:g} ms, joint_states at '
@@ -150,6 +154,7 @@ class SimNode(Node):
             self._pending_params = params  # the loop applies it before its next step
         self._source, self._interpolation = values['reference_source'], values['interpolation']
         self._timeout_ns = round(values['reference_timeout'] * 1e9)
+        self._unstamped_period_ns = round(values['unstamped_period'] * 1e9)
         self._playout_args = self._playout_args_of(values)  # the loop swaps its playout when this changes
 
     # -- references (executor thread) ----------------------------------------
@@ -182,25 +187,40 @@ class SimNode(Node):
         except ValueError:
             counts['malformed'] += 1
             return
-        if not stamp:  # a Float64MultiArray, or an unstamped point: timed by its arrival
-            stamp = now
+        stamped = bool(stamp)
+        if not stamped:  # a Float64MultiArray, or an unstamped point: timed by its arrival
+            stamp = self._arrival_stamp(now)
         if self._playout_args[3] == 'position':  # only positions count
             acceleration = 0.0
         if not (math.isfinite(position) and math.isfinite(acceleration)):
             counts['nonfinite'] += 1
-        elif now - stamp > self._timeout_ns:
+        elif stamped and now - stamp > self._timeout_ns:
             counts['stale'] += 1
-        elif stamp <= self._last_stamp:
+        elif stamped and stamp <= self._last_stamp:
             counts['out_of_order'] += 1
         else:
             interval = stamp - self._last_stamp
-            if interval < math.inf:
+            if stamped and interval < math.inf:  # (unstamped samples have no latency or gaps to see)
                 self._interval = min(self._interval, interval)
                 counts['missing'] += max(0, round(interval / self._interval) - 1)
-            self._latency.append(now - stamp)
+                self._latency.append(now - stamp)
             self._last_stamp = stamp
             counts['accepted'] += 1
             self._inbox.append((stamp, position, acceleration))
+
+    def _arrival_stamp(self, now: int) -> int:
+        """A stamp for an unstamped sample (a Float64MultiArray): the sender's regular grid.
+
+        Without stamps only arrivals time the samples, and they bunch up
+        behind any delay; second differences of positions so timed would
+        explode. So each sample is stamped ``unstamped_period`` after the
+        previous one, as a controller taking commands at a fixed rate does;
+        the grid is re-anchored at the arrival when the two part by more than
+        the playout delay (the sender paused, or runs slower). A lost
+        sample shifts the grid by a period: an unstamped stream cannot tell.
+        """
+        grid = self._last_stamp + self._unstamped_period_ns
+        return grid if now - grid <= self._playout_args[0] * 1e9 else now
 
     def _on_reset(self, request, response):
         self._reset_requested.set()
@@ -236,7 +256,10 @@ class SimNode(Node):
                 playout.reset()
             while inbox:
                 stamp, position, acceleration = inbox.popleft()
-                playout.push((stamp - epoch_ros) * 1e-9, position, acceleration)
+                try:
+                    playout.push((stamp - epoch_ros) * 1e-9, position, acceleration)
+                except SimulationError:  # not after the last one (a playout swapped meanwhile)
+                    counts['out_of_order'] += 1
             t0 = ticker.tick * dt  # nominal time of the step since step 0
             sim.step(*playout.step(t0, t0 + dt))
             counts['steps'] += 1
@@ -264,10 +287,11 @@ class SimNode(Node):
         latency, self._latency = np.asarray(self._latency, dtype=float) * 1e-6, []
         p50, p99 = np.percentile(latency, [50, 99]) if latency.size else (math.nan, math.nan)
         state = self._sim.state
-        level = WARN if counts['skipped'] else OK
+        level = ERROR if self._loop_error else WARN if counts['skipped'] else OK
+        message = (f'the loop stopped: {self._loop_error}' if self._loop_error else
+                   f'stepping at {(counts["steps"] - steps0) / elapsed:.1f} Hz, {ignored} references ignored')
         self._diagnostics.report(
-            SIM_TASK, level, f'stepping at {(counts["steps"] - steps0) / elapsed:.1f} Hz, '
-            f'{ignored} references ignored', step_rate_hz=(counts['steps'] - steps0) / elapsed,
+            SIM_TASK, level, message, step_rate_hz=(counts['steps'] - steps0) / elapsed,
             joint_states_rate_hz=(counts['published'] - published0) / elapsed,
             **lateness_summary_us(self._lateness.take()), **counts, ignored=ignored,
             reference_latency_p50_ms=p50, reference_latency_p99_ms=p99,
@@ -276,6 +300,10 @@ class SimNode(Node):
             playout_delay=self._playout_args[0],
             interpolation=self._interpolation, y=state.y, theta1=state.theta1, theta2=state.theta2,
             load_excursion=self._sim.load_excursion, **self._sim.params)
+
+    def _loop_failed(self, exc: Exception):
+        self._loop_error = f'{type(exc).__name__}: {exc}'
+        self.get_logger().error(f'the loop stopped: {self._loop_error}')
 
     def _start_loop(self):
         # Runs on the executor's thread, which gets the priority just below the loop's: preempted by
