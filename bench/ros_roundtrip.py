@@ -46,7 +46,13 @@ def main() -> int:
     client = PlannerClient(node)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.05)
+
+    spinner = threading.Thread(target=spin, daemon=True)
     spinner.start()
     result = {'requests': args.requests, 'duration_s': 3.0, 'displacement_m': 0.3}
     try:
@@ -98,6 +104,8 @@ def main() -> int:
             **{m: result[m]['round_trip_ms']['median'] <= TARGETS_MS[m] for m in TARGETS_MS},
         }
     finally:
+        stop.set()
+        spinner.join()
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
