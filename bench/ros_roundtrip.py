@@ -16,7 +16,6 @@ import os
 import statistics
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -39,6 +38,7 @@ def main() -> int:
 
     from crane_msgs_py.client import PlannerClient
     from crane_msgs_py.diagnostics import status_float, status_values
+    from crane_msgs_py.runner import spinning
     from crane_planner.planning import METHODS
 
     rclpy.init()
@@ -46,17 +46,9 @@ def main() -> int:
     client = PlannerClient(node)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    stop = threading.Event()
-
-    def spin():
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.05)
-
-    spinner = threading.Thread(target=spin, daemon=True)
-    spinner.start()
     result = {'requests': args.requests, 'duration_s': 3.0, 'displacement_m': 0.3}
     try:
-        with NodeGroup(env, Path(tempfile.mkdtemp(prefix='ros-roundtrip-'))) as nodes:
+        with spinning(executor), NodeGroup(env, Path(tempfile.mkdtemp(prefix='ros-roundtrip-'))) as nodes:
             t0 = time.monotonic()
             nodes.start(*PLANNER, namespace='/bench')
             for method in (None, *METHODS):
@@ -104,9 +96,6 @@ def main() -> int:
             **{m: result[m]['round_trip_ms']['median'] <= TARGETS_MS[m] for m in TARGETS_MS},
         }
     finally:
-        stop.set()
-        spinner.join()
-        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
     print(json.dumps(result))

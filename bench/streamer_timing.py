@@ -28,7 +28,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -58,6 +57,7 @@ def main() -> int:
     from crane_msgs_py.diagnostics import DiagnosticsReader, status_values
     from crane_msgs_py.names import JOINT_STATES_TOPIC, REFERENCE_TOPIC
     from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS
+    from crane_msgs_py.runner import spinning
 
     ns = '/bench'
     workdir = Path(tempfile.mkdtemp(prefix='streamer-timing-'))
@@ -70,20 +70,11 @@ def main() -> int:
     node.create_subscription(JointState, JOINT_STATES_TOPIC,
                              lambda m: states.append((stamp_ns(m.header.stamp), time.time_ns())), JOINT_STATES_QOS)
     diagnostics = DiagnosticsReader(node)
-    # All entities exist before spinning: the EventsExecutor takes no new ones while it spins.
-    executor = EventsExecutor()
+    executor = EventsExecutor()  # after every entity: it takes no new ones while spinning
     executor.add_node(node)
-    stop = threading.Event()
-
-    def spin():
-        while not stop.is_set():
-            executor.spin_once(timeout_sec=0.05)
-
-    spinner = threading.Thread(target=spin, daemon=True)
-    spinner.start()
     result = {'duration_s': args.duration}
     try:
-        with NodeGroup(env, workdir) as nodes:
+        with spinning(executor), NodeGroup(env, workdir) as nodes:
             streamer = nodes.start(*STREAMER, namespace=ns, params={'timing_log': str(timing_log)})
             nodes.start(*SIM, namespace=ns)
             deadline = time.monotonic() + 30.0
@@ -159,9 +150,6 @@ def main() -> int:
             Path(args.histogram).parent.mkdir(parents=True, exist_ok=True)
             Path(args.histogram).write_text(json.dumps({'rate_hz': RATE, 'lateness_us': window.tolist()}))
     finally:
-        stop.set()
-        spinner.join()
-        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
     print(json.dumps(result))

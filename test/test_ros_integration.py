@@ -123,8 +123,6 @@ class Crane:
         executors cost this process most of a core at 1 kHz) and a queue of
         1 s, so nothing is lost when this process lags.
         """
-        import threading
-
         import rclpy
         from rclpy.experimental import EventsExecutor
         from trajectory_msgs.msg import JointTrajectory
@@ -132,32 +130,21 @@ class Crane:
         from crane_msgs_py.conversions import read_reference
         from crane_msgs_py.names import REFERENCE_TOPIC
         from crane_msgs_py.qos import REFERENCE_EVERY_SAMPLE_QOS
+        from crane_msgs_py.runner import spinning
         rows = []
-        # Everything is created before the executor spins, which is stopped before it is shut
-        # down: the EventsExecutor takes neither a new entity nor a shutdown from another thread.
         node = rclpy.create_node('crane_it_recorder', namespace=NS)
         node.create_subscription(JointTrajectory, REFERENCE_TOPIC, lambda m: rows.append(read_reference(m)),
                                  REFERENCE_EVERY_SAMPLE_QOS)
         executor = EventsExecutor()
         executor.add_node(node)
-        stop = threading.Event()
-
-        def spin():
-            while not stop.is_set():
-                executor.spin_once(timeout_sec=0.05)
-
-        spinner = threading.Thread(target=spin, daemon=True)
-        spinner.start()
         try:
-            deadline = time.monotonic() + 5.0
-            while not rows:  # matched and flowing
-                assert time.monotonic() < deadline, 'no reference received'
-                time.sleep(0.01)
-            yield rows
+            with spinning(executor):
+                deadline = time.monotonic() + 5.0
+                while not rows:  # matched and flowing
+                    assert time.monotonic() < deadline, 'no reference received'
+                    time.sleep(0.01)
+                yield rows
         finally:
-            stop.set()
-            spinner.join()
-            executor.shutdown()
             node.destroy_node()
 
     def publisher(self, msg_type, topic, qos):

@@ -117,12 +117,3 @@ class Ticker:
         self.tick += 1
         return 0
 
-
-def guarded(target, on_error):
-    """A thread target running ``target`` that hands an exception to ``on_error`` instead of dying unseen."""
-    def run():
-        try:
-            target()
-        except Exception as exc:  # reported by the node (log, /diagnostics), which stays up
-            on_error(exc)
-    return run

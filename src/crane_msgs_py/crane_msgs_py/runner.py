@@ -1,4 +1,6 @@
-"""The body of every crane node's ``main()``: init, build, spin, clean shutdown.
+"""Running the crane nodes: ``main()``'s body, their loop threads, executors spun in the background.
+
+``run`` is the body of every node's ``main()``: init, build, spin, clean shutdown.
 
 SIGINT and SIGTERM only set a flag here, and the spin loop checks it between
 short ``spin_once`` calls (so the node stops within 0.1 s). rclpy's own
@@ -13,12 +15,14 @@ from __future__ import annotations
 import signal
 import sys
 import threading
+from contextlib import contextmanager
 
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.signals import SignalHandlerOptions
 
 from .params import ParameterError
+from .realtime import tune_thread
 
 
 def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
@@ -51,3 +55,72 @@ def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
             node.destroy_node()
         rclpy.try_shutdown()
     return status
+
+
+class LoopThread:
+    """A node's fixed-rate loop (``crane_msgs_py.realtime``) on a thread of its own.
+
+    Started by a one-shot timer once the executor spins: until then the main
+    thread holds the GIL for long stretches. With ``priority`` > 0 the loop
+    runs SCHED_FIFO at that priority and the executor thread that feeds it
+    just below: preempted by an ordinary process while holding the GIL it
+    would stall the loop, starved by the loop it would drop input. A failure
+    is logged and kept in ``error`` (for the node's diagnostics) instead of
+    ending the thread unseen. ``stopping`` is set by ``stop()``; the loop
+    checks it.
+    """
+
+    def __init__(self, node, target, name: str, priority: int = 0):
+        self._node, self._target, self.priority = node, target, priority
+        self.error = ''
+        self.stopping = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._kickoff = node.create_timer(0.05, self._start)
+
+    def _start(self):  # on the executor's thread
+        self._kickoff.cancel()
+        if self._thread.ident is None:
+            if self.priority > 1:
+                for warning in tune_thread(self.priority - 1):
+                    self._node.get_logger().warn(f'executor thread: {warning}')
+            self._thread.start()
+
+    def _run(self):
+        for warning in tune_thread(self.priority):
+            self._node.get_logger().warn(warning)
+        try:
+            self._target()
+        except Exception as exc:  # reported by the node (log, /diagnostics), which stays up
+            self.error = f'{type(exc).__name__}: {exc}'
+            self._node.get_logger().error(f'the loop stopped: {self.error}')
+
+    def stop(self, timeout: float = 2.0):
+        self.stopping.set()
+        if self._thread.ident is not None:
+            self._thread.join(timeout)
+
+
+@contextmanager
+def spinning(executor):
+    """Spin ``executor`` on a background thread for the duration of the block.
+
+    Short ``spin_once`` calls until the block ends, then the thread is joined
+    before the executor is shut down: an executor's own ``spin()`` shut down
+    from another thread can abort the process (rclpy) or deadlock (the
+    EventsExecutor, which also takes no new entities while spinning: add
+    everything first).
+    """
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.05)
+
+    thread = threading.Thread(target=spin, daemon=True)
+    thread.start()
+    try:
+        yield executor
+    finally:
+        stop.set()
+        thread.join()
+        executor.shutdown()

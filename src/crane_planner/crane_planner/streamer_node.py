@@ -30,8 +30,8 @@ from crane_msgs_py.names import (OUTPUT_JOINT_TRAJECTORY, OUTPUTS, REFERENCE_TOP
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import ParameterError
 from crane_msgs_py.qos import REFERENCE_QOS, TRAJECTORY_QOS
-from crane_msgs_py.realtime import Lateness, Ticker, guarded, lateness_summary_us, sleep_until, tune_thread
-from crane_msgs_py.runner import run
+from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
+from crane_msgs_py.runner import LoopThread, run
 
 from .hermite import QuinticHermite
 from .impairment import DISTRIBUTIONS, DelayLine, Impairment
@@ -104,7 +104,6 @@ class StreamerNode(Node):
         self._period_ns = self._ticker.period
         self._busy_wait_ns = round(p['busy_wait'] * 1e9)
         self._start_tolerance = p['start_tolerance']
-        self._priority = p['sched_priority']
         self._timing_log = p['timing_log']
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._impairment_of, self._apply, self._diagnostics)
@@ -120,7 +119,6 @@ class StreamerNode(Node):
         self._incoming: Motion | None = None
         self._epoch_ros = 0  # ROS time (ns) of tick 0
         self._running = threading.Event()
-        self._shutdown = threading.Event()
         self._created_ns = self.get_clock().now().nanoseconds
         self._lateness = Lateness(keep_all=bool(self._timing_log))
         self._first_tick_ns = None
@@ -134,12 +132,9 @@ class StreamerNode(Node):
         self.create_service(Trigger, START_SERVICE, self._on_start)
         self.create_service(Trigger, STOP_SERVICE, self._on_stop)
         self.create_timer(1.0, self._report)
-        self._loop_error = ''
-        self._thread = threading.Thread(target=guarded(self._loop, self._loop_failed), name='reference-loop', daemon=True)
         if p['auto_start']:
             self._running.set()
-        # Started once the executor spins: until then the main thread holds the GIL for long stretches.
-        self._kickoff = self.create_timer(0.05, self._start_loop)
+        self._loop_thread = LoopThread(self, self._loop, 'reference-loop', p['sched_priority'])
         self.get_logger().info(f'streaming {p["output"]} on {self.resolve_topic_name(REFERENCE_TOPIC)} at '
                                f'{p["rate"]:g} Hz, hold {self._hold:g} m'
                                + ('' if p['auto_start'] else ' (waiting for ~/start)'))
@@ -243,9 +238,7 @@ class StreamerNode(Node):
     # -- the loop (its own thread) -----------------------------------------
 
     def _loop(self):
-        for warning in tune_thread(self._priority):
-            self.get_logger().warn(warning)
-        while not self._shutdown.is_set():
+        while not self._loop_thread.stopping.is_set():
             if not self._running.wait(0.1):
                 continue
             self._run()
@@ -260,7 +253,7 @@ class StreamerNode(Node):
                 self._first_tick_ns = self._epoch_ros
         impairment = line = None
         msg, publisher, lateness = self._msg, self._publisher, self._lateness
-        while self._running.is_set() and not self._shutdown.is_set():
+        while self._running.is_set() and not self._loop_thread.stopping.is_set():
             if self._impairment is not impairment:
                 impairment = self._impairment
                 if line is not None:  # flush what was in flight on the old link
@@ -308,7 +301,7 @@ class StreamerNode(Node):
         try:
             publisher.publish(msg)
         except Exception:  # the context is shut down (SIGINT): end quietly
-            self._shutdown.set()
+            self._loop_thread.stopping.set()
             return False
         self.sent += 1
         return True
@@ -341,8 +334,9 @@ class StreamerNode(Node):
         summary = lateness_summary_us(self._lateness.take())
         running = self._running.is_set()
         state = ('streaming' if self._motion is not None else 'holding') if running else 'stopped'
-        level = ERROR if self._loop_error else WARN if self.skipped else OK
-        message = f'the loop stopped: {self._loop_error}' if self._loop_error else f'{state} at {rate:.1f} Hz'
+        error = self._loop_thread.error
+        level = ERROR if error else WARN if self.skipped else OK
+        message = f'the loop stopped: {error}' if error else f'{state} at {rate:.1f} Hz'
         imp = self._impairment
         self._diagnostics.report(
             STREAM_TASK, level, message, state=state, rate_hz=rate,
@@ -352,25 +346,8 @@ class StreamerNode(Node):
             network_delay=imp.delay, network_jitter=imp.jitter, network_distribution=imp.distribution,
             network_loss=imp.loss, network_reorder=imp.reorder)
 
-    def _loop_failed(self, exc: Exception):
-        self._loop_error = f'{type(exc).__name__}: {exc}'
-        self.get_logger().error(f'the loop stopped: {self._loop_error}')
-
-    def _start_loop(self):
-        # Runs on the executor's thread. With a real-time loop, that thread gets the priority just
-        # below it: preempted by an ordinary process while holding the GIL, it would stall the loop.
-        self._kickoff.cancel()
-        if self._thread.ident is None:
-            if self._priority > 1:
-                for warning in tune_thread(self._priority - 1):
-                    self.get_logger().warn(f'executor thread: {warning}')
-            self._thread.start()
-
     def destroy_node(self):
-        self._shutdown.set()
-        self._running.set()  # wake a stopped loop so it sees the shutdown
-        if self._thread.ident is not None:
-            self._thread.join(timeout=2.0)
+        self._loop_thread.stop()
         if self._timing_log and self._lateness.all is not None:
             with open(self._timing_log, 'w') as f:
                 json.dump({'rate_hz': 1e9 / self._period_ns, 'first_tick_ns': self._first_tick_ns,

@@ -35,8 +35,8 @@ from crane_msgs_py.names import JOINT_STATES_TOPIC, REFERENCE_TOPIC, RESET_SERVI
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError
 from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS
-from crane_msgs_py.realtime import Lateness, Ticker, guarded, lateness_summary_us, sleep_until, tune_thread
-from crane_msgs_py.runner import run
+from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
+from crane_msgs_py.runner import LoopThread, run
 
 from .playout import ReferencePlayout
 from .simulator import INTERPOLATIONS, JOINT_NAMES, SOURCES, CraneSimulator, CraneState, SimulationError
@@ -93,7 +93,6 @@ class SimNode(Node):
         self._source, self._interpolation = p['reference_source'], p['interpolation']
         self._timeout_ns = round(p['reference_timeout'] * 1e9)
         self._unstamped_period_ns = round(p['unstamped_period'] * 1e9)
-        self._priority = p['sched_priority']
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._check, self._apply, self._diagnostics)
         self._joint_state = joint_state_message(JOINT_NAMES)
@@ -103,7 +102,6 @@ class SimNode(Node):
         self._inbox: deque = deque(maxlen=1000)   # (stamp ns, position, acceleration), checked
         self._pending_params: CraneParams | None = None
         self._reset_requested = threading.Event()
-        self._shutdown = threading.Event()
         self._last_stamp = -math.inf
         self.counts = dict.fromkeys(('received', 'accepted', 'nonfinite', 'stale', 'out_of_order', 'malformed',
                                      'missing', 'timeouts', 'steps', 'skipped', 'published'), 0)
@@ -124,10 +122,7 @@ class SimNode(Node):
             self._subscribe(self._reference_type)
         self.create_service(Trigger, RESET_SERVICE, self._on_reset)
         self.create_timer(1.0, self._report)
-        self._loop_error = ''
-        self._thread = threading.Thread(target=guarded(self._loop, self._loop_failed), name='sim-loop', daemon=True)
-        # Started once the executor spins: until then the main thread holds the GIL for long stretches.
-        self._kickoff = self.create_timer(0.05, self._start_loop)
+        self._loop_thread = LoopThread(self, self._loop, 'sim-loop', p['sched_priority'])
         self.get_logger().info(f'simulating {self._sim.params} every {p["step"] * 1e3:g} ms, joint_states at '
                                f'{p["publish_rate"]:g} Hz, reference source {self._source}, {self._interpolation}')
 
@@ -231,15 +226,13 @@ class SimNode(Node):
     # -- the loop (its own thread) -------------------------------------------
 
     def _loop(self):
-        for warning in tune_thread(self._priority):
-            self.get_logger().warn(warning)
         sim, ticker, counts, lateness = self._sim, self._ticker, self.counts, self._lateness
         inbox = self._inbox
         ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
         epoch_ros = ros_now + (epoch - time.monotonic_ns())  # ROS time of step 0
         dt_ns, dt = ticker.period, ticker.period * 1e-9
         playout_args, playout, timeouts = None, None, 0
-        while not self._shutdown.is_set():
+        while not self._loop_thread.stopping.is_set():
             deadline = ticker.deadline
             now = sleep_until(deadline, 0)
             lateness.add(now - deadline)
@@ -287,8 +280,9 @@ class SimNode(Node):
         latency, self._latency = np.asarray(self._latency, dtype=float) * 1e-6, []
         p50, p99 = np.percentile(latency, [50, 99]) if latency.size else (math.nan, math.nan)
         state = self._sim.state
-        level = ERROR if self._loop_error else WARN if counts['skipped'] else OK
-        message = (f'the loop stopped: {self._loop_error}' if self._loop_error else
+        error = self._loop_thread.error
+        level = ERROR if error else WARN if counts['skipped'] else OK
+        message = (f'the loop stopped: {error}' if error else
                    f'stepping at {(counts["steps"] - steps0) / elapsed:.1f} Hz, {ignored} references ignored')
         self._diagnostics.report(
             SIM_TASK, level, message, step_rate_hz=(counts['steps'] - steps0) / elapsed,
@@ -301,25 +295,8 @@ class SimNode(Node):
             interpolation=self._interpolation, y=state.y, theta1=state.theta1, theta2=state.theta2,
             load_excursion=self._sim.load_excursion, **self._sim.params)
 
-    def _loop_failed(self, exc: Exception):
-        self._loop_error = f'{type(exc).__name__}: {exc}'
-        self.get_logger().error(f'the loop stopped: {self._loop_error}')
-
-    def _start_loop(self):
-        # Runs on the executor's thread, which gets the priority just below the loop's: preempted by
-        # an ordinary process while holding the GIL it would stall the loop, and starved by the loop
-        # it would drop references.
-        self._kickoff.cancel()
-        if self._thread.ident is None:
-            if self._priority > 1:
-                for warning in tune_thread(self._priority - 1):
-                    self.get_logger().warn(f'executor thread: {warning}')
-            self._thread.start()
-
     def destroy_node(self):
-        self._shutdown.set()
-        if self._thread.ident is not None:
-            self._thread.join(timeout=2.0)
+        self._loop_thread.stop()
         super().destroy_node()
 
 
