@@ -494,16 +494,18 @@ class CraneSimulator:
         """Simulated time (s): the reset time plus the steps taken times dt."""
         return self._t0 + self._steps * self.dt
 
-    def step(self, a_ref_begin: float, a_ref_end: float | None = None) -> CraneState:
+    def step(self, a_ref_begin: float, a_ref_end: float | None = None) -> None:
         """Advance one ``dt``; the reference acceleration goes linearly from
-        ``a_ref_begin`` to ``a_ref_end`` (held at ``a_ref_begin`` if None). Returns the new state."""
+        ``a_ref_begin`` to ``a_ref_end`` (held at ``a_ref_begin`` if None).
+
+        Returns nothing: building :attr:`state` costs a sixth of a step, and
+        the real-time loop reads it only every 20th step."""
         r0 = float(a_ref_begin)
         r1 = r0 if a_ref_end is None else float(a_ref_end)
         if not (math.isfinite(r0) and math.isfinite(r1)):
             raise SimulationError(f'reference acceleration must be finite, got {r0}, {r1}')
         self._x = self._stepper.step(self._x, np.array([r0]), np.array([r1]))
         self._steps += 1
-        return self.state
 
     @property
     def state(self) -> CraneState:
