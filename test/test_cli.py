@@ -34,6 +34,8 @@ TASK = ['--displacement', '0.3', '--duration', '3']
     (['sweep', *TASK, '--methods', 'zv', '--points', '1'], 'at least 2 points'),
     (['plan', '--method', 'zvd', '--displacement', '0.3', '--duration', '2'], 'zvd'),
     (['plan', '--method', 'zv', *TASK, '--settle', '-1'], '--settle'),
+    (['plan', '--method', 'zv', *TASK, '--max-velocity', '0.1'], 'exceeds max_velocity 0.1'),
+    (['plan', '--method', 'nzv', *TASK, '--max-acceleration', '0.2'], 'exceeds max_acceleration 0.2'),
 ])
 def test_bad_input_is_one_line_exit_2(args, needle):
     r = run(*args)

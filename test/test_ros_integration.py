@@ -440,6 +440,31 @@ def test_bad_planner_parameter_is_refused_with_reason_and_planning_goes_on(crane
     assert plan.position[-1] == pytest.approx(5.3, abs=1e-9)
 
 
+def test_axis_limit_set_on_the_planner_applies_to_the_next_request(crane):
+    """A shaper plan above max_velocity is refused naming the limit; NVF bends its plan
+    under it (0.16 m/s: above the mean speed 0.1 m/s, below the unlimited peaks)."""
+    from rclpy.parameter import Parameter
+
+    def set_limit(value):
+        future = crane.planner_params.set_parameters([Parameter('max_velocity', value=value)])
+        deadline = time.monotonic() + 5.0
+        while not future.done():
+            assert time.monotonic() < deadline, 'planner parameter service'
+            time.sleep(0.01)
+        assert future.result().results[0].successful
+
+    set_limit(0.16)
+    try:
+        with pytest.raises(PlanError, match='zv plan exceeds max_velocity 0.16'):
+            crane.planner.plan('zv', 5.0, 5.3, 3.0)
+        plan = crane.planner.plan('nvf', 5.0, 5.3, 3.0)
+        speed = np.diff(plan.position) / np.diff(plan.t)  # means over the 10 ms knots
+        assert 0.1 < np.max(np.abs(speed)) <= 0.16 * (1 + 1e-6)
+    finally:
+        set_limit(0.0)
+    assert len(crane.planner.plan('zv', 5.0, 5.3, 3.0).t) == 301
+
+
 # --------------------------------------------------------------------------- sim input checks
 
 

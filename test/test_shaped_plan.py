@@ -124,6 +124,23 @@ def test_duration_not_longer_than_the_shaper_is_refused(method):
         Planner().plan(method, 0.3, 0.9 * length, options=PlanOptions(omega=PAPER_OMEGAS))
 
 
+@pytest.mark.parametrize('method', ['zv', 'zvd', 'ei', 'mzv'])
+def test_axis_limits_of_positive_shapers_against_the_quintic_bounds(method):
+    """A shaper with positive amplitudes summing to 1 averages shifted copies of the
+    quintic (length Tq): its peaks lie between the mean (D/T, 4 D/T^2 for a rest-to-rest
+    move) and the quintic's (15/8 D/Tq, 10/sqrt(3) D/Tq^2)."""
+    D, T = 0.3, 4.0
+    shaper = plan_for(method).shaper
+    Tq = T - shaper.duration
+    v_quintic, a_quintic = 15.0 / 8.0 * D / Tq, 10.0 / math.sqrt(3.0) * D / Tq ** 2
+    options = PlanOptions(omega=PAPER_OMEGAS, max_velocity=v_quintic, max_acceleration=a_quintic)
+    Planner().plan(method, D, T, options=options)  # within both
+    for limits, named in ((dict(max_velocity=D / T), 'max_velocity'),
+                          (dict(max_acceleration=4 * D / T ** 2), 'max_acceleration')):
+        with pytest.raises(PlanError, match=rf'{method} plan exceeds {named}'):
+            Planner().plan(method, D, T, options=PlanOptions(omega=PAPER_OMEGAS, **limits))
+
+
 def test_facade_uses_model_frequencies():
     params = CraneParams()
     plan = Planner().plan('zvd', 0.3, 3.0, params)

@@ -86,8 +86,8 @@ def _add_model_options(p: argparse.ArgumentParser):
                    help='collocation intervals for nvf/rvf (default: solver default)')
     g.add_argument('--solver', choices=('direct', 'indirect'), default='direct',
                    help='nvf/rvf solver: direct collocation + IPOPT, or the paper\'s indirect TPBVP')
-    g.add_argument('--max-velocity', type=_finite, metavar='V', help='axis limit |v| (m/s) for nvf/rvf')
-    g.add_argument('--max-acceleration', type=_finite, metavar='A', help='axis limit |a_ref| (m/s^2) for nvf/rvf')
+    g.add_argument('--max-velocity', type=_finite, metavar='V', help='axis limit |v| (m/s): a path constraint for nvf/rvf, a check for shapers')
+    g.add_argument('--max-acceleration', type=_finite, metavar='A', help='axis limit |a_ref| (m/s^2): a path constraint for nvf/rvf, a check for shapers')
 
 
 def _add_plant_options(p: argparse.ArgumentParser):
