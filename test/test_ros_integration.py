@@ -171,13 +171,10 @@ class Crane:
         A trajectory reaching the streamer after its start stamp (a busy
         machine) is streamed whole from the next tick: the stamps follow that.
         """
-        from crane_msgs_py.diagnostics import OK, status_values
         mark = self.diagnostics.mark()
         start_ns = self.now() + round(LEAD * 1e9)
         plan = self.planner.plan(method, self.hold, goal, duration, start_ns=start_ns)
-        accepted = self.status('crane_streamer', 'trajectory', mark, level=OK,
-                               predicate=lambda s: int(status_values(s)['start_stamp']) == start_ns)
-        start_ns += round(float(status_values(accepted)['late_start']) * 1e9)
+        start_ns = self.driver.streamed_start(start_ns, mark, method)
         self.hold = float(plan.position[-1])  # the goal up to rounding: what the streamer holds next
         return plan, start_ns, start_ns + round(duration * 1e9)
 

@@ -84,11 +84,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f'cases to run, from {",".join(CASES)} (default all)')
     p.add_argument('--displacement', type=float, default=0.3, metavar='D', help='cart move (m), default 0.3')
     p.add_argument('--duration', type=float, default=2.5, metavar='T', help='motion time (s), default 2.5 (paper §5)')
-    p.add_argument('--settle', type=float, default=2.5, metavar='S',
-                   help='seconds of swing observed after each motion (default 2.5, over one period of '
-                        'the slow mode)')
-    p.add_argument('--return-duration', type=float, default=1.5, metavar='T',
-                   help='time (s) of the unmeasured move back between runs (default 1.5)')
+    p.add_argument('--settle', type=float, default=2.0, metavar='S',
+                   help='seconds of swing observed after each motion (default 2.0, more than the slow '
+                        "mode's 1.73 s period)")
+    p.add_argument('--return-duration', type=float, default=1.25, metavar='T',
+                   help='time (s) of the unmeasured move back between runs, starting as the observation '
+                        'ends (default 1.25)')
     p.add_argument('--out', default='out', help='folder for figures and results (default out)')
     p.add_argument('--namespace', default='/crane_demo', help='namespace of the three nodes')
     p.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID (default: random, with localhost discovery)')
@@ -140,6 +141,7 @@ class DemoDriver:
 
         self._rclpy = rclpy
         self._nodes = nodes
+        self._namespace = '/' + namespace.strip('/') if namespace.strip('/') else ''
         rclpy.init()
         self.node = rclpy.create_node('crane_demo', namespace=namespace)
         group = ReentrantCallbackGroup()
@@ -225,13 +227,17 @@ class DemoDriver:
         if not response.success:
             raise DemoError(f'sim reset failed: {response.message}')
 
-    def move(self, method: str, start: float, goal: float, duration: float):
-        """Plan a move starting a little later; (start stamp ns, round-trip s, served trajectory).
+    def lead(self) -> float:
+        """Seconds between a request and its motion start: three times the slowest round trip
+        seen so far, at least 0.3 s."""
+        return max(0.3, 3.0 * self._slowest_plan)
 
-        The start stamp leaves room for the round trip: three times the slowest
-        one seen so far, at least 0.3 s.
-        """
-        start_ns = self.now_ns() + round(max(0.3, 3.0 * self._slowest_plan) * 1e9)
+    def move(self, method: str, start: float, goal: float, duration: float, start_ns: int | None = None):
+        """Plan a move starting at ``start_ns`` (default :meth:`lead` from now); (the stamp the
+        motion starts, round-trip s, served trajectory)."""
+        if start_ns is None:
+            start_ns = self.now_ns() + round(self.lead() * 1e9)
+        mark = self.planner.diagnostics.mark()
         t0 = time.perf_counter()
         # The client raises PlanError with the planner's reason on a refused plan.
         self.planner.plan(method, start, goal, duration, start_ns=start_ns, timeout=30.0)
@@ -244,11 +250,33 @@ class DemoDriver:
             with self._lock:
                 traj = self._trajectories.get(start_ns)
             if traj is not None:
-                return start_ns, plan_time, traj
+                return self.streamed_start(start_ns, mark, method), plan_time, traj
             self._nodes.check_alive()
             if time.monotonic() > deadline:
                 raise DemoError(f'the {method} plan never appeared on the trajectory topic')
             time.sleep(0.01)
+
+    def streamed_start(self, start_ns: int, mark: int, what: str = 'the', timeout: float = 5.0) -> int:
+        """The stamp the streamer starts the trajectory stamped ``start_ns`` at, from its status.
+
+        A trajectory reaching the streamer after its start stamp is streamed
+        whole from the next tick (never a jump): the motion, and every window
+        measured after it, moves by the streamer's ``late_start``. A refused
+        one is a DemoError with the streamer's reason.
+        """
+        from crane_msgs_py.diagnostics import OK, level_of, status_values
+        from crane_msgs_py.names import STREAMER_NODE
+        status = self.planner.diagnostics.wait_for(
+            lambda s: int(status_values(s).get('start_stamp', -1)) == start_ns, timeout, after=mark,
+            name=f'{STREAMER_NODE}: trajectory', hardware_id=f'{self._namespace}/{STREAMER_NODE}')
+        if status is None:
+            raise DemoError(f'no word from the streamer on {what} trajectory within {timeout:g} s')
+        if level_of(status) != OK:
+            raise DemoError(f'the streamer refused {what} trajectory: {status.message}')
+        late = float(status_values(status)['late_start'])
+        if late > 0.0:
+            progress(f'{what} trajectory reached the streamer late: motion starts {late:.3f} s after its stamp')
+        return start_ns + round(late * 1e9)
 
     def wait_for_state_after(self, stamp_ns: int, timeout: float = 3.0):
         """Wait until a joint_state stamped after ``stamp_ns`` has arrived.
@@ -291,15 +319,18 @@ def run_case_method(driver: DemoDriver, case: Case, method: str, args, L2: float
     start_ns, plan_time, traj = driver.move(method, 0.0, D, T)
     # One 50 Hz sample beyond the window, so the record covers all of it.
     end_ns = start_ns + round((T + args.settle + 0.05) * 1e9)
-    driver.sleep((end_ns - driver.now_ns()) * 1e-9 + 0.05)
+    # The move back is requested during the observation and starts as it ends: the streamer
+    # holds the goal until then, and the sim, playing the stream out by its stamps, shows the
+    # window untouched.
+    driver.sleep((end_ns - driver.now_ns()) * 1e-9 - driver.lead())
+    back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns)
     rec = driver.states_between(start_ns, end_ns)
     if len(rec) < 10:
         raise DemoError(f'only {len(rec)} joint_states during the {method} motion: is the sim publishing?')
     t = (rec[:, 0] - start_ns) * 1e-9
     residual = float(residual_load_mm(t, rec[:, 1], rec[:, 2], case.L1, L2, after=T, until=T + args.settle))
     plan_t, _, plan_v, plan_a = joint_trajectory_to_arrays(traj)
-    # Move back (not measured), then zero the swing: the simulated crane has no damping to wait for.
-    back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration)
+    # After the move back, zero the swing: the simulated crane has no damping to wait for.
     back_end_ns = back_ns + round((args.return_duration + 0.05) * 1e9)
     driver.sleep((back_end_ns - driver.now_ns()) * 1e-9)
     driver.wait_for_state_after(back_end_ns)

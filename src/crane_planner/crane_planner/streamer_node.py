@@ -164,7 +164,8 @@ class StreamerNode(Node):
             self.refused += 1
             self.get_logger().error(f'trajectory refused: {exc}')
             self._diagnostics.report(TRAJECTORY_TASK, ERROR, f'trajectory refused: {exc}', error=str(exc),
-                                     hold_position=self._hold, points=len(msg.points))
+                                     hold_position=self._hold, points=len(msg.points),
+                                     start_stamp=stamp_ns(msg.header.stamp))
             return
         self.accepted += 1
         self.get_logger().info(f'trajectory accepted: {motion.summary}')
