@@ -18,16 +18,22 @@ class SwingModel:
     """Eqs. 18-19 for a batch of plants, with the plant constants worked out once.
 
     Written in the absolute angle of the lower cable, phi = theta1 + theta2,
-    Eqs. 18-19 are a 2x2 linear system in (theta1'', phi''):
+    and the tangential accelerations u = (L1 theta1'', L2 phi''), Eqs. 18-19
+    are a 2x2 linear system:
 
-        [(m1+m2) L1     m2 L2 cos th2] [theta1'']   [(m1+m2)(a cos th1 - g sin th1) + m2 L2 sin th2 phi'^2]
-        [L1 cos th2     L2           ] [phi''   ] = [(a cos phi - g sin phi)         - L1 sin th2 theta1'^2]
+        [m1+m2    m2 cos th2] [u0]   [(m1+m2)(a cos th1 - g sin th1) + m2 L2 sin th2 phi'^2] = R0
+        [cos th2  1         ] [u1] = [(a cos phi - g sin phi)         - L1 sin th2 theta1'^2] = R1
 
-    whose determinant L1 L2 (m1 + m2 sin^2 th2) never vanishes for positive
-    masses and lengths, so Cramer's rule is safe everywhere. Rows of both
-    sides are handled as stacked (2, ...) arrays: the simulator calls this
-    four times per step for a whole batch, and at a few dozen plants the cost
-    is the number of numpy calls, not their size.
+    whose determinant m1 + m2 sin^2 th2 never vanishes for positive masses,
+    so Cramer's rule is safe everywhere:
+
+        theta1'' = (R0 - m2 cos th2 R1) / (L1 det),   phi'' = ((m1+m2) R1 - cos th2 R0) / (L2 det).
+
+    Rows are handled as stacked (2, ...) arrays, each right-hand side already
+    divided by its own row's length (the factors below), so one evaluation is
+    about twenty numpy calls: the simulator makes four per step for a whole
+    batch, and at a few dozen plants the cost is the number of calls, not
+    their size.
 
     Args:
         L1, L2, m1, m2, g: plant parameters (SI), scalars or arrays of one shape.
@@ -36,24 +42,25 @@ class SwingModel:
     def __init__(self, L1, L2, m1, m2, g):
         L1, L2, m1, m2, g = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (L1, L2, m1, m2, g)))
         mt, one = m1 + m2, np.ones_like(L1)
-        self.m1, self.m2, self.g = m1, m2, g
-        # row-wise factors of the system above (row 0: Eq. 18, row 1: Eq. 19)
-        self._gravity_scale = np.stack((mt, one))      # multiplies (a cos - g sin)
-        self._centripetal = np.stack((m2 * L2, -L1))   # multiplies sin th2 (phi'^2, theta1'^2)
-        self._cramer_own = np.stack((one, mt))         # Cramer numerators: own - c2 * other
-        self._cramer_other = np.stack((m2, one))
-        self._lengths = np.stack((L1, L2))
+        self.m1, self.m2 = m1, m2
+        lengths = np.stack((L1, L2))
+        # R / L, row by row: (a cos - g sin) and the centripetal sin th2 (phi'^2, theta1'^2) terms
+        self._a_scale = np.stack((mt, one)) / lengths
+        self._g_scale = self._a_scale * g
+        self._centripetal = np.stack((m2 * L2 / L1, -L1 / L2))
+        # Cramer numerators over L: own row - cos th2 * other row (the other row's 1/L swapped for ours)
+        self._own = np.stack((one, mt))
+        self._other = np.stack((m2 * L2 / L1, L1 / L2))
 
     def accelerations(self, angles, rates, a_cart):
         """[theta1'', phi''] (stacked, shape (2, ...)) for angles = [theta1, phi],
         rates = [theta1', phi'] (each (2, ...)) and cart acceleration a_cart."""
         theta2 = angles[1] - angles[0]
         s2, c2 = np.sin(theta2), np.cos(theta2)
-        rhs = self._gravity_scale * (a_cart * np.cos(angles) - self.g * np.sin(angles))
-        rhs += self._centripetal * (s2 * (rates * rates)[::-1])
-        numer = self._cramer_own * rhs - c2 * (self._cramer_other * rhs[::-1])
-        det = self.m1 + self.m2 * (s2 * s2)          # determinant / (L1 L2)
-        return numer / (self._lengths * det)
+        r = self._a_scale * (a_cart * np.cos(angles)) - self._g_scale * np.sin(angles)
+        r += self._centripetal * (s2 * (rates * rates)[::-1])
+        numer = self._own * r - c2 * (self._other * r[::-1])
+        return numer / (self.m1 + self.m2 * (s2 * s2))
 
 
 def swing_accelerations(theta1, theta2, dtheta1, dtheta2, a_cart, L1, L2, m1, m2, g):
