@@ -493,7 +493,7 @@ def test_sim_ignores_and_counts_nonfinite_out_of_order_and_stale_references(cran
     assert counted == {'nonfinite': 8, 'out_of_order': 4, 'stale': 2}
     # the plant did not see them: still at rest (reset above), stepping
     assert abs(float(after['theta1'])) < 1e-9 and abs(float(after['theta2'])) < 1e-9
-    assert float(after['step_rate_hz']) > 500.0
+    assert int(after['steps']) > int(before['steps'])  # (its rate is the timing benchmark's business)
 
 
 # --------------------------------------------------------------------------- position-only output
