@@ -5,6 +5,7 @@ stopped (SIGINT, then kill) however the tests end. The test process talks to
 the nodes over their ROS surface only: services, topics, parameters and
 /diagnostics (contract: ROS 2 nodes).
 """
+import copy
 import math
 import time
 from contextlib import contextmanager
@@ -135,13 +136,14 @@ class Crane:
         from crane_msgs_py.names import REFERENCE_TOPIC
         from crane_msgs_py.qos import REFERENCE_EVERY_SAMPLE_QOS
         from crane_msgs_py.runner import spinning
-        from rclpy.qos import QoSProfile
         rows = []
         node = rclpy.create_node('crane_it_recorder', namespace=NS)
         if arrival:
+            deep = copy.copy(REFERENCE_EVERY_SAMPLE_QOS)
+            deep.depth = 10_000
             node.create_subscription(JointTrajectory, REFERENCE_TOPIC,
                                      lambda m, info: rows.append((*read_reference(m), info['received_timestamp'])),
-                                     QoSProfile(**{**_qos_fields(REFERENCE_EVERY_SAMPLE_QOS), 'depth': 10000}))
+                                     deep)
         else:
             node.create_subscription(JointTrajectory, REFERENCE_TOPIC, lambda m: rows.append(read_reference(m)),
                                      REFERENCE_EVERY_SAMPLE_QOS)
@@ -341,10 +343,6 @@ def test_impaired_stream_shows_delay_and_loss_and_every_node_survives(crane):
     crane.planner.plan('zv', 5.0, 5.3, 3.0)  # the planner still answers
 
 
-def _qos_fields(q):
-    return dict(history=q.history, depth=q.depth, reliability=q.reliability, durability=q.durability)
-
-
 def _values(status):
     from crane_msgs_py.diagnostics import status_values
     return status_values(status)
@@ -440,17 +438,7 @@ def test_bad_planner_parameter_is_refused_with_reason_and_planning_goes_on(crane
 def test_axis_limit_set_on_the_planner_applies_to_the_next_request(crane):
     """A shaper plan above max_velocity is refused naming the limit; NVF bends its plan
     under it (0.16 m/s: above the mean speed 0.1 m/s, below the unlimited peaks)."""
-    from rclpy.parameter import Parameter
-
-    def set_limit(value):
-        future = crane.planner_params.set_parameters([Parameter('max_velocity', value=value)])
-        deadline = time.monotonic() + 5.0
-        while not future.done():
-            assert time.monotonic() < deadline, 'planner parameter service'
-            time.sleep(0.01)
-        assert future.result().results[0].successful
-
-    set_limit(0.16)
+    crane.driver.set_parameters('planner', {'max_velocity': 0.16})
     try:
         with pytest.raises(PlanError, match='zv plan exceeds max_velocity 0.16'):
             crane.planner.plan('zv', 5.0, 5.3, 3.0)
@@ -458,7 +446,7 @@ def test_axis_limit_set_on_the_planner_applies_to_the_next_request(crane):
         speed = np.diff(plan.position) / np.diff(plan.t)  # means over the 10 ms knots
         assert 0.1 < np.max(np.abs(speed)) <= 0.16 * (1 + 1e-6)
     finally:
-        set_limit(0.0)
+        crane.driver.set_parameters('planner', {'max_velocity': 0.0})
     assert len(crane.planner.plan('zv', 5.0, 5.3, 3.0).t) == 301
 
 

@@ -146,8 +146,9 @@ class DemoDriver:
         self.node = rclpy.create_node('crane_demo', namespace=namespace)
         group = ReentrantCallbackGroup()
         self.planner = PlannerClient(self.node, PLANNER_NODE, callback_group=group)
-        self._sim_params = AsyncParameterClient(self.node, SIM_NODE, callback_group=group)
-        self._streamer_params = AsyncParameterClient(self.node, STREAMER_NODE, callback_group=group)
+        self._params = {target: AsyncParameterClient(self.node, node_name, callback_group=group)
+                        for target, node_name in (('planner', PLANNER_NODE), ('sim', SIM_NODE),
+                                                  ('streamer', STREAMER_NODE))}
         self._reset = self.node.create_client(Trigger, service_of(SIM_NODE, RESET_SERVICE), callback_group=group)
         self._lock = threading.Lock()
         self._slowest_plan = 0.0
@@ -198,9 +199,9 @@ class DemoDriver:
     def wait_until_up(self, methods, timeout: float):
         deadline = time.monotonic() + timeout
         waits = [(f'planner service plan/{m}', lambda m=m: self.planner.wait_for_service(m, 0.1)) for m in methods]
-        waits += [('sim parameters', lambda: self._sim_params.wait_for_services(0.1)),
-                  ('streamer parameters', lambda: self._streamer_params.wait_for_services(0.1)),
-                  ('sim reset service', lambda: self._reset.wait_for_service(0.1)),
+        waits += [(f'{target} parameters', lambda c=client: c.wait_for_services(0.1))
+                  for target, client in self._params.items()]
+        waits += [('sim reset service', lambda: self._reset.wait_for_service(0.1)),
                   ('joint_states', lambda: bool(self._states)),
                   # The planner builds its solvers in the background at start-up;
                   # planning before that is done would be slow and late.
@@ -213,8 +214,9 @@ class DemoDriver:
                     raise DemoError(f'{what} not up within {timeout:g} s')
 
     def set_parameters(self, target: str, values: dict):
+        """Set parameters on the ``planner``, ``sim`` or ``streamer`` node; DemoError names any refused."""
         from rclpy.parameter import Parameter
-        client = self._sim_params if target == 'sim' else self._streamer_params
+        client = self._params[target]
         params = [Parameter(k, value=v) for k, v in values.items()]
         result = self._wait(client.set_parameters(params), 5.0, f'{target} parameter service')
         refused = [f'{p.name}: {r.reason}' for p, r in zip(params, result.results) if not r.successful]

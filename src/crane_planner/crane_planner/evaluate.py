@@ -13,12 +13,9 @@ import numpy as np
 
 from crane_msgs_py.params import CraneParams
 from crane_sim.metrics import peak, rms, swing_metrics
-from crane_sim.simulator import PlantBatch, SimResult, simulate
+from crane_sim.simulator import STATE_NAMES, PlantBatch, SimResult, simulate
 
 from .plan import Plan, PlanError, Samples
-
-#: The per-plant state arrays of a SimResult, in its field order.
-STATE_FIELDS = ('y', 'v', 'a', 'theta1', 'theta2', 'dtheta1', 'dtheta2')
 
 #: Simulation step and reference sample period used to evaluate plans (s).
 EVAL_STEP = 1e-3
@@ -62,10 +59,10 @@ def simulate_plans(plans, plants, settle: float = DEFAULT_SETTLE) -> list[Evalua
     sim = simulate(samples[0].t, reference, plants * len(plans), dt=EVAL_STEP,
                    t_end=duration + settle, interpolation='linear')
     metrics = swing_metrics(sim, None, duration, settle)
-    evaluations = []
+    evaluations, batch = [], PlantBatch.of(plants)
     for k, (plan, s) in enumerate(zip(plans, samples)):
         rows = slice(k * n, (k + 1) * n)
-        part = SimResult(sim.t, *(getattr(sim, f)[rows] for f in STATE_FIELDS), plants=PlantBatch.of(plants))
+        part = SimResult(sim.t, *(getattr(sim, f)[rows] for f in STATE_NAMES), plants=batch)
         evaluations.append(Evaluation(plan, s, part, metrics[rows]))
     return evaluations
 

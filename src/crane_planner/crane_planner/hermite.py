@@ -46,11 +46,6 @@ class QuinticHermite:
             6.0 * dp - 3.0 * (v0 + v1) - 0.5 * (a0 - a1),
         ])
 
-    @property
-    def duration(self) -> float:
-        """Time from the first knot to the last (s)."""
-        return float(self.t[-1] - self.t[0])
-
     def __call__(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration at times ``t`` (array-like)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))

@@ -16,11 +16,12 @@ from crane_msgs_py.params import CraneParams, ParameterError, check_nonnegative,
 from .model import modal_frequencies
 from .plan import Plan, PlanError
 from .shaped import shaped_plan
+from .shapers import SHAPERS
 
 #: The paper's variational formulations (optimal control).
 VARIATIONAL_METHODS = ('nvf', 'rvf')
-#: Input shapers, cascaded over both pendulum modes (see ``shapers.SHAPERS``).
-SHAPER_METHODS = ('zv', 'nzv', 'zvd', 'ei', 'mzv', 'zvdd')
+#: Input shapers, cascaded over both pendulum modes (``shapers.SHAPERS``).
+SHAPER_METHODS = tuple(SHAPERS)
 METHODS = VARIATIONAL_METHODS + SHAPER_METHODS
 
 #: Parameters RVF may be made insensitive to.

@@ -94,11 +94,10 @@ def swing_metrics(result: SimResult, plants, duration: float, settle: float) -> 
         'rms': (rms(th1[:, motion], t[motion]), rms(th2[:, motion], t[motion])),
         'residual': (peak(th1[:, after]), peak(th2[:, after])),
     }
-    load_mm = [residual_load_mm(t, th1[i], th2[i], p.L1[i], p.L2[i], duration, duration + settle)
-               for i in range(len(p))]
+    load_mm = residual_load_mm(t, th1, th2, p.L1[:, None], p.L2[:, None], duration, duration + settle)
     return [{
         'peak': {'theta1': float(figures['peak'][0][i]), 'theta2': float(figures['peak'][1][i])},
         'rms': {'theta1': float(figures['rms'][0][i]), 'theta2': float(figures['rms'][1][i])},
         'residual': {'theta1': float(figures['residual'][0][i]), 'theta2': float(figures['residual'][1][i]),
-                     'load_mm': load_mm[i]},
+                     'load_mm': float(load_mm[i])},
     } for i in range(len(p))]

@@ -149,9 +149,8 @@ def servo_weights(tau, h: float) -> np.ndarray:
         W[row, 0] = np.where(ideal, 0.0, F[0])
         W[row, 1] = np.where(ideal, 1.0 - rho, H1 - rho * H2)
         W[row, 2] = np.where(ideal, rho, rho * H2)
-    # velocity and position over the whole step (s = h): integrals of a(s)
-    x = h / np.where(ideal, 1.0, tau)
-    F = _integrated_exponentials(x)
+    # velocity and position over the whole step: integrals of a(s), with x and F of
+    # the loop's last pass (s = h)
     H2, H3, H4 = x * F[2], x * F[3], x * F[4]
     W[3, 0] = np.where(ideal, 0.0, h * F[1])
     W[3, 1] = h * np.where(ideal, 0.5, H2 - H3)
