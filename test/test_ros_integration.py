@@ -56,41 +56,21 @@ class Crane:
 
     def __init__(self, driver, nodes):
         from rclpy.parameter_client import AsyncParameterClient
-        from sensor_msgs.msg import JointState
-        from trajectory_msgs.msg import JointTrajectory
 
-        from crane_msgs_py.names import JOINT_STATES_TOPIC, PLANNER_NODE, TRAJECTORY_TOPIC
-        from crane_msgs_py.qos import JOINT_STATES_QOS, TRAJECTORY_QOS
+        from crane_msgs_py.names import PLANNER_NODE
 
-        self.driver, self.nodes = driver, nodes
+        self.driver, self.nodes = driver, nodes  # the driver records joint_states and the plans
         self.node = driver.node
         self.planner = driver.planner
         self.diagnostics = driver.planner.diagnostics
         self.hold = 0.0
-        self._trajectories = {}
-        self.node.create_subscription(JointTrajectory, TRAJECTORY_TOPIC,
-                                      lambda m: self._trajectories.__setitem__(_stamp(m), m), TRAJECTORY_QOS)
+        # the raw client: a refused parameter's result (successful, reason) is under test
         self.planner_params = AsyncParameterClient(self.node, PLANNER_NODE)
         assert self.planner_params.wait_for_services(10.0), 'planner parameter services not up'
-        self._states = []  # (stamp ns, theta1, theta2, cart)
-        self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state, JOINT_STATES_QOS)
 
-    def _on_state(self, msg):
-        from crane_msgs_py.conversions import joint_state_to_arrays
-        from crane_msgs_py.names import SIM_JOINTS
-        pos, _ = joint_state_to_arrays(msg, SIM_JOINTS)
-        self._states.append((_stamp(msg), pos[1], pos[2], pos[0]))
-
-    def states_between(self, begin_ns: int, end_ns: int, timeout: float = 10.0) -> np.ndarray:
-        """joint_states from ``begin`` to the first one past ``end`` (waiting for it: the sim may lag)."""
-        deadline = time.monotonic() + timeout
-        while not (self._states and self._states[-1][0] > end_ns):
-            self.nodes.check_alive()
-            assert time.monotonic() < deadline, f'no joint_states past {end_ns} within {timeout} s'
-            time.sleep(0.02)
-        rows = [r for r in list(self._states) if r[0] >= begin_ns]
-        last = next(k for k, r in enumerate(rows) if r[0] > end_ns)
-        return np.array(rows[:last + 1])
+    def next_goal(self) -> float:
+        """D from near 0, else 0: each move starts where the last one ended."""
+        return D if self.hold < D / 2 else 0.0
 
     def now(self) -> int:
         return self.driver.now_ns()
@@ -108,13 +88,6 @@ class Crane:
     def values(self, node: str, task: str, after: int = 0, predicate=None) -> dict:
         from crane_msgs_py.diagnostics import status_values
         return status_values(self.status(node, task, after, predicate=predicate))
-
-    def trajectory(self, start_ns: int, timeout: float = 5.0):
-        deadline = time.monotonic() + timeout
-        while start_ns not in self._trajectories:
-            assert time.monotonic() < deadline, 'the plan never appeared on the trajectory topic'
-            time.sleep(0.01)
-        return self._trajectories[start_ns]
 
     @contextmanager
     def references(self, arrival: bool = False):
@@ -185,17 +158,13 @@ class Crane:
         from crane_sim.metrics import residual_load_mm
         end_ns = start_ns + round((duration + SETTLE) * 1e9)
         self.sleep_until(end_ns)
-        rec = self.states_between(start_ns - 50_000_000, end_ns)  # (stamp, theta1, theta2, cart)
+        # (stamp, theta1, theta2, cart), one 50 Hz sample past the window
+        rec = self.driver.states_between(start_ns - 50_000_000, end_ns + 20_000_000, timeout=10.0)
         assert len(rec) > 40 * (duration + SETTLE), f'only {len(rec)} joint_states'
         t = (rec[:, 0] - start_ns) * 1e-9
         residual = residual_load_mm(t, rec[:, 1], rec[:, 2], L1, NOMINAL.L2, after=duration,
                                     until=duration + SETTLE)
         return residual, rec[-1, 3] - rec[0, 3]
-
-
-def _stamp(msg) -> int:
-    from crane_msgs_py.conversions import stamp_ns
-    return stamp_ns(msg.header.stamp)
 
 
 @pytest.fixture(scope='module')
@@ -238,11 +207,11 @@ def quintic_trajectory(start: float, goal: float, duration: float, stamp_ns: int
 def test_method_is_planned_published_streamed_and_leaves_no_swing(crane, method):
     from crane_msgs_py.conversions import joint_trajectory_to_arrays, stamp_ns
     T = duration_for(method)
-    start, goal = crane.hold, (D if crane.hold < D / 2 else 0.0)
+    start, goal = crane.hold, crane.next_goal()
     crane.driver.reset_sim()  # the simulated crane has no damping: start each motion at rest
     with crane.references() as refs:
         plan, start_ns, end_ns = crane.move(method, goal, T)
-        traj = crane.trajectory(stamp_ns(plan.path.header.stamp))
+        traj = crane.driver.trajectory(stamp_ns(plan.path.header.stamp))
         residual, travel = crane.swing_after(start_ns, T, NOMINAL.L1)
     # the service's Path: one pose per 10 ms knot, ending at the goal exactly at the requested time
     path = plan.path
@@ -285,7 +254,7 @@ def test_rvf_leaves_less_swing_than_nvf_on_a_shorter_upper_cable(crane):
     try:
         for method in ('nvf', 'rvf'):
             crane.driver.reset_sim()
-            _, start_ns, _ = crane.move(method, D if crane.hold < D / 2 else 0.0, 3.0)
+            _, start_ns, _ = crane.move(method, crane.next_goal(), 3.0)
             residual[method], _ = crane.swing_after(start_ns, 3.0, L1)
     finally:
         crane.driver.set_parameters('sim', {'L1': NOMINAL.L1})
@@ -305,7 +274,7 @@ def test_impaired_stream_shows_delay_and_loss_and_every_node_survives(crane):
         before = crane.values('crane_streamer', 'stream', mark, impaired)
         sim_before = crane.values('crane_sim', 'sim', crane.diagnostics.mark())
         with crane.references(arrival=True) as refs:
-            _, start_ns, end_ns = crane.move('zv', D if crane.hold < D / 2 else 0.0, 3.0)
+            _, start_ns, end_ns = crane.move('zv', crane.next_goal(), 3.0)
             crane.sleep_until(end_ns + 300_000_000)
             deadline = time.monotonic() + 10.0
             while refs[-1][0] < end_ns + 200_000_000:  # this recorder may lag: its queue holds 10 s
@@ -314,8 +283,8 @@ def test_impaired_stream_shows_delay_and_loss_and_every_node_survives(crane):
         mark = crane.diagnostics.mark()
         after = crane.values('crane_streamer', 'stream', mark)
         sim_after = crane.values('crane_sim', 'sim', mark)
-        received = [_values(s) for s in crane.diagnostics.statuses('crane_sim: sim', after=0)
-                    if s.hardware_id == f'{NS}/crane_sim'][-4:]  # the last seconds, all impaired
+        received = [_values(s) for s in crane.diagnostics.statuses('crane_sim: sim',
+                                                                    hardware_id=f'{NS}/crane_sim')][-4:]  # the last seconds, all impaired
     finally:
         crane.driver.set_parameters('streamer', {'network.delay': 0.0, 'network.jitter': 0.0, 'network.loss': 0.0})
     # the streamer's own account: 5 % of the samples lost on the link
@@ -502,12 +471,8 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
         sim_status = dict(name='crane_sim: sim', hardware_id=f'{ns}/crane_sim')
         assert crane.diagnostics.wait_for(lambda s: status_values(s)['reference_type'] == 'float64_array',
                                           30.0, after=crane.diagnostics.mark(), **sim_status) is not None
-        pub = crane.node.create_publisher(JointTrajectory, f'{ns}/trajectory', TRAJECTORY_QOS)
+        pub = crane.publisher(JointTrajectory, f'{ns}/trajectory', TRAJECTORY_QOS)
         try:
-            deadline = time.monotonic() + 5.0
-            while pub.get_subscription_count() == 0:
-                assert time.monotonic() < deadline
-                time.sleep(0.01)
             start_ns = crane.now() + 500_000_000
             pub.publish(quintic_trajectory(0.0, D, 2.0, start_ns))
             crane.sleep_until(start_ns + 3_500_000_000)  # 2 s motion, 0.2 s playout, a report

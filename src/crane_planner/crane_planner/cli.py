@@ -90,9 +90,13 @@ def _add_model_options(p: argparse.ArgumentParser):
     g.add_argument('--max-acceleration', type=_finite, metavar='A', help='axis limit |a_ref| (m/s^2): a path constraint for nvf/rvf, a check for shapers')
 
 
+#: Plant parameters the evaluation may change (``--plant-X``) and ``sweep`` may vary (g stays).
+PLANT_PARAMETERS = ('L1', 'L2', 'm1', 'm2', 'tau')
+
+
 def _add_plant_options(p: argparse.ArgumentParser):
     g = p.add_argument_group('evaluation (the simulated plant; defaults to the model)')
-    for name in ('L1', 'L2', 'm1', 'm2', 'tau'):
+    for name in PLANT_PARAMETERS:
         g.add_argument(f'--plant-{name}', type=_finite, metavar='X', help=f'plant {PARAMETER_DESCRIPTIONS[name]}')
     g.add_argument('--settle', type=_finite, default=DEFAULT_SETTLE, metavar='S',
                    help=f'seconds observed after the motion (default {DEFAULT_SETTLE:g})')
@@ -126,7 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--plot', metavar='FILE', help='write a PNG: velocity, acceleration and load swing per method')
 
     p = sub.add_parser('sweep', help='residual load swing while one plant parameter varies')
-    p.add_argument('--param', choices=('L1', 'L2', 'm1', 'm2', 'tau'), default='L1')
+    p.add_argument('--param', choices=PLANT_PARAMETERS, default='L1')
     p.add_argument('--span', type=_finite, default=0.3, metavar='R', help='relative span, values x (1 +- R) (default 0.3)')
     p.add_argument('--points', type=int, default=61, metavar='N', help='number of values (>= 2, default 61)')
     _add_task_options(p)
@@ -149,7 +153,7 @@ def _model_and_options(args) -> tuple[CraneParams, PlanOptions]:
 
 
 def _plant(args, model: CraneParams) -> CraneParams:
-    changes = {n: getattr(args, f'plant_{n}') for n in ('L1', 'L2', 'm1', 'm2', 'tau')
+    changes = {n: getattr(args, f'plant_{n}') for n in PLANT_PARAMETERS
                if getattr(args, f'plant_{n}') is not None}
     return model.replace(**changes)
 

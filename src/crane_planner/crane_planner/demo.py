@@ -135,6 +135,7 @@ class DemoDriver:
         from trajectory_msgs.msg import JointTrajectory
 
         from crane_msgs_py.client import PlannerClient
+        from crane_msgs_py.runner import spinning
         from crane_msgs_py.names import (JOINT_STATES_TOPIC, PLANNER_NODE, RESET_SERVICE, SIM_NODE,
                                          STREAMER_NODE, TRAJECTORY_TOPIC, service_of)
         from crane_msgs_py.qos import JOINT_STATES_QOS, TRAJECTORY_QOS
@@ -160,8 +161,8 @@ class DemoDriver:
                                       callback_group=group)
         self._executor = MultiThreadedExecutor(num_threads=3)
         self._executor.add_node(self.node)
-        self._spinner = threading.Thread(target=self._executor.spin, daemon=True)
-        self._spinner.start()
+        self._spinning = spinning(self._executor)  # entered here, left in close()
+        self._spinning.__enter__()
 
     # -- callbacks
     def _on_state(self, msg):
@@ -180,13 +181,17 @@ class DemoDriver:
     def now_ns(self) -> int:
         return self.node.get_clock().now().nanoseconds
 
-    def _wait(self, future, timeout: float, what: str):
+    def wait_until(self, ready, timeout: float, failure: str, interval: float = 0.01):
+        """Poll ``ready()`` until true while watching the nodes; DemoError ``failure`` after ``timeout`` s."""
         deadline = time.monotonic() + timeout
-        while not future.done():
+        while not ready():
             self._nodes.check_alive()
             if time.monotonic() > deadline:
-                raise DemoError(f'no answer from {what} within {timeout:g} s')
-            time.sleep(0.01)
+                raise DemoError(failure)
+            time.sleep(interval)
+
+    def _wait(self, future, timeout: float, what: str):
+        self.wait_until(future.done, timeout, f'no answer from {what} within {timeout:g} s')
         return future.result()
 
     def sleep(self, seconds: float):
@@ -208,10 +213,7 @@ class DemoDriver:
                   ('planner warm-up', lambda: self.planner.diagnostics.wait_for(
                       name='crane_planner: solvers', timeout=0.1) is not None)]
         for what, ready in waits:
-            while not ready():
-                self._nodes.check_alive()
-                if time.monotonic() > deadline:
-                    raise DemoError(f'{what} not up within {timeout:g} s')
+            self.wait_until(ready, deadline - time.monotonic(), f'{what} not up within {timeout:g} s')
 
     def set_parameters(self, target: str, values: dict):
         """Set parameters on the ``planner``, ``sim`` or ``streamer`` node; DemoError names any refused."""
@@ -247,16 +249,15 @@ class DemoDriver:
         self._slowest_plan = max(self._slowest_plan, plan_time)
         if self.now_ns() > start_ns:
             raise DemoError(f'planning {method} took {plan_time:.2f} s, past the motion start (machine overloaded?)')
-        deadline = time.monotonic() + 5.0
-        while True:
-            with self._lock:
-                traj = self._trajectories.get(start_ns)
-            if traj is not None:
-                return self.streamed_start(start_ns, mark, method), plan_time, traj
-            self._nodes.check_alive()
-            if time.monotonic() > deadline:
-                raise DemoError(f'the {method} plan never appeared on the trajectory topic')
-            time.sleep(0.01)
+        traj = self.trajectory(start_ns, f'the {method}')
+        return self.streamed_start(start_ns, mark, method), plan_time, traj
+
+    def trajectory(self, start_ns: int, what: str = 'the', timeout: float = 5.0):
+        """The JointTrajectory the planner published for a motion stamped ``start_ns``."""
+        self.wait_until(lambda: start_ns in self._trajectories, timeout,
+                        f'{what} plan never appeared on the trajectory topic')
+        with self._lock:
+            return self._trajectories[start_ns]
 
     def streamed_start(self, start_ns: int, mark: int, what: str = 'the', timeout: float = 5.0) -> int:
         """The stamp the streamer starts the trajectory stamped ``start_ns`` at, from its status.
@@ -286,28 +287,21 @@ class DemoDriver:
         The sim stamps states with simulated time, which trails the wall clock
         (it plays references out by their stamps, after a jitter buffer).
         """
-        deadline = time.monotonic() + timeout
-        while True:
+        def arrived():
             with self._lock:
-                if self._states and self._states[-1][0] >= stamp_ns:
-                    return
-            self._nodes.check_alive()
-            if time.monotonic() > deadline:
-                raise DemoError(f'no joint_states stamped past the motion within {timeout:g} s')
-            time.sleep(0.02)
+                return bool(self._states) and self._states[-1][0] >= stamp_ns
+        self.wait_until(arrived, timeout, f'no joint_states stamped past the motion within {timeout:g} s', 0.02)
 
-    def states_between(self, begin_ns: int, end_ns: int) -> np.ndarray:
+    def states_between(self, begin_ns: int, end_ns: int, timeout: float = 3.0) -> np.ndarray:
         """joint_states stamped in [begin, end] (dropping everything older than ``end_ns``)."""
-        self.wait_for_state_after(end_ns)
+        self.wait_for_state_after(end_ns, timeout)
         with self._lock:
             rows = [r for r in self._states if begin_ns <= r[0] <= end_ns]
             self._states = [r for r in self._states if r[0] > end_ns]
         return np.array(rows).reshape(-1, 4)
 
     def close(self):
-        self._executor.shutdown()
-        # The spinning thread must be out of rcl before the node and context go.
-        self._spinner.join(timeout=5.0)
+        self._spinning.__exit__(None, None, None)  # the spin thread out of rcl, then the executor shut down
         self.node.destroy_node()
         self._rclpy.try_shutdown()
 
@@ -356,9 +350,7 @@ def print_table(runs: list[Run], cases, methods):
 
 
 def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    from .figures import plt, save_figure  # headless (Agg) matplotlib
 
     out = Path(args.out)
     written = []
@@ -375,7 +367,7 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
     for ax in axes:
         ax.grid(True, alpha=0.3)
         ax.legend(ncol=5, fontsize=8)
-    written.append(_save(fig, out / 'demo_plans.png'))
+    written.append(save_figure(fig, out / 'demo_plans.png'))
 
     n = len(args.cases)
     fig, axes = plt.subplots(n, 1, figsize=(9, 2.6 * n + 0.6), sharex=True, squeeze=False)
@@ -391,7 +383,7 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
         ax.grid(True, alpha=0.3)
         ax.legend(ncol=3, fontsize=7)
     axes[-1, 0].set_xlabel('time from motion start (s); measured at 50 Hz (paper Figs. 6-15)')
-    written.append(_save(fig, out / 'demo_swing.png'))
+    written.append(save_figure(fig, out / 'demo_swing.png'))
 
     if timing_log and timing_log.exists():
         lateness = np.asarray(json.loads(timing_log.read_text()).get('lateness_us', []), dtype=float)
@@ -403,17 +395,8 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
                          f'p99 {p99:.0f} µs, max {lateness.max():.0f} µs', fontsize=10)
             ax.set_xlabel('lateness of the tick (µs)')
             ax.set_ylabel('ticks')
-            written.append(_save(fig, out / 'demo_tick_timing.png'))
+            written.append(save_figure(fig, out / 'demo_tick_timing.png'))
     return written
-
-
-def _save(fig, path: Path) -> Path:
-    import matplotlib.pyplot as plt
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
 
 
 def run_sweep(args) -> Path | None:

@@ -20,8 +20,10 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-#: Order of the model parameter vector ``p`` of every model here.
-PARAMETERS = ('L1', 'L2', 'm1', 'm2', 'g', 'tau')
+from crane_msgs_py.params import PARAMETER_NAMES
+
+#: Order of the model parameter vector ``p`` of every model here (CraneParams' fields).
+PARAMETERS = PARAMETER_NAMES
 SWING_STATES = ('theta1', 'theta2', 'dtheta1', 'dtheta2')
 IDEAL_STATES = ('y', 'v', 'a') + SWING_STATES
 SERVO_STATES = ('y', 'v', 'a', 'a_ref') + SWING_STATES

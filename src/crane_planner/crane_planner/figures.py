@@ -10,12 +10,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-def _save(fig, path: str):
+def save_figure(fig, path):
+    """Write ``fig`` as a PNG at ``path`` (folders made as needed), close it, return ``path``."""
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+    return path
 
 
 def plot_plan(ev, path: str):
@@ -39,7 +41,7 @@ def plot_plan(ev, path: str):
     axes[2, 0].set_xlabel('time (s)')
     axes[2, 1].set_xlabel('time (s)')
     fig.suptitle(f'{plan.method.upper()}: {plan.displacement:g} m in {plan.duration:g} s')
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def plot_compare(evaluations, path: str):
@@ -60,7 +62,7 @@ def plot_compare(evaluations, path: str):
     if evaluations:
         p = evaluations[0].plan
         axes[0].set_title(f'{p.displacement:g} m in {p.duration:g} s')
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 def plot_sweep(result: dict, path: str, nominal: float | None = None):
@@ -75,4 +77,4 @@ def plot_sweep(result: dict, path: str, nominal: float | None = None):
     ax.set_ylabel('residual load swing (mm)')
     ax.grid(True, alpha=0.3)
     ax.legend()
-    _save(fig, path)
+    save_figure(fig, path)

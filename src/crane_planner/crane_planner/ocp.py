@@ -21,11 +21,13 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
+from numpy.polynomial import polynomial as poly
 
 from crane_msgs_py.params import CraneParams
 
 from .dynamics import PARAMETERS, augment, crane_ode
 from .plan import Plan, PlanError
+from .profiles import QUINTIC
 
 #: Smallest position scale (m): a request for D = 0 is still well scaled.
 P_MIN = 1e-3
@@ -154,8 +156,7 @@ class Problem:
         theta1 ~ a/g and dtheta1 ~ jerk/g, which in scaled units are A and U.
         """
         k = displacement / max(abs(displacement), P_MIN)
-        q = [k * (10 * s ** 3 - 15 * s ** 4 + 6 * s ** 5), k * (30 * s ** 2 - 60 * s ** 3 + 30 * s ** 4),
-             k * (60 * s - 180 * s ** 2 + 120 * s ** 3), k * (60 - 360 * s + 360 * s ** 2)]
+        q = [k * poly.polyval(s, QUINTIC[i]) for i in range(4)]
         guess = {'y': q[0], 'v': q[1], 'a': q[2], 'a_ref': q[2], 'theta1': q[2], 'dtheta1': q[3]}
         X = np.array([guess.get(n, 0.0 * s) for n in self.states])
         return X, q[3]

@@ -19,6 +19,7 @@ from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from trajectory_msgs.msg import JointTrajectory
 
+from crane_msgs_py.client import PLAN_TASK
 from crane_msgs_py.conversions import samples_to_joint_trajectory, samples_to_path, stamp_ns
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import DEFAULT_FRAME_ID, PLANNER_NODE, TRAJECTORY_TOPIC, plan_service
@@ -32,7 +33,6 @@ from .planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, Planner, 
 from .plan import PlanError
 
 #: The diagnostic task of requests (status ``crane_planner: plan``).
-PLAN_TASK = 'plan'
 
 #: name -> (default, description, range descriptor fields). Ranges are the
 #: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by the

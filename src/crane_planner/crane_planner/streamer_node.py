@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import numpy as np
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
@@ -107,9 +106,8 @@ class StreamerNode(Node):
         self._timing_log = p['timing_log']
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._impairment_of, self._apply, self._diagnostics)
-        msg_type = JointTrajectory if p['output'] == OUTPUT_JOINT_TRAJECTORY else Float64MultiArray
         self._msg = reference_message(p['output'])
-        self._publisher = self.create_publisher(msg_type, REFERENCE_TOPIC, REFERENCE_QOS)
+        self._publisher = self.create_publisher(type(self._msg), REFERENCE_TOPIC, REFERENCE_QOS)
 
         # State shared with the loop thread. The loop owns _hold, _motion and
         # the ticker; the executor hands motions over through _incoming.

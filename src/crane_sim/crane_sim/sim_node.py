@@ -168,7 +168,7 @@ class SimNode(Node):
                                                        self._on_reference, REFERENCE_EVERY_SAMPLE_QOS)
         self.get_logger().info(f'reference type {kind}')
         if kind == 'float64_array':  # positions only, timed by their arrival
-            self._playout_args = self._playout_args_of({name: self.get_parameter(name).value for name in PARAMETERS})
+            self._playout_args = (*self._playout_args[:3], 'position')  # what _playout_args_of gives now
             if self._source == 'acceleration':
                 self.get_logger().warn('float64_array references carry positions only: '
                                        'reconstructing the acceleration from them')
