@@ -68,6 +68,34 @@ def test_positions_give_second_differences():
     assert a[0, 0] == 0.0 and np.allclose(a[2:, 0], 3.0)
 
 
+def integrate(a):
+    """Cart velocity and position under per-step constant accelerations a (zoh over DT), from rest at 0."""
+    v = np.concatenate(([0.0], np.cumsum(a) * DT))
+    return v[-1], np.sum(v[:-1]) * DT + np.sum(a) * DT * DT / 2
+
+
+@pytest.mark.parametrize('interpolation', ['zoh', 'linear'])
+def test_positions_with_a_gap_in_the_stamps_still_end_at_rest_at_the_goal(interpolation):
+    # a quintic 0 -> 0.3 m in 1 s at 1 ms, the stamps re-anchored 0.3 s later halfway through (as the
+    # sim node does for unstamped samples after a stall), at rest before and after
+    from crane_planner.profiles import quintic
+    t = np.arange(-100, 1400) * DT
+    p = quintic(np.clip(t, 0.0, 1.0), 0.3, 1.0)[0]
+    stamps = np.where(np.arange(t.size) >= 600, t + 0.3, t) + 0.1
+    playout = ReferencePlayout(delay=0.05, timeout=0.5, interpolation=interpolation, source='position')
+    a = play(playout, [(ts, (ts, pk, 0.0)) for ts, pk in zip(stamps, p)], 2000)[:, 0]
+    v, y = integrate(a)
+    assert abs(v) < 1e-9 and y == pytest.approx(0.3, abs=1e-9)
+
+
+def test_positions_hold_when_the_stream_stops_mid_motion():
+    # a ramp at 0.1 m/s that stops arriving: the last position holds, the velocity returns to 0
+    playout = ReferencePlayout(delay=0.0, timeout=0.02, source='position')
+    a = play(playout, [(k * DT, (k * DT, 0.1 * k * DT, 0.0)) for k in range(50)], 200, phase=0.0)[:, 0]
+    v, y = integrate(a)
+    assert abs(v) < 1e-12 and y == pytest.approx(0.1 * 49 * DT, abs=1e-12) and playout.timeouts == 1
+
+
 def test_a_stopped_stream_falls_back_to_zero_once():
     playout = ReferencePlayout(delay=0.0, timeout=0.02)
     a = play(playout, [(s[0], s) for s in samples(lambda t: 1.0, 10)], 100)[:, 0]

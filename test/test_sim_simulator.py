@@ -8,7 +8,7 @@ import scipy.linalg
 from crane_msgs_py.params import CraneParams, ParameterError
 from crane_planner.model import modal_frequencies
 from crane_planner.profiles import quintic
-from crane_sim.simulator import (CraneSimulator, CraneState, PositionDifferentiator, SimulationError,
+from crane_sim.simulator import (CraneSimulator, CraneState, SimulationError,
                                  acceleration_from_positions, simulate)
 
 P = CraneParams()
@@ -138,19 +138,6 @@ def test_position_source_recovers_the_acceleration_of_a_quintic():
             assert r.y[0] == pytest.approx(0.1 + quintic(r.t - H, D, T)[0], abs=1e-5)
         else:
             assert error.max() < jerk_jump * H / 2 + 1e-4
-
-
-def test_position_differentiator_streams_the_batch_reconstruction():
-    rng = np.random.default_rng(3)
-    t = np.cumsum(rng.uniform(0.5e-3, 1.5e-3, 40))
-    p = np.cumsum(rng.normal(0.0, 1e-4, 40))
-    t_acc, acc = acceleration_from_positions(t, p)
-    d = PositionDifferentiator()
-    streamed = [d.update(ti, pi) for ti, pi in zip(t, p)]
-    assert np.allclose(t_acc[:40], t)
-    assert streamed == pytest.approx(acc[:40], rel=1e-12, abs=1e-12)
-    with pytest.raises(SimulationError, match='increase'):
-        d.update(t[-1], 0.0)
 
 
 def test_constant_acceleration_static_deflection_is_an_equilibrium():

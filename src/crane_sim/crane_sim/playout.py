@@ -11,19 +11,29 @@ pattern, as long as it arrives within ``delay``.
 
 Per step ``[t0, t1]`` the acceleration is the newest stamped <= t0 - delay
 (``zoh``), or interpolated between the samples bracketing t0 - delay and
-t1 - delay (``linear``). With ``source='position'`` the accelerations are
-the second differences of the positions (``simulator.PositionDifferentiator``:
-what a controller that only gets positions reconstructs). Without a sample
-newer than ``timeout`` the acceleration falls back to 0 (the stream stopped:
-never hold an acceleration). Times are seconds on any common clock. Pure
-Python, no ROS import.
+t1 - delay (``linear``). Without a sample newer than ``timeout`` the
+acceleration falls back to 0 (the stream stopped: never hold an acceleration).
+
+With ``source='position'`` (a controller that only gets positions) the
+positions are played out the same way and the step's acceleration is the
+second difference of the played-out position over the plant's own last
+steps. On the plant's even grid these sum exactly: the reference velocity is
+always the last step's position difference over h, so the cart ends at rest
+at the last position whatever the stamps' spacing (gaps, a re-anchored
+grid). Second differences of the samples themselves held over the next,
+different interval would leave a velocity error for good. Without a fresh
+sample the last position holds, as an axis holds its last setpoint, and the
+acceleration falls to 0 by itself. On an even grid of samples aligned with
+the steps both forms are the same: the second difference around the
+previous sample, applied from the newest one on. Times are seconds on any
+common clock. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
 import math
 from collections import deque
 
-from .simulator import INTERPOLATIONS, SOURCES, PositionDifferentiator, SimulationError, _check_choice
+from .simulator import INTERPOLATIONS, SOURCES, SimulationError, _check_choice
 
 
 class ReferencePlayout:
@@ -46,25 +56,22 @@ class ReferencePlayout:
         self.delay, self.timeout = float(delay), float(timeout)
         self.interpolation, self.source = interpolation, source
         self.timeouts = 0
-        self._differentiator = PositionDifferentiator()
         self.reset()
 
     def reset(self):
         """Forget every sample (the next position sample starts a motion from rest)."""
-        self._queue: deque = deque()   # (t, a) not yet reached by the playout time
+        self._queue: deque = deque()   # (t, value) not yet reached by the playout time
         self._last = -math.inf         # stamp of the last sample pushed
-        self._current = None           # (t, a): the newest sample at or before the playout time
+        self._current = None           # (t, value): the newest sample at or before the playout time
         self._live = False             # whether _current is recent enough to count
-        self._differentiator.reset()
+        self._played: list[float] = []  # position source: positions played out at the last two steps
 
     def push(self, t: float, position: float, acceleration: float):
         """A sample stamped ``t`` (after the previous one's stamp)."""
         if not t > self._last:
             raise SimulationError(f'reference stamps must increase: {t} after {self._last}')
         self._last = float(t)
-        if self.source == 'position':
-            acceleration = self._differentiator.update(t, position)
-        self._queue.append((float(t), float(acceleration)))
+        self._queue.append((float(t), float(position if self.source == 'position' else acceleration)))
 
     def _advance(self, tau: float):
         queue = self._queue
@@ -73,12 +80,12 @@ class ReferencePlayout:
         live = self._current is not None and tau - self._current[0] <= self.timeout
         if self._live and not live:
             self.timeouts += 1
-            self._differentiator.reset()
         self._live = live
 
     def _at(self, tau: float) -> float:
+        """The played-out value at ``tau``: an acceleration (0 once stale), or a position (held)."""
         self._advance(tau)
-        if not self._live:
+        if self._current is None or not (self._live or self.source == 'position'):
             return 0.0
         t0, a0 = self._current
         if self.interpolation == 'linear' and self._queue:
@@ -88,7 +95,23 @@ class ReferencePlayout:
 
     def step(self, t0: float, t1: float) -> tuple[float, float]:
         """Reference acceleration at the beginning and the end of the plant step [t0, t1]."""
+        if self.source == 'position':
+            return (self._position_step(t0, t1),) * 2
         a0 = self._at(t0 - self.delay)
         if self.interpolation == 'zoh':
             return a0, a0
         return a0, self._at(t1 - self.delay)
+
+    def _position_step(self, t0: float, t1: float) -> float:
+        """Backward second difference of the positions played out at this and the last two steps."""
+        if self._current is None:
+            self._advance(t0 - self.delay)
+            if self._current is None:  # nothing to play yet
+                return 0.0
+            self._played = [self._current[1]] * 2  # at rest at the first position
+        played = self._played
+        played.append(self._at(t0 - self.delay))
+        p2, p1, p0 = played[-3:]
+        del played[:-2]
+        h = t1 - t0
+        return (p0 - 2.0 * p1 + p2) / (h * h)

@@ -211,8 +211,10 @@ class SimNode(Node):
         explode. So each sample is stamped ``unstamped_period`` after the
         previous one, as a controller taking commands at a fixed rate does;
         the grid is re-anchored at the arrival when the two part by more than
-        the playout delay (the sender paused, or runs slower). A lost
-        sample shifts the grid by a period: an unstamped stream cannot tell.
+        the playout delay (the sender paused, or runs slower); the playout
+        differentiates positions over the plant's steps, so such a gap costs
+        a jerk, not the end position. A lost sample shifts the grid by a
+        period: an unstamped stream cannot tell.
         """
         grid = self._last_stamp + self._unstamped_period_ns
         return grid if now - grid <= self._playout_args[0] * 1e9 else now

@@ -281,36 +281,6 @@ def acceleration_from_positions(t_ref, positions):
     return t_acc, np.concatenate((zero, second_differences(t_pad, p_pad), zero), axis=-1)
 
 
-class PositionDifferentiator:
-    """Streaming form of :func:`acceleration_from_positions` for a node receiving positions.
-
-    ``update(t, p)`` returns the acceleration reference valid from ``t`` on:
-    the second difference around the previous sample (0 for the first
-    sample, as the axis starts at rest).
-    """
-
-    def __init__(self):
-        self.reset()
-
-    def reset(self):
-        self._t: list[float] = []
-        self._p: list[float] = []
-
-    def update(self, t: float, p: float) -> float:
-        t, p = float(t), float(p)
-        if self._t and not t > self._t[-1]:
-            raise SimulationError(f'position sample times must increase: {t} after {self._t[-1]}')
-        if not self._t:
-            self._t, self._p = [t], [p]
-            return 0.0
-        if len(self._t) == 1:   # at rest before the first sample: mirror the first interval
-            self._t.insert(0, 2.0 * self._t[0] - t)
-            self._p.insert(0, self._p[0])
-        self._t = self._t[-2:] + [t]
-        self._p = self._p[-2:] + [p]
-        return float(second_differences(np.array(self._t), np.array(self._p))[0])
-
-
 # --------------------------------------------------------------------------- batch simulation
 
 @dataclass(frozen=True, eq=False)
