@@ -1,7 +1,7 @@
 """Variational planner latency: direct (collocation + IPOPT) vs indirect (TPBVP, solve_bvp).
 
 Default model (Table 1, tau = 0.01 s), D = 0.3 m, T = 3 s, default intervals,
-through VariationalSolver.solve as the planning facade calls it (wall time,
+through the variational solvers' solve as the planning facade calls it (wall time,
 plan object included). Measured:
 - first_s: a new solver's first solve, NLP build included (target <= 3 s);
 - warm_ms: median of 25 repeated solves of the same request, warm-started
@@ -21,8 +21,8 @@ import sys
 import time
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.ocp import VariationalSolver
 from crane_planner.planning import PlanOptions
+from crane_planner.planning.planner import variational_solver
 
 D, T = 0.3, 3.0
 REPEATS = 25
@@ -37,7 +37,7 @@ def timed(fn, *args):
 
 def direct(method: str, params: CraneParams) -> dict:
     t0 = time.perf_counter()
-    solver = VariationalSolver(method, PlanOptions())
+    solver = variational_solver(method, PlanOptions())
     _, first = timed(solver.solve, D, T, params)
     first_s = time.perf_counter() - t0
     warm = [timed(solver.solve, D, T, params)[0] for _ in range(REPEATS)]
@@ -54,7 +54,7 @@ def direct(method: str, params: CraneParams) -> dict:
 
 
 def indirect(method: str, params: CraneParams) -> dict:
-    solver = VariationalSolver(method, PlanOptions(solver='indirect'))
+    solver = variational_solver(method, PlanOptions(solver='indirect'))
     runs = [timed(solver.solve, D, T, params) for _ in range(3)]
     plan = runs[-1][1]
     return {'indirect_s': round(statistics.median(r[0] for r in runs), 3), 'indirect_nodes': plan.info['intervals']}

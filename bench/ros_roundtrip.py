@@ -28,7 +28,7 @@ def main() -> int:
     ap.add_argument('--requests', type=int, default=20, help='timed requests per method (default 20)')
     args = ap.parse_args()
 
-    from crane_planner.processes import PLANNER, NodeGroup, isolated_ros_env
+    from crane_planner.tools.processes import PLANNER, NodeGroup, isolated_ros_env
     env = isolated_ros_env()
     os.environ.clear()
     os.environ.update(env)  # this process joins the planner's private graph

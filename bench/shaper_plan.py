@@ -10,9 +10,9 @@ import sys
 import time
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.model import modal_frequencies
+from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning import SHAPER_METHODS
-from crane_planner.shaped import shaped_plan
+from crane_planner.planning.shaped import shaped_plan
 
 RUNS = 200
 TARGET_MS = 5.0

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.profiles import quintic
+from crane_planner.planning.profiles import quintic
 from crane_sim.dynamics import load_excursion, swing_accelerations
 from crane_sim.simulator import CraneSimulator, simulate
 

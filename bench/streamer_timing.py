@@ -43,7 +43,7 @@ def main() -> int:
     ap.add_argument('--histogram', help='write the tick lateness samples (us) of the window here, JSON')
     args = ap.parse_args()
 
-    from crane_planner.processes import SIM, STREAMER, NodeGroup, isolated_ros_env
+    from crane_planner.tools.processes import SIM, STREAMER, NodeGroup, isolated_ros_env
     env = isolated_ros_env()
     os.environ.clear()
     os.environ.update(env)

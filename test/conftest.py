@@ -12,7 +12,7 @@ def ros_domain():
     node subprocesses, so parallel sessions and other projects never meet.
     Yields the environment.
     """
-    from crane_planner.processes import isolated_ros_env
+    from crane_planner.tools.processes import isolated_ros_env
     saved = dict(os.environ)
     env = isolated_ros_env()
     os.environ.clear()

@@ -1,9 +1,9 @@
-"""Quintic Hermite interpolation of trajectory knots (crane_planner.hermite)."""
+"""Quintic Hermite interpolation of trajectory knots (crane_planner.streaming.hermite)."""
 import numpy as np
 import pytest
 from numpy.polynomial import Polynomial
 
-from crane_planner.hermite import QuinticHermite
+from crane_planner.streaming.hermite import QuinticHermite
 
 
 def knots_of(poly, t):

@@ -1,11 +1,11 @@
-"""Network impairment model (crane_planner.impairment) under a virtual clock."""
+"""Network impairment model (crane_planner.streaming.impairment) under a virtual clock."""
 import math
 
 import numpy as np
 import pytest
 
 from crane_msgs_py.params import ParameterError
-from crane_planner.impairment import DelayLine, Impairment
+from crane_planner.streaming.impairment import DelayLine, Impairment
 
 N = 20000
 PERIOD = 1e-3

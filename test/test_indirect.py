@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.ocp import VariationalSolver
-from crane_planner.plan import PlanError
-from crane_planner.planning import PlanOptions
+from crane_planner.planning import PlanError, PlanOptions
+from crane_planner.planning.direct import DirectSolver
+from crane_planner.planning.indirect import IndirectSolver
+from crane_planner.planning.planner import variational_solver
 
 MODEL = CraneParams()  # Table 1, tau = 0.01 s
 D = 0.3
@@ -18,7 +19,7 @@ D = 0.3
 
 @pytest.fixture(scope='module')
 def solvers():
-    return {(m, kind): VariationalSolver(m, PlanOptions(solver=kind))
+    return {(m, kind): variational_solver(m, PlanOptions(solver=kind))
             for m in ('nvf', 'rvf') for kind in ('direct', 'indirect')}
 
 
@@ -43,10 +44,11 @@ def test_ideal_tracking_agrees_and_both_starts_converge_to_it():
     """tau = 0 (jerk as the input); the indirect solver started from the linearized problem
     and from the direct solution (costates from IPOPT's multipliers) reach the same solution."""
     ideal = CraneParams(tau=0.0)
-    direct = VariationalSolver('rvf', PlanOptions()).solve(D, 3.0, ideal)
+    direct = DirectSolver('rvf', PlanOptions()).solve(D, 3.0, ideal)
     t = np.linspace(0.0, 3.0, 3001)
-    for start in ('linearized', 'direct'):
-        plan = VariationalSolver('rvf', PlanOptions(solver='indirect'), indirect_start=start).solve(D, 3.0, ideal)
+    starts = {'linearized': None, 'direct': DirectSolver('rvf', PlanOptions())}
+    for start, start_solver in starts.items():
+        plan = IndirectSolver('rvf', PlanOptions(solver='indirect'), start=start_solver).solve(D, 3.0, ideal)
         assert plan.info['start'] == start
         assert np.abs(plan.evaluate(t).position - direct.evaluate(t).position).max() < 1e-6
         np.testing.assert_allclose(peaks(plan.evaluate(t)), peaks(direct.evaluate(t)), rtol=1e-3)
@@ -55,10 +57,9 @@ def test_ideal_tracking_agrees_and_both_starts_converge_to_it():
 def test_costates_from_ipopt_multipliers_match_the_tpbvp():
     """lambda(t) of Eq. 17 equals the collocation multipliers over the quadrature weights."""
     ideal = CraneParams(tau=0.0)
-    s = VariationalSolver('nvf', PlanOptions(solver='indirect'))
+    s = IndirectSolver('nvf', PlanOptions(solver='indirect'))
     plan = s.solve(D, 3.0, ideal)
-    s._solve_direct(D, 3.0, ideal)
-    times, _, lam = s.transcription(False).costate_estimate(s.mesh(3.0, ideal))
+    times, _, lam = DirectSolver('nvf', PlanOptions()).costates(D, 3.0, ideal, s.mesh(3.0, ideal))
     exact = plan.solution.sol(times)[s.problem(False).nx:]
     for est, ref in zip(lam, exact):
         assert np.abs(est - ref)[1:].max() < 1e-3 * np.abs(ref).max()
@@ -66,4 +67,4 @@ def test_costates_from_ipopt_multipliers_match_the_tpbvp():
 
 def test_indirect_refuses_axis_limits():
     with pytest.raises(PlanError, match='indirect'):
-        VariationalSolver('nvf', PlanOptions(solver='indirect', max_velocity=0.2)).solve(D, 3.0, MODEL)
+        variational_solver('nvf', PlanOptions(solver='indirect', max_velocity=0.2)).solve(D, 3.0, MODEL)

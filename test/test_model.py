@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, strategies as st
 
 from crane_msgs_py.params import CraneParams, ParameterError
-from crane_planner.model import linearized_matrices, modal_frequencies
+from crane_planner.planning.model import linearized_matrices, modal_frequencies
 
 
 def double_pendulum_frequencies(L1, L2, m1, m2, g):

@@ -1,4 +1,4 @@
-"""NVF and RVF by the direct solver (crane_planner.ocp), judged by physics and the independent simulator.
+"""NVF and RVF by the direct solver (crane_planner.planning.direct), judged by physics and the independent simulator.
 
 The simulator (crane_sim) integrates its own implementation of Eqs. 18-19 and
 the servo; residual load swing is the contract's metric (crane_sim.metrics).
@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.ocp import VariationalSolver, Weights
-from crane_planner.plan import PlanError
+from crane_planner.planning.direct import DirectSolver
+from crane_planner.planning.plan import PlanError
 from crane_planner.planning import PlanOptions
+from crane_planner.planning.problem import Weights
+from crane_planner.planning.variational import VariationalSolver
 from crane_sim.metrics import swing_metrics
 from crane_sim.simulator import simulate
 
@@ -28,7 +30,7 @@ def solver():
     def get(method, **options):
         key = (method, tuple(sorted(options.items())))
         if key not in cache:
-            cache[key] = VariationalSolver(method, PlanOptions(**options))
+            cache[key] = DirectSolver(method, PlanOptions(**options))
         return cache[key]
     return get
 
@@ -161,7 +163,7 @@ def test_sensitivity_weight_trades_peaks_for_robustness(solver):
     """Paper §4.1: penalizing the sensitivities lowers the overall sensitivity at the cost of
     higher peak acceleration and jerk."""
     plain = solver('rvf').solve(D, 3.0, MODEL)
-    weighted = VariationalSolver('rvf', PlanOptions(), weights=Weights(sensitivity=1e4)).solve(D, 3.0, MODEL)
+    weighted = DirectSolver('rvf', PlanOptions(), weights=Weights(sensitivity=1e4)).solve(D, 3.0, MODEL)
     plants = [MODEL.replace(L1=MODEL.L1 * k) for k in (0.7, 0.8, 0.9, 1.1, 1.2, 1.3)]
     assert residual_mm(weighted, plants).mean() < 0.9 * residual_mm(plain, plants).mean()
     assert np.all(peaks(weighted)[1:] > peaks(plain)[1:])
@@ -199,16 +201,16 @@ def test_concurrent_solves_are_serialized_and_correct(solver):
 
 
 def test_not_converged_is_an_error_naming_the_status():
-    s = VariationalSolver('nvf', PlanOptions(), max_iter=1)
+    s = DirectSolver('nvf', PlanOptions(), max_iter=1)
     with pytest.raises(PlanError, match='Maximum_Iterations_Exceeded'):
         s.solve(D, 2.5, MODEL)
 
 
 @pytest.mark.parametrize('limit,value', [('max_velocity', 0.16), ('max_acceleration', 0.18)])
 def test_axis_limit_holds_everywhere(limit, value):
-    s = VariationalSolver('nvf', PlanOptions(**{limit: value}))
+    s = DirectSolver('nvf', PlanOptions(**{limit: value}))
     plan = s.solve(D, 3.0, MODEL)
-    free = VariationalSolver('nvf', PlanOptions()).solve(D, 3.0, MODEL)
+    free = DirectSolver('nvf', PlanOptions()).solve(D, 3.0, MODEL)
     i = 0 if limit == 'max_velocity' else 1
     assert peaks(free)[i] > value  # the limit binds
     assert peaks(plan)[i] <= value
@@ -224,7 +226,7 @@ def test_axis_limit_holds_everywhere(limit, value):
 ])
 def test_infeasible_limits_are_errors_naming_the_limit(limits, named):
     with pytest.raises(PlanError, match=named):
-        VariationalSolver('nvf', PlanOptions(**limits)).solve(D, 3.0, IDEAL)
+        DirectSolver('nvf', PlanOptions(**limits)).solve(D, 3.0, IDEAL)
 
 
 def test_key_separates_structures_and_limit_values():

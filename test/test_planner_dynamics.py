@@ -1,8 +1,8 @@
-"""crane_planner.dynamics (CasADi, Eqs. 6, 18-19 and 14) against independent references.
+"""crane_planner.planning.dynamics (CasADi, Eqs. 6, 18-19 and 14) against independent references.
 
 References: crane_sim's numpy implementation of Eqs. 18-19, energy conservation
 in the uniformly accelerated cart frame, the linearized matrices of
-crane_planner.model, and finite differences of perturbed simulations for the
+crane_planner.planning.model, and finite differences of perturbed simulations for the
 sensitivity equations.
 """
 import casadi as ca
@@ -12,9 +12,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.dynamics import (PARAMETERS, SWING_STATES, augment, crane_ode, sensitivity_states,
+from crane_planner.planning.dynamics import (PARAMETERS, SWING_STATES, augment, crane_ode, sensitivity_states,
                                     swing_accelerations)
-from crane_planner.model import linearized_matrices
+from crane_planner.planning.model import linearized_matrices
 from crane_sim import dynamics as sim_dynamics
 
 P = CraneParams()

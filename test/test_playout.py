@@ -78,7 +78,7 @@ def integrate(a):
 def test_positions_with_a_gap_in_the_stamps_still_end_at_rest_at_the_goal(interpolation):
     # a quintic 0 -> 0.3 m in 1 s at 1 ms, the stamps re-anchored 0.3 s later halfway through (as the
     # sim node does for unstamped samples after a stall), at rest before and after
-    from crane_planner.profiles import quintic
+    from crane_planner.planning.profiles import quintic
     t = np.arange(-100, 1400) * DT
     p = quintic(np.clip(t, 0.0, 1.0), 0.3, 1.0)[0]
     stamps = np.where(np.arange(t.size) >= 600, t + 0.3, t) + 0.1

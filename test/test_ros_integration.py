@@ -16,10 +16,10 @@ import pytest
 from scipy.interpolate import CubicHermiteSpline
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.model import modal_frequencies
-from crane_planner.plan import PlanError
+from crane_planner.planning.model import modal_frequencies
+from crane_planner.planning.plan import PlanError
 from crane_planner.planning import METHODS, SHAPER_METHODS
-from crane_planner.shapers import design
+from crane_planner.planning.shapers import design
 
 NS = '/crane_it'
 D = 0.3              # m, the paper's displacement
@@ -45,7 +45,7 @@ def duration_for(method: str) -> float:
 
 def offline_residual(method: str, duration: float) -> float:
     """Residual load swing (mm) of the same plan simulated offline (crane-plan's evaluation)."""
-    from crane_planner.evaluate import simulate_plan
+    from crane_planner.tools.evaluate import simulate_plan
     from crane_planner.planning import Planner
     ev = simulate_plan(Planner().plan(method, D, duration), NOMINAL, settle=SETTLE)
     return ev.metrics[0]['residual']['load_mm']
@@ -169,8 +169,8 @@ class Crane:
 
 @pytest.fixture(scope='module')
 def crane(ros_domain, tmp_path_factory):
-    from crane_planner.demo import DemoDriver
-    from crane_planner.processes import PLANNER, SIM, STREAMER, NodeGroup
+    from crane_planner.tools.demo import DemoDriver
+    from crane_planner.tools.processes import PLANNER, SIM, STREAMER, NodeGroup
     nodes = NodeGroup(ros_domain, tmp_path_factory.mktemp('node-logs'))
     driver = None
     try:
@@ -463,7 +463,7 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
 
     from crane_msgs_py.diagnostics import status_values
     from crane_msgs_py.qos import TRAJECTORY_QOS
-    from crane_planner.processes import SIM, STREAMER, NodeGroup
+    from crane_planner.tools.processes import SIM, STREAMER, NodeGroup
     ns = f'{NS}_f64'
     with NodeGroup(ros_domain, tmp_path) as nodes:
         nodes.start(*STREAMER, namespace=ns, params={'output': 'float64_array'})

@@ -15,7 +15,7 @@ from hypothesis import given, settings, strategies as st
 from scipy.linalg import expm
 
 from crane_msgs_py.params import ParameterError
-from crane_planner.shapers import (SHAPERS, Shaper, cascade, design, ei, ei_flanking_frequencies, mzv,
+from crane_planner.planning.shapers import (SHAPERS, Shaper, cascade, design, ei, ei_flanking_frequencies, mzv,
                                    nzv, residual_vibration, zv, zvd, zvdd)
 
 ZERO_VIBRATION = ('zv', 'nzv', 'zvd', 'zvdd', 'mzv')

@@ -6,8 +6,8 @@ import pytest
 import scipy.linalg
 
 from crane_msgs_py.params import CraneParams, ParameterError
-from crane_planner.model import modal_frequencies
-from crane_planner.profiles import quintic
+from crane_planner.planning.model import modal_frequencies
+from crane_planner.planning.profiles import quintic
 from crane_sim.simulator import (CraneSimulator, CraneState, SimulationError,
                                  acceleration_from_positions, simulate)
 

@@ -54,7 +54,7 @@ def test_colcon_installed_node_starts_and_answers(colcon_install, ros_domain, tm
     from nav_msgs.srv import GetPlan
     from std_srvs.srv import Trigger
 
-    from crane_planner.processes import ros_args
+    from crane_planner.tools.processes import ros_args
 
     site = [str(p) for p in colcon_install.glob('*/lib/python3*/site-packages')]
     env = dict(ros_domain, PYTHONPATH=os.pathsep.join(site + [ros_domain.get('PYTHONPATH', '')]))

@@ -18,10 +18,10 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'planner = crane_planner.planner_node:main',
-            'streamer = crane_planner.streamer_node:main',
-            'crane-plan = crane_planner.cli:main',
-            'crane-demo = crane_planner.demo:main',
+            'planner = crane_planner.nodes.planner_node:main',
+            'streamer = crane_planner.nodes.streamer_node:main',
+            'crane-plan = crane_planner.tools.cli:main',
+            'crane-demo = crane_planner.tools.demo:main',
         ],
     },
 )

@@ -1,7 +1,7 @@
 """Plans and states <-> standard ROS messages, the contract's conventions as code.
 
 - A plan's samples (any object with arrays ``t``, ``position``, ``velocity``,
-  ``acceleration``, like ``crane_planner.plan.Samples``; plans are relative,
+  ``acceleration``, like ``crane_planner.planning.plan.Samples``; plans are relative,
   from 0 at t = 0) become a ``nav_msgs/Path`` (one ``PoseStamped`` per knot,
   stamp = start + t_k, ``position.x`` = start position + reference position,
   identity orientation) or a ``trajectory_msgs/JointTrajectory`` (joint

@@ -3,7 +3,7 @@
 Conventions (paper Fig. 1, Eqs. 18-19): ``theta1`` is the upper cable's angle
 from the vertical, ``theta2`` the lower cable's angle *relative to the upper
 one*; the input is the cart acceleration. The nonlinear equations live in
-``crane_planner.dynamics`` (CasADi, for planning) and independently in
+``crane_planner.planning.dynamics`` (CasADi, for planning) and independently in
 ``crane_sim.dynamics`` (numpy, for simulation).
 """
 from __future__ import annotations

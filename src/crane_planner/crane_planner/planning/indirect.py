@@ -1,6 +1,6 @@
 """The paper's own solution route (§2.1): Pontryagin's necessary conditions as a TPBVP.
 
-With the Hamiltonian H = g + lambda^T f (Eq. 16) of a ``crane_planner.ocp.Problem``
+With the Hamiltonian H = g + lambda^T f (Eq. 16) of a ``problem.Problem``
 (the same scaled problem the direct solver discretizes), the necessary
 conditions (Eq. 17) are x' = dH/dlambda, lambda' = -dH/dx and dH/du = 0; H is
 quadratic in the single input u, so dH/du = 0 gives u in closed form. Rest at
@@ -10,8 +10,9 @@ refinement) with CasADi-generated right-hand side and Jacobian.
 
 The start is either the linearized problem (the dynamics linearized about
 rest, a linear TPBVP solved the same way from zero; independent of the
-direct solver) or the direct solution with costates estimated from IPOPT's
-multipliers. It is the baseline for correctness and speed, not the fast path.
+direct solver) or, when a ``direct.DirectSolver`` is given as ``start``, the
+direct solution with costates estimated from IPOPT's multipliers. It is the
+baseline for correctness and speed, not the fast path.
 """
 from __future__ import annotations
 
@@ -22,10 +23,9 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import simpson, solve_bvp
 
-from crane_msgs_py.params import CraneParams
-
-from .ocp import Problem, Weights
 from .plan import Plan, PlanError
+from .problem import Problem, breakpoints
+from .variational import VariationalSolver
 
 
 class Tpbvp:
@@ -55,6 +55,7 @@ class Tpbvp:
         u = -ca.substitute(Hu, U, 0) / Huu  # dH/du = 0, exact for a quadratic H
         z = ca.vertcat(X, lam)
         zdot = ca.substitute(ca.vertcat(F, -ca.gradient(H, X)), U, u)
+        self.problem = problem
         self.nx = nx
         self.rhs = ca.Function('rhs', [z, P], [zdot])
         self.jac = ca.Function('rhs_jacobian', [z, P], [ca.jacobian(zdot, z)])
@@ -92,60 +93,70 @@ class BvpPlan(Plan):
     """A plan evaluated from solve_bvp's C1 cubic interpolant of the TPBVP solution."""
 
     solution: object = field(default=None, repr=False)
-    solver: 'IndirectSolver' = field(default=None, repr=False)
+    tpbvp: Tpbvp = field(default=None, repr=False)
     pvec: np.ndarray = field(default=None, repr=False)
     tau: float = 0.0
 
     def _evaluate(self, t):
-        pb = self.solver.problem
+        pb = self.tpbvp.problem
         sx, su = (np.asarray(v, dtype=float) for v in pb.scales(self.pvec))
         z = self.solution.sol(t / self.duration)
         x = dict(zip(pb.states, z[:pb.nx] * sx))
-        jerk = su.item() * np.asarray(self.solver.tpbvp.control(z, self.pvec[:, None])).ravel()
+        jerk = su.item() * np.asarray(self.tpbvp.control(z, self.pvec[:, None])).ravel()
         return (*pb.reference(x, self.tau), jerk)
 
 
-class IndirectSolver:
-    """TPBVP solutions of one Problem; the CasADi functions are built once."""
+class IndirectSolver(VariationalSolver):
+    """NVF or RVF by the TPBVP of Pontryagin's conditions; thread-safe.
 
+    The CasADi functions of each model form's conditions (and of their
+    linearization, the default start) are built on first use and kept.
+    Axis limits are not handled (state constraints would change the
+    necessary conditions); a request with limits is refused.
+    """
+
+    route = 'indirect'
+    handles_limits = False
     #: solve_bvp's relative residual tolerance; 1e-4 already agrees with a fine direct
     #: solution to 1e-8 m in position, 1e-5 leaves a margin.
     tol = 1e-5
     max_nodes = 200_000
 
-    def __init__(self, problem: Problem):
-        t0 = time.perf_counter()
-        self.problem = problem
-        self.tpbvp = Tpbvp(problem)
-        self.linearized = Tpbvp(problem, linearized=True)
-        self.build_time = time.perf_counter() - t0
+    def __init__(self, method: str, options, start=None, **overrides):
+        """``start``: None (the linearized start) or a ``direct.DirectSolver`` whose
+        solution, with costates from its multipliers, starts each TPBVP."""
+        super().__init__(method, options, **overrides)
+        self.start = start
+        self._tpbvps = {}
 
-    def solve(self, displacement: float, duration: float, params: CraneParams, weights: Weights,
-              method: str, mesh: np.ndarray, start=None) -> BvpPlan:
-        """Solve the TPBVP for one request.
+    def _conditions(self, servo: bool) -> tuple[Tpbvp, Tpbvp, float]:
+        """(necessary conditions, their linearization, seconds it took to build them) of a model form."""
+        if servo not in self._tpbvps:
+            t0 = time.perf_counter()
+            problem = self.problem(servo)
+            self._tpbvps[servo] = (Tpbvp(problem), Tpbvp(problem, linearized=True), time.perf_counter() - t0)
+            return self._tpbvps[servo]
+        return (*self._tpbvps[servo][:2], 0.0)
 
-        Args:
-            mesh: initial mesh (fractions of T, e.g. the direct solver's).
-            start: None for the linearized start, or (s, X, Lambda): scaled
-                states and costates at normalized times s (e.g. the direct solution).
-        Raises PlanError naming solve_bvp's status message if it fails.
-        """
-        pb = self.problem
+    def _solve(self, displacement, duration, params, frac) -> BvpPlan:
+        """Raises PlanError naming solve_bvp's status message if it fails."""
+        method = self.method
+        tpbvp, linearized, build_time = self._conditions(params.tau > 0.0)
+        pb = tpbvp.problem
         t0 = time.perf_counter()
-        pvec = pb.parameters(displacement, duration, params, weights)
+        if self.start is not None:
+            s, X, L = self.start.costates(displacement, duration, params, frac)
+            z = np.vstack([X, L])
+            t0 = time.perf_counter()
+        pvec = pb.parameters(displacement, duration, params, self.weights)
         x0, xT = pb.boundary(displacement)
-        if start is None:
-            s = np.concatenate([[0.0], np.cumsum(mesh)])
-            s[-1] = 1.0
-            lin = _solve(self.linearized, pvec, x0, xT, s, np.zeros((2 * pb.nx, s.size)),
-                         self.tol, self.max_nodes)
+        if self.start is None:
+            s = breakpoints(frac)
+            lin = _solve(linearized, pvec, x0, xT, s, np.zeros((2 * pb.nx, s.size)), self.tol, self.max_nodes)
             if not lin.success:
                 raise PlanError(f'indirect {method}: the linearized TPBVP failed: {lin.message}')
             s, z = lin.x, lin.y
-        else:
-            s, X, L = start
-            z = np.vstack([X, L])
-        sol = _solve(self.tpbvp, pvec, x0, xT, s, z, self.tol, self.max_nodes)
+        sol = _solve(tpbvp, pvec, x0, xT, s, z, self.tol, self.max_nodes)
         elapsed = time.perf_counter() - t0
         if not sol.success:
             raise PlanError(f'indirect {method} solver did not converge for D={displacement:g} m, '
@@ -153,10 +164,11 @@ class IndirectSolver:
         su = float(pb.scales(pvec)[1])
         # J = T (P/T^3)^2 int_0^1 G ds, by Simpson's rule on twice the final mesh
         sm = np.sort(np.concatenate([sol.x, (sol.x[1:] + sol.x[:-1]) / 2]))
-        objective = float(simpson(np.asarray(self.tpbvp.cost(sol.sol(sm), pvec[:, None])).ravel(), x=sm))
+        objective = float(simpson(np.asarray(tpbvp.cost(sol.sol(sm), pvec[:, None])).ravel(), x=sm))
         info = {'solver': 'indirect', 'status': sol.message, 'iterations': int(sol.niter),
                 'solve_time_s': elapsed, 'objective': objective * duration * su ** 2,
                 'intervals': int(sol.x.size - 1), 'sensitivities': list(pb.robust), 'servo_model': pb.servo,
-                'start': 'linearized' if start is None else 'direct'}
-        return BvpPlan(method, float(displacement), float(duration), info, solution=sol, solver=self,
+                'start': 'linearized' if self.start is None else 'direct',
+                'build_time_s': build_time, 'robust': list(self.robust)}
+        return BvpPlan(method, float(displacement), float(duration), info, solution=sol, tpbvp=tpbvp,
                        pvec=pvec, tau=params.tau)

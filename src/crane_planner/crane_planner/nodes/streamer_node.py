@@ -32,8 +32,8 @@ from crane_msgs_py.qos import REFERENCE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
 
-from .hermite import QuinticHermite
-from .impairment import DISTRIBUTIONS, DelayLine, Impairment
+from crane_planner.streaming.hermite import QuinticHermite
+from crane_planner.streaming.impairment import DISTRIBUTIONS, DelayLine, Impairment
 
 STREAM_TASK = 'stream'
 TRAJECTORY_TASK = 'trajectory'

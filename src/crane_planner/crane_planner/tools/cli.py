@@ -17,8 +17,7 @@ import numpy as np
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
 
 from .evaluate import DEFAULT_SETTLE, plan_report, residual_load_mm, simulate_plan, simulate_plans, vary_parameter
-from .plan import Plan, PlanError
-from .planning import METHODS, ROBUST_PARAMETERS, Planner, PlanOptions
+from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, Planner, PlanOptions
 
 PROG = 'crane-plan'
 

@@ -38,8 +38,8 @@ from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
 
-from .playout import ReferencePlayout
-from .simulator import INTERPOLATIONS, JOINT_NAMES, SOURCES, CraneSimulator, CraneState, SimulationError
+from crane_sim.playout import ReferencePlayout
+from crane_sim.simulator import INTERPOLATIONS, JOINT_NAMES, SOURCES, CraneSimulator, CraneState, SimulationError
 
 SIM_TASK = 'sim'
 #: ``reference_type`` values: the streamer's two outputs, or whatever the topic's publisher sends.

@@ -104,7 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _parse(argv) -> argparse.Namespace:
     parser = build_parser()
     args = parser.parse_args(argv)
-    from .planning import METHODS
+    from crane_planner.planning import METHODS
     methods = [m.strip() for m in args.methods.split(',') if m.strip()]
     cases = [c.strip() for c in args.cases.split(',') if c.strip()]
     bad = [m for m in methods if m not in METHODS] + [c for c in cases if c not in CASES]

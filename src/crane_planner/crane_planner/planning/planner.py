@@ -13,19 +13,10 @@ import numpy as np
 
 from crane_msgs_py.params import CraneParams, ParameterError, check_nonnegative, check_positive
 
+from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS, VARIATIONAL_METHODS  # noqa: F401 (re-exported)
 from .model import modal_frequencies
 from .plan import Plan, PlanError
 from .shaped import shaped_plan
-from .shapers import SHAPERS
-
-#: The paper's variational formulations (optimal control).
-VARIATIONAL_METHODS = ('nvf', 'rvf')
-#: Input shapers, cascaded over both pendulum modes (``shapers.SHAPERS``).
-SHAPER_METHODS = tuple(SHAPERS)
-METHODS = VARIATIONAL_METHODS + SHAPER_METHODS
-
-#: Parameters RVF may be made insensitive to.
-ROBUST_PARAMETERS = ('L1', 'L2', 'm1', 'm2', 'tau')
 
 
 @dataclass(frozen=True)
@@ -127,8 +118,9 @@ class Planner:
     """Makes plans of every method; thread-safe.
 
     Variational solvers are expensive to build, so one is kept per
-    (method, intervals, robust set, limits) and reused; each has its own lock,
-    so requests for different methods run concurrently.
+    (method, intervals, robust set, limits, route) and reused; each has its
+    own lock, so requests for different methods run concurrently. The
+    options' ``solver`` picks the route (``variational_solver``).
     """
 
     _variational: dict = field(default_factory=dict, init=False, repr=False)
@@ -153,10 +145,23 @@ class Planner:
         return self._variational_solver(method, options).solve(displacement, duration, params)
 
     def _variational_solver(self, method: str, options: PlanOptions):
-        from .ocp import VariationalSolver
+        from .variational import VariationalSolver
         key = VariationalSolver.key(method, options)
         with self._lock:
             solver = self._variational.get(key)
             if solver is None:
-                solver = self._variational[key] = VariationalSolver(method, options)
+                solver = self._variational[key] = variational_solver(method, options)
         return solver
+
+
+def variational_solver(method: str, options: PlanOptions, **overrides):
+    """A new NVF/RVF solver of the route ``options.solver`` picks: ``direct`` (CasADi
+    collocation + IPOPT, the fast path) or ``indirect`` (the paper's TPBVP).
+
+    Imported here, not at the top: CasADi loads only when a variational plan is asked for.
+    """
+    if options.solver == 'indirect':
+        from .indirect import IndirectSolver
+        return IndirectSolver(method, options, **overrides)
+    from .direct import DirectSolver
+    return DirectSolver(method, options, **overrides)

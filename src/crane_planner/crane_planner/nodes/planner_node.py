@@ -29,8 +29,8 @@ from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, Crane
 from crane_msgs_py.qos import TRAJECTORY_QOS
 from crane_msgs_py.runner import run
 
-from .planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, Planner, PlanOptions, check_request
-from .plan import PlanError
+from crane_planner.planning import (METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanError, Planner,
+                                    PlanOptions, check_request)
 
 #: The diagnostic task of requests (status ``crane_planner: plan``).
 

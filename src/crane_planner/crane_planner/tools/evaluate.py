@@ -15,7 +15,7 @@ from crane_msgs_py.params import CraneParams
 from crane_sim.metrics import peak, rms, swing_metrics
 from crane_sim.simulator import STATE_NAMES, PlantBatch, SimResult, simulate
 
-from .plan import Plan, PlanError, Samples
+from crane_planner.planning import Plan, PlanError, Samples
 
 #: Simulation step and reference sample period used to evaluate plans (s).
 EVAL_STEP = 1e-3

@@ -1,0 +1,237 @@
+"""The paper's variational planners NVF and RVF (Eqs. 10 and 15): the optimal control problem.
+
+``Problem`` states the optimal control problem once, in scaled variables on
+normalized time s = t / T, for both solution routes: the direct one
+(``crane_planner.planning.direct``: Radau collocation + IPOPT) and the paper's
+indirect one (``crane_planner.planning.indirect``: Pontryagin's TPBVP). The
+mesh both start from and the necessary conditions of the axis limits live
+here too, so the routes share them; neither route imports the other.
+
+Scaling: with P = max(|D|, P_MIN) the states are divided by their natural
+sizes (position P, velocity P/T, acceleration P/T^2, swing angle P/(g T^2),
+...), so every NLP variable is of order one for every T and D the planner
+serves; sensitivities to a parameter q are further divided by q (by T for
+tau).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from numpy.polynomial import polynomial as poly
+
+from crane_msgs_py.params import CraneParams
+
+from .dynamics import PARAMETERS, augment, crane_ode
+from .plan import PlanError
+from .profiles import QUINTIC
+
+#: Smallest position scale (m): a request for D = 0 is still well scaled.
+P_MIN = 1e-3
+
+#: Entries of the NLP parameter vector of ``Problem`` (the mesh fractions follow in a transcription).
+PROBLEM_PARAMETERS = ('T', 'P', *PARAMETERS, 'acceleration_weight', 'sensitivity_weight',
+                      'reference_jerk_weight')
+
+
+@dataclass(frozen=True)
+class Weights:
+    """Cost weights of the variational problem, g = jerk^2/2 + ...
+
+    Attributes:
+        acceleration: w_a (1/s^2) of w_a a^2/2, the cart acceleration term
+            the paper suggests (§4).
+        sensitivity: w_s of w_s |S|^2/2, the paper's §4.1 option of
+            penalizing the sensitivities along the motion (RVF only); S in
+            SI units of the state per SI unit of the parameter.
+        reference_jerk: w_r of w_r (a_ref')^2/2 (servo model only). Some
+            weight keeps the streamed reference acceleration continuous;
+            without it the optimum steps a_ref at both ends. The cart jerk
+            j must then start and end at zero and reaches its interior
+            values through boundary layers of width tau sqrt(w_r/(1+w_r))
+            (see ``VariationalSolver.mesh``) in which the reference jerk
+            j + tau j' peaks at about sqrt((1+w_r)/w_r) times j: w_r = 1
+            keeps that at 1.4 (w_r = 0.1 gives 3.3) and changes the interior
+            only at O(tau^2), since int j tau j' dt = 0.
+    """
+
+    acceleration: float = 0.0
+    sensitivity: float = 0.0
+    reference_jerk: float = 1.0
+
+
+def _state_scale(name: str, T, P, g, params: dict):
+    """Natural size of a state (see the module docstring)."""
+    if '/' in name:  # 'd<state>/d<q>'
+        state, q = name[1:].split('/d')
+        return _state_scale(state, T, P, g, params) / (T if q == 'tau' else params[q])
+    return {'y': P, 'v': P / T, 'a': P / T ** 2, 'a_ref': P / T ** 2,
+            'theta1': P / (g * T ** 2), 'theta2': P / (g * T ** 2),
+            'dtheta1': P / (g * T ** 3), 'dtheta2': P / (g * T ** 3)}[name]
+
+
+class Problem:
+    """NVF (Eq. 10) or RVF (Eq. 15) for the crane, in scaled variables on s = t / T.
+
+    min  int_0^T g dt,  g = u_j^2/2 + w_a a^2/2 + w_s |S|^2/2 + w_r u^2/2
+    s.t. x' = f^r(x, u)  (Eqs. 6-8, 18-19, 14),  x(0) = 0,  x(T) = [D, 0, ...]
+
+    with u_j the cart jerk (the input u itself when tau = 0, (a_ref - a)/tau
+    with the servo, where u is the reference jerk).
+
+    Attributes:
+        ode: the (augmented) crane model.
+        states: state names; ``nx`` of them, one input.
+        P: symbolic parameter vector, entries ``PROBLEM_PARAMETERS``.
+        F: dX/ds = F(X, U, P) in scaled variables.
+        G: the cost integrand in scaled units; J = T (P/T^3)^2 int_0^1 G ds.
+    """
+
+    def __init__(self, robust: tuple, servo: bool):
+        ode = crane_ode(servo)
+        self.ode = augment(ode, robust) if robust else ode
+        self.servo = servo
+        self.robust = self.ode.robust
+        self.states = self.ode.states
+        self.nx = len(self.states)
+        X = ca.SX.sym('X', self.nx)
+        U = ca.SX.sym('U')
+        P = ca.SX.sym('P', len(PROBLEM_PARAMETERS))
+        par = dict(zip(PROBLEM_PARAMETERS, ca.vertsplit(P)))
+        T, Ps, g = par['T'], par['P'], par['g']
+        sx = ca.vertcat(*[_state_scale(s, T, Ps, g, par) for s in self.states])
+        su = Ps / T ** 3
+        x, u = sx * X, su * U
+        p = ca.vertcat(*[par[q] for q in PARAMETERS])
+        f = ca.substitute(ca.substitute(self.ode.f, self.ode.x, x), ca.vertcat(self.ode.u, self.ode.p),
+                          ca.vertcat(u, p))
+        s = dict(zip(self.states, ca.vertsplit(x)))
+        jerk = (s['a_ref'] - s['a']) / par['tau'] if servo else u
+        sens = ca.vertcat(*[s[n] for n in self.states if '/' in n])
+        gcost = (jerk ** 2 + par['acceleration_weight'] * s['a'] ** 2
+                 + par['sensitivity_weight'] * ca.sumsqr(sens)) / 2
+        if servo:
+            gcost += par['reference_jerk_weight'] * u ** 2 / 2
+        self.X, self.U, self.P = X, U, P
+        self.F = ca.Function('F', [X, U, P], [T * f / sx])
+        self.G = ca.Function('G', [X, U, P], [gcost / su ** 2])
+        self.scales = ca.Function('scales', [P], [sx, su])
+        # reference velocity and acceleration (for the axis limits), scaled by P/T and P/T^2
+        if servo:
+            ref_v, ref_a = s['v'] + par['tau'] * s['a'], s['a_ref']
+        else:
+            ref_v, ref_a = s['v'], s['a']
+        self.reference_va = ca.Function('reference_va', [X, P], [ref_v / (Ps / T), ref_a / (Ps / T ** 2)])
+
+    def parameters(self, displacement: float, duration: float, params: CraneParams,
+                   weights: Weights) -> np.ndarray:
+        values = dict(params.as_dict(), T=duration, P=max(abs(displacement), P_MIN),
+                      acceleration_weight=weights.acceleration, sensitivity_weight=weights.sensitivity,
+                      reference_jerk_weight=weights.reference_jerk)
+        return np.array([values[k] for k in PROBLEM_PARAMETERS], dtype=float)
+
+    def reference(self, x: dict, tau: float) -> tuple:
+        """Reference position, velocity, acceleration from states in SI units (``x`` by name).
+
+        With the servo, tau a' + a = a_ref from rest gives y_ref = y + tau v and
+        v_ref = v + tau a exactly; with tau = 0 the cart is the reference.
+        """
+        if self.servo:
+            return x['y'] + tau * x['v'], x['v'] + tau * x['a'], x['a_ref']
+        return x['y'], x['v'], x['a']
+
+    def boundary(self, displacement: float) -> tuple[np.ndarray, np.ndarray]:
+        """Scaled states at s = 0 and s = 1: rest at 0 and at D."""
+        x0 = np.zeros(self.nx)
+        xT = np.zeros(self.nx)
+        xT[self.states.index('y')] = displacement / max(abs(displacement), P_MIN)
+        return x0, xT
+
+    def initial_guess(self, displacement: float, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Scaled states (nx, len(s)) and input of the rest-to-rest quintic with quasi-static swing.
+
+        theta1 ~ a/g and dtheta1 ~ jerk/g, which in scaled units are A and U.
+        """
+        k = displacement / max(abs(displacement), P_MIN)
+        q = [k * poly.polyval(s, QUINTIC[i]) for i in range(4)]
+        guess = {'y': q[0], 'v': q[1], 'a': q[2], 'a_ref': q[2], 'theta1': q[2], 'dtheta1': q[3]}
+        X = np.array([guess.get(n, 0.0 * s) for n in self.states])
+        return X, q[3]
+
+
+def uniform_mesh(intervals: int) -> np.ndarray:
+    return np.full(intervals, 1.0 / intervals)
+
+
+def graded_mesh(intervals: int, layer: float, max_ratio: float = 2.0) -> np.ndarray:
+    """Interval fractions that resolve boundary layers of relative width ``layer`` at both ends.
+
+    m intervals at each end grow geometrically by r from ``layer`` to the
+    uniform width of the interior; m is the smallest with r <= ``max_ratio``,
+    but at most a fifth of the intervals, so a very thin layer costs a larger
+    ratio, not the interior's resolution.
+    """
+    if layer * intervals >= 1.0:
+        return uniform_mesh(intervals)
+
+    def grading(m):
+        # the interior width where the geometric ends r^i layer (i < m) meet it: r^m layer
+        lo, hi = 1.0 + 1e-12, 1e6
+        for _ in range(200):
+            r = math.sqrt(lo * hi)
+            ends = layer * (r ** m - 1.0) / (r - 1.0)
+            inner = (1.0 - 2.0 * ends) / (intervals - 2 * m)
+            lo, hi = (r, hi) if layer * r ** m < inner else (lo, r)
+        return r, inner
+
+    for m in range(1, max(intervals // 5, 1) + 1):
+        r, inner = grading(m)
+        if r <= max_ratio:
+            break
+    ends = list(layer * r ** np.arange(m))
+    return np.array(ends + [inner] * (intervals - 2 * m) + ends[::-1])
+
+
+def servo_layer(tau: float, weights: Weights) -> float:
+    """Width (s) of the boundary layers of the servo model's optimum.
+
+    The cart jerk j must start and end at zero (a = a_ref = 0 there), and
+    the Euler-Lagrange equation of j^2 + w_r (j + tau j')^2, i.e.
+    (1 + w_r) j = w_r tau^2 j'', gives them the width
+    l = tau sqrt(w_r / (1 + w_r)).
+    """
+    w = weights.reference_jerk
+    return tau * math.sqrt(w / (1.0 + w))
+
+
+def breakpoints(frac: np.ndarray) -> np.ndarray:
+    """Normalized mesh points [0, ..., 1] of interval fractions (the last exactly 1)."""
+    s = np.concatenate([[0.0], np.cumsum(frac)])
+    s[-1] = 1.0
+    return s
+
+
+def axis_limit_error(displacement: float, duration: float, max_velocity, max_acceleration):
+    """A PlanError if no rest-to-rest motion of D in T can respect the limits, else None.
+
+    Necessary conditions (exact bounds of the bang-bang motion; a smooth
+    reference needs strictly more): peak velocity > |D|/T, peak acceleration
+    > 4|D|/T^2 and, with both limits, T > |D|/v_max + v_max/a_max when the
+    velocity limit is reached.
+    """
+    D, T = abs(displacement), duration
+    D_ = D * (1 + 1e-12)  # 0.1 m/s * 3 s is 0.30000000000000004 m
+    if max_velocity is not None and max_velocity * T <= D_:
+        return PlanError(f'infeasible: max_velocity {max_velocity:g} m/s is too low to move {D:g} m in '
+                         f'{T:g} s (needs more than {D / T:g} m/s)')
+    if max_acceleration is not None and max_acceleration * T ** 2 <= 4 * D_:
+        return PlanError(f'infeasible: max_acceleration {max_acceleration:g} m/s^2 is too low to move {D:g} m '
+                         f'in {T:g} s (needs more than {4 * D / T ** 2:g} m/s^2)')
+    if max_velocity is not None and max_acceleration is not None and max_velocity ** 2 < D * max_acceleration:
+        t_min = D / max_velocity + max_velocity / max_acceleration
+        if T <= t_min:
+            return PlanError(f'infeasible: max_velocity {max_velocity:g} m/s and max_acceleration '
+                             f'{max_acceleration:g} m/s^2 together need more than {t_min:g} s to move {D:g} m')
+    return None

@@ -1,0 +1,103 @@
+"""What the two solution routes of NVF and RVF share: settings, model forms, mesh, request checks.
+
+``VariationalSolver`` is the base of ``direct.DirectSolver`` and
+``indirect.IndirectSolver``; the planning facade (``planner.Planner``) picks
+the route. A subclass implements ``_solve`` on the mesh this base computes.
+"""
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+
+from crane_msgs_py.params import CraneParams
+
+from .methods import VARIATIONAL_METHODS
+from .plan import Plan, PlanError
+from .problem import Problem, Weights, axis_limit_error, graded_mesh, servo_layer, uniform_mesh
+
+class VariationalSolver:
+    """NVF or RVF plans for one (method, intervals, robust set, limits); thread-safe.
+
+    Each model form (ideal tracking, tau = 0; servo, tau > 0) has its own
+    ``Problem``, built on first use and kept. The class attributes are the
+    tuning; the constructor's keywords override them per instance.
+    """
+
+    #: Name of the solution route ('direct' or 'indirect'), set by each subclass.
+    route = ''
+    #: Whether the route bounds reference velocity and acceleration (axis limits).
+    handles_limits = True
+    #: Collocation intervals when PlanOptions.intervals is None.
+    default_intervals = 30
+    weights = Weights()
+    #: End intervals of the servo mesh, as a multiple of the boundary-layer width (see ``mesh``).
+    layer_resolution = 0.25
+
+    def __init__(self, method: str, options, **overrides):
+        if method not in VARIATIONAL_METHODS:
+            raise PlanError(f'no variational method {method!r}; choose nvf or rvf')
+        for name, value in overrides.items():
+            if name.startswith('_') or not hasattr(type(self), name):
+                raise TypeError(f'unknown {type(self).__name__} setting {name!r}')
+            setattr(self, name, value)
+        self.method = method
+        self.intervals = options.intervals or self.default_intervals
+        self.robust = tuple(options.robust) if method == 'rvf' else ()
+        self.max_velocity = options.max_velocity
+        self.max_acceleration = options.max_acceleration
+        self._problems = {}
+        self._lock = threading.Lock()
+
+    @staticmethod
+    def key(method: str, options) -> tuple:
+        """Everything that makes two solvers differ: the route, the NLP structure and the limit values."""
+        return (method, options.intervals or VariationalSolver.default_intervals,
+                tuple(options.robust) if method == 'rvf' else (),
+                options.max_velocity, options.max_acceleration, options.solver)
+
+    @property
+    def has_limits(self) -> bool:
+        return self.max_velocity is not None or self.max_acceleration is not None
+
+    def problem(self, servo: bool) -> Problem:
+        if servo not in self._problems:
+            self._problems[servo] = Problem(self.robust, servo)
+        return self._problems[servo]
+
+    def mesh(self, duration: float, params: CraneParams) -> np.ndarray:
+        """Interval fractions of T.
+
+        With the servo the optimum has boundary layers of width
+        ``problem.servo_layer`` at both ends. A uniform mesh that does not
+        resolve them converges only to first order, so the end intervals are
+        made ``layer_resolution`` layers wide, growing geometrically into the
+        uniform interior.
+        """
+        if params.tau == 0.0:
+            return uniform_mesh(self.intervals)
+        layer = servo_layer(params.tau, self.weights) * self.layer_resolution
+        return graded_mesh(self.intervals, layer / duration)
+
+    def solve(self, displacement: float, duration: float, params: CraneParams) -> Plan:
+        """The plan from 0 to ``displacement`` (m) in ``duration`` (s) for the model ``params``.
+
+        Raises PlanError naming the solver status if the solver does not
+        converge, or the axis limit that makes the request infeasible.
+        """
+        if 'tau' in self.robust and params.tau == 0.0:
+            raise PlanError('robust parameter tau needs a model with tau > 0 (the servo of Eq. 6); '
+                            'with tau = 0 the model has no servo dynamics to be insensitive to')
+        if self.has_limits and not self.handles_limits:
+            raise PlanError(f'the {self.route} solver does not handle axis limits '
+                            '(max_velocity, max_acceleration); use the direct solver')
+        err = axis_limit_error(displacement, duration, self.max_velocity, self.max_acceleration)
+        if err is not None:
+            raise err
+        frac = self.mesh(duration, params)
+        with self._lock:
+            return self._solve(displacement, duration, params, frac)
+
+    def _solve(self, displacement: float, duration: float, params: CraneParams, frac: np.ndarray) -> Plan:
+        """Solve one checked request on the mesh ``frac``; called under the solver's lock."""
+        raise NotImplementedError

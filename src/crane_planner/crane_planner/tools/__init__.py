@@ -1,0 +1,4 @@
+"""Command-line tools: ``crane-plan``, ``crane-demo``, the ROS harness they and the tests share, evaluation, figures, processes.
+
+Only ``harness`` and ``demo`` may import ROS; the rest runs without it.
+"""
