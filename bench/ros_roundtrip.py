@@ -12,7 +12,6 @@ Prints one JSON object.
 """
 import argparse
 import json
-import os
 import statistics
 import sys
 import tempfile
@@ -28,10 +27,13 @@ def main() -> int:
     ap.add_argument('--requests', type=int, default=20, help='timed requests per method (default 20)')
     args = ap.parse_args()
 
-    from crane_planner.tools.processes import PLANNER, NodeGroup, isolated_ros_env
-    env = isolated_ros_env()
-    os.environ.clear()
-    os.environ.update(env)  # this process joins the planner's private graph
+    from crane_planner.tools.processes import isolated_graph
+    with isolated_graph() as env:  # this process joins the planner's private graph
+        return measure(args, env)
+
+
+def measure(args, env: dict) -> int:
+    from crane_planner.tools.processes import PLANNER, NodeGroup
 
     import rclpy
     from rclpy.executors import SingleThreadedExecutor

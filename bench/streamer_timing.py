@@ -43,10 +43,13 @@ def main() -> int:
     ap.add_argument('--histogram', help='write the tick lateness samples (us) of the window here, JSON')
     args = ap.parse_args()
 
-    from crane_planner.tools.processes import SIM, STREAMER, NodeGroup, isolated_ros_env
-    env = isolated_ros_env()
-    os.environ.clear()
-    os.environ.update(env)
+    from crane_planner.tools.processes import isolated_graph
+    with isolated_graph() as env:  # this process joins the nodes' private graph
+        return measure(args, env)
+
+
+def measure(args, env: dict) -> int:
+    from crane_planner.tools.processes import SIM, STREAMER, NodeGroup
 
     import rclpy
     from rclpy.experimental import EventsExecutor

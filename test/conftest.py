@@ -1,6 +1,4 @@
 """Shared fixtures."""
-import os
-
 import pytest
 
 
@@ -12,13 +10,6 @@ def ros_domain():
     node subprocesses, so parallel sessions and other projects never meet.
     Yields the environment.
     """
-    from crane_planner.tools.processes import isolated_ros_env
-    saved = dict(os.environ)
-    env = isolated_ros_env()
-    os.environ.clear()
-    os.environ.update(env)
-    try:
+    from crane_planner.tools.processes import isolated_graph
+    with isolated_graph() as env:
         yield env
-    finally:
-        os.environ.clear()
-        os.environ.update(saved)

@@ -52,7 +52,7 @@ def offline_residual(method: str, duration: float) -> float:
 
 
 class Crane:
-    """The test's handle on the running nodes (rclpy node of a DemoDriver plus extras)."""
+    """The test's handle on the running nodes (rclpy node of a CraneHarness plus extras)."""
 
     def __init__(self, driver, nodes):
         from rclpy.parameter_client import AsyncParameterClient
@@ -169,14 +169,13 @@ class Crane:
 
 @pytest.fixture(scope='module')
 def crane(ros_domain, tmp_path_factory):
-    from crane_planner.tools.demo import DemoDriver
-    from crane_planner.tools.processes import PLANNER, SIM, STREAMER, NodeGroup
+    from crane_planner.tools.harness import CraneHarness, start_crane_nodes
+    from crane_planner.tools.processes import NodeGroup
     nodes = NodeGroup(ros_domain, tmp_path_factory.mktemp('node-logs'))
     driver = None
     try:
-        for exe in (PLANNER, STREAMER, SIM):
-            nodes.start(*exe, namespace=NS)
-        driver = DemoDriver(NS, nodes)
+        start_crane_nodes(nodes, NS)
+        driver = CraneHarness(NS, nodes)
         driver.wait_until_up(METHODS, 60.0)
         crane = Crane(driver, nodes)
         crane.status('crane_planner', 'solvers', timeout=60.0)  # warm: first requests are not slowed down

@@ -12,11 +12,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +23,8 @@ import numpy as np
 
 from crane_msgs_py.params import CraneParams
 
-from .processes import NodeDied, NodeGroup, PLANNER, SIM, STREAMER, find_executable, isolated_ros_env
+from .harness import CraneHarness, HarnessError, start_crane_nodes
+from .processes import NodeDied, NodeGroup, find_executable, isolated_graph
 
 PROG = 'crane-demo'
 DEMO_METHODS = ('nvf', 'rvf', 'zv', 'nzv', 'zvd')
@@ -50,10 +49,6 @@ CASES = {
     'nominal+net': Case('nominal+net', CraneParams().L1, True),
     'perturbed+net': Case('perturbed+net', PERTURBED_L1, True),
 }
-
-
-class DemoError(RuntimeError):
-    """The demo cannot go on; the message says why."""
 
 
 @dataclass
@@ -122,191 +117,7 @@ def progress(text: str):
     print(f'[{PROG}] {text}', file=sys.stderr, flush=True)
 
 
-class DemoDriver:
-    """The demo's own rclpy node: plans over the service, switches the plant, records joint_states."""
-
-    def __init__(self, namespace: str, nodes: NodeGroup):
-        import rclpy
-        from rclpy.callback_groups import ReentrantCallbackGroup
-        from rclpy.executors import MultiThreadedExecutor
-        from rclpy.parameter_client import AsyncParameterClient
-        from sensor_msgs.msg import JointState
-        from std_srvs.srv import Trigger
-        from trajectory_msgs.msg import JointTrajectory
-
-        from crane_msgs_py.client import PlannerClient
-        from crane_msgs_py.runner import spinning
-        from crane_msgs_py.names import (JOINT_STATES_TOPIC, PLANNER_NODE, RESET_SERVICE, SIM_NODE,
-                                         STREAMER_NODE, TRAJECTORY_TOPIC, service_of)
-        from crane_msgs_py.qos import JOINT_STATES_QOS, TRAJECTORY_QOS
-
-        self._rclpy = rclpy
-        self._nodes = nodes
-        self._namespace = '/' + namespace.strip('/') if namespace.strip('/') else ''
-        rclpy.init()
-        self.node = rclpy.create_node('crane_demo', namespace=namespace)
-        group = ReentrantCallbackGroup()
-        self.planner = PlannerClient(self.node, PLANNER_NODE, callback_group=group)
-        self._params = {target: AsyncParameterClient(self.node, node_name, callback_group=group)
-                        for target, node_name in (('planner', PLANNER_NODE), ('sim', SIM_NODE),
-                                                  ('streamer', STREAMER_NODE))}
-        self._reset = self.node.create_client(Trigger, service_of(SIM_NODE, RESET_SERVICE), callback_group=group)
-        self._lock = threading.Lock()
-        self._slowest_plan = 0.0
-        self._states: list = []  # (stamp ns, theta1, theta2, cart)
-        self._trajectories: dict = {}  # start stamp ns -> JointTrajectory
-        self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state, JOINT_STATES_QOS,
-                                      callback_group=group)
-        self.node.create_subscription(JointTrajectory, TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS,
-                                      callback_group=group)
-        self._executor = MultiThreadedExecutor(num_threads=3)
-        self._executor.add_node(self.node)
-        self._spinning = spinning(self._executor)  # entered here, left in close()
-        self._spinning.__enter__()
-
-    # -- callbacks
-    def _on_state(self, msg):
-        from crane_msgs_py.conversions import joint_state_to_arrays, stamp_ns
-        from crane_msgs_py.names import SIM_JOINTS
-        pos, _ = joint_state_to_arrays(msg, SIM_JOINTS)
-        with self._lock:
-            self._states.append((stamp_ns(msg.header.stamp), pos[1], pos[2], pos[0]))
-
-    def _on_trajectory(self, msg):
-        from crane_msgs_py.conversions import stamp_ns
-        with self._lock:
-            self._trajectories[stamp_ns(msg.header.stamp)] = msg
-
-    # -- helpers
-    def now_ns(self) -> int:
-        return self.node.get_clock().now().nanoseconds
-
-    def wait_until(self, ready, timeout: float, failure: str, interval: float = 0.01):
-        """Poll ``ready()`` until true while watching the nodes; DemoError ``failure`` after ``timeout`` s."""
-        deadline = time.monotonic() + timeout
-        while not ready():
-            self._nodes.check_alive()
-            if time.monotonic() > deadline:
-                raise DemoError(failure)
-            time.sleep(interval)
-
-    def _wait(self, future, timeout: float, what: str):
-        self.wait_until(future.done, timeout, f'no answer from {what} within {timeout:g} s')
-        return future.result()
-
-    def sleep(self, seconds: float):
-        """Sleep while watching the nodes: a node that dies ends the demo at once."""
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
-            self._nodes.check_alive()
-            time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
-
-    def wait_until_up(self, methods, timeout: float):
-        deadline = time.monotonic() + timeout
-        waits = [(f'planner service plan/{m}', lambda m=m: self.planner.wait_for_service(m, 0.1)) for m in methods]
-        waits += [(f'{target} parameters', lambda c=client: c.wait_for_services(0.1))
-                  for target, client in self._params.items()]
-        waits += [('sim reset service', lambda: self._reset.wait_for_service(0.1)),
-                  ('joint_states', lambda: bool(self._states)),
-                  # The planner builds its solvers in the background at start-up;
-                  # planning before that is done would be slow and late.
-                  ('planner warm-up', lambda: self.planner.diagnostics.wait_for(
-                      name='crane_planner: solvers', timeout=0.1) is not None)]
-        for what, ready in waits:
-            self.wait_until(ready, deadline - time.monotonic(), f'{what} not up within {timeout:g} s')
-
-    def set_parameters(self, target: str, values: dict):
-        """Set parameters on the ``planner``, ``sim`` or ``streamer`` node; DemoError names any refused."""
-        from rclpy.parameter import Parameter
-        client = self._params[target]
-        params = [Parameter(k, value=v) for k, v in values.items()]
-        result = self._wait(client.set_parameters(params), 5.0, f'{target} parameter service')
-        refused = [f'{p.name}: {r.reason}' for p, r in zip(params, result.results) if not r.successful]
-        if refused:
-            raise DemoError(f'{target} refused parameters: {"; ".join(refused)}')
-
-    def reset_sim(self):
-        from std_srvs.srv import Trigger
-        response = self._wait(self._reset.call_async(Trigger.Request()), 5.0, 'sim reset service')
-        if not response.success:
-            raise DemoError(f'sim reset failed: {response.message}')
-
-    def lead(self) -> float:
-        """Seconds between a request and its motion start: three times the slowest round trip
-        seen so far, at least 0.3 s."""
-        return max(0.3, 3.0 * self._slowest_plan)
-
-    def move(self, method: str, start: float, goal: float, duration: float, start_ns: int | None = None):
-        """Plan a move starting at ``start_ns`` (default :meth:`lead` from now); (the stamp the
-        motion starts, round-trip s, served trajectory)."""
-        if start_ns is None:
-            start_ns = self.now_ns() + round(self.lead() * 1e9)
-        mark = self.planner.diagnostics.mark()
-        t0 = time.perf_counter()
-        # The client raises PlanError with the planner's reason on a refused plan.
-        self.planner.plan(method, start, goal, duration, start_ns=start_ns, timeout=30.0)
-        plan_time = time.perf_counter() - t0
-        self._slowest_plan = max(self._slowest_plan, plan_time)
-        if self.now_ns() > start_ns:
-            raise DemoError(f'planning {method} took {plan_time:.2f} s, past the motion start (machine overloaded?)')
-        traj = self.trajectory(start_ns, f'the {method}')
-        return self.streamed_start(start_ns, mark, method), plan_time, traj
-
-    def trajectory(self, start_ns: int, what: str = 'the', timeout: float = 5.0):
-        """The JointTrajectory the planner published for a motion stamped ``start_ns``."""
-        self.wait_until(lambda: start_ns in self._trajectories, timeout,
-                        f'{what} plan never appeared on the trajectory topic')
-        with self._lock:
-            return self._trajectories[start_ns]
-
-    def streamed_start(self, start_ns: int, mark: int, what: str = 'the', timeout: float = 5.0) -> int:
-        """The stamp the streamer starts the trajectory stamped ``start_ns`` at, from its status.
-
-        A trajectory reaching the streamer after its start stamp is streamed
-        whole from the next tick (never a jump): the motion, and every window
-        measured after it, moves by the streamer's ``late_start``. A refused
-        one is a DemoError with the streamer's reason.
-        """
-        from crane_msgs_py.diagnostics import OK, level_of, status_values
-        from crane_msgs_py.names import STREAMER_NODE
-        status = self.planner.diagnostics.wait_for(
-            lambda s: int(status_values(s).get('start_stamp', -1)) == start_ns, timeout, after=mark,
-            name=f'{STREAMER_NODE}: trajectory', hardware_id=f'{self._namespace}/{STREAMER_NODE}')
-        if status is None:
-            raise DemoError(f'no word from the streamer on {what} trajectory within {timeout:g} s')
-        if level_of(status) != OK:
-            raise DemoError(f'the streamer refused {what} trajectory: {status.message}')
-        late = float(status_values(status)['late_start'])
-        if late > 0.0:
-            progress(f'{what} trajectory reached the streamer late: motion starts {late:.3f} s after its stamp')
-        return start_ns + round(late * 1e9)
-
-    def wait_for_state_after(self, stamp_ns: int, timeout: float = 3.0):
-        """Wait until a joint_state stamped after ``stamp_ns`` has arrived.
-
-        The sim stamps states with simulated time, which trails the wall clock
-        (it plays references out by their stamps, after a jitter buffer).
-        """
-        def arrived():
-            with self._lock:
-                return bool(self._states) and self._states[-1][0] >= stamp_ns
-        self.wait_until(arrived, timeout, f'no joint_states stamped past the motion within {timeout:g} s', 0.02)
-
-    def states_between(self, begin_ns: int, end_ns: int, timeout: float = 3.0) -> np.ndarray:
-        """joint_states stamped in [begin, end] (dropping everything older than ``end_ns``)."""
-        self.wait_for_state_after(end_ns, timeout)
-        with self._lock:
-            rows = [r for r in self._states if begin_ns <= r[0] <= end_ns]
-            self._states = [r for r in self._states if r[0] > end_ns]
-        return np.array(rows).reshape(-1, 4)
-
-    def close(self):
-        self._spinning.__exit__(None, None, None)  # the spin thread out of rcl, then the executor shut down
-        self.node.destroy_node()
-        self._rclpy.try_shutdown()
-
-
-def run_case_method(driver: DemoDriver, case: Case, method: str, args, L2: float) -> Run:
+def run_case_method(driver: CraneHarness, case: Case, method: str, args, L2: float) -> Run:
     from crane_msgs_py.conversions import joint_trajectory_to_arrays
     from crane_sim.dynamics import load_excursion
     from crane_sim.metrics import residual_load_mm
@@ -322,7 +133,7 @@ def run_case_method(driver: DemoDriver, case: Case, method: str, args, L2: float
     back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns)
     rec = driver.states_between(start_ns, end_ns)
     if len(rec) < 10:
-        raise DemoError(f'only {len(rec)} joint_states during the {method} motion: is the sim publishing?')
+        raise HarnessError(f'only {len(rec)} joint_states during the {method} motion: is the sim publishing?')
     t = (rec[:, 0] - start_ns) * 1e-9
     residual = float(residual_load_mm(t, rec[:, 1], rec[:, 2], case.L1, L2, after=T, until=T + args.settle))
     plan_t, _, plan_v, plan_a = joint_trajectory_to_arrays(traj)
@@ -410,30 +221,30 @@ def run_sweep(args) -> Path | None:
            '--plot', str(path), '--json']
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
-        raise DemoError(f'crane-plan sweep failed: {r.stderr.strip()}')
+        raise HarnessError(f'crane-plan sweep failed: {r.stderr.strip()}')
     (Path(args.out) / 'sweep_L1.json').write_text(r.stdout)
     return path
 
 
 def main(argv=None) -> int:
     args = _parse(argv)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    Path(args.out).mkdir(parents=True, exist_ok=True)
     t_start = time.monotonic()
+    with isolated_graph(args.domain_id) as env:  # this process joins the same private graph as its nodes
+        return _run(args, env, t_start)
+
+
+def _run(args, env: dict, t_start: float) -> int:
+    out = Path(args.out)
     runs: list[Run] = []
-    env = isolated_ros_env(args.domain_id)
-    os.environ.clear()  # this process joins the same private graph as its nodes
-    os.environ.update(env)
     log_dir = Path(tempfile.mkdtemp(prefix='crane-demo-'))
     timing_log = (out / 'streamer_timing.json').resolve()
     progress(f'ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, namespace {args.namespace}, node logs in {log_dir}')
     driver = None
     try:
         with NodeGroup(env, log_dir) as nodes:
-            nodes.start(*PLANNER, namespace=args.namespace)
-            nodes.start(*STREAMER, namespace=args.namespace, params={'timing_log': str(timing_log)})
-            nodes.start(*SIM, namespace=args.namespace)
-            driver = DemoDriver(args.namespace, nodes)
+            start_crane_nodes(nodes, args.namespace, streamer_params={'timing_log': str(timing_log)})
+            driver = CraneHarness(args.namespace, nodes, log=progress, node_name='crane_demo')
             driver.wait_until_up(args.methods, args.startup_timeout)
             progress(f'nodes up in {time.monotonic() - t_start:.1f} s')
             L2 = CraneParams().L2
@@ -463,7 +274,7 @@ def main(argv=None) -> int:
             print(f'wrote {path}')
         progress(f'done in {time.monotonic() - t_start:.0f} s')
         return 0
-    except (NodeDied, DemoError, ValueError, TimeoutError) as e:
+    except (NodeDied, HarnessError, ValueError, TimeoutError) as e:
         # ValueError includes PlanError (a plan the planner refused).
         print(f'{PROG}: error: {e}', file=sys.stderr)
         return 1

@@ -1,6 +1,6 @@
 """Start the crane nodes as real subprocesses, watch them, and always stop them.
 
-Used by ``crane-demo`` and by the integration tests (there is no ``ros2
+Used by ``crane-demo``, the harness, the benchmarks and the integration tests (there is no ``ros2
 launch`` on a PyPI-only install). Pure Python: no ROS import.
 """
 from __future__ import annotations
@@ -12,6 +12,7 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,19 +29,38 @@ class NodeDied(RuntimeError):
     """A node process exited while it was needed; the message says which and how."""
 
 
-def isolated_ros_env(domain_id: int | None = None, base: dict | None = None) -> dict:
-    """Environment for a private ROS graph: a random domain id and localhost-only discovery.
+def isolated_ros_env(domain_id: int | None = None) -> dict:
+    """This process's environment for a private ROS graph: a random domain id and localhost-only discovery.
 
     Other projects share these machines; a random ``ROS_DOMAIN_ID`` and
     ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` keep our traffic to ourselves.
     """
-    env = dict(os.environ if base is None else base)
+    env = dict(os.environ)
     env['ROS_DOMAIN_ID'] = str(random.randint(*DOMAIN_ID_RANGE) if domain_id is None else int(domain_id))
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env.pop('ROS_LOCALHOST_ONLY', None)  # deprecated in Jazzy; conflicts with the range
     env.setdefault('PYTHONUNBUFFERED', '1')
     env.setdefault('RCUTILS_COLORIZED_OUTPUT', '0')
     return env
+
+
+@contextmanager
+def isolated_graph(domain_id: int | None = None):
+    """For the block, this process joins a private ROS graph (``isolated_ros_env``); yields the environment.
+
+    Set before ``rclpy.init`` and passed to the node subprocesses, so this
+    process and its nodes meet each other and nobody else. The previous
+    environment is restored on exit.
+    """
+    saved = dict(os.environ)
+    env = isolated_ros_env(domain_id)
+    os.environ.clear()
+    os.environ.update(env)
+    try:
+        yield env
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
 
 
 def find_executable(package: str, name: str) -> str:
@@ -58,13 +78,11 @@ def find_executable(package: str, name: str) -> str:
     raise FileNotFoundError(f'executable {name!r} of package {package!r} not found (run `make install`?)')
 
 
-def ros_args(namespace: str | None = None, params: dict | None = None, node_name: str | None = None) -> list[str]:
-    """``--ros-args`` for a namespace, a node name and parameter overrides."""
+def ros_args(namespace: str | None = None, params: dict | None = None) -> list[str]:
+    """``--ros-args`` for a namespace and parameter overrides."""
     args = ['--ros-args']
     if namespace:
         args += ['-r', f'__ns:={namespace}']
-    if node_name:
-        args += ['-r', f'__node:={node_name}']
     for key, value in (params or {}).items():
         args += ['-p', f'{key}:={_param_text(value)}']
     return args

@@ -1,0 +1,215 @@
+"""A small ROS harness around the three crane nodes, shared by ``crane-demo`` and the tests.
+
+``start_crane_nodes`` starts the planner, streamer and sim executables in one
+namespace of a ``NodeGroup``; ``CraneHarness`` is the rclpy side: plan and
+stream a move, set parameters, read the sim's joint_states. The demo's
+experiment, table and figures stay in ``demo``. One of the two tool modules
+that may import ROS (with ``demo``).
+"""
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable
+
+import numpy as np
+import rclpy
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory
+
+from crane_msgs_py.client import PlannerClient
+from crane_msgs_py.conversions import joint_state_to_arrays, stamp_ns
+from crane_msgs_py.diagnostics import OK, level_of, status_values
+from crane_msgs_py.names import (JOINT_STATES_TOPIC, PLANNER_NODE, RESET_SERVICE, SIM_JOINTS, SIM_NODE,
+                                 STREAMER_NODE, TRAJECTORY_TOPIC, service_of)
+from crane_msgs_py.qos import JOINT_STATES_QOS, TRAJECTORY_QOS
+from crane_msgs_py.runner import spinning
+
+from .processes import PLANNER, SIM, STREAMER, NodeGroup
+
+
+class HarnessError(RuntimeError):
+    """The harness cannot go on (a timeout, a refusal); the message says why."""
+
+
+def start_crane_nodes(nodes: NodeGroup, namespace: str, streamer_params: dict | None = None):
+    """Start the planner, streamer and sim executables in ``namespace``."""
+    nodes.start(*PLANNER, namespace=namespace)
+    nodes.start(*STREAMER, namespace=namespace, params=streamer_params)
+    nodes.start(*SIM, namespace=namespace)
+
+
+class CraneHarness:
+    """An rclpy node beside running crane nodes: plans and executes over the planner
+    service, sets parameters, resets the sim, reads the streamer's word and records
+    joint_states. Spins in a thread of its own from construction to ``close()``.
+
+    Every wait also watches the node processes: a node that dies ends the wait
+    with NodeDied; a wait that times out is a HarnessError naming what was awaited.
+    """
+
+    def __init__(self, namespace: str, nodes: NodeGroup, log: Callable[[str], None] | None = None,
+                 node_name: str = 'crane_harness'):
+        """``log`` receives notable events (a trajectory that reached the streamer late)."""
+        self._nodes = nodes
+        self._log = log or (lambda text: None)
+        self._namespace = '/' + namespace.strip('/') if namespace.strip('/') else ''
+        rclpy.init()
+        self.node = rclpy.create_node(node_name, namespace=namespace)
+        group = ReentrantCallbackGroup()
+        self.planner = PlannerClient(self.node, PLANNER_NODE, callback_group=group)
+        self._params = {target: AsyncParameterClient(self.node, node_name, callback_group=group)
+                        for target, node_name in (('planner', PLANNER_NODE), ('sim', SIM_NODE),
+                                                  ('streamer', STREAMER_NODE))}
+        self._reset = self.node.create_client(Trigger, service_of(SIM_NODE, RESET_SERVICE), callback_group=group)
+        self._lock = threading.Lock()
+        self._slowest_plan = 0.0
+        self._states: list = []  # (stamp ns, theta1, theta2, cart)
+        self._trajectories: dict = {}  # start stamp ns -> JointTrajectory
+        self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state, JOINT_STATES_QOS,
+                                      callback_group=group)
+        self.node.create_subscription(JointTrajectory, TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS,
+                                      callback_group=group)
+        self._executor = MultiThreadedExecutor(num_threads=3)
+        self._executor.add_node(self.node)
+        self._spinning = spinning(self._executor)  # entered here, left in close()
+        self._spinning.__enter__()
+
+    # -- callbacks
+    def _on_state(self, msg):
+        pos, _ = joint_state_to_arrays(msg, SIM_JOINTS)
+        with self._lock:
+            self._states.append((stamp_ns(msg.header.stamp), pos[1], pos[2], pos[0]))
+
+    def _on_trajectory(self, msg):
+        with self._lock:
+            self._trajectories[stamp_ns(msg.header.stamp)] = msg
+
+    # -- helpers
+    def now_ns(self) -> int:
+        return self.node.get_clock().now().nanoseconds
+
+    def wait_until(self, ready, timeout: float, failure: str, interval: float = 0.01):
+        """Poll ``ready()`` until true while watching the nodes; HarnessError ``failure`` after ``timeout`` s."""
+        deadline = time.monotonic() + timeout
+        while not ready():
+            self._nodes.check_alive()
+            if time.monotonic() > deadline:
+                raise HarnessError(failure)
+            time.sleep(interval)
+
+    def _wait(self, future, timeout: float, what: str):
+        self.wait_until(future.done, timeout, f'no answer from {what} within {timeout:g} s')
+        return future.result()
+
+    def sleep(self, seconds: float):
+        """Sleep while watching the nodes: a node that dies ends the demo at once."""
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self._nodes.check_alive()
+            time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
+
+    def wait_until_up(self, methods, timeout: float):
+        deadline = time.monotonic() + timeout
+        waits = [(f'planner service plan/{m}', lambda m=m: self.planner.wait_for_service(m, 0.1)) for m in methods]
+        waits += [(f'{target} parameters', lambda c=client: c.wait_for_services(0.1))
+                  for target, client in self._params.items()]
+        waits += [('sim reset service', lambda: self._reset.wait_for_service(0.1)),
+                  ('joint_states', lambda: bool(self._states)),
+                  # The planner builds its solvers in the background at start-up;
+                  # planning before that is done would be slow and late.
+                  ('planner warm-up', lambda: self.planner.diagnostics.wait_for(
+                      name='crane_planner: solvers', timeout=0.1) is not None)]
+        for what, ready in waits:
+            self.wait_until(ready, deadline - time.monotonic(), f'{what} not up within {timeout:g} s')
+
+    def set_parameters(self, target: str, values: dict):
+        """Set parameters on the ``planner``, ``sim`` or ``streamer`` node; HarnessError names any refused."""
+        client = self._params[target]
+        params = [Parameter(k, value=v) for k, v in values.items()]
+        result = self._wait(client.set_parameters(params), 5.0, f'{target} parameter service')
+        refused = [f'{p.name}: {r.reason}' for p, r in zip(params, result.results) if not r.successful]
+        if refused:
+            raise HarnessError(f'{target} refused parameters: {"; ".join(refused)}')
+
+    def reset_sim(self):
+        response = self._wait(self._reset.call_async(Trigger.Request()), 5.0, 'sim reset service')
+        if not response.success:
+            raise HarnessError(f'sim reset failed: {response.message}')
+
+    def lead(self) -> float:
+        """Seconds between a request and its motion start: three times the slowest round trip
+        seen so far, at least 0.3 s."""
+        return max(0.3, 3.0 * self._slowest_plan)
+
+    def move(self, method: str, start: float, goal: float, duration: float, start_ns: int | None = None):
+        """Plan a move starting at ``start_ns`` (default :meth:`lead` from now); (the stamp the
+        motion starts, round-trip s, served trajectory)."""
+        if start_ns is None:
+            start_ns = self.now_ns() + round(self.lead() * 1e9)
+        mark = self.planner.diagnostics.mark()
+        t0 = time.perf_counter()
+        # The client raises PlanError with the planner's reason on a refused plan.
+        self.planner.plan(method, start, goal, duration, start_ns=start_ns, timeout=30.0)
+        plan_time = time.perf_counter() - t0
+        self._slowest_plan = max(self._slowest_plan, plan_time)
+        if self.now_ns() > start_ns:
+            raise HarnessError(f'planning {method} took {plan_time:.2f} s, past the motion start (machine overloaded?)')
+        traj = self.trajectory(start_ns, f'the {method}')
+        return self.streamed_start(start_ns, mark, method), plan_time, traj
+
+    def trajectory(self, start_ns: int, what: str = 'the', timeout: float = 5.0):
+        """The JointTrajectory the planner published for a motion stamped ``start_ns``."""
+        self.wait_until(lambda: start_ns in self._trajectories, timeout,
+                        f'{what} plan never appeared on the trajectory topic')
+        with self._lock:
+            return self._trajectories[start_ns]
+
+    def streamed_start(self, start_ns: int, mark: int, what: str = 'the', timeout: float = 5.0) -> int:
+        """The stamp the streamer starts the trajectory stamped ``start_ns`` at, from its status.
+
+        A trajectory reaching the streamer after its start stamp is streamed
+        whole from the next tick (never a jump): the motion, and every window
+        measured after it, moves by the streamer's ``late_start``. A refused
+        one is a HarnessError with the streamer's reason.
+        """
+        status = self.planner.diagnostics.wait_for(
+            lambda s: int(status_values(s).get('start_stamp', -1)) == start_ns, timeout, after=mark,
+            name=f'{STREAMER_NODE}: trajectory', hardware_id=f'{self._namespace}/{STREAMER_NODE}')
+        if status is None:
+            raise HarnessError(f'no word from the streamer on {what} trajectory within {timeout:g} s')
+        if level_of(status) != OK:
+            raise HarnessError(f'the streamer refused {what} trajectory: {status.message}')
+        late = float(status_values(status)['late_start'])
+        if late > 0.0:
+            self._log(f'{what} trajectory reached the streamer late: motion starts {late:.3f} s after its stamp')
+        return start_ns + round(late * 1e9)
+
+    def wait_for_state_after(self, stamp_ns: int, timeout: float = 3.0):
+        """Wait until a joint_state stamped after ``stamp_ns`` has arrived.
+
+        The sim stamps states with simulated time, which trails the wall clock
+        (it plays references out by their stamps, after a jitter buffer).
+        """
+        def arrived():
+            with self._lock:
+                return bool(self._states) and self._states[-1][0] >= stamp_ns
+        self.wait_until(arrived, timeout, f'no joint_states stamped past the motion within {timeout:g} s', 0.02)
+
+    def states_between(self, begin_ns: int, end_ns: int, timeout: float = 3.0) -> np.ndarray:
+        """joint_states stamped in [begin, end] (dropping everything older than ``end_ns``)."""
+        self.wait_for_state_after(end_ns, timeout)
+        with self._lock:
+            rows = [r for r in self._states if begin_ns <= r[0] <= end_ns]
+            self._states = [r for r in self._states if r[0] > end_ns]
+        return np.array(rows).reshape(-1, 4)
+
+    def close(self):
+        self._spinning.__exit__(None, None, None)  # the spin thread out of rcl, then the executor shut down
+        self.node.destroy_node()
+        rclpy.try_shutdown()
