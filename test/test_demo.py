@@ -8,7 +8,6 @@ import time
 import uuid
 from pathlib import Path
 
-import pytest
 
 BIN = Path(sys.executable).parent
 DURATION, SETTLE = 2.5, 3.0

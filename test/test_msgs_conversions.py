@@ -12,6 +12,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py import conversions as cv
 from crane_msgs_py.names import plan_service, service_of
+from crane_msgs_py.params import ParameterError
 
 START_NS = 1_700_000_000 * 10**9 + 999_000_000  # nanoseconds that carry into the seconds
 
@@ -79,7 +80,7 @@ def test_reference_fill_in_place_and_read_back(output, msg_type):
         assert (stamp, p, v, a) == (START_NS + 1_000_000, 0.25, 0.5, -1.0)
     else:
         assert stamp is None and p == 0.25 and math.isnan(v) and math.isnan(a)
-    with pytest.raises(ValueError):
+    with pytest.raises(ParameterError, match="output must be one of joint_trajectory, float64_array, got 'csv'"):
         cv.reference_message('csv')
 
 

@@ -9,7 +9,7 @@ from crane_msgs_py.params import CraneParams, ParameterError
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.profiles import quintic
 from crane_sim.simulator import (CraneSimulator, CraneState, SimulationError,
-                                 acceleration_from_positions, simulate)
+                                 simulate)
 
 P = CraneParams()
 

@@ -32,6 +32,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from .names import (CART_JOINT, DEFAULT_FRAME_ID, OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, OUTPUTS,
                     SIM_JOINTS)
+from .params import check_choice
 
 NS = 1_000_000_000
 
@@ -151,22 +152,23 @@ def joint_trajectory_to_arrays(msg: JointTrajectory, joint: str = CART_JOINT):
 
 def reference_message(output: str = OUTPUT_JOINT_TRAJECTORY, frame_id: str = DEFAULT_FRAME_ID,
                       joint: str = CART_JOINT):
-    """A reusable one-sample reference message of the streamer's ``output`` type."""
-    if output == OUTPUT_JOINT_TRAJECTORY:
-        msg = JointTrajectory()
-        msg.header.frame_id = frame_id
-        msg.joint_names = [joint]
-        point = JointTrajectoryPoint()
-        point.positions = array.array('d', (0.0,))
-        point.velocities = array.array('d', (0.0,))
-        point.accelerations = array.array('d', (0.0,))
-        msg.points = [point]
-        return msg
-    if output == OUTPUT_FLOAT64_ARRAY:
+    """A reusable one-sample reference message of the streamer's ``output`` type.
+
+    Raises ParameterError naming ``output`` if it is not one of ``OUTPUTS``.
+    """
+    if check_choice('output', output, OUTPUTS) == OUTPUT_FLOAT64_ARRAY:
         msg = Float64MultiArray()
         msg.data = array.array('d', (0.0,))
         return msg
-    raise ValueError(f'output must be one of {", ".join(OUTPUTS)}, got {output!r}')
+    msg = JointTrajectory()
+    msg.header.frame_id = frame_id
+    msg.joint_names = [joint]
+    point = JointTrajectoryPoint()
+    point.positions = array.array('d', (0.0,))
+    point.velocities = array.array('d', (0.0,))
+    point.accelerations = array.array('d', (0.0,))
+    msg.points = [point]
+    return msg
 
 
 def fill_reference(msg, stamp: int, position: float, velocity: float, acceleration: float):

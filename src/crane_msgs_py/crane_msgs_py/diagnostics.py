@@ -23,7 +23,6 @@ from .qos import DIAGNOSTICS_QOS
 # Levels as ints (the message constants and field are one-byte ``bytes``).
 OK, WARN, ERROR, STALE = (c[0] for c in (DiagnosticStatus.OK, DiagnosticStatus.WARN,
                                          DiagnosticStatus.ERROR, DiagnosticStatus.STALE))
-LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', STALE: 'STALE'}
 
 
 def format_value(value) -> str:
@@ -92,17 +91,18 @@ class DiagnosticsReader:
         node: the rclpy node to subscribe with.
         history: how many statuses to keep.
         callback_group: for the subscription (e.g. a ReentrantCallbackGroup).
-        qos: defaults to DIAGNOSTICS_QOS (transient local, so statuses
-            published just before the subscription matched still arrive).
+
+    The subscription uses DIAGNOSTICS_QOS (transient local, so statuses
+    published just before it matched still arrive).
     """
 
-    def __init__(self, node, history: int = 2000, callback_group=None, qos=DIAGNOSTICS_QOS):
+    def __init__(self, node, history: int = 2000, callback_group=None):
         self._node = node
         self._cond = threading.Condition()
         self._statuses: deque = deque(maxlen=history)  # (sequence number, status)
         self._seq = itertools.count(1)
         self._last = 0
-        self._sub = node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_array, qos,
+        self._sub = node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_array, DIAGNOSTICS_QOS,
                                              callback_group=callback_group)
 
     def _on_array(self, msg: DiagnosticArray):
@@ -122,10 +122,6 @@ class DiagnosticsReader:
         """Kept statuses, oldest first, filtered by exact name, level and hardware id."""
         with self._cond:
             return [s for seq, s in self._statuses if seq > after and _matches(s, name, level, hardware_id)]
-
-    def latest(self, name: str, hardware_id: str | None = None) -> DiagnosticStatus | None:
-        found = self.statuses(name, hardware_id=hardware_id)
-        return found[-1] if found else None
 
     def wait_for(self, predicate=None, timeout: float = 1.0, after: int = 0, name: str | None = None,
                  level: int | None = None, hardware_id: str | None = None) -> DiagnosticStatus | None:

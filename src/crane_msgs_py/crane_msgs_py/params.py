@@ -52,6 +52,13 @@ def check_nonnegative(name: str, value) -> float:
     return v
 
 
+def check_choice(name: str, value, choices, error: type[ValueError] = ParameterError):
+    """Return ``value`` if it is one of ``choices``, else raise ``error`` naming ``name`` and the choices."""
+    if value not in choices:
+        raise error(f'{name} must be one of {", ".join(choices)}, got {value!r}')
+    return value
+
+
 @dataclass(frozen=True)
 class CraneParams:
     """Double-pendulum crane (paper Fig. 1, Table 1) plus the axis servo of Eq. 6.

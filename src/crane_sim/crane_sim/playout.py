@@ -33,7 +33,9 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from .simulator import INTERPOLATIONS, SOURCES, SimulationError, _check_choice
+from crane_msgs_py.params import check_choice
+
+from .simulator import INTERPOLATIONS, SOURCES, SimulationError
 
 
 class ReferencePlayout:
@@ -49,8 +51,8 @@ class ReferencePlayout:
     """
 
     def __init__(self, delay: float, timeout: float, interpolation: str = 'zoh', source: str = 'acceleration'):
-        _check_choice('interpolation', interpolation, INTERPOLATIONS)
-        _check_choice('source', source, SOURCES)
+        check_choice('interpolation', interpolation, INTERPOLATIONS, SimulationError)
+        check_choice('source', source, SOURCES, SimulationError)
         if not (delay >= 0.0 and timeout > 0.0):
             raise SimulationError(f'need delay >= 0 and timeout > 0, got {delay}, {timeout}')
         self.delay, self.timeout = float(delay), float(timeout)

@@ -16,6 +16,10 @@ Everything is vectorized over a batch of plants (numpy arrays of shape
 ``(n,)``); the batch path (:func:`simulate`) and the streaming path
 (:class:`CraneSimulator`, for the real-time node) share one step function.
 No ROS import here.
+
+Why one module of ~490 lines: both paths use the private stepper and the
+internal state layout (``_Stepper``, ``_to_internal``/``_to_public``);
+splitting them apart would make those private pieces public API.
 """
 from __future__ import annotations
 
@@ -25,7 +29,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from crane_msgs_py.params import PARAMETER_NAMES, ParameterError, check_nonnegative, check_positive
+from crane_msgs_py.params import PARAMETER_NAMES, ParameterError, check_choice, check_nonnegative, check_positive
 
 from .dynamics import SwingModel, load_excursion
 
@@ -39,11 +43,6 @@ SOURCES = ('acceleration', 'position')
 
 class SimulationError(ValueError):
     """A simulation request is malformed; the message names the argument and why."""
-
-
-def _check_choice(name, value, choices):
-    if value not in choices:
-        raise SimulationError(f"{name} must be one of {', '.join(choices)}, got {value!r}")
 
 
 # --------------------------------------------------------------------------- plants
@@ -238,7 +237,7 @@ def interpolate(t_ref, values, t, interpolation: str = 'linear'):
     t_ref = np.asarray(t_ref, dtype=float)
     values = np.asarray(values, dtype=float)
     t = np.asarray(t, dtype=float)
-    _check_choice('interpolation', interpolation, INTERPOLATIONS)
+    check_choice('interpolation', interpolation, INTERPOLATIONS, SimulationError)
     k = np.searchsorted(t_ref, t, side='right') - 1
     if interpolation == 'zoh' or t_ref.size == 1:
         return values[..., np.clip(k, 0, t_ref.size - 1)]
@@ -351,8 +350,8 @@ def simulate(t_ref, reference, plants, *, dt: float = 1e-3, t_end: float | None 
             default: at rest at the first reference value (y = first position
             for ``position``, else 0; servo settled, no swing).
     """
-    _check_choice('interpolation', interpolation, INTERPOLATIONS)
-    _check_choice('source', source, SOURCES)
+    check_choice('interpolation', interpolation, INTERPOLATIONS, SimulationError)
+    check_choice('source', source, SOURCES, SimulationError)
     p = PlantBatch.of(plants)
     t_ref, ref = _check_reference(t_ref, reference, len(p))
     if len(p) == 1 and ref.shape[0] > 1:

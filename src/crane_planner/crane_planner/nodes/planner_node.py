@@ -25,7 +25,7 @@ from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import DEFAULT_FRAME_ID, PLANNER_NODE, TRAJECTORY_TOPIC, plan_service
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError,
-                                  check_positive)
+                                  check_choice, check_positive)
 from crane_msgs_py.qos import TRAJECTORY_QOS
 from crane_msgs_py.runner import run
 
@@ -83,8 +83,7 @@ class Config:
     def from_values(cls, v: dict) -> 'Config':
         """From parameter values by name; ParameterError names the bad one."""
         params = CraneParams(**{name: v[name] for name in PARAMETER_NAMES})
-        if v['method'] not in METHODS:
-            raise ParameterError(f'method must be one of {", ".join(METHODS)}, got {v["method"]!r}')
+        check_choice('method', v['method'], METHODS)
         intervals = int(v['intervals'])
         options = PlanOptions(
             omega=tuple(v['shaper_frequencies']) or None, damping=v['shaper_damping'],

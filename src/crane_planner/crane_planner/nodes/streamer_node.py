@@ -27,7 +27,6 @@ from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (OUTPUT_JOINT_TRAJECTORY, OUTPUTS, REFERENCE_TOPIC,
                                  START_SERVICE, STOP_SERVICE, STREAMER_NODE, TRAJECTORY_TOPIC)
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
-from crane_msgs_py.params import ParameterError
 from crane_msgs_py.qos import REFERENCE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
@@ -96,8 +95,7 @@ class StreamerNode(Node):
     def __init__(self, **kwargs):
         super().__init__(STREAMER_NODE, **kwargs)
         p = declare(self, PARAMETERS)
-        if p['output'] not in OUTPUTS:
-            raise ParameterError(f'output must be one of {", ".join(OUTPUTS)}, got {p["output"]!r}')
+        self._msg = reference_message(p['output'])  # ParameterError on an unknown output
         self._impairment = self._impairment_of(p)  # ParameterError on a bad override
         self._ticker = Ticker(round(1e9 / p['rate']))
         self._period_ns = self._ticker.period
@@ -106,7 +104,6 @@ class StreamerNode(Node):
         self._timing_log = p['timing_log']
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._impairment_of, self._apply, self._diagnostics)
-        self._msg = reference_message(p['output'])
         self._publisher = self.create_publisher(type(self._msg), REFERENCE_TOPIC, REFERENCE_QOS)
 
         # State shared with the loop thread. The loop owns _hold, _motion and

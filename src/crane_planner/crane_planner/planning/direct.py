@@ -149,7 +149,7 @@ class Transcription:
 
     def interval_nodes(self, w: np.ndarray) -> np.ndarray:
         """Scaled states at the nodes (start, Radau points) of each interval, (N, d+1, nx)."""
-        nx, N, d = self.problem.nx, self.intervals, self.degree
+        N, d = self.intervals, self.degree
         X = self.states(w)
         idx = np.arange(N)[:, None] * d + np.arange(d + 1)
         return X[:, idx].transpose(1, 2, 0)

@@ -26,7 +26,7 @@ import math
 import random
 from dataclasses import dataclass
 
-from crane_msgs_py.params import ParameterError, check_nonnegative
+from crane_msgs_py.params import ParameterError, check_choice, check_nonnegative
 
 DISTRIBUTIONS = ('normal', 'uniform', 'exponential')
 
@@ -58,9 +58,7 @@ class Impairment:
         if loss > 1.0:
             raise ParameterError(f'loss must be a probability in [0, 1], got {loss}')
         object.__setattr__(self, 'loss', loss)
-        if self.distribution not in DISTRIBUTIONS:
-            raise ParameterError(f'distribution must be one of {", ".join(DISTRIBUTIONS)}, '
-                                 f'got {self.distribution!r}')
+        check_choice('distribution', self.distribution, DISTRIBUTIONS)
         if int(self.seed) != self.seed:
             raise ParameterError(f'seed must be an integer, got {self.seed!r}')
 

@@ -31,9 +31,10 @@ from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.conversions import fill_joint_state, joint_state_message, read_reference
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from crane_msgs_py.names import JOINT_STATES_TOPIC, REFERENCE_TOPIC, RESET_SERVICE, SIM_NODE
+from crane_msgs_py.names import (JOINT_STATES_TOPIC, OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, REFERENCE_TOPIC,
+                                 RESET_SERVICE, SIM_NODE)
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
-from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError
+from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError, check_choice
 from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
@@ -43,9 +44,9 @@ from crane_sim.simulator import INTERPOLATIONS, JOINT_NAMES, SOURCES, CraneSimul
 
 SIM_TASK = 'sim'
 #: ``reference_type`` values: the streamer's two outputs, or whatever the topic's publisher sends.
-REFERENCE_TYPES = {'joint_trajectory': JointTrajectory, 'float64_array': Float64MultiArray}
-_TYPE_NAMES = {'trajectory_msgs/msg/JointTrajectory': 'joint_trajectory',
-               'std_msgs/msg/Float64MultiArray': 'float64_array'}
+REFERENCE_TYPES = {OUTPUT_JOINT_TRAJECTORY: JointTrajectory, OUTPUT_FLOAT64_ARRAY: Float64MultiArray}
+_TYPE_NAMES = {'trajectory_msgs/msg/JointTrajectory': OUTPUT_JOINT_TRAJECTORY,
+               'std_msgs/msg/Float64MultiArray': OUTPUT_FLOAT64_ARRAY}
 
 
 PARAMETERS = {
@@ -60,9 +61,10 @@ PARAMETERS = {
                          {'additional_constraints': f'one of {", ".join(SOURCES)}'}),
     'interpolation': ('zoh', "between references: 'zoh' holds the newest, 'linear' ramps to it over a step",
                       {'additional_constraints': f'one of {", ".join(INTERPOLATIONS)}'}),
-    'reference_type': ('auto', "'auto' (the type of reference's publisher), 'joint_trajectory' or "
-                       "'float64_array'; fixed at start-up",
-                       {'additional_constraints': 'auto, joint_trajectory or float64_array', 'read_only': True}),
+    'reference_type': ('auto', f"'auto' (the type of reference's publisher), '{OUTPUT_JOINT_TRAJECTORY}' or "
+                       f"'{OUTPUT_FLOAT64_ARRAY}'; fixed at start-up",
+                       {'additional_constraints': f'auto, {OUTPUT_JOINT_TRAJECTORY} or {OUTPUT_FLOAT64_ARRAY}',
+                        'read_only': True}),
     'reference_timeout': (0.5, 'a reference older than this (s) on arrival is stale and ignored; without a '
                           'fresh one for this long the reference acceleration falls back to 0',
                           float_range(1e-3, 10.0)),
@@ -133,15 +135,14 @@ class SimNode(Node):
         """The plant of a full set of values; ParameterError names a bad value."""
         for name, choices in (('reference_source', SOURCES), ('interpolation', INTERPOLATIONS),
                               ('reference_type', ('auto', *REFERENCE_TYPES))):
-            if values[name] not in choices:
-                raise ParameterError(f'{name} must be one of {", ".join(choices)}, got {values[name]!r}')
+            check_choice(name, values[name], choices)
         if not values['playout_delay'] < values['reference_timeout']:
             raise ParameterError(f'playout_delay {values["playout_delay"]} s must be shorter than '
                                  f'reference_timeout {values["reference_timeout"]} s')
         return CraneParams(**{name: values[name] for name in PARAMETER_NAMES})
 
     def _playout_args_of(self, values: dict) -> tuple:
-        source = 'position' if self._reference_type == 'float64_array' else values['reference_source']
+        source = 'position' if self._reference_type == OUTPUT_FLOAT64_ARRAY else values['reference_source']
         return values['playout_delay'], values['reference_timeout'], values['interpolation'], source
 
     def _apply(self, params: CraneParams, values, changes):
@@ -167,7 +168,7 @@ class SimNode(Node):
         self._reference_sub = self.create_subscription(REFERENCE_TYPES[kind], REFERENCE_TOPIC,
                                                        self._on_reference, REFERENCE_EVERY_SAMPLE_QOS)
         self.get_logger().info(f'reference type {kind}')
-        if kind == 'float64_array':  # positions only, timed by their arrival
+        if kind == OUTPUT_FLOAT64_ARRAY:  # positions only, timed by their arrival
             self._playout_args = (*self._playout_args[:3], 'position')  # what _playout_args_of gives now
             if self._source == 'acceleration':
                 self.get_logger().warn('float64_array references carry positions only: '
