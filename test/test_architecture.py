@@ -1,0 +1,110 @@
+"""The tree's rule: only the ROS adapters import ROS.
+
+A module may import rclpy, a message/service package or another ROS module
+only if it is a node (``<package>/nodes/``), one of the two ROS tools (the
+demo and the harness it shares with the tests) or one of ``crane_msgs_py``'s
+ROS modules. Everything else (the planning and streaming cores, the
+simulator, the CLI, evaluation, figures, processes) runs without ROS.
+Imports are read from the source (every ``import``, also inside functions),
+not by importing, so a lazy import cannot hide.
+"""
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ('crane_msgs_py', 'crane_sim', 'crane_planner')
+
+#: Modules allowed to import ROS, besides every module under a ``nodes`` subpackage.
+ROS_MODULES = {
+    'crane_planner.tools.demo', 'crane_planner.tools.harness',
+    'crane_msgs_py.client', 'crane_msgs_py.conversions', 'crane_msgs_py.diagnostics',
+    'crane_msgs_py.node_parameters', 'crane_msgs_py.qos', 'crane_msgs_py.runner',
+}
+#: ROS distributions' Python packages that are not named *_msgs, *_srvs or *_interfaces.
+ROS_PACKAGES = {'rclpy', 'rosidl_runtime_py', 'rosidl_parser', 'rpyutils', 'launch', 'launch_ros',
+                'ament_index_python', 'rosbag2_py', 'message_filters', 'tf2_ros'}
+
+
+def modules() -> dict[str, Path]:
+    """Dotted name -> file of every module of the three packages."""
+    found = {}
+    for pkg in PACKAGES:
+        base = ROOT / 'src' / pkg
+        for path in sorted((base / pkg).rglob('*.py')):
+            parts = path.relative_to(base).with_suffix('').parts
+            name = '.'.join(parts[:-1] if parts[-1] == '__init__' else parts)
+            found[name] = path
+    return found
+
+
+def allowed_ros(module: str) -> bool:
+    return module in ROS_MODULES or '.nodes.' in module
+
+
+def is_ros(imported: str) -> bool:
+    """Whether importing ``imported`` (dotted) brings in ROS."""
+    top = imported.split('.')[0]
+    if top in ROS_PACKAGES or top.endswith(('_msgs', '_srvs', '_interfaces')):
+        return True
+    return allowed_ros(imported) and top in PACKAGES
+
+
+def imports(module: str, path: Path) -> list[tuple[int, str]]:
+    """(line, dotted name) of every import in the file, relative ones resolved against ``module``."""
+    is_package = path.name == '__init__.py'
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, alias.name) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                parts = module.split('.')
+                keep = len(parts) - node.level + (1 if is_package else 0)
+                base = '.'.join(parts[:keep] + ([node.module] if node.module else []))
+            else:
+                base = node.module
+            # ``from pkg import name`` may name a submodule: check both
+            found += [(node.lineno, base)] + [(node.lineno, f'{base}.{a.name}') for a in node.names]
+    return found
+
+
+def violations(found: dict[str, Path]) -> list[str]:
+    return [f'{path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}:{line}: {module} imports {name}'
+            for module, path in found.items() if not allowed_ros(module)
+            for line, name in imports(module, path) if is_ros(name)]
+
+
+def test_only_nodes_ros_tools_and_msgs_adapters_import_ros():
+    found = modules()
+    assert len(found) > 40 and 'crane_planner.planning.planner' in found  # the walk sees the tree
+    assert violations(found) == []
+
+
+def test_every_allowed_ros_module_exists_and_nodes_are_in_nodes():
+    found = modules()
+    assert ROS_MODULES <= set(found)
+    node_files = {m for m, p in found.items() if 'Node)' in p.read_text() and 'class ' in p.read_text()}
+    assert node_files and all('.nodes.' in m for m in node_files), node_files
+
+
+@pytest.mark.parametrize('source, module', [
+    ('import rclpy\n', 'crane_planner.planning.fake'),
+    ('def f():\n    from nav_msgs.srv import GetPlan\n', 'crane_planner.streaming.fake'),
+    ('from crane_msgs_py.client import PlannerClient\n', 'crane_sim.fake'),
+    ('from ..tools import harness\n', 'crane_planner.planning.fake'),
+    ('from .harness import CraneHarness\n', 'crane_planner.tools.fake'),
+])
+def test_the_rule_flags_a_ros_import_in_a_core_module(tmp_path, source, module):
+    path = tmp_path / 'fake.py'
+    path.write_text(source)
+    assert len(violations({module: path})) >= 1
+
+
+def test_the_rule_lets_nodes_and_pure_imports_pass(tmp_path):
+    path = tmp_path / 'fake.py'
+    path.write_text('import numpy\nfrom crane_msgs_py.params import CraneParams\nfrom ..planning import Planner\n')
+    assert violations({'crane_planner.tools.fake': path}) == []
+    path.write_text('import rclpy\nfrom nav_msgs.srv import GetPlan\n')
+    assert violations({'crane_planner.nodes.fake': path}) == []
