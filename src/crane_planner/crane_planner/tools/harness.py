@@ -63,9 +63,9 @@ class CraneHarness:
         self.node = rclpy.create_node(node_name, namespace=namespace)
         group = ReentrantCallbackGroup()
         self.planner = PlannerClient(self.node, PLANNER_NODE, callback_group=group)
-        self._params = {target: AsyncParameterClient(self.node, node_name, callback_group=group)
-                        for target, node_name in (('planner', PLANNER_NODE), ('sim', SIM_NODE),
-                                                  ('streamer', STREAMER_NODE))}
+        self._params = {target: AsyncParameterClient(self.node, name, callback_group=group)
+                        for target, name in (('planner', PLANNER_NODE), ('sim', SIM_NODE),
+                                             ('streamer', STREAMER_NODE))}
         self._reset = self.node.create_client(Trigger, service_of(SIM_NODE, RESET_SERVICE), callback_group=group)
         self._lock = threading.Lock()
         self._slowest_plan = 0.0
@@ -108,13 +108,14 @@ class CraneHarness:
         return future.result()
 
     def sleep(self, seconds: float):
-        """Sleep while watching the nodes: a node that dies ends the demo at once."""
+        """Sleep while watching the nodes: a node that dies ends the sleep at once (NodeDied)."""
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
             self._nodes.check_alive()
             time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
 
     def wait_until_up(self, methods, timeout: float):
+        """Wait until every service, parameter client and joint_states is up and the planner has warmed up."""
         deadline = time.monotonic() + timeout
         waits = [(f'planner service plan/{m}', lambda m=m: self.planner.wait_for_service(m, 0.1)) for m in methods]
         waits += [(f'{target} parameters', lambda c=client: c.wait_for_services(0.1))
