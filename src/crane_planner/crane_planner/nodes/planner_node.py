@@ -32,8 +32,6 @@ from crane_msgs_py.runner import run
 from crane_planner.planning import (METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanError, Planner,
                                     PlanOptions, check_request)
 
-#: The diagnostic task of requests (status ``crane_planner: plan``).
-
 #: name -> (default, description, range descriptor fields). Ranges are the
 #: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by the
 #: node, which names the reason and reports it on /diagnostics.

@@ -129,33 +129,31 @@ class IndirectSolver(VariationalSolver):
         self.start = start
         self._tpbvps = {}
 
-    def _conditions(self, servo: bool) -> tuple[Tpbvp, Tpbvp, float]:
-        """(necessary conditions, their linearization, seconds it took to build them) of a model form."""
-        if servo not in self._tpbvps:
-            t0 = time.perf_counter()
-            problem = self.problem(servo)
-            self._tpbvps[servo] = (Tpbvp(problem), Tpbvp(problem, linearized=True), time.perf_counter() - t0)
-            return self._tpbvps[servo]
-        return (*self._tpbvps[servo][:2], 0.0)
-
     def _solve(self, displacement, duration, params, frac) -> BvpPlan:
         """Raises PlanError naming solve_bvp's status message if it fails."""
         method = self.method
-        tpbvp, linearized, build_time = self._conditions(params.tau > 0.0)
-        pb = tpbvp.problem
+        servo = params.tau > 0.0
+        built = servo not in self._tpbvps
         t0 = time.perf_counter()
-        if self.start is not None:
-            s, X, L = self.start.costates(displacement, duration, params, frac)
-            z = np.vstack([X, L])
-            t0 = time.perf_counter()
+        if built:  # the conditions and their linearization, the default start
+            problem = self.problem(servo)
+            self._tpbvps[servo] = (Tpbvp(problem), Tpbvp(problem, linearized=True))
+        build_time = time.perf_counter() - t0 if built else 0.0
+        tpbvp, linearized = self._tpbvps[servo]
+        pb = tpbvp.problem
         pvec = pb.parameters(displacement, duration, params, self.weights)
         x0, xT = pb.boundary(displacement)
         if self.start is None:
+            t0 = time.perf_counter()
             s = breakpoints(frac)
             lin = _solve(linearized, pvec, x0, xT, s, np.zeros((2 * pb.nx, s.size)), self.tol, self.max_nodes)
             if not lin.success:
                 raise PlanError(f'indirect {method}: the linearized TPBVP failed: {lin.message}')
             s, z = lin.x, lin.y
+        else:  # solve time counts from here: the direct solve is the start's, not ours
+            s, X, L = self.start.costates(displacement, duration, params, frac)
+            z = np.vstack([X, L])
+            t0 = time.perf_counter()
         sol = _solve(tpbvp, pvec, x0, xT, s, z, self.tol, self.max_nodes)
         elapsed = time.perf_counter() - t0
         if not sol.success:

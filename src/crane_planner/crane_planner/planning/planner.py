@@ -13,7 +13,7 @@ import numpy as np
 
 from crane_msgs_py.params import CraneParams, ParameterError, check_nonnegative, check_positive
 
-from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS, VARIATIONAL_METHODS  # noqa: F401 (re-exported)
+from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
 from .model import modal_frequencies
 from .plan import Plan, PlanError
 from .shaped import shaped_plan
