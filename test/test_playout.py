@@ -10,10 +10,13 @@ from crane_sim.simulator import SimulationError
 DT = 1e-3
 
 
-def play(playout, arrivals, steps, phase=0.37e-3):
-    """Feed samples (t, p, a) when the step clock passes their arrival time; return per-step (a0, a1)."""
+def play(playout, arrivals, steps, phase=0.37e-3, ticks=None):
+    """Feed samples (t, p, a) when the step clock passes their arrival time; return per-step (a0, a1).
+
+    The steps run at ``ticks`` (step indices, increasing; skipped ones as a late loop skips them), by default 0, 1, ...
+    """
     out, k = [], 0
-    for n in range(steps):
+    for n in range(steps) if ticks is None else ticks:
         t0 = n * DT + phase
         while k < len(arrivals) and arrivals[k][0] <= t0:
             playout.push(*arrivals[k][1])
@@ -24,6 +27,17 @@ def play(playout, arrivals, steps, phase=0.37e-3):
 
 def samples(a_of_t, n):
     return [(k * DT, 0.0, a_of_t(k * DT)) for k in range(n)]
+
+
+def integrate(a):
+    """Cart velocity and position from rest at 0 under per-step accelerations over DT.
+
+    ``a``: (n,) held over each step, or (n, 2) ramps from a[:, 0] to a[:, 1].
+    """
+    a = np.asarray(a, dtype=float)
+    a0, a1 = (a, a) if a.ndim == 1 else a.T
+    v = np.concatenate(([0.0], np.cumsum(a0 + a1) * DT / 2))
+    return v[-1], np.sum(v[:-1]) * DT + np.sum(a0 / 3 + a1 / 6) * DT * DT
 
 
 def test_each_sample_counts_once_however_late_and_bunched_it_arrives():
@@ -41,15 +55,87 @@ def test_each_sample_counts_once_however_late_and_bunched_it_arrives():
     assert np.all(a[:10, 0] == 0.0)  # nothing stamped before t - delay yet
 
 
-def test_on_arrival_playout_would_drift_where_the_buffer_does_not():
-    # the same hiccup with no delay: steps reuse a stale sample and skip the bunched ones
-    stamped = samples(lambda t: t, 100)  # a ramp: constant jerk 1
-    arrival = [max(k * DT, 0.05) if 30 <= k < 50 else k * DT for k in range(100)]  # 20 ms bunched
-    a0 = play(ReferencePlayout(delay=0.0, timeout=0.1), list(zip(arrival, stamped)), 100)[:, 0]
-    a10 = play(ReferencePlayout(delay=0.03, timeout=0.1), list(zip(arrival, stamped)), 130)[:, 0]
-    exact = sum(s[2] for s in stamped) * DT
-    assert abs(np.sum(a10) * DT - exact) < 1e-12
-    assert abs(np.sum(a0) * DT - exact) > 1e-5
+def on_time(stamped):
+    """Arrivals before the first step: the playout as it runs with every sample on time."""
+    return [(-math.inf, s) for s in stamped]
+
+
+def bump(n=100):
+    """A ramp (constant jerk 1) with 0 around it, so its integral is DT * sum for zoh and linear alike."""
+    return [(k * DT, 0.0, (k - 5) * DT if 5 <= k < 90 else 0.0) for k in range(n)]
+
+
+@pytest.mark.parametrize('interpolation', ['zoh', 'linear'])
+@pytest.mark.parametrize('delay', [0.0, 0.005])  # no buffer, and one too short for the hiccup
+def test_late_samples_leave_no_lasting_velocity_or_position_error(delay, interpolation):
+    # a 20 ms hiccup: samples 30..49 arrive together at 50 ms, after the steps that needed them
+    stamped = bump()
+    arrival = [max(k * DT, 0.05) if 30 <= k < 50 else k * DT for k in range(100)]
+    late = play(ReferencePlayout(delay, 0.1, interpolation), list(zip(arrival, stamped)), 150)
+    exact = play(ReferencePlayout(delay, 0.1, interpolation), on_time(stamped), 150)
+    assert integrate(exact)[0] == pytest.approx(sum(s[2] for s in stamped) * DT, abs=1e-15)  # the reference
+    assert not np.array_equal(late, exact)  # the steps in the hiccup did run without their samples
+    v, y = integrate(late)
+    v_exact, y_exact = integrate(exact)
+    assert abs(v - v_exact) < 1e-15 and abs(y - y_exact) < 1e-15
+    if interpolation == 'zoh' or delay >= 2 * DT:  # on time again after the hiccup: two steps make it up
+        assert not np.array_equal(late[50:52], exact[50:52]) and np.array_equal(late[52:], exact[52:])
+
+
+@pytest.mark.parametrize('interpolation', ['zoh', 'linear'])
+def test_samples_on_time_play_out_unchanged(interpolation):
+    # bit for bit what the buffer gives with every sample there from the start, whatever the latency within it
+    rng = np.random.default_rng(1)
+    stamped = [(k * DT, 0.0, a) for k, a in enumerate(rng.normal(size=300))]
+    arrival = np.arange(300) * DT + rng.uniform(0.0, 3e-3, 300)
+    runs = [play(ReferencePlayout(0.005, 0.05, interpolation), arrivals, 360)
+            for arrivals in (list(zip(arrival, stamped)), on_time(stamped))]
+    assert np.array_equal(*runs)
+    # each zoh step with no delay runs ahead of the samples, none of which turns out late
+    runs = [play(ReferencePlayout(0.0, 0.05), arrivals, 360) for arrivals in ([(s[0], s) for s in stamped],
+                                                                              on_time(stamped))]
+    assert np.array_equal(*runs)
+
+
+def test_what_a_timeout_declared_dead_is_not_made_up():
+    stamped = [(k * DT, 0.0, 1.0 if k == 0 else 2.0) for k in range(80)]
+    # sample 0 on time, 1..21 only at 21 ms: the stream timed out at 20 ms, what it missed stays missed
+    playout = ReferencePlayout(delay=0.0, timeout=0.02)
+    a = play(playout, [(max(s[0], 0.021) if s[0] > 0 else 0.0, s) for s in stamped], 80)[:, 0]
+    assert np.array_equal(a, [1.0] * 20 + [0.0] + [2.0] * 59) and playout.timeouts == 1
+    # the first samples of a stream, 0..30 ms, all more than the timeout late (at 60 ms): dead on arrival;
+    # it goes on, on time, at 61 ms
+    playout = ReferencePlayout(delay=0.0, timeout=0.02)
+    a = play(playout, [(max(s[0], 0.06), s) for s in stamped if not 0.03 < s[0] < 0.061], 80)[:, 0]
+    assert np.array_equal(a, [0.0] * 61 + [2.0] * 19) and playout.timeouts == 0
+    # 0 and 30..45 ms, the first of a stream, at 45 ms: as on time, but for sample 0, which timed out on time
+    # at 20 ms and came more than the timeout after that (the steps are final then)
+    stamped = [s for s in stamped if not 0.0 < s[0] < 0.03]
+    late = play(ReferencePlayout(0.0, 0.02), [(max(s[0], 0.045), s) for s in stamped], 100)[:, 0]
+    without_0 = play(ReferencePlayout(0.0, 0.02), on_time(stamped[1:]), 100)[:, 0]
+    assert np.array_equal(late[:45], np.zeros(45)) and not np.array_equal(late, without_0)
+    (v, y), (v_exact, y_exact) = integrate(late), integrate(without_0)
+    assert abs(v - v_exact) < 1e-15 and abs(y - y_exact) < 1e-15
+
+
+@pytest.mark.parametrize('seed', range(24))
+def test_random_arrivals_end_with_the_on_time_velocity_and_position(seed):
+    rng = np.random.default_rng(seed)
+    interpolation = ('zoh', 'linear')[seed % 2]
+    delay, timeout, phase = rng.choice([0.0, 1e-3, 2.5e-3, 6e-3]), 0.05, rng.uniform(0.0, DT)
+    n = 400
+    stamped = [(k * DT, 0.0, a) for k, a in enumerate(np.cumsum(rng.normal(size=n)) * 0.3)]
+    # latency, and hiccups holding back everything up to their end; in order, within the timeout
+    arrival = np.arange(n) * DT + rng.exponential(rng.choice([0.3e-3, 2e-3, 5e-3]), n)
+    for start in rng.uniform(0.0, n * DT, rng.integers(1, 6)):
+        arrival[np.abs(arrival - start - 0.01) < 0.01] = start + 0.02 + rng.uniform(0.0, 0.01)
+    arrival = np.minimum(np.maximum.accumulate(arrival), np.arange(n) * DT + 0.04)
+    ticks = np.cumsum(1 + (rng.uniform(size=n + 100) < 0.02) * rng.integers(1, 4, n + 100)) - 1  # some skipped
+    runs = [play(ReferencePlayout(delay, timeout, interpolation), arrivals, 0, phase, ticks)
+            for arrivals in (list(zip(arrival, stamped)), on_time(stamped))]
+    assert not np.array_equal(*runs)  # some samples were late
+    (v, y), (v_exact, y_exact) = integrate(runs[0]), integrate(runs[1])
+    assert abs(v - v_exact) < 1e-12 * max(1.0, abs(v_exact)) and abs(y - y_exact) < 1e-12 * max(1.0, abs(y_exact))
 
 
 def test_linear_interpolates_between_bracketing_samples():
@@ -66,12 +152,6 @@ def test_positions_give_second_differences():
     playout = ReferencePlayout(delay=0.0, timeout=0.1, source='position')
     a = play(playout, [(s[0], s) for s in stamped], 30, phase=0.0)
     assert a[0, 0] == 0.0 and np.allclose(a[2:, 0], 3.0)
-
-
-def integrate(a):
-    """Cart velocity and position under per-step constant accelerations a (zoh over DT), from rest at 0."""
-    v = np.concatenate(([0.0], np.cumsum(a) * DT))
-    return v[-1], np.sum(v[:-1]) * DT + np.sum(a) * DT * DT / 2
 
 
 @pytest.mark.parametrize('interpolation', ['zoh', 'linear'])

@@ -14,19 +14,32 @@ Per step ``[t0, t1]`` the acceleration is the newest stamped <= t0 - delay
 t1 - delay (``linear``). Without a sample newer than ``timeout`` the
 acceleration falls back to 0 (the stream stopped: never hold an acceleration).
 
+An acceleration sample later than that comes after steps that needed it and
+held an older one instead. Nothing would ever make up their deficit: the
+reference velocity and position would stay off for good. So once it is
+known, those steps are worked out again as they would have run with it on
+time, and the difference (on time minus applied, the reference velocity e_v
+and position e_p now) is corrected deadbeat: each of the next two steps gets
+c = e_p / h^2 + 1.5 e_v / h added to both ends of its ramp, which zeroes both
+errors on the plant's even grid of steps h. A step is final once a sample
+stamped at or after its last playout time is known. A timeout declares the
+stream dead: steps that fell back to 0 or are older than ``timeout``, and
+samples arriving more than ``timeout`` behind the playout, are not made up.
+With every sample on time the output is the same, bit for bit.
+
 With ``source='position'`` (a controller that only gets positions) the
 positions are played out the same way and the step's acceleration is the
 second difference of the played-out position over the plant's own last
 steps. On the plant's even grid these sum exactly: the reference velocity is
 always the last step's position difference over h, so the cart ends at rest
 at the last position whatever the stamps' spacing (gaps, a re-anchored
-grid). Second differences of the samples themselves held over the next,
-different interval would leave a velocity error for good. Without a fresh
-sample the last position holds, as an axis holds its last setpoint, and the
-acceleration falls to 0 by itself. On an even grid of samples aligned with
-the steps both forms are the same: the second difference around the
-previous sample, applied from the newest one on. Times are seconds on any
-common clock. Pure Python, no ROS import.
+grid) or the samples' lateness. Second differences of the samples themselves
+held over the next, different interval would leave a velocity error for
+good. Without a fresh sample the last position holds, as an axis holds its
+last setpoint, and the acceleration falls to 0 by itself. On an even grid of
+samples aligned with the steps both forms are the same: the second
+difference around the previous sample, applied from the newest one on.
+Times are seconds on any common clock. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
@@ -36,6 +49,12 @@ from collections import deque
 from crane_msgs_py.params import check_choice
 
 from .simulator import INTERPOLATIONS, SOURCES, SimulationError
+
+
+def _interpolate(before: tuple, after: tuple, tau: float) -> float:
+    """The value at ``tau`` on the line through the samples (t, value) ``before`` and ``after``."""
+    (t0, a0), (t1, a1) = before, after
+    return a0 + (a1 - a0) * (tau - t0) / (t1 - t0)
 
 
 class ReferencePlayout:
@@ -61,12 +80,18 @@ class ReferencePlayout:
         self.reset()
 
     def reset(self):
-        """Forget every sample (the next position sample starts a motion from rest)."""
+        """Forget every sample (the next position sample starts a motion from rest), and any error to make up."""
         self._queue: deque = deque()   # (t, value) not yet reached by the playout time
         self._last = -math.inf         # stamp of the last sample pushed
         self._current = None           # (t, value): the newest sample at or before the playout time
         self._live = False             # whether _current is recent enough to count
         self._played: list[float] = []  # position source: positions played out at the last two steps
+        # acceleration source, samples later than the delay:
+        # (end, h, tau0, tau1) of the last steps, which a later sample could still change: plant time (s) at
+        # the step's end counted over them, its length (s), its first and last playout times (s)
+        self._pending: deque = deque()
+        self._ev = self._ep = 0.0       # reference velocity (m/s), position (m) still to make up: on time - applied
+        self._settling = 0              # steps of the deadbeat correction of _ev, _ep still to come: 2 or less
 
     def push(self, t: float, position: float, acceleration: float):
         """A sample stamped ``t`` (after the previous one's stamp)."""
@@ -90,19 +115,100 @@ class ReferencePlayout:
         if self._current is None or not (self._live or self.source == 'position'):
             return 0.0
         t0, a0 = self._current
-        if self.interpolation == 'linear' and self._queue:
+        if self.interpolation == 'linear' and self._queue:  # _interpolate, inline: this runs twice a step
             t1, a1 = self._queue[0]
             return a0 + (a1 - a0) * (tau - t0) / (t1 - t0)
         return a0
 
     def step(self, t0: float, t1: float) -> tuple[float, float]:
-        """Reference acceleration at the beginning and the end of the plant step [t0, t1]."""
+        """Reference acceleration at the beginning and the end of the plant step [t0, t1] (with any correction)."""
         if self.source == 'position':
             return (self._position_step(t0, t1),) * 2
-        a0 = self._at(t0 - self.delay)
+        tau0 = t0 - self.delay
+        if self._pending:  # steps ran ahead of the samples: make up what the new ones change
+            self._revise(tau0)
+        a0 = self._at(tau0)
         if self.interpolation == 'zoh':
-            return a0, a0
-        return a0, self._at(t1 - self.delay)
+            a1, tau1 = a0, tau0
+        else:
+            tau1 = t1 - self.delay
+            a1 = self._at(tau1)
+        if tau1 > self._last and (self._live or self._current is None):  # ahead of the samples, live or before any
+            pending, h = self._pending, t1 - t0
+            pending.append(((pending[-1][0] if pending else 0.0) + h, h, tau0, tau1))
+        elif self._pending:  # final (behind the samples, or timed out: the stream is dead), so are those before
+            self._pending.clear()
+        if self._settling:
+            return self._correct(t1 - t0, a0, a1)
+        return a0, a1
+
+    def _revise(self, now: float):
+        """Add to the errors what the samples pushed since the last step change in the pending steps.
+
+        ``now`` is this step's playout time (s). The pending steps are the
+        last ones, in a row. At playout times after the newest sample known
+        so far (stamped t_prev) they held its value (0 before any), and are
+        accounted so; their values at earlier ones are final. The errors are
+        as of the end of the last step (the start of this one); ``end``
+        counts plant time over the pending steps, which the playout times do
+        not when the caller skips steps.
+        """
+        pending, queue, timeout = self._pending, self._queue, self.timeout
+        if queue:  # the new samples: the last step played every older one
+            if now - queue[-1][0] > timeout:  # too late: the stream is dead now, and so are they
+                pending.clear()
+                return
+            prev, linear = self._current, self.interpolation == 'linear'
+            t_prev, held = prev if prev else (-math.inf, 0.0)
+            samples = [prev, *queue] if prev else list(queue)
+            n, t_new, now_end = len(samples), queue[-1][0], pending[-1][0]
+            j = 0  # samples[:j] are stamped at or before the playout time in hand
+
+            def change(tau: float) -> float:
+                """The value at ``tau`` with every sample now known (as on time) minus the value accounted for."""
+                nonlocal j
+                if not tau > t_prev:
+                    return 0.0  # final when played
+                while j < n and samples[j][0] <= tau:
+                    j += 1
+                if j == 0 or tau - samples[j - 1][0] > timeout:
+                    return -held
+                if linear and j < n:
+                    return _interpolate(samples[j - 1], samples[j], tau) - held
+                return samples[j - 1][1] - held
+
+            ev = ep = 0.0
+            k = 0
+            for end, h, tau0, tau1 in pending:  # up to the newest sample, step by step
+                if tau0 > t_new:
+                    break
+                d0 = change(tau0)
+                d1 = change(tau1) if linear else d0
+                dv = h * (d0 + d1) / 2  # the difference ramps d0 -> d1 over the step
+                ev += dv
+                ep += dv * (now_end - end) + h * h * (d0 / 3 + d1 / 6)
+                k += 1
+            if k < len(pending):  # the steps after the newest sample, which now holds (live: not dead on arrival)
+                d, span = queue[-1][1] - held, now_end - (pending[k][0] - pending[k][1])  # from the first one's start
+                ev += d * span
+                ep += d * span * span / 2
+            while pending and pending[0][3] <= t_new:
+                pending.popleft()
+            if ev or ep:
+                self._ev += ev
+                self._ep += ep
+                self._settling = 2
+        oldest = now - timeout  # final: bounds the memory before any sample (after one, the timeout comes first)
+        while pending and pending[0][3] < oldest:
+            pending.popleft()
+
+    def _correct(self, h: float, a0: float, a1: float) -> tuple[float, float]:
+        """The step's ramp plus the deadbeat correction of the errors; ``h`` is its length (s)."""
+        ev, ep = self._ev, self._ep
+        c = ep / (h * h) + 1.5 * ev / h  # (m/s^2): two equal steps with it, their own c each, end both at 0
+        self._settling -= 1  # after two, what is left is rounding: it goes with the next correction
+        self._ev, self._ep = ev - c * h, ep + ev * h - c * h * h / 2
+        return a0 + c, a1 + c
 
     def _position_step(self, t0: float, t1: float) -> float:
         """Backward second difference of the positions played out at this and the last two steps."""
