@@ -8,6 +8,7 @@ per request; ``DirectSolver`` solves it with warm starts and returns a
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -65,6 +66,9 @@ class CollocationPlan(Plan):
     coef: np.ndarray = field(default=None, repr=False)
     start: np.ndarray = field(default=None, repr=False)
 
+    def breakpoints(self) -> np.ndarray:
+        return np.asarray(self.mesh, dtype=float)
+
     def _evaluate(self, t):
         k = np.clip(np.searchsorted(self.mesh, t, side='right') - 1, 0, len(self.mesh) - 2)
         h = self.mesh[k + 1] - self.mesh[k]
@@ -96,7 +100,7 @@ class Transcription:
 
     degree = 4
 
-    def __init__(self, problem: Problem, intervals: int, limits: bool, options: dict):
+    def __init__(self, problem: Problem, intervals: int, limits: bool):
         t0 = time.perf_counter()
         self.problem, self.intervals, self.limits = problem, intervals, limits
         nx, N, d = problem.nx, intervals, self.degree
@@ -133,12 +137,34 @@ class Transcription:
                 ba.append(ca.mtimes(to_ba, coef))
             g += [ca.vertcat(*bv), ca.vertcat(*ba)]
         self.nlp = {'x': w, 'p': P, 'f': J, 'g': ca.vertcat(*g)}
-        self.solver = ca.nlpsol('variational', 'ipopt', self.nlp, options)
         self.ng = self.nlp['g'].shape[0]
         self.nres = nx * N * d
         self.nw = w.shape[0]
-        self.warm = None
+        self._derivatives = None
+        self._lock = threading.Lock()
         self.build_time = time.perf_counter() - t0
+
+    def nlpsol(self, options: dict) -> ca.Function:
+        """A new IPOPT instance of this NLP with ``options``.
+
+        The first one generates the NLP's derivatives (most of a solver's
+        build time: 0.3 s for NVF, 0.8 s for RVF); later ones reuse them and
+        cost about 15 ms. Instances share only those functions, which each
+        instance calls with its own work arrays, so instances solve side by
+        side in different threads; one instance keeps per-call state and must
+        serve one call at a time.
+        """
+        options = dict(options, no_nlp_grad=True, calc_lam_p=False)  # the multipliers of p are never used
+        with self._lock:
+            if self._derivatives is None:
+                t0 = time.perf_counter()
+                solver = ca.nlpsol('variational', 'ipopt', self.nlp, options)
+                self._derivatives = {'grad_f': solver.get_function('nlp_grad_f'),
+                                     'jac_g': solver.get_function('nlp_jac_g'),
+                                     'hess_lag': solver.get_function('nlp_hess_l')}
+                self.build_time += time.perf_counter() - t0
+                return solver
+        return ca.nlpsol('variational', 'ipopt', self.nlp, dict(options, **self._derivatives))
 
     # views of the variable vector
     def states(self, w: np.ndarray) -> np.ndarray:
@@ -159,17 +185,16 @@ class Transcription:
         s = (breakpoints(frac)[:-1, None] + np.outer(frac, self.tau_nodes[1:])).ravel()
         return np.concatenate([[0.0], s])
 
-    def costate_estimate(self, frac: np.ndarray):
-        """(s, X, Lambda) of the last solution: scaled states and costates at every node.
+    def costate_estimate(self, frac: np.ndarray, solution: dict):
+        """(s, X, Lambda) of ``solution`` (x0 and lam_g0 of a warm start): scaled states and costates at every node.
 
         Stationarity of the NLP Lagrangian in the input at collocation point
         (k, j) reads h B_j G_u - h mu_kj^T F_u = 0, the discrete form of
         dH/du = G_u + lambda^T F_u = 0, so lambda(t_kj) ~ -mu_kj / B_j. The
         node s = 0 takes the costate of the first collocation point.
         """
-        _, start = self.warm
-        w = np.array(start['x0']).ravel()
-        mu = np.array(start['lam_g0']).ravel()[:self.nres].reshape(-1, self.problem.nx).T
+        w = np.array(solution['x0']).ravel()
+        mu = np.array(solution['lam_g0']).ravel()[:self.nres].reshape(-1, self.problem.nx).T
         lam = -mu / np.tile(self.B[1:], self.intervals)
         return self.node_times(frac), self.states(w), np.hstack([lam[:, :1], lam])
 
@@ -180,21 +205,36 @@ class Transcription:
         return np.concatenate([X[:, 0], body.T.ravel()])
 
 
+@dataclass
+class _Instance:
+    """One IPOPT instance of a transcription and the warm start it keeps (the last solution)."""
+
+    transcription: Transcription
+    solver: ca.Function
+    warm: tuple | None = None  # (sign of D, x0 / lam_x0 / lam_g0 of the solution)
+
+
 class DirectSolver(VariationalSolver):
     """NVF or RVF by Radau collocation + IPOPT; thread-safe.
 
     The NLP of each model form (ideal tracking, tau = 0; servo, tau > 0) is
     built on first use and kept; requests differ only in NLP parameters and
-    bounds, and each solve is warm-started from the last solution of the
-    same form. Reference velocity and acceleration are bounded as path
-    constraints (axis limits).
+    bounds, and each solve is warm-started from this solver's last solution
+    of the same form. Reference velocity and acceleration are bounded as
+    path constraints (axis limits). ``spawn`` makes more solvers that share
+    the built NLPs, to solve side by side (``pool.SolverPool``).
     """
 
     route = 'direct'
-    #: IPOPT iteration cap and wall-time cap (s) per attempt; a solve that needs more is
-    #: reported as not converged (a service should answer, even with an error).
-    max_iter = 200
+    #: IPOPT iteration cap: high, so that time is what bounds a solve.
+    max_iter = 3000
+    #: IPOPT's wall-time cap (s) per attempt when the options set no ``max_solve_time``.
     max_wall_time = 10.0
+    #: With a ``max_solve_time``, a further attempt (a cold start after a failed warm
+    #: one, the probes that name an infeasible limit) only starts within this long (s)
+    #: of the first: each attempt may use the whole budget, so the solve ends within
+    #: ``max_solve_time`` + ``retry_window``.
+    retry_window = 0.1
     #: IPOPT's tolerance on the NLP error (the variables are O(1), see ``problem``),
     #: and the level accepted after two iterations that stall above it on rounding noise
     #: (the servo's 1/tau makes the KKT system stiff for small tau).
@@ -203,25 +243,55 @@ class DirectSolver(VariationalSolver):
 
     def __init__(self, method: str, options, **overrides):
         super().__init__(method, options, **overrides)
-        self._transcriptions = {}
+        self._transcriptions = {}  # servo -> Transcription, shared with spawned solvers
+        self._transcriptions_lock = threading.Lock()
+        self._instances = {}  # servo -> _Instance, this solver's own
+
+    def spawn(self, options=None) -> 'DirectSolver':
+        """Another solver like this one (for ``options``, default this one's).
+
+        If the options keep the NLP's structure (``VariationalSolver.structure``:
+        limit values and the time budget may differ) it shares this solver's
+        transcriptions and their derivatives: it costs about 15 ms per model form
+        instead of a build, keeps its own IPOPT instances and warm starts, and
+        solves side by side with this one.
+        """
+        other = super().spawn(options)
+        if other.structure == self.structure:
+            other._transcriptions, other._transcriptions_lock = self._transcriptions, self._transcriptions_lock
+        return other
 
     def transcription(self, servo: bool) -> Transcription:
-        if servo not in self._transcriptions:
-            opts = {'print_time': False, 'ipopt.print_level': 0, 'ipopt.sb': 'yes',
-                    'ipopt.tol': self.tol, 'ipopt.max_iter': self.max_iter,
-                    'ipopt.acceptable_tol': self.acceptable_tol, 'ipopt.acceptable_iter': 2,
-                    'ipopt.max_wall_time': self.max_wall_time,
-                    'ipopt.nlp_scaling_method': 'none',  # scaled by construction
-                    'ipopt.warm_start_init_point': 'yes',
-                    # MUMPS analyses the KKT matrix on every solve; on these banded,
-                    # well-scaled systems QAMD ordering without scaling does it fastest
-                    'ipopt.mumps_pivot_order': 6, 'ipopt.mumps_scaling': 0,
-                    'ipopt.mumps_permuting_scaling': 0}
-            if self.has_limits:
-                opts.update({'ipopt.warm_start_bound_push': 1e-8, 'ipopt.warm_start_mult_bound_push': 1e-8})
-            self._transcriptions[servo] = Transcription(self.problem(servo), self.intervals,
-                                                        self.has_limits, opts)
-        return self._transcriptions[servo]
+        """The NLP of one model form, built on first use, shared with spawned solvers."""
+        with self._transcriptions_lock:
+            tr = self._transcriptions.get(servo)
+            if tr is None:
+                tr = self._transcriptions[servo] = Transcription(self.problem(servo), self.intervals,
+                                                                 self.has_limits)
+        return tr
+
+    def _instance(self, servo: bool) -> _Instance:
+        inst = self._instances.get(servo)
+        if inst is None:
+            tr = self.transcription(servo)
+            inst = self._instances[servo] = _Instance(tr, tr.nlpsol(self._ipopt_options()))
+        return inst
+
+    def _ipopt_options(self) -> dict:
+        budget = self.max_wall_time if self.max_solve_time is None else self.max_solve_time
+        opts = {'print_time': False, 'ipopt.print_level': 0, 'ipopt.sb': 'yes',
+                'ipopt.tol': self.tol, 'ipopt.max_iter': self.max_iter,
+                'ipopt.acceptable_tol': self.acceptable_tol, 'ipopt.acceptable_iter': 2,
+                'ipopt.max_wall_time': budget,
+                'ipopt.nlp_scaling_method': 'none',  # scaled by construction
+                'ipopt.warm_start_init_point': 'yes',
+                # MUMPS analyses the KKT matrix on every solve; on these banded,
+                # well-scaled systems QAMD ordering without scaling does it fastest
+                'ipopt.mumps_pivot_order': 6, 'ipopt.mumps_scaling': 0,
+                'ipopt.mumps_permuting_scaling': 0}
+        if self.has_limits:
+            opts.update({'ipopt.warm_start_bound_push': 1e-8, 'ipopt.warm_start_mult_bound_push': 1e-8})
+        return opts
 
     def costates(self, displacement: float, duration: float, params: CraneParams, frac: np.ndarray):
         """Solve on the mesh ``frac`` and return the costate estimate (``Transcription.costate_estimate``).
@@ -230,7 +300,12 @@ class DirectSolver(VariationalSolver):
         """
         with self._lock:
             self._solve(displacement, duration, params, frac)
-            return self.transcription(params.tau > 0.0).costate_estimate(frac)
+            inst = self._instances[params.tau > 0.0]
+            return inst.transcription.costate_estimate(frac, inst.warm[1])
+
+    def _may_retry(self, t0: float) -> bool:
+        """Whether a further attempt may start, the first having started at ``t0`` (see ``retry_window``)."""
+        return self.max_solve_time is None or time.perf_counter() - t0 <= self.retry_window
 
     def _bounds(self, tr: Transcription, displacement: float, sx: np.ndarray, limits) -> dict:
         pb = tr.problem
@@ -253,8 +328,10 @@ class DirectSolver(VariationalSolver):
 
     def _solve(self, displacement, duration, params, frac):
         servo = params.tau > 0.0
-        built = servo not in self._transcriptions
-        tr = self.transcription(servo)
+        t_build, built = time.perf_counter(), servo not in self._instances
+        inst = self._instance(servo)
+        build_time = time.perf_counter() - t_build if built else 0.0
+        tr, solver = inst.transcription, inst.solver
         pb = tr.problem
         pvec = np.concatenate([pb.parameters(displacement, duration, params, self.weights), frac])
         sx, su = pb.scales(pvec[:len(PROBLEM_PARAMETERS)])
@@ -262,30 +339,31 @@ class DirectSolver(VariationalSolver):
         args = dict(p=pvec, **self._bounds(tr, displacement, sx, (self.max_velocity, self.max_acceleration)))
         t0 = time.perf_counter()
         cold = dict(x0=tr.guess(displacement, frac))
-        starts = ([self._warm_start(tr, displacement)] if tr.warm is not None else []) + [cold]
-        for start in starts:
-            sol = tr.solver(**args, **start)
-            stats = tr.solver.stats()
+        starts = ([self._warm_start(inst.warm, displacement)] if inst.warm is not None else []) + [cold]
+        for k, start in enumerate(starts):
+            if k and not self._may_retry(t0):
+                break
+            sol = solver(**args, **start)
+            stats = solver.stats()
             if stats['success'] or stats['return_status'] == 'Maximum_WallTime_Exceeded':
                 break
         solve_time = time.perf_counter() - t0
-        status = stats['return_status']
         if not stats['success']:
-            raise PlanError(self._failure_message(status, tr, displacement, duration, pvec, sx, cold))
-        tr.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
+            raise PlanError(self._failure_message(stats, solver, tr, displacement, duration, pvec, sx, cold, t0))
+        inst.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
         N = tr.intervals
         nodes = tr.interval_nodes(np.array(sol['x']).ravel()) * sx  # (N, d+1, nx), SI units
         pos, vel, acc = pb.reference({n: nodes[:, :, i] for i, n in enumerate(pb.states)}, params.tau)
         mesh = duration * breakpoints(frac)
-        info = {'solver': 'direct', 'status': status, 'iterations': int(stats['iter_count']),
-                'solve_time_s': solve_time, 'build_time_s': tr.build_time if built else 0.0,
+        info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),
+                'solve_time_s': solve_time, 'build_time_s': build_time,
                 'objective': float(sol['f']) * duration * su ** 2, 'intervals': N,
                 'robust': list(self.robust), 'sensitivities': list(pb.robust), 'servo_model': servo}
         return CollocationPlan(self.method, float(displacement), float(duration), info,
                                mesh=mesh, coef=acc @ tr.basis, start=np.stack([pos[:, 0], vel[:, 0]], axis=1))
 
     @staticmethod
-    def _warm_start(tr: Transcription, displacement: float) -> dict:
+    def _warm_start(warm: tuple, displacement: float) -> dict:
         """The last solution, mirrored if D changed sign.
 
         The crane is odd-symmetric (f(-x, -u) = -f(x, u), the cost is even),
@@ -293,13 +371,20 @@ class DirectSolver(VariationalSolver):
         scaled variables a request of the other sign is then as warm as one
         of the same sign.
         """
-        sign, start = tr.warm
+        sign, start = warm
         if sign == math.copysign(1.0, displacement):
             return start
         return {k: -v for k, v in start.items()}
 
-    def _failure_message(self, status, tr, displacement, duration, pvec, sx, cold) -> str:
+    def _failure_message(self, stats, solver, tr, displacement, duration, pvec, sx, cold, t0) -> str:
         where = f'D={displacement:g} m, T={duration:g} s'
+        status = stats['return_status']
+        if status == 'Maximum_WallTime_Exceeded':
+            cap = (f'max_solve_time {self.max_solve_time:g} s' if self.max_solve_time is not None
+                   else f"the solver's time cap {self.max_wall_time:g} s")
+            return (f'{self.method}: no plan for {where} within {cap} (IPOPT stopped after '
+                    f'{stats["iter_count"]} iterations); lengthen the duration, shorten the move '
+                    'or raise max_solve_time')
         if not self.has_limits:
             return f'{self.method} solver did not converge for {where} (IPOPT status {status})'
         # Name the limit: the ones that fail on their own, else the pair.
@@ -308,8 +393,10 @@ class DirectSolver(VariationalSolver):
         failing = []
         if len(present) == 2:
             for name, values in limits.items():
-                tr.solver(p=pvec, **self._bounds(tr, displacement, sx, values), **cold)
-                if not tr.solver.stats()['success']:
+                if not self._may_retry(t0):
+                    break
+                solver(p=pvec, **self._bounds(tr, displacement, sx, values), **cold)
+                if not solver.stats()['success']:
                     failing.append(name)
         culprits = failing or present
         named = ' and '.join(f'{n} {getattr(self, n):g}' for n in culprits)

@@ -97,6 +97,9 @@ class BvpPlan(Plan):
     pvec: np.ndarray = field(default=None, repr=False)
     tau: float = 0.0
 
+    def breakpoints(self) -> np.ndarray:
+        return self.solution.x * self.duration  # the cubic interpolant's knots
+
     def _evaluate(self, t):
         pb = self.tpbvp.problem
         sx, su = (np.asarray(v, dtype=float) for v in pb.scales(self.pvec))
@@ -117,6 +120,7 @@ class IndirectSolver(VariationalSolver):
 
     route = 'indirect'
     handles_limits = False
+    handles_time_budget = False  # scipy's solve_bvp has no time limit
     #: solve_bvp's relative residual tolerance; 1e-4 already agrees with a fine direct
     #: solution to 1e-8 m in position, 1e-5 leaves a margin.
     tol = 1e-5
@@ -128,6 +132,12 @@ class IndirectSolver(VariationalSolver):
         super().__init__(method, options, **overrides)
         self.start = start
         self._tpbvps = {}
+
+    def spawn(self, options=None) -> 'IndirectSolver':
+        """Another indirect solver (nothing shared but a spawn of the start)."""
+        return IndirectSolver(self.method, options or self.options,
+                              start=self.start.spawn(options) if self.start is not None else None,
+                              **self.overrides)
 
     def _solve(self, displacement, duration, params, frac) -> BvpPlan:
         """Raises PlanError naming solve_bvp's status message if it fails."""

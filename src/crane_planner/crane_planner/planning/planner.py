@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -16,6 +16,7 @@ from crane_msgs_py.params import CraneParams, ParameterError, check_nonnegative,
 from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
 from .model import modal_frequencies
 from .plan import Plan, PlanError
+from .pool import SolverPool
 from .shaped import shaped_plan
 
 
@@ -33,6 +34,9 @@ class PlanOptions:
             (the paper's TPBVP, scipy solve_bvp).
         max_velocity: axis limit |v| (m/s), None = no limit.
         max_acceleration: axis limit |a_ref| (m/s^2), None = no limit.
+        max_solve_time: budget (s) of one NVF/RVF solve, > 0: a request not
+            solved within it is refused (direct route only); None = the
+            route's own cap.
     """
 
     omega: tuple[float, ...] | None = None
@@ -42,6 +46,7 @@ class PlanOptions:
     solver: str = 'direct'
     max_velocity: float | None = None
     max_acceleration: float | None = None
+    max_solve_time: float | None = None
 
     def __post_init__(self):
         if self.omega is not None:
@@ -67,7 +72,7 @@ class PlanOptions:
             object.__setattr__(self, 'intervals', int(self.intervals))
         if self.solver not in ('direct', 'indirect'):
             raise ParameterError(f"solver must be 'direct' or 'indirect', got {self.solver!r}")
-        for name in ('max_velocity', 'max_acceleration'):
+        for name in ('max_velocity', 'max_acceleration', 'max_solve_time'):
             v = getattr(self, name)
             if v is not None:
                 object.__setattr__(self, name, check_positive(name, v))
@@ -113,18 +118,42 @@ def check_axis_limits(plan: Plan, options: PlanOptions) -> None:
                             'lengthen the duration or raise the limit')
 
 
-@dataclass
 class Planner:
-    """Makes plans of every method; thread-safe.
+    """Makes plans of every method; thread-safe, and concurrent requests run side by side.
 
-    Variational solvers are expensive to build, so one is kept per
-    (method, intervals, robust set, limits, route) and reused; each has its
-    own lock, so requests for different methods run concurrently. The
-    options' ``solver`` picks the route (``variational_solver``).
+    Variational solvers are expensive to build, so they are kept per
+    (route, method, intervals, robust set, limits, time budget) in a
+    ``pool.SolverPool`` of up to ``pool_size`` instances: a request takes an
+    idle one, so requests (for the same method too) never queue behind each
+    other. Instances beyond the first are spawned from one already built for
+    the same NLP structure (``VariationalSolver.spawn``), which costs
+    milliseconds. The options' ``solver`` picks the route.
+
+    Args:
+        pool_size: most solver instances per key, >= 1 (settable).
+        pool_wait: longest wait (s) for an instance when all are busy, after
+            which the request is refused naming ``solver_pool_size``.
     """
 
-    _variational: dict = field(default_factory=dict, init=False, repr=False)
-    _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
+    def __init__(self, pool_size: int = 4, pool_wait: float = 0.2):
+        self.pool_wait = pool_wait
+        self._pools: dict = {}  # VariationalSolver.key -> SolverPool
+        self._seeds: dict = {}  # VariationalSolver.structure_of -> the first solver built for it
+        self._lock = threading.Lock()
+        self.pool_size = pool_size
+
+    @property
+    def pool_size(self) -> int:
+        return self._pool_size
+
+    @pool_size.setter
+    def pool_size(self, size: int):
+        if int(size) != size or size < 1:
+            raise ParameterError(f'solver_pool_size must be an integer >= 1, got {size}')
+        with self._lock:
+            self._pool_size = int(size)
+            for pool in self._pools.values():
+                pool.size = self._pool_size
 
     def plan(self, method: str, displacement: float, duration: float,
              params: CraneParams | None = None, options: PlanOptions | None = None) -> Plan:
@@ -142,15 +171,30 @@ class Planner:
             check_axis_limits(plan, options)
             return plan
         # the variational solvers bound v and a_ref everywhere as path constraints
-        return self._variational_solver(method, options).solve(displacement, duration, params)
+        with self._pool(method, options).lend(self.pool_wait) as solver:
+            return solver.solve(displacement, duration, params)
 
-    def _variational_solver(self, method: str, options: PlanOptions):
+    def _pool(self, method: str, options: PlanOptions):
         from .variational import VariationalSolver
         key = VariationalSolver.key(method, options)
         with self._lock:
-            solver = self._variational.get(key)
-            if solver is None:
-                solver = self._variational[key] = variational_solver(method, options)
+            pool = self._pools.get(key)
+            if pool is None:
+                pool = self._pools[key] = SolverPool(lambda: self._new_solver(method, options),
+                                                     self._pool_size, method)
+        return pool
+
+    def _new_solver(self, method: str, options: PlanOptions):
+        """A spawn of the first solver of the same structure, or (the first) a new one."""
+        from .variational import VariationalSolver
+        structure = VariationalSolver.structure_of(method, options)
+        with self._lock:
+            seed = self._seeds.get(structure)
+        if seed is not None:
+            return seed.spawn(options)
+        solver = variational_solver(method, options)
+        with self._lock:
+            self._seeds.setdefault(structure, solver)
         return solver
 
 

@@ -28,6 +28,8 @@ class VariationalSolver:
     route = ''
     #: Whether the route bounds reference velocity and acceleration (axis limits).
     handles_limits = True
+    #: Whether the route can stop a solve at ``max_solve_time``.
+    handles_time_budget = True
     #: Collocation intervals when PlanOptions.intervals is None.
     default_intervals = 30
     weights = Weights()
@@ -41,20 +43,39 @@ class VariationalSolver:
             if name.startswith('_') or not hasattr(type(self), name):
                 raise TypeError(f'unknown {type(self).__name__} setting {name!r}')
             setattr(self, name, value)
-        self.method = method
+        self.method, self.options, self.overrides = method, options, overrides
         self.intervals = options.intervals or self.default_intervals
         self.robust = tuple(options.robust) if method == 'rvf' else ()
         self.max_velocity = options.max_velocity
         self.max_acceleration = options.max_acceleration
+        #: the budget (s) of one solve, None = the route's own cap
+        self.max_solve_time = options.max_solve_time
         self._problems = {}
         self._lock = threading.Lock()
 
     @staticmethod
     def key(method: str, options) -> tuple:
-        """Everything that makes two solvers differ: the route, the NLP structure and the limit values."""
-        return (method, options.intervals or VariationalSolver.default_intervals,
+        """Everything that makes two solvers differ: the NLP structure, the limit values and the time budget."""
+        return (*VariationalSolver.structure_of(method, options), options.max_velocity, options.max_acceleration,
+                options.max_solve_time)
+
+    @staticmethod
+    def structure_of(method: str, options) -> tuple:
+        """What a solver builds depends on: the route, the method, intervals, robust set, whether limits are set."""
+        return (options.solver, method, options.intervals or VariationalSolver.default_intervals,
                 tuple(options.robust) if method == 'rvf' else (),
-                options.max_velocity, options.max_acceleration, options.solver)
+                options.max_velocity is not None or options.max_acceleration is not None)
+
+    @property
+    def structure(self) -> tuple:
+        return self.structure_of(self.method, self.options)
+
+    def spawn(self, options=None) -> 'VariationalSolver':
+        """Another solver of this kind for ``options`` (default: this one's), with the same overrides.
+
+        A route may share what it has built with it (``DirectSolver.spawn``).
+        """
+        return type(self)(self.method, options or self.options, **self.overrides)
 
     @property
     def has_limits(self) -> bool:
@@ -91,6 +112,9 @@ class VariationalSolver:
         if self.has_limits and not self.handles_limits:
             raise PlanError(f'the {self.route} solver does not handle axis limits '
                             '(max_velocity, max_acceleration); use the direct solver')
+        if self.max_solve_time is not None and not self.handles_time_budget:
+            raise PlanError(f'the {self.route} solver cannot bound its solve time (max_solve_time); '
+                            'use the direct solver')
         err = axis_limit_error(displacement, duration, self.max_velocity, self.max_acceleration)
         if err is not None:
             raise err

@@ -1,0 +1,80 @@
+"""A pool of interchangeable solvers, so that concurrent requests never queue behind each other.
+
+One solver instance serves one request at a time (an IPOPT instance keeps
+per-call state, and its warm start is its last solution). A ``SolverPool``
+hands each request an idle instance and makes a new one, up to ``size``,
+only when every existing one is busy: built lazily beyond the first. A
+request that finds ``size`` instances busy waits at most ``wait`` seconds
+for one to come back, then is refused: answering late would break the
+planner's answer-time promise. Pure Python, no ROS import.
+"""
+from __future__ import annotations
+
+import threading
+from contextlib import contextmanager
+
+from .plan import PlanError
+
+
+class SolverPool:
+    """Up to ``size`` solvers made by ``create()``, each lent to one caller at a time; thread-safe.
+
+    Args:
+        create: makes a new instance (called outside the pool's lock).
+        size: most instances at once, >= 1; may be changed while in use
+            (instances beyond a smaller size are dropped as they come back).
+        name: what the instances solve, for the refusal message.
+    """
+
+    def __init__(self, create, size: int, name: str = 'solver'):
+        self._create, self.name = create, name
+        self._idle: list = []  # the most recently returned last: its warm start is the freshest
+        self._count = 0  # instances in existence (idle, lent or being made)
+        self._cond = threading.Condition()
+        self.size = size
+
+    @property
+    def size(self) -> int:
+        return self._size
+
+    @size.setter
+    def size(self, size: int):
+        if int(size) != size or size < 1:
+            raise ValueError(f'pool size must be an integer >= 1, got {size}')
+        with self._cond:
+            self._size = int(size)
+            self._cond.notify_all()  # a larger pool frees waiting callers
+
+    @property
+    def instances(self) -> int:
+        """Instances in existence (idle, lent or being made)."""
+        return self._count
+
+    @contextmanager
+    def lend(self, wait: float):
+        """An idle instance for the block; PlanError if ``size`` stay busy for ``wait`` s."""
+        with self._cond:
+            if not self._cond.wait_for(lambda: self._idle or self._count < self._size, timeout=wait):
+                raise PlanError(f'all {self._count} {self.name} solvers stayed busy for {wait:g} s; '
+                                'raise solver_pool_size')
+            solver = self._idle.pop() if self._idle else None
+            if solver is None:
+                self._count += 1
+        if solver is None:
+            try:
+                solver = self._create()
+            except BaseException:
+                self._give_back(None)
+                raise
+        try:
+            yield solver
+        finally:
+            self._give_back(solver)
+
+    def _give_back(self, solver):
+        with self._cond:
+            if solver is None or self._count > self._size:
+                self._count -= 1
+            else:
+                self._idle.append(solver)
+            self._cond.notify()

@@ -1,0 +1,90 @@
+"""Concurrent NVF/RVF solving: spawned solvers, the time budget and the planner's pools (real CasADi/IPOPT)."""
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from crane_msgs_py.params import CraneParams, ParameterError
+from crane_planner.planning import PlanError, Planner, PlanOptions
+from crane_planner.planning.direct import DirectSolver
+from crane_planner.planning.indirect import IndirectSolver
+
+MODEL = CraneParams()
+REQUESTS = [(0.3, 3.0), (-0.6, 4.4), (1.0, 2.6), (0.2, 8.0)]
+#: No plan exists that a solver finds in a second: 10 m in half a second.
+HOPELESS = (10.0, 0.5)
+
+
+def test_spawned_solvers_share_the_nlp_and_solve_side_by_side_exactly_as_alone():
+    seed = DirectSolver('rvf', PlanOptions())
+    seed.solve(0.3, 3.0, MODEL)
+    solvers = [seed.spawn() for _ in REQUESTS]
+    assert all(s.transcription(True) is seed.transcription(True) for s in solvers)
+    alone = [seed.spawn().solve(D, T, MODEL) for D, T in REQUESTS]  # cold starts, one at a time
+    together = [None] * len(REQUESTS)
+
+    def solve(k):
+        together[k] = solvers[k].solve(*REQUESTS[k], MODEL)
+
+    threads = [threading.Thread(target=solve, args=(k,)) for k in range(len(REQUESTS))]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    for a, b in zip(alone, together):
+        assert np.array_equal(a.coef, b.coef) and np.array_equal(a.start, b.start)
+        assert b.info['build_time_s'] < 0.5 * seed.transcription(True).build_time  # no second build
+
+
+def test_a_spawn_with_other_limits_or_budget_shares_but_another_structure_does_not():
+    seed = DirectSolver('nvf', PlanOptions(max_velocity=0.2))
+    seed.solve(0.3, 3.0, MODEL)
+    same = seed.spawn(PlanOptions(max_velocity=0.3, max_solve_time=2.0))
+    other = seed.spawn(PlanOptions(intervals=20))
+    assert same.transcription(True) is seed.transcription(True)
+    assert same.max_velocity == 0.3 and same.max_solve_time == 2.0
+    assert other.transcription(True) is not seed.transcription(True)
+
+
+def test_a_request_beyond_max_solve_time_is_refused_naming_the_budget():
+    solver = DirectSolver('rvf', PlanOptions(max_solve_time=0.3))
+    solver.solve(0.3, 3.0, MODEL)
+    t0 = time.perf_counter()
+    with pytest.raises(PlanError, match=r'rvf: no plan for D=10 m, T=0.5 s within max_solve_time 0.3 s'):
+        solver.solve(*HOPELESS, MODEL)
+    assert time.perf_counter() - t0 < 0.3 + solver.retry_window + 0.5  # IPOPT's own limit stopped it
+    assert solver.solve(0.3, 3.0, MODEL).info['status'] == 'Solve_Succeeded'  # and it still serves
+
+
+def test_the_planner_serves_requests_for_the_same_method_while_a_hopeless_one_runs():
+    planner = Planner(pool_size=3)
+    options = PlanOptions(max_solve_time=2.0)
+    planner.plan('rvf', 0.3, 3.0, MODEL, options)  # the first instance built
+    errors = []
+    hopeless = threading.Thread(
+        target=lambda: errors.append(pytest.raises(PlanError, planner.plan, 'rvf', *HOPELESS, MODEL, options)))
+    hopeless.start()
+    time.sleep(0.05)
+    plans = [planner.plan('rvf', D, T, MODEL, options) for D, T in REQUESTS]
+    assert hopeless.is_alive(), 'the typical requests waited for the hopeless one'
+    hopeless.join()
+    assert 'max_solve_time 2 s' in str(errors[0].value)
+    assert all(p.evaluate(p.duration).position[0] == pytest.approx(D, abs=1e-9)
+               for p, (D, _) in zip(plans, REQUESTS))
+
+
+def test_the_indirect_route_refuses_a_time_budget_it_cannot_keep():
+    with pytest.raises(PlanError, match='cannot bound its solve time'):
+        IndirectSolver('nvf', PlanOptions(solver='indirect', max_solve_time=1.0)).solve(0.3, 3.0, MODEL)
+
+
+@pytest.mark.parametrize('budget', [0.0, -1.0, float('nan')])
+def test_max_solve_time_must_be_positive(budget):
+    with pytest.raises(ParameterError, match='max_solve_time'):
+        PlanOptions(max_solve_time=budget)
+
+
+def test_pool_size_must_be_a_positive_integer():
+    with pytest.raises(ParameterError, match='solver_pool_size'):
+        Planner(pool_size=0)

@@ -1,0 +1,91 @@
+"""SolverPool (crane_planner.planning.pool): lends each instance to one caller, grows lazily, never blocks long."""
+import threading
+
+import pytest
+
+from crane_planner.planning.plan import PlanError
+from crane_planner.planning.pool import SolverPool
+
+
+class Counter:
+    def __init__(self):
+        self.made = 0
+
+    def __call__(self):
+        self.made += 1
+        return object()
+
+
+def test_instances_are_made_only_when_every_existing_one_is_busy():
+    create = Counter()
+    pool = SolverPool(create, size=3)
+    with pool.lend(0.1) as a:
+        pass
+    with pool.lend(0.1) as b:  # the idle one again, nothing new
+        assert b is a
+    assert create.made == 1
+    with pool.lend(0.1) as a, pool.lend(0.1) as b, pool.lend(0.1) as c:
+        assert len({id(a), id(b), id(c)}) == 3  # never one instance to two callers
+    assert create.made == 3 and pool.instances == 3
+
+
+def test_the_most_recently_returned_instance_is_lent_first():
+    pool = SolverPool(Counter(), size=2)
+    with pool.lend(0.1) as a, pool.lend(0.1) as b:
+        pass  # b returned before a
+    with pool.lend(0.1) as first:
+        assert first is a  # its warm start is the freshest
+
+
+def test_a_full_pool_is_waited_for_then_refused_naming_the_size_parameter():
+    pool = SolverPool(Counter(), size=1, name='rvf')
+    with pool.lend(0.1):
+        with pytest.raises(PlanError, match='all 1 rvf solvers stayed busy for 0.05 s; raise solver_pool_size'):
+            with pool.lend(0.05):
+                pass
+        # another caller waiting is served as soon as the instance comes back
+        got = []
+        waiter = threading.Thread(target=lambda: got.append(pool.lend(5.0).__enter__()))
+        waiter.start()
+    waiter.join(5.0)
+    assert got and pool.instances == 1
+
+
+def test_growing_the_pool_frees_a_waiting_caller_and_shrinking_drops_returned_instances():
+    create = Counter()
+    pool = SolverPool(create, size=1)
+    lent = pool.lend(0.1)
+    lent.__enter__()
+    got = []
+    waiter = threading.Thread(target=lambda: got.append(pool.lend(5.0).__enter__()))
+    waiter.start()
+    pool.size = 2
+    waiter.join(5.0)
+    assert got and create.made == 2
+    pool.size = 1
+    lent.__exit__(None, None, None)  # more instances than the size: dropped
+    assert pool.instances == 1
+
+
+def test_a_failed_creation_frees_its_place():
+    calls = []
+
+    def create():
+        calls.append(1)
+        if len(calls) == 1:
+            raise RuntimeError('build failed')
+        return object()
+
+    pool = SolverPool(create, size=1)
+    with pytest.raises(RuntimeError):
+        with pool.lend(0.1):
+            pass
+    with pool.lend(0.1) as solver:
+        assert solver is not None
+    assert pool.instances == 1
+
+
+@pytest.mark.parametrize('size', [0, -1, 1.5])
+def test_size_must_be_a_positive_integer(size):
+    with pytest.raises(ValueError, match='pool size'):
+        SolverPool(Counter(), size)
