@@ -61,6 +61,14 @@ class Plan(ABC):
     def _evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity, acceleration, jerk at times ``t`` within [0, duration]."""
 
+    def breakpoints(self) -> np.ndarray:
+        """Times (s) where the plan changes form, 0 and ``duration`` included, increasing.
+
+        Between two the plan is one analytic piece (a polynomial, a spline
+        segment): a plan's knots must include these (``streaming.knots``).
+        """
+        return np.array([0.0, self.duration])
+
     def evaluate(self, t) -> Samples:
         """Exact reference at arbitrary times; at rest at 0 before 0 and at D after T."""
         t = np.atleast_1d(np.asarray(t, dtype=float))

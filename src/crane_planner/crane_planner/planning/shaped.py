@@ -56,6 +56,9 @@ class ShapedPlan(Plan):
         # position, velocity, acceleration, jerk per piece, in powers of (t - break)
         self._coefficients = [polyder(taylor, n, axis=1) for n in range(4)]
 
+    def breakpoints(self) -> np.ndarray:
+        return self._breaks[self._breaks <= self.duration]
+
     def _evaluate(self, t):
         piece = np.searchsorted(self._breaks, t, side='right') - 1
         x = t - self._breaks[piece]
