@@ -13,7 +13,6 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from scipy.interpolate import CubicHermiteSpline
 
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning.model import modal_frequencies
@@ -43,11 +42,20 @@ def duration_for(method: str) -> float:
     return max(3.0, math.ceil(2.0 * (shaper.duration + 0.5)) / 2.0)
 
 
+_OFFLINE = {}
+
+
+def offline_plan(method: str, displacement: float, duration: float):
+    """The same request planned in this process by the planning core (crane-plan's planner)."""
+    from crane_planner.planning import Planner
+    planner = _OFFLINE.setdefault('planner', Planner())
+    return planner.plan(method, displacement, duration, NOMINAL)
+
+
 def offline_residual(method: str, duration: float) -> float:
     """Residual load swing (mm) of the same plan simulated offline (crane-plan's evaluation)."""
     from crane_planner.tools.evaluate import simulate_plan
-    from crane_planner.planning import Planner
-    ev = simulate_plan(Planner().plan(method, D, duration), NOMINAL, settle=SETTLE)
+    ev = simulate_plan(offline_plan(method, D, duration), NOMINAL, settle=SETTLE)
     return ev.metrics[0]['residual']['load_mm']
 
 
@@ -141,14 +149,14 @@ class Crane:
         return pub
 
     def move(self, method: str, goal: float, duration: float):
-        """Plan hold -> goal starting LEAD s from now; the PathPlan and the stamps the motion starts and ends.
+        """Execute hold -> goal starting LEAD s from now; the PathPlan and the stamps the motion starts and ends.
 
         A trajectory reaching the streamer after its start stamp (a busy
         machine) is streamed whole from the next tick: the stamps follow that.
         """
         mark = self.diagnostics.mark()
         start_ns = self.now() + round(LEAD * 1e9)
-        plan = self.planner.plan(method, self.hold, goal, duration, start_ns=start_ns)
+        plan = self.planner.execute(method, self.hold, goal, duration, start_ns=start_ns)
         start_ns = self.driver.streamed_start(start_ns, mark, method)
         self.hold = float(plan.position[-1])  # the goal up to rounding: what the streamer holds next
         return plan, start_ns, start_ns + round(duration * 1e9)
@@ -212,11 +220,14 @@ def test_method_is_planned_published_streamed_and_leaves_no_swing(crane, method)
         plan, start_ns, end_ns = crane.move(method, goal, T)
         traj = crane.driver.trajectory(stamp_ns(plan.path.header.stamp))
         residual, travel = crane.swing_after(start_ns, T, NOMINAL.L1)
-    # the service's Path: one pose per 10 ms knot, ending at the goal exactly at the requested time
+    # the service's Path: a pose per knot, at least the plan's breakpoints, ending at the goal exactly
+    # at the requested time
     path = plan.path
     plan_start = stamp_ns(path.header.stamp)
     assert path.header.frame_id == 'crane_base' and plan.start_ns == plan_start
-    assert len(path.poses) == round(T / 0.01) + 1
+    offline = offline_plan(method, goal - start, T)
+    assert set(np.round(offline.breakpoints(), 6)) <= set(np.round(plan.t, 6))
+    assert len(path.poses) <= 2 * len(offline.breakpoints()) + 20  # lean: not one per 10 ms (301 at 3 s)
     assert stamp_ns(path.poses[-1].header.stamp) == plan_start + round(T * 1e9)
     assert plan.position[0] == pytest.approx(start, abs=1e-9)
     assert plan.position[-1] == pytest.approx(goal, abs=1e-9)
@@ -225,15 +236,15 @@ def test_method_is_planned_published_streamed_and_leaves_no_swing(crane, method)
     t, p, v, a = joint_trajectory_to_arrays(traj)
     assert np.allclose(t, plan.t, atol=1e-9) and np.array_equal(p, plan.position)
     assert abs(v[0]) < 1e-6 and abs(v[-1]) < 1e-6
-    # the stream: the plan at every tick of the motion (cubic Hermite of the knots as the independent
-    # reference), the goal held afterwards
+    # the stream: the plan itself at every tick of the motion (the planning core's exact evaluation
+    # of the same request, made here), the goal held afterwards
     rows = np.array(refs, dtype=object)
     stamps = rows[:, 0].astype(np.int64)
     during = (stamps >= start_ns) & (stamps <= end_ns)
     assert during.sum() > 0.3 * T * 1000, f'only {during.sum()} references during the motion'
-    tau = (stamps[during] - start_ns) * 1e-9
-    expected = CubicHermiteSpline(t, p, v)(tau)
-    assert np.max(np.abs(rows[during, 1].astype(float) - expected)) < 1e-6
+    exact = offline.evaluate((stamps[during] - start_ns) * 1e-9)
+    assert np.max(np.abs(rows[during, 1].astype(float) - start - exact.position)) < 2e-6
+    assert np.max(np.abs(rows[during, 3].astype(float) - exact.acceleration)) < 2e-3 * np.max(np.abs(a))
     after = rows[stamps > end_ns, 1].astype(float)
     assert after.size > 0 and np.all(after == p[-1])  # the last knot, held exactly
     # the plant: no residual swing on the nominal plant, and the cart travelled the displacement
@@ -241,6 +252,85 @@ def test_method_is_planned_published_streamed_and_leaves_no_swing(crane, method)
     assert travel == pytest.approx(goal - start, abs=1e-3)
     if method in SHAPER_METHODS:  # cheap to plan here: the same swing as the offline simulation
         assert residual == pytest.approx(offline_residual(method, T), rel=0.1, abs=0.05)
+
+
+# --------------------------------------------------------------------------- preview vs execution
+
+
+def test_plan_calls_move_nothing_and_one_execute_moves_the_cart(crane):
+    """100 ~/plan/<method> calls of every method (and ~/plan) from the hold position, starting soon,
+    while the sim runs: the cart stays put and no trajectory is sent; one ~/execute then moves it."""
+    from crane_msgs_py.conversions import stamp_ns
+    hold, goal = crane.hold, crane.next_goal()
+    rng = np.random.default_rng(9)
+    crane.driver.reset_sim()  # at rest where it is (the last motion may have left it swinging)
+    crane.driver.sleep(0.5)  # past the sim's playout delay
+    begin = crane.now()
+    sent_before = set(crane.driver.sent_trajectories())
+    for method in (None, *METHODS):
+        for k in range(100):
+            T = max(duration_for(method or 'rvf'), 3.0) + rng.uniform(0.0, 2.0)
+            plan = crane.planner.plan(method, hold, hold + rng.uniform(-1.0, 1.0), T,
+                                      start_ns=crane.now() + 200_000_000)
+            assert plan.position[0] == pytest.approx(hold, abs=1e-9)
+    crane.driver.sleep(0.5)  # anything sent would have started by now
+    states = crane.driver.states_between(begin, crane.now() - 100_000_000, timeout=5.0)
+    assert len(states) > 40 * (crane.now() - begin) * 1e-9 * 0.8 - 50
+    assert np.ptp(states[:, 3]) < 1e-6 and states[0, 3] == pytest.approx(hold, abs=1e-4), \
+        'a preview moved the cart'
+    assert set(crane.driver.sent_trajectories()) == sent_before, 'a preview was sent to the streamer'
+    # the explicit path moves it
+    plan, start_ns, end_ns = crane.move('zv', goal, 3.0)
+    assert stamp_ns(plan.path.header.stamp) in crane.driver.sent_trajectories()
+    crane.sleep_until(end_ns + 500_000_000)
+    states = crane.driver.states_between(end_ns + 300_000_000, end_ns + 500_000_000)
+    assert states[:, 3] == pytest.approx(goal, abs=1e-4)
+
+
+# --------------------------------------------------------------------------- answer time
+
+
+def test_a_request_exhausting_max_solve_time_delays_no_other(crane):
+    """One RVF request that cannot be solved in max_solve_time (10 m in 0.5 s) in flight; 20 typical
+    requests sent at once meanwhile are all answered within 0.5 s each; the slow one is refused
+    within max_solve_time + 0.5 s, naming the budget."""
+    import threading
+
+    from crane_msgs_py.diagnostics import ERROR, status_float
+    budget = 1.0  # the default max_solve_time
+    rng = np.random.default_rng(4)
+    typical = []
+    while len(typical) < 20:
+        method, T = METHODS[rng.integers(len(METHODS))], rng.uniform(2.6, 8.0)
+        if method in SHAPER_METHODS and design(method, modal_frequencies(NOMINAL), 0.0).duration >= T:
+            continue  # a method that fits T
+        typical.append((method, 5.0, 5.0 + rng.uniform(-1.0, 1.0), T))
+    answers = {}
+
+    def ask(key, method, start, goal, T):
+        t0 = time.monotonic()
+        path = crane.planner.call(method, start, goal, T, timeout=10.0)
+        answers[key] = (time.monotonic() - t0, len(path.poses), path)
+
+    mark = crane.diagnostics.mark()
+    slow = threading.Thread(target=ask, args=('slow', 'rvf', 5.0, 15.0, 0.5))
+    slow.start()
+    time.sleep(0.1)  # in flight
+    threads = [threading.Thread(target=ask, args=(k, *request)) for k, request in enumerate(typical)]
+    for th in threads:
+        th.start()
+    for th in threads + [slow]:
+        th.join(15.0)
+    late = {k: a[0] for k, a in answers.items() if k != 'slow' and a[0] > 0.5}
+    assert len(answers) == 21 and not late, (late, typical)
+    for k, request in enumerate(typical):
+        elapsed, poses, path = answers[k]
+        assert poses > 1 and path.poses[-1].pose.position.x == pytest.approx(request[2], abs=1e-9), request
+    elapsed, poses, _ = answers['slow']
+    assert poses == 0 and budget - 0.1 < elapsed < budget + 0.5
+    status = crane.status('crane_planner', 'plan', mark, level=ERROR,
+                          predicate=lambda s: status_float(s, 'goal') == 15.0)
+    assert 'max_solve_time 1 s' in status.message, status.message
 
 
 # --------------------------------------------------------------------------- robustness
@@ -378,8 +468,8 @@ def test_bad_request_gives_an_empty_plan_and_an_error_status_then_a_good_one_suc
     assert status_values(status)['error'] == status.message
     with pytest.raises(PlanError, match=reason):  # the client reads the same reason back
         crane.planner.plan(method, start, goal, duration)
-    # a good request right after (away from the streamer's hold position, so nothing moves)
-    assert len(crane.planner.plan(method, 5.0, 5.3, 3.0).t) == 301
+    # a good request right after
+    assert crane.planner.plan(method, 5.0, 5.3, 3.0).position[-1] == pytest.approx(5.3, abs=1e-9)
 
 
 @pytest.mark.parametrize('name, value, words', [('L1', -1.0, 'L1'), ('method', 'zz', 'method'),
@@ -411,11 +501,11 @@ def test_axis_limit_set_on_the_planner_applies_to_the_next_request(crane):
         with pytest.raises(PlanError, match='zv plan exceeds max_velocity 0.16'):
             crane.planner.plan('zv', 5.0, 5.3, 3.0)
         plan = crane.planner.plan('nvf', 5.0, 5.3, 3.0)
-        speed = np.diff(plan.position) / np.diff(plan.t)  # means over the 10 ms knots
+        speed = np.diff(plan.position) / np.diff(plan.t)  # means between knots
         assert 0.1 < np.max(np.abs(speed)) <= 0.16 * (1 + 1e-6)
     finally:
         crane.driver.set_parameters('planner', {'max_velocity': 0.0})
-    assert len(crane.planner.plan('zv', 5.0, 5.3, 3.0).t) == 301
+    assert crane.planner.plan('zv', 5.0, 5.3, 3.0).position[-1] == pytest.approx(5.3, abs=1e-9)
 
 
 # --------------------------------------------------------------------------- sim input checks

@@ -1,8 +1,9 @@
 """A client of the planner node's ``nav_msgs/srv/GetPlan`` services for other Python nodes.
 
     client = PlannerClient(node)             # planner 'crane_planner' in node's namespace
-    plan = client.plan('rvf', start=0.0, goal=0.3, duration=3.0)
+    plan = client.plan('rvf', start=0.0, goal=0.3, duration=3.0)     # a preview: moves nothing
     plan.t, plan.position                    # knot times (s, from the start), positions (m)
+    client.execute('rvf', start=0.0, goal=0.3, duration=3.0)         # plans and sends it to the streamer
 
 A refused request raises ``PlanError`` with the planner's reason, read from
 its ``/diagnostics`` status for that request. The node must be spun by an
@@ -25,7 +26,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from .conversions import path_to_arrays, set_stamp
 from .diagnostics import ERROR, DiagnosticsReader, status_float, status_values
 from .errors import PlanError
-from .names import PLANNER_NODE, plan_service, service_of
+from .names import PLANNER_NODE, execute_service, plan_service, service_of
 
 #: The planner's per-request diagnostic task (status ``<planner>: plan``).
 PLAN_TASK = 'plan'
@@ -59,7 +60,8 @@ def plan_request(start: float, goal: float, duration: float, start_ns: int = 0) 
 
 
 class PlannerClient:
-    """Calls ``<planner>/plan[/<method>]`` of the planner node in the caller's namespace."""
+    """Calls ``<planner>/plan[/<method>]`` and ``<planner>/execute[/<method>]`` of the planner
+    node in the caller's namespace."""
 
     def __init__(self, node, planner: str = PLANNER_NODE, callback_group=None):
         self._node = node
@@ -70,25 +72,26 @@ class PlannerClient:
         self.diagnostics = DiagnosticsReader(node, callback_group=self._group)
         self._status_name = f'{planner.rsplit("/", 1)[-1]}: {PLAN_TASK}'
 
-    def _client(self, method: str | None):
+    def _client(self, method: str | None, execute: bool = False):
         with self._lock:
-            client = self._clients.get(method)
+            client = self._clients.get((method, execute))
             if client is None:
-                name = service_of(self._planner, plan_service(method))
-                client = self._clients[method] = self._node.create_client(
+                name = service_of(self._planner, (execute_service if execute else plan_service)(method))
+                client = self._clients[method, execute] = self._node.create_client(
                     GetPlan, name, callback_group=self._group)
             return client
 
-    def wait_for_service(self, method: str | None = None, timeout: float = 10.0) -> bool:
-        return self._client(method).wait_for_service(timeout_sec=timeout)
+    def wait_for_service(self, method: str | None = None, timeout: float = 10.0, execute: bool = False) -> bool:
+        return self._client(method, execute).wait_for_service(timeout_sec=timeout)
 
     def call(self, method: str | None, start: float, goal: float, duration: float,
-             start_ns: int = 0, timeout: float = 60.0) -> Path:
+             start_ns: int = 0, timeout: float = 60.0, execute: bool = False) -> Path:
         """The raw response path (empty on failure); TimeoutError if no answer in ``timeout`` s.
 
-        ``method`` None calls ``~/plan`` (the planner's ``method`` parameter).
+        ``method`` None calls ``~/plan`` (the planner's ``method`` parameter);
+        ``execute`` calls ``~/execute[/<method>]`` instead.
         """
-        client = self._client(method)
+        client = self._client(method, execute)
         if not client.wait_for_service(timeout_sec=timeout):
             raise TimeoutError(f'planner service {client.srv_name} not available')
         future = client.call_async(plan_request(start, goal, duration, start_ns))
@@ -105,20 +108,34 @@ class PlannerClient:
 
     def plan(self, method: str | None, start: float, goal: float, duration: float,
              start_ns: int = 0, timeout: float = 60.0, reason_timeout: float = 2.0) -> PathPlan:
-        """Plan from ``start`` to ``goal`` (m) in ``duration`` (s) starting at ``start_ns``.
+        """Plan from ``start`` to ``goal`` (m) in ``duration`` (s) starting at ``start_ns``; moves nothing.
 
         Raises PlanError with the planner's reason (its ERROR status for this
         request), or saying none arrived within ``reason_timeout`` s.
         """
+        return self._request(False, method, start, goal, duration, start_ns, timeout, reason_timeout)
+
+    def execute(self, method: str | None, start: float, goal: float, duration: float,
+                start_ns: int = 0, timeout: float = 60.0, reason_timeout: float = 2.0) -> PathPlan:
+        """Like ``plan``, and the planner sends the plan to the streamer: the crane moves.
+
+        The streamer still refuses a plan that does not start at its hold
+        position or arrives while it streams another (see its diagnostics).
+        """
+        return self._request(True, method, start, goal, duration, start_ns, timeout, reason_timeout)
+
+    def _request(self, execute, method, start, goal, duration, start_ns, timeout, reason_timeout) -> PathPlan:
         mark = self.diagnostics.mark()
-        path = self.call(method, start, goal, duration, start_ns, timeout)
+        path = self.call(method, start, goal, duration, start_ns, timeout, execute)
         if path.poses:
             t, x = path_to_arrays(path)
             return PathPlan(t, x, start_ns, path)
+        service = 'execute' if execute else 'plan'
 
         def same_request(status):
             values = status_values(status)
             return ((method is None or values.get('method') == method)
+                    and values.get('service', service) == service
                     and _same(status_float(status, 'start'), start)
                     and _same(status_float(status, 'goal'), goal)
                     and _same(status_float(status, 'duration'), duration))

@@ -21,6 +21,7 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 
 #: Private services, as the node creating them names them.
 PLAN_SERVICE = '~/plan'
+EXECUTE_SERVICE = '~/execute'
 START_SERVICE = '~/start'
 STOP_SERVICE = '~/stop'
 RESET_SERVICE = '~/reset'
@@ -39,8 +40,13 @@ OUTPUTS = (OUTPUT_JOINT_TRAJECTORY, OUTPUT_FLOAT64_ARRAY)
 
 
 def plan_service(method: str | None = None) -> str:
-    """``~/plan`` (the node's default method) or ``~/plan/<method>``."""
+    """``~/plan`` (the node's default method) or ``~/plan/<method>``: a preview, moves nothing."""
     return PLAN_SERVICE if method is None else f'{PLAN_SERVICE}/{method}'
+
+
+def execute_service(method: str | None = None) -> str:
+    """``~/execute`` (the node's default method) or ``~/execute/<method>``."""
+    return EXECUTE_SERVICE if method is None else f'{EXECUTE_SERVICE}/{method}'
 
 
 def service_of(node_name: str, private_name: str) -> str:

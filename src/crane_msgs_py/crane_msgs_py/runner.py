@@ -26,7 +26,11 @@ from .realtime import tune_thread
 
 
 def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
-    """Spin ``node_class()`` on ``executor_class(**executor_kwargs)`` until a signal; the exit status."""
+    """Spin ``node_class()`` on ``executor_class(**executor_kwargs)`` until a signal; the exit status.
+
+    A keyword value that is callable is called with the built node (e.g. a
+    thread count that depends on the node's parameters).
+    """
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
@@ -35,7 +39,7 @@ def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
     status = 0
     try:
         node = node_class()
-        executor = executor_class(**executor_kwargs)
+        executor = executor_class(**{k: v(node) if callable(v) else v for k, v in executor_kwargs.items()})
         executor.add_node(node)
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)

@@ -1,10 +1,12 @@
 """Planner node: ``nav_msgs/srv/GetPlan`` services for every method (contract: ROS 2 nodes, planner).
 
-Services ``~/plan`` (the ``method`` parameter) and ``~/plan/<method>`` answer
-with a ``nav_msgs/Path``; the last successful plan is latched on
-``trajectory`` for the streamer; every request gets one status on
+``~/plan`` (the ``method`` parameter) and ``~/plan/<method>`` compute and
+answer with a ``nav_msgs/Path``; they move nothing. ``~/execute`` and
+``~/execute/<method>`` plan the same way and also latch the plan on
+``trajectory`` for the streamer. Every request gets one status on
 ``/diagnostics``. Requests run concurrently (MultiThreadedExecutor, one
-reentrant group): the planning facade serializes per solver only.
+reentrant group) on the planning facade's solver pools, each solve bounded
+by ``max_solve_time``, so none waits behind another.
 """
 from __future__ import annotations
 
@@ -22,15 +24,17 @@ from trajectory_msgs.msg import JointTrajectory
 from crane_msgs_py.client import PLAN_TASK
 from crane_msgs_py.conversions import samples_to_joint_trajectory, samples_to_path, stamp_ns
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from crane_msgs_py.names import DEFAULT_FRAME_ID, PLANNER_NODE, TRAJECTORY_TOPIC, plan_service
+from crane_msgs_py.names import DEFAULT_FRAME_ID, PLANNER_NODE, TRAJECTORY_TOPIC, execute_service, plan_service
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError,
-                                  check_choice, check_positive)
+                                  check_choice, check_nonnegative, check_positive)
 from crane_msgs_py.qos import TRAJECTORY_QOS
 from crane_msgs_py.runner import run
 
 from crane_planner.planning import (METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanError, Planner,
                                     PlanOptions, check_request)
+from crane_planner.planning.plan import time_grid
+from crane_planner.streaming.knots import knot_times
 
 #: name -> (default, description, range descriptor fields). Ranges are the
 #: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by the
@@ -52,8 +56,10 @@ PARAMETERS = {
                        float_range(0.0, 1.0)),
     'intervals': (0, 'collocation intervals of NVF/RVF, 4..2000; 0 = the solver default',
                   int_range(0, 2000)),
-    'sample_period': (0.01, 'knot spacing of returned plans (s), > 0; the last knot is exactly at the end',
-                      float_range(1e-4, 1.0)),
+    'sample_period': (0.0, 'knot spacing of returned plans (s); 0 = knots where the plan needs them '
+                           '(its breakpoints, and as few more as keep the streamer\'s quintic Hermite '
+                           'interpolation within 1 um); the last knot is exactly at the end',
+                      float_range(0.0, 1.0)),
     'frame_id': (DEFAULT_FRAME_ID, 'frame of returned paths and trajectories', {}),
     'max_duration': (60.0, 'longest motion served (s), > 0', float_range(0.0, 3600.0)),
     'max_displacement': (10.0, 'largest |goal - start| served (m), > 0',
@@ -62,6 +68,12 @@ PARAMETERS = {
                      float_range(0.0, 1e3)),
     'max_acceleration': (0.0, 'axis limit |a| of the reference (m/s^2); 0 = no limit',
                          float_range(0.0, 1e4)),
+    'max_solve_time': (1.0, 'budget of one NVF/RVF solve (s), > 0: a request not solved within it is '
+                            'refused; every request is answered within this + 0.5 s',
+                       float_range(0.0, 60.0)),
+    'solver_pool_size': (4, 'NVF/RVF solver instances per method, 1..32, made as concurrent requests need '
+                            'them (~3 MB each; the first of a method builds its NLP, ~25-40 MB)',
+                         int_range(1, 32)),
 }
 
 
@@ -76,6 +88,7 @@ class Config:
     frame_id: str
     max_duration: float
     max_displacement: float
+    solver_pool_size: int
 
     @classmethod
     def from_values(cls, v: dict) -> 'Config':
@@ -86,12 +99,13 @@ class Config:
         options = PlanOptions(
             omega=tuple(v['shaper_frequencies']) or None, damping=v['shaper_damping'],
             robust=tuple(v['robust_parameters']), intervals=intervals or None,
-            max_velocity=v['max_velocity'] or None, max_acceleration=v['max_acceleration'] or None)
+            max_velocity=v['max_velocity'] or None, max_acceleration=v['max_acceleration'] or None,
+            max_solve_time=check_positive('max_solve_time', v['max_solve_time']))
         if not v['frame_id']:
             raise ParameterError('frame_id must not be empty')
-        return cls(params, options, v['method'], check_positive('sample_period', v['sample_period']),
+        return cls(params, options, v['method'], check_nonnegative('sample_period', v['sample_period']),
                    v['frame_id'], check_positive('max_duration', v['max_duration']),
-                   check_positive('max_displacement', v['max_displacement']))
+                   check_positive('max_displacement', v['max_displacement']), int(v['solver_pool_size']))
 
 
 class PlannerNode(Node):
@@ -103,19 +117,28 @@ class PlannerNode(Node):
         self._diagnostics = DiagnosticsPublisher(self)
         self._config = Config.from_values(values)  # bad overrides: ParameterError, see main()
         Guard(self, PARAMETERS, Config.from_values, self._apply, self._diagnostics)
-        self._planner = Planner()
+        self._planner = Planner(self._config.solver_pool_size)
         self._trajectory = self.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
         group = ReentrantCallbackGroup()
-        self.create_service(GetPlan, plan_service(), self._serve_default, callback_group=group)
-        for method in METHODS:
-            self.create_service(GetPlan, plan_service(method), lambda req, res, m=method: self._serve(m, req, res),
+        for execute, service in ((False, plan_service), (True, execute_service)):
+            self.create_service(GetPlan, service(), lambda req, res, e=execute: self._serve(None, req, res, e),
                                 callback_group=group)
-        self.get_logger().info(f'serving {", ".join(METHODS)} on {self.get_fully_qualified_name()}/plan/<method>')
+            for method in METHODS:
+                self.create_service(GetPlan, service(method),
+                                    lambda req, res, m=method, e=execute: self._serve(m, req, res, e),
+                                    callback_group=group)
+        self.get_logger().info(f'serving {", ".join(METHODS)} on {self.get_fully_qualified_name()}/plan/<method> '
+                               '(preview) and .../execute/<method> (plan and send to the streamer)')
         self._warmup = threading.Thread(target=self._build_solvers, name='solver-warmup', daemon=True)
         self._warmup.start()
 
     def _apply(self, config: Config, values, changes):
+        self._planner.pool_size = config.solver_pool_size
         self._config = config  # applies to the next request
+
+    def executor_threads(self) -> int:
+        """Enough executor threads for every pool full at once, plus the shapers' and parameter requests."""
+        return self._config.solver_pool_size * len(VARIATIONAL_METHODS) + 4
 
     # -- requests ---------------------------------------------------------
 
@@ -147,10 +170,7 @@ class PlannerNode(Node):
                                  **{f'{m}_s': v for m, v in times.items()},
                                  **{f'{m}_error': e for m, e in failed.items()})
 
-    def _serve_default(self, request, response):
-        return self._serve(None, request, response)
-
-    def _serve(self, method, request, response):
+    def _serve(self, method, request, response, execute: bool):
         config = self._config
         method = method or config.method
         t0 = time.perf_counter()
@@ -158,8 +178,8 @@ class PlannerNode(Node):
         goal = request.goal.pose.position.x
         start_ns = stamp_ns(request.start.header.stamp)
         duration = (stamp_ns(request.goal.header.stamp) - start_ns) * 1e-9
-        values = {'method': method, 'start': start, 'goal': goal, 'displacement': goal - start,
-                  'duration': duration}
+        values = {'method': method, 'service': 'execute' if execute else 'plan', 'start': start, 'goal': goal,
+                  'displacement': goal - start, 'duration': duration}
         try:
             samples, plan = self._plan(config, method, start, goal, duration)
         except ValueError as exc:  # PlanError, ParameterError: the request cannot be served
@@ -169,16 +189,17 @@ class PlannerNode(Node):
             return self._refuse(response, f'internal error: {type(exc).__name__}: {exc}', values, t0)
         solved = time.perf_counter()
         response.plan = samples_to_path(samples, start, start_ns, config.frame_id)
-        self._trajectory.publish(samples_to_joint_trajectory(samples, start, start_ns, config.frame_id))
+        if execute:
+            self._trajectory.publish(samples_to_joint_trajectory(samples, start, start_ns, config.frame_id))
         done = time.perf_counter()
         info = plan.info
         self._diagnostics.report(
-            PLAN_TASK, OK, f'{method}: {len(samples.t)} knots', **values,
-            solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
+            PLAN_TASK, OK, f'{method}: {len(samples.t)} knots' + (', sent for execution' if execute else ''),
+            **values, solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
             iterations=info.get('iterations', 0), plan_time=solved - t0, message_time=done - solved,
             knots=len(samples.t), error='')
-        self.get_logger().info(f'{method}: {start:g} -> {goal:g} m in {duration:g} s, {len(samples.t)} knots, '
-                               f'planned in {solved - t0:.3f} s')
+        self.get_logger().info(f'{values["service"]} {method}: {start:g} -> {goal:g} m in {duration:g} s, '
+                               f'{len(samples.t)} knots, planned in {solved - t0:.3f} s')
         return response
 
     def _plan(self, config: Config, method: str, start: float, goal: float, duration: float):
@@ -191,15 +212,15 @@ class PlannerNode(Node):
             raise PlanError(f'displacement {displacement:g} m exceeds max_displacement '
                             f'{config.max_displacement:g} m')
         plan = self._planner.plan(method, displacement, duration, config.params, config.options)
-        return plan.sample(config.sample_period), plan
+        times = knot_times(plan) if config.sample_period == 0.0 else time_grid(duration, config.sample_period)
+        return plan.evaluate(times), plan
 
     def _refuse(self, response, reason: str, values: dict, t0: float):
         response.plan.header.frame_id = self._config.frame_id
-        self.get_logger().error(f'{values["method"]} request refused: {reason}')
+        self.get_logger().error(f'{values["service"]} {values["method"]} request refused: {reason}')
         self._diagnostics.report(PLAN_TASK, ERROR, reason, **values, solve_time=0.0,
                                  plan_time=time.perf_counter() - t0, iterations=0, knots=0, error=reason)
         return response
-
 
     def destroy_node(self):
         # CasADi must not be building in the warm-up thread while the interpreter exits
@@ -210,4 +231,4 @@ class PlannerNode(Node):
 
 
 def main(args=None):
-    return run(PlannerNode, MultiThreadedExecutor, args, num_threads=len(METHODS) + 2)
+    return run(PlannerNode, MultiThreadedExecutor, args, num_threads=PlannerNode.executor_threads)

@@ -149,20 +149,25 @@ class CraneHarness:
         return max(0.3, 3.0 * self._slowest_plan)
 
     def move(self, method: str, start: float, goal: float, duration: float, start_ns: int | None = None):
-        """Plan a move starting at ``start_ns`` (default :meth:`lead` from now); (the stamp the
-        motion starts, round-trip s, served trajectory)."""
+        """Execute a move starting at ``start_ns`` (default :meth:`lead` from now) through the
+        planner's ``~/execute/<method>``; (the stamp the motion starts, round-trip s, served trajectory)."""
         if start_ns is None:
             start_ns = self.now_ns() + round(self.lead() * 1e9)
         mark = self.planner.diagnostics.mark()
         t0 = time.perf_counter()
         # The client raises PlanError with the planner's reason on a refused plan.
-        self.planner.plan(method, start, goal, duration, start_ns=start_ns, timeout=30.0)
+        self.planner.execute(method, start, goal, duration, start_ns=start_ns, timeout=30.0)
         plan_time = time.perf_counter() - t0
         self._slowest_plan = max(self._slowest_plan, plan_time)
         if self.now_ns() > start_ns:
             raise HarnessError(f'planning {method} took {plan_time:.2f} s, past the motion start (machine overloaded?)')
         traj = self.trajectory(start_ns, f'the {method}')
         return self.streamed_start(start_ns, mark, method), plan_time, traj
+
+    def sent_trajectories(self) -> list[int]:
+        """Start stamps (ns) of every trajectory seen on the ``trajectory`` topic, in order."""
+        with self._lock:
+            return list(self._trajectories)
 
     def trajectory(self, start_ns: int, what: str = 'the', timeout: float = 5.0):
         """The JointTrajectory the planner published for a motion stamped ``start_ns``."""
