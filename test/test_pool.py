@@ -18,7 +18,7 @@ class Counter:
 
 def test_instances_are_made_only_when_every_existing_one_is_busy():
     create = Counter()
-    pool = SolverPool(create, size=3)
+    pool = SolverPool(create, size=3, grace=0.0)
     with pool.lend(0.1) as a:
         pass
     with pool.lend(0.1) as b:  # the idle one again, nothing new
@@ -30,7 +30,7 @@ def test_instances_are_made_only_when_every_existing_one_is_busy():
 
 
 def test_the_most_recently_returned_instance_is_lent_first():
-    pool = SolverPool(Counter(), size=2)
+    pool = SolverPool(Counter(), size=2, grace=0.0)
     with pool.lend(0.1) as a, pool.lend(0.1) as b:
         pass  # b returned before a
     with pool.lend(0.1) as first:
@@ -53,7 +53,7 @@ def test_a_full_pool_is_waited_for_then_refused_naming_the_size_parameter():
 
 def test_growing_the_pool_frees_a_waiting_caller_and_shrinking_drops_returned_instances():
     create = Counter()
-    pool = SolverPool(create, size=1)
+    pool = SolverPool(create, size=1, grace=0.0)
     lent = pool.lend(0.1)
     lent.__enter__()
     got = []
@@ -83,6 +83,21 @@ def test_a_failed_creation_frees_its_place():
     with pool.lend(0.1) as solver:
         assert solver is not None
     assert pool.instances == 1
+
+
+def test_an_instance_coming_back_within_the_grace_is_lent_instead_of_a_new_one():
+    create = Counter()
+    pool = SolverPool(create, size=4, grace=5.0)
+    lent = pool.lend(0.1)
+    first = lent.__enter__()
+    threading.Timer(0.05, lent.__exit__, (None, None, None)).start()  # a short solve ends
+    with pool.lend(0.1) as solver:
+        assert solver is first
+    assert create.made == 1
+    # with no grace, a second instance is made at once
+    eager = SolverPool(Counter(), size=4, grace=0.0)
+    with eager.lend(0.1) as a, eager.lend(0.1) as b:
+        assert a is not b
 
 
 @pytest.mark.parametrize('size', [0, -1, 1.5])

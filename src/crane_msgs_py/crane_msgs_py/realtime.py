@@ -42,6 +42,29 @@ def tune_thread(priority: int = 0) -> list[str]:
     return warnings
 
 
+#: mallopt parameter (malloc.h) and the fixed threshold (bytes) set by ``fix_mmap_threshold``.
+_M_MMAP_THRESHOLD = -3
+MMAP_THRESHOLD = 128 * 1024
+
+
+def fix_mmap_threshold() -> str | None:
+    """Serve every allocation of 128 KiB or more by mmap, returned to the system when freed.
+
+    glibc raises this threshold each time such a block is freed, after which
+    large blocks come from the per-thread heaps and stay there: a process
+    whose many threads allocate and free solver workspaces (the planner:
+    MUMPS, several MB a solve) then grows by a heap's worth per thread,
+    150 MB over a few thousand requests. A fixed threshold keeps its size
+    flat. Returns a warning if it could not be set (not glibc).
+    """
+    try:
+        if ctypes.CDLL(None).mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD) == 1:
+            return None
+        return 'mallopt(M_MMAP_THRESHOLD) refused'
+    except (OSError, AttributeError) as exc:
+        return f'mmap threshold unchanged: {exc}'
+
+
 def sleep_until(deadline_ns: int, busy_wait_ns: int) -> int:
     """Return at or just after ``deadline_ns`` (time.monotonic_ns); the time of return.
 

@@ -29,6 +29,7 @@ from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError,
                                   check_choice, check_nonnegative, check_positive)
 from crane_msgs_py.qos import TRAJECTORY_QOS
+from crane_msgs_py.realtime import fix_mmap_threshold
 from crane_msgs_py.runner import run
 
 from crane_planner.planning import (METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanError, Planner,
@@ -72,7 +73,7 @@ PARAMETERS = {
                             'refused; every request is answered within this + 0.5 s',
                        float_range(0.0, 60.0)),
     'solver_pool_size': (4, 'NVF/RVF solver instances per method, 1..32, made as concurrent requests need '
-                            'them (~3 MB each; the first of a method builds its NLP, ~25-40 MB)',
+                            'them (2-6 MB each; the first of a method builds its NLP, ~25 MB)',
                          int_range(1, 32)),
 }
 
@@ -113,6 +114,9 @@ class PlannerNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(PLANNER_NODE, **kwargs)
+        warning = fix_mmap_threshold()  # before any solver allocates: keeps the node's size flat
+        if warning:
+            self.get_logger().warn(warning)
         values = declare(self, PARAMETERS)
         self._diagnostics = DiagnosticsPublisher(self)
         self._config = Config.from_values(values)  # bad overrides: ParameterError, see main()
@@ -198,8 +202,9 @@ class PlannerNode(Node):
             **values, solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
             iterations=info.get('iterations', 0), plan_time=solved - t0, message_time=done - solved,
             knots=len(samples.t), error='')
-        self.get_logger().info(f'{values["service"]} {method}: {start:g} -> {goal:g} m in {duration:g} s, '
-                               f'{len(samples.t)} knots, planned in {solved - t0:.3f} s')
+        # per request at debug level: /diagnostics has them, and an info line costs 0.4 ms
+        self.get_logger().debug(f'{values["service"]} {method}: {start:g} -> {goal:g} m in {duration:g} s, '
+                                f'{len(samples.t)} knots, planned in {solved - t0:.3f} s')
         return response
 
     def _plan(self, config: Config, method: str, start: float, goal: float, duration: float):

@@ -8,11 +8,17 @@ per request; ``DirectSolver`` solves it with warm starts and returns a
 from __future__ import annotations
 
 import math
+import os
 import threading
 import time
 from dataclasses import dataclass, field
 
-import casadi as ca
+# CasADi's OpenBLAS (under MUMPS) would start a thread per core that spins between
+# calls: on matrices this small one thread is faster alone and far faster beside
+# other solves. Set before CasADi loads it; an explicit setting is kept.
+os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+
+import casadi as ca  # noqa: E402
 import numpy as np
 
 from crane_msgs_py.params import CraneParams
@@ -234,7 +240,7 @@ class DirectSolver(VariationalSolver):
     #: one, the probes that name an infeasible limit) only starts within this long (s)
     #: of the first: each attempt may use the whole budget, so the solve ends within
     #: ``max_solve_time`` + ``retry_window``.
-    retry_window = 0.1
+    retry_window = 0.05
     #: IPOPT's tolerance on the NLP error (the variables are O(1), see ``problem``),
     #: and the level accepted after two iterations that stall above it on rounding noise
     #: (the servo's 1/tau makes the KKT system stiff for small tau).
@@ -338,18 +344,21 @@ class DirectSolver(VariationalSolver):
         sx, su = np.array(sx, dtype=float).ravel(), float(su)
         args = dict(p=pvec, **self._bounds(tr, displacement, sx, (self.max_velocity, self.max_acceleration)))
         t0 = time.perf_counter()
-        cold = dict(x0=tr.guess(displacement, frac))
-        starts = ([self._warm_start(inst.warm, displacement)] if inst.warm is not None else []) + [cold]
+
+        def cold():  # the initial guess; only computed when needed
+            return dict(x0=tr.guess(displacement, frac))
+
+        starts = ([lambda: self._warm_start(inst.warm, displacement)] if inst.warm is not None else []) + [cold]
         for k, start in enumerate(starts):
             if k and not self._may_retry(t0):
                 break
-            sol = solver(**args, **start)
+            sol = solver(**args, **start())
             stats = solver.stats()
             if stats['success'] or stats['return_status'] == 'Maximum_WallTime_Exceeded':
                 break
         solve_time = time.perf_counter() - t0
         if not stats['success']:
-            raise PlanError(self._failure_message(stats, solver, tr, displacement, duration, pvec, sx, cold, t0))
+            raise PlanError(self._failure_message(stats, solver, tr, displacement, duration, pvec, sx, cold(), t0))
         inst.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
         N = tr.intervals
         nodes = tr.interval_nodes(np.array(sol['x']).ravel()) * sx  # (N, d+1, nx), SI units

@@ -3,10 +3,12 @@
 One solver instance serves one request at a time (an IPOPT instance keeps
 per-call state, and its warm start is its last solution). A ``SolverPool``
 hands each request an idle instance and makes a new one, up to ``size``,
-only when every existing one is busy: built lazily beyond the first. A
-request that finds ``size`` instances busy waits at most ``wait`` seconds
-for one to come back, then is refused: answering late would break the
-planner's answer-time promise. Pure Python, no ROS import.
+only when every existing one stays busy for ``grace`` seconds: built
+lazily beyond the first, and only for solves that overlap for longer than
+a typical one lasts (each instance holds a few MB). A request that finds
+``size`` instances busy waits at most ``wait`` seconds for one to come
+back, then is refused: answering late would break the planner's
+answer-time promise. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
@@ -24,10 +26,12 @@ class SolverPool:
         size: most instances at once, >= 1; may be changed while in use
             (instances beyond a smaller size are dropped as they come back).
         name: what the instances solve, for the refusal message.
+        grace: how long (s) a request waits for a busy instance before a new
+            one is made (typical NVF/RVF solves take 2-40 ms).
     """
 
-    def __init__(self, create, size: int, name: str = 'solver'):
-        self._create, self.name = create, name
+    def __init__(self, create, size: int, name: str = 'solver', grace: float = 0.02):
+        self._create, self.name, self.grace = create, name, grace
         self._idle: list = []  # the most recently returned last: its warm start is the freshest
         self._count = 0  # instances in existence (idle, lent or being made)
         self._cond = threading.Condition()
@@ -54,6 +58,8 @@ class SolverPool:
     def lend(self, wait: float):
         """An idle instance for the block; PlanError if ``size`` stay busy for ``wait`` s."""
         with self._cond:
+            if self._count and not self._idle:  # a busy one may come back before a new one is worth making
+                self._cond.wait_for(lambda: self._idle, timeout=min(self.grace, wait))
             if not self._cond.wait_for(lambda: self._idle or self._count < self._size, timeout=wait):
                 raise PlanError(f'all {self._count} {self.name} solvers stayed busy for {wait:g} s; '
                                 'raise solver_pool_size')

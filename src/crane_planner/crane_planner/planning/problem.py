@@ -15,12 +15,14 @@ tau).
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 from numpy.polynomial import polynomial as poly
+from scipy.optimize import brentq
 
 from crane_msgs_py.params import CraneParams
 
@@ -165,33 +167,38 @@ def uniform_mesh(intervals: int) -> np.ndarray:
     return np.full(intervals, 1.0 / intervals)
 
 
+@functools.lru_cache(maxsize=256)
 def graded_mesh(intervals: int, layer: float, max_ratio: float = 2.0) -> np.ndarray:
     """Interval fractions that resolve boundary layers of relative width ``layer`` at both ends.
 
     m intervals at each end grow geometrically by r from ``layer`` to the
     uniform width of the interior; m is the smallest with r <= ``max_ratio``,
     but at most a fifth of the intervals, so a very thin layer costs a larger
-    ratio, not the interior's resolution.
+    ratio, not the interior's resolution. Cached (a repeated duration costs
+    nothing); the array is read-only.
     """
     if layer * intervals >= 1.0:
         return uniform_mesh(intervals)
 
     def grading(m):
-        # the interior width where the geometric ends r^i layer (i < m) meet it: r^m layer
-        lo, hi = 1.0 + 1e-12, 1e6
-        for _ in range(200):
-            r = math.sqrt(lo * hi)
-            ends = layer * (r ** m - 1.0) / (r - 1.0)
-            inner = (1.0 - 2.0 * ends) / (intervals - 2 * m)
-            lo, hi = (r, hi) if layer * r ** m < inner else (lo, r)
-        return r, inner
+        # the ratio r at which the geometric ends r^i layer (i < m) meet the uniform
+        # interior width, r^m layer: the root of a function increasing in r
+        def excess(r):
+            ends = layer * m if r == 1.0 else layer * (r ** m - 1.0) / (r - 1.0)
+            return layer * r ** m - (1.0 - 2.0 * ends) / (intervals - 2 * m)
+
+        r = brentq(excess, 1.0, 1e6, xtol=1e-14, rtol=4 * np.finfo(float).eps)
+        ends = layer * m if r == 1.0 else layer * (r ** m - 1.0) / (r - 1.0)
+        return r, (1.0 - 2.0 * ends) / (intervals - 2 * m)
 
     for m in range(1, max(intervals // 5, 1) + 1):
         r, inner = grading(m)
         if r <= max_ratio:
             break
     ends = list(layer * r ** np.arange(m))
-    return np.array(ends + [inner] * (intervals - 2 * m) + ends[::-1])
+    frac = np.array(ends + [inner] * (intervals - 2 * m) + ends[::-1])
+    frac.flags.writeable = False
+    return frac
 
 
 def servo_layer(tau: float, weights: Weights) -> float:

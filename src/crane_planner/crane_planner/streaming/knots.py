@@ -28,8 +28,9 @@ from .hermite import QuinticHermite
 POSITION_TOL = 1e-6
 ACCELERATION_TOL = 1e-3
 #: The interpolation error is checked at this many points inside each segment and
-#: held to half the tolerance there: between checks it may be a little larger.
-_CHECKS = 9
+#: held to half the tolerance there: between checks it may be a little larger. Odd,
+#: so the middle, where the error of a smooth piece peaks, is one of them.
+_CHECKS = 5
 _MARGIN = 0.5
 #: Segments are not split below this length (s); smooth plans never get there.
 MIN_SPACING = 1e-4
