@@ -1,5 +1,6 @@
 """SolverPool (crane_planner.planning.pool): lends each instance to one caller, grows lazily, never blocks long."""
 import threading
+import time
 
 import pytest
 
@@ -16,23 +17,36 @@ class Counter:
         return object()
 
 
-def test_instances_are_made_only_when_every_existing_one_is_busy():
+def wait_for(predicate, timeout=5.0):
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline
+        time.sleep(0.005)
+
+
+def test_a_spare_is_made_in_the_background_when_the_last_idle_one_is_lent():
     create = Counter()
     pool = SolverPool(create, size=3, grace=0.0)
-    with pool.lend(0.1) as a:
-        pass
-    with pool.lend(0.1) as b:  # the idle one again, nothing new
-        assert b is a
-    assert create.made == 1
-    with pool.lend(0.1) as a, pool.lend(0.1) as b, pool.lend(0.1) as c:
-        assert len({id(a), id(b), id(c)}) == 3  # never one instance to two callers
+    with pool.lend(0.1) as a:  # the first: built in the request
+        assert create.made == 1
+    with pool.lend(0.1) as again:  # the idle one again; a spare is made meanwhile
+        assert again is a
+        wait_for(lambda: create.made == 2)
+        with pool.lend(0.1) as b:  # beside it: the spare, no build in this request
+            assert b is not a  # the spare
+            wait_for(lambda: create.made == 3)  # and the next spare, up to the size
+            with pool.lend(0.1) as c:
+                assert len({id(a), id(b), id(c)}) == 3  # never one instance to two callers
+                with pytest.raises(PlanError):
+                    with pool.lend(0.05):
+                        pass
     assert create.made == 3 and pool.instances == 3
 
 
 def test_the_most_recently_returned_instance_is_lent_first():
     pool = SolverPool(Counter(), size=2, grace=0.0)
-    with pool.lend(0.1) as a, pool.lend(0.1) as b:
-        pass  # b returned before a
+    with pool.lend(0.1) as a, pool.lend(0.1):
+        pass  # the second one is returned before a
     with pool.lend(0.1) as first:
         assert first is a  # its warm start is the freshest
 
@@ -93,7 +107,6 @@ def test_an_instance_coming_back_within_the_grace_is_lent_instead_of_a_new_one()
     threading.Timer(0.05, lent.__exit__, (None, None, None)).start()  # a short solve ends
     with pool.lend(0.1) as solver:
         assert solver is first
-    assert create.made == 1
     # with no grace, a second instance is made at once
     eager = SolverPool(Counter(), size=4, grace=0.0)
     with eager.lend(0.1) as a, eager.lend(0.1) as b:

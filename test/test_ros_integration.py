@@ -296,7 +296,7 @@ def test_a_request_exhausting_max_solve_time_delays_no_other(crane):
     within max_solve_time + 0.5 s, naming the budget."""
     import threading
 
-    from crane_msgs_py.diagnostics import ERROR, status_float
+    from crane_msgs_py.diagnostics import ERROR, status_float, status_values
     budget = 1.0  # the default max_solve_time
     rng = np.random.default_rng(4)
     typical = []
@@ -322,7 +322,13 @@ def test_a_request_exhausting_max_solve_time_delays_no_other(crane):
     for th in threads + [slow]:
         th.join(15.0)
     late = {k: a[0] for k, a in answers.items() if k != 'slow' and a[0] > 0.5}
-    assert len(answers) == 21 and not late, (late, typical)
+    planner_side = [{key: status_values(s).get(key) for key in ('method', 'plan_time', 'solve_time', 'build_time',
+                                                                   'iterations')}
+                    for s in crane.diagnostics.statuses('crane_planner: plan', after=mark)]
+    assert len(answers) == 21 and not late, (late, [typical[k] for k in late if k != 'slow'], planner_side)
+    refusals = [s.message for s in crane.diagnostics.statuses('crane_planner: plan', level=ERROR, after=mark)
+                if status_float(s, 'goal') != 15.0]
+    assert not refusals, refusals
     for k, request in enumerate(typical):
         elapsed, poses, path = answers[k]
         assert poses > 1 and path.poses[-1].pose.position.x == pytest.approx(request[2], abs=1e-9), request

@@ -72,7 +72,7 @@ PARAMETERS = {
     'max_solve_time': (1.0, 'budget of one NVF/RVF solve (s), > 0: a request not solved within it is '
                             'refused; every request is answered within this + 0.5 s',
                        float_range(0.0, 60.0)),
-    'solver_pool_size': (4, 'NVF/RVF solver instances per method, 1..32, made as concurrent requests need '
+    'solver_pool_size': (8, 'NVF/RVF solver instances per method, 1..32, made as concurrent requests need '
                             'them (2-6 MB each; the first of a method builds its NLP, ~25 MB)',
                          int_range(1, 32)),
 }

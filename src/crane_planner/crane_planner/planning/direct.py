@@ -211,12 +211,60 @@ class Transcription:
         return np.concatenate([X[:, 0], body.T.ravel()])
 
 
+class _Yielding(ca.Callback):
+    """IPOPT's per-iteration callback: a long solve pauses between its iterations.
+
+    IPOPT guards every MUMPS call of the process with one mutex, which a solve
+    that factors without pause re-takes before a waiting thread wakes: beside
+    one that runs to its time budget, a typical solve would wait for most of
+    it. Once a solve has run ``after`` s, it sleeps half as long as its last
+    iteration took after each one (it then gets at most 2/3 of the time), so
+    short solves get the linear solver in between. Typical solves never get
+    there.
+    """
+
+    after = 0.05
+
+    def __init__(self, nx: int, ng: int, np_: int):
+        ca.Callback.__init__(self)
+        self._sizes = {'x': nx, 'lam_x': nx, 'g': ng, 'lam_g': ng, 'f': 1, 'lam_p': np_}
+        self.start = self._last = 0.0
+        self.construct('yielding', {})
+
+    def begin(self):
+        """Mark the start of an attempt."""
+        self.start = self._last = time.perf_counter()
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return 'ret'
+
+    def get_sparsity_in(self, i):
+        return ca.Sparsity.dense(self._sizes[ca.nlpsol_out(i)])
+
+    def eval(self, arg):
+        now = time.perf_counter()
+        if now - self.start > self.after:
+            time.sleep(min(0.5 * (now - self._last), 0.02))
+        self._last = time.perf_counter()
+        return [0]
+
+
 @dataclass
 class _Instance:
-    """One IPOPT instance of a transcription and the warm start it keeps (the last solution)."""
+    """One IPOPT instance of a transcription, its iteration callback and the warm start it keeps."""
 
     transcription: Transcription
     solver: ca.Function
+    callback: _Yielding
     warm: tuple | None = None  # (sign of D, x0 / lam_x0 / lam_g0 of the solution)
 
 
@@ -252,6 +300,7 @@ class DirectSolver(VariationalSolver):
         self._transcriptions = {}  # servo -> Transcription, shared with spawned solvers
         self._transcriptions_lock = threading.Lock()
         self._instances = {}  # servo -> _Instance, this solver's own
+        self._warm_source = None  # the solver this one was spawned from: its first warm start
 
     def spawn(self, options=None) -> 'DirectSolver':
         """Another solver like this one (for ``options``, default this one's).
@@ -259,12 +308,14 @@ class DirectSolver(VariationalSolver):
         If the options keep the NLP's structure (``VariationalSolver.structure``:
         limit values and the time budget may differ) it shares this solver's
         transcriptions and their derivatives: it costs about 15 ms per model form
-        instead of a build, keeps its own IPOPT instances and warm starts, and
-        solves side by side with this one.
+        instead of a build, keeps its own IPOPT instances and warm starts (the
+        first taken from this one's last solution), and solves side by side with
+        this one.
         """
         other = super().spawn(options)
         if other.structure == self.structure:
             other._transcriptions, other._transcriptions_lock = self._transcriptions, self._transcriptions_lock
+            other._warm_source = self  # a cold start takes 10x the iterations of a warm one
         return other
 
     def transcription(self, servo: bool) -> Transcription:
@@ -280,7 +331,11 @@ class DirectSolver(VariationalSolver):
         inst = self._instances.get(servo)
         if inst is None:
             tr = self.transcription(servo)
-            inst = self._instances[servo] = _Instance(tr, tr.nlpsol(self._ipopt_options()))
+            source = self._warm_source._instances.get(servo) if self._warm_source is not None else None
+            callback = _Yielding(tr.nw, tr.ng, tr.nlp['p'].shape[0])
+            inst = self._instances[servo] = _Instance(tr, tr.nlpsol(dict(self._ipopt_options(),
+                                                                         iteration_callback=callback)),
+                                                      callback, source.warm if source is not None else None)
         return inst
 
     def _ipopt_options(self) -> dict:
@@ -352,6 +407,7 @@ class DirectSolver(VariationalSolver):
         for k, start in enumerate(starts):
             if k and not self._may_retry(t0):
                 break
+            inst.callback.begin()
             sol = solver(**args, **start())
             stats = solver.stats()
             if stats['success'] or stats['return_status'] == 'Maximum_WallTime_Exceeded':

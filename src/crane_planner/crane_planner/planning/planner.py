@@ -135,7 +135,7 @@ class Planner:
             which the request is refused naming ``solver_pool_size``.
     """
 
-    def __init__(self, pool_size: int = 4, pool_wait: float = 0.1):
+    def __init__(self, pool_size: int = 8, pool_wait: float = 0.3):
         self.pool_wait = pool_wait
         self._pools: dict = {}  # VariationalSolver.key -> SolverPool
         self._seeds: dict = {}  # VariationalSolver.structure_of -> the first solver built for it

@@ -2,10 +2,11 @@
 
 One solver instance serves one request at a time (an IPOPT instance keeps
 per-call state, and its warm start is its last solution). A ``SolverPool``
-hands each request an idle instance and makes a new one, up to ``size``,
-only when every existing one stays busy for ``grace`` seconds: built
-lazily beyond the first, and only for solves that overlap for longer than
-a typical one lasts (each instance holds a few MB). A request that finds
+hands each request an idle instance. Beyond the first, instances are built
+lazily, up to ``size``: a spare in the background when the last idle one
+is lent (so a request beside a long solve does not pay for a build, which
+takes 0.1-0.3 s on a loaded machine), and one in the request when every
+existing one stays busy for ``grace`` seconds (each instance holds a few MB). A request that finds
 ``size`` instances busy waits at most ``wait`` seconds for one to come
 back, then is refused: answering late would break the planner's
 answer-time promise. Pure Python, no ROS import.
@@ -66,6 +67,11 @@ class SolverPool:
             solver = self._idle.pop() if self._idle else None
             if solver is None:
                 self._count += 1
+            elif not self._idle and self._count < self._size:
+                # the last idle one is lent: make a spare off the request path, so the next
+                # request beside this one does not pay for a build
+                self._count += 1
+                threading.Thread(target=self._make_spare, daemon=True).start()
         if solver is None:
             try:
                 solver = self._create()
@@ -76,6 +82,13 @@ class SolverPool:
             yield solver
         finally:
             self._give_back(solver)
+
+    def _make_spare(self):
+        try:
+            spare = self._create()
+        except Exception:  # the request that needs one will build it and report why
+            spare = None
+        self._give_back(spare)
 
     def _give_back(self, solver):
         with self._cond:
