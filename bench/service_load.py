@@ -18,6 +18,7 @@ recorded by header stamps over at least 60 s (the load goes on until then):
     .venv/bin/python bench/service_load.py [--requests 2000] [--threads 8] [--seed 1]
 """
 import argparse
+import copy
 import json
 import math
 import os
@@ -132,9 +133,8 @@ def measure(args, env: dict) -> int:
     # lag must not look like a gap in the sim's stamps
     recorder = rclpy.create_node('service_load_recorder', namespace=NS)
     stamps: list = []
-    deep = JOINT_STATES_QOS.__class__(history=JOINT_STATES_QOS.history, depth=5000,
-                                      reliability=JOINT_STATES_QOS.reliability,
-                                      durability=JOINT_STATES_QOS.durability)
+    deep = copy.copy(JOINT_STATES_QOS)
+    deep.depth = 5000
     recorder.create_subscription(JointState, JOINT_STATES_TOPIC, lambda m: stamps.append(stamp_ns(m.header.stamp)),
                                  deep)
     rec_executor = EventsExecutor()

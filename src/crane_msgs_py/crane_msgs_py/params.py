@@ -52,6 +52,13 @@ def check_nonnegative(name: str, value) -> float:
     return v
 
 
+def check_count(name: str, value, error: type[ValueError] = ParameterError) -> int:
+    """Return ``value`` as an int if it is an integer >= 1, else raise ``error`` naming ``name``."""
+    if int(value) != value or value < 1:
+        raise error(f'{name} must be an integer >= 1, got {value}')
+    return int(value)
+
+
 def check_choice(name: str, value, choices, error: type[ValueError] = ParameterError):
     """Return ``value`` if it is one of ``choices``, else raise ``error`` naming ``name`` and the choices."""
     if value not in choices:

@@ -29,7 +29,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from crane_msgs_py.params import PARAMETER_NAMES, ParameterError, check_choice, check_nonnegative, check_positive
+from crane_msgs_py.params import (PARAMETER_NAMES, ParameterError, check_choice, check_count, check_nonnegative,
+                                  check_positive)
 
 from .dynamics import SwingModel, load_excursion
 
@@ -362,8 +363,7 @@ def simulate(t_ref, reference, plants, *, dt: float = 1e-3, t_end: float | None 
     t_end = float(t_ref[-1]) if t_end is None else float(t_end)
     if not math.isfinite(t_end) or t_end < t0:
         raise SimulationError(f't_end must be finite and >= t_ref[0] = {t0}, got {t_end}')
-    if int(record_every) != record_every or record_every < 1:
-        raise SimulationError(f'record_every must be an integer >= 1, got {record_every}')
+    check_count('record_every', record_every, SimulationError)
     if source == 'position':
         if t_ref.size < 2:
             raise SimulationError('a position reference needs at least 2 samples')

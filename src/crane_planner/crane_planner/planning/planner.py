@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.params import CraneParams, ParameterError, check_nonnegative, check_positive
+from crane_msgs_py.params import CraneParams, ParameterError, check_count, check_nonnegative, check_positive
 
 from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
 from .model import modal_frequencies
@@ -148,10 +148,9 @@ class Planner:
 
     @pool_size.setter
     def pool_size(self, size: int):
-        if int(size) != size or size < 1:
-            raise ParameterError(f'solver_pool_size must be an integer >= 1, got {size}')
+        size = check_count('solver_pool_size', size)
         with self._lock:
-            self._pool_size = int(size)
+            self._pool_size = size
             for pool in self._pools.values():
                 pool.size = self._pool_size
 

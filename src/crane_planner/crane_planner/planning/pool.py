@@ -6,15 +6,17 @@ hands each request an idle instance. Beyond the first, instances are built
 lazily, up to ``size``: a spare in the background when the last idle one
 is lent (so a request beside a long solve does not pay for a build, which
 takes 0.1-0.3 s on a loaded machine), and one in the request when every
-existing one stays busy for ``grace`` seconds (each instance holds a few MB). A request that finds
-``size`` instances busy waits at most ``wait`` seconds for one to come
-back, then is refused: answering late would break the planner's
-answer-time promise. Pure Python, no ROS import.
+existing one stays busy for ``grace`` seconds (each instance holds a few
+MB). A request that finds ``size`` instances busy waits at most ``wait``
+seconds for one to come back, then is refused: answering late would break
+the planner's answer-time promise. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
 import threading
 from contextlib import contextmanager
+
+from crane_msgs_py.params import check_count
 
 from .plan import PlanError
 
@@ -44,10 +46,9 @@ class SolverPool:
 
     @size.setter
     def size(self, size: int):
-        if int(size) != size or size < 1:
-            raise ValueError(f'pool size must be an integer >= 1, got {size}')
+        size = check_count('pool size', size)
         with self._cond:
-            self._size = int(size)
+            self._size = size
             self._cond.notify_all()  # a larger pool frees waiting callers
 
     @property
