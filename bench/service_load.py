@@ -10,8 +10,9 @@ client node: a seeded mix of
   infinite durations, beyond max_duration or max_displacement.
 Judged: every request answered (within max_solve_time + 0.5 s); typical
 valid requests p50 <= 30 ms and p99 <= 150 ms; every answered plan starts
-at the start and ends at the goal at the goal's stamp; planner RSS after the
-run <= 1.1 x its RSS after the first 200 requests. Meanwhile joint_states is
+at the start and ends at the goal at the goal's stamp; planner RSS (the node
+and its solver processes) after the run <= 1.1 x that after the first 200
+requests. Meanwhile joint_states is
 recorded by header stamps over at least 60 s (the load goes on until then):
 50 Hz, no gap over 40 ms. Prints one JSON object.
 
@@ -95,18 +96,53 @@ def main() -> int:
         return measure(args, env)
 
 
+def family(pid: int) -> list[int]:
+    """A process and all its descendants (the planner's solver processes and their fork server)."""
+    children = {}
+    for stat in Path('/proc').glob('[0-9]*/stat'):
+        try:
+            fields = stat.read_text().rsplit(')', 1)[1].split()
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        out.append(p)
+        todo.extend(children.get(p, []))
+    return out
+
+
+def _status_kb(pid: int, path: str, key: str) -> float:
+    try:
+        for line in Path(f'/proc/{pid}/{path}').read_text().splitlines():
+            if line.startswith(key):
+                return float(line.split()[1])
+    except OSError:  # it just ended
+        pass
+    return 0.0
+
+
 def rss_mb(pid: int) -> float:
-    """Resident set size (MB) of a process, from /proc."""
-    for line in Path(f'/proc/{pid}/status').read_text().splitlines():
-        if line.startswith('VmRSS:'):
-            return int(line.split()[1]) / 1024.0
-    return math.nan
+    """Resident set size (MB) of a process and its descendants, from /proc (shared pages counted in each)."""
+    return sum(_status_kb(p, 'status', 'VmRSS:') for p in family(pid)) / 1024.0
+
+
+def pss_mb(pid: int) -> float:
+    """Proportional set size (MB) of a process and its descendants: shared pages split between them."""
+    return sum(_status_kb(p, 'smaps_rollup', 'Pss:') for p in family(pid)) / 1024.0
 
 
 def cpu_s(pid: int | None = None) -> float:
-    """User + system CPU time (s) of a process (this one by default), from /proc."""
-    fields = Path(f'/proc/{pid or "self"}/stat').read_text().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+    """User + system CPU time (s) of a process and its descendants (this process alone by default)."""
+    total = 0
+    for p in family(pid) if pid else ['self']:
+        try:
+            fields = Path(f'/proc/{p}/stat').read_text().rsplit(')', 1)[1].split()
+        except OSError:
+            continue
+        total += int(fields[11]) + int(fields[12])
+    return total / os.sysconf('SC_CLK_TCK')
 
 
 def measure(args, env: dict) -> int:
@@ -200,6 +236,8 @@ def measure(args, env: dict) -> int:
                 for name, pid in [('planner', planner_pid), ('client', None),
                                   *((p.name, p.popen.pid) for p in nodes.processes[1:])]}
             rss['after_run_mb'] = rss_mb(planner_pid)
+            result['planner_processes'] = len(family(planner_pid))
+            result['planner_pss_after_run_mb'] = round(pss_mb(planner_pid), 1)
             time.sleep(0.5)  # the last statuses in
             served = {}  # the planner's own account of the requests it served, per method
             for status in client.diagnostics.statuses('crane_planner: plan', level=0):

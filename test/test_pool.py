@@ -117,3 +117,46 @@ def test_an_instance_coming_back_within_the_grace_is_lent_instead_of_a_new_one()
 def test_size_must_be_a_positive_integer(size):
     with pytest.raises(ValueError, match='pool size'):
         SolverPool(Counter(), size)
+
+
+class Closable:
+    def __init__(self):
+        self.closed = False
+
+    def close(self):
+        self.closed = True
+
+
+def test_fill_makes_every_instance_up_front_and_replaces_one_that_closes():
+    made = []
+
+    def create():
+        made.append(Closable())
+        return made[-1]
+
+    pool = SolverPool(create, size=3, grace=0.0)
+    assert pool.fill(ready_within=5.0)
+    wait_for(lambda: len(pool._idle) == 3)
+    solver = pool.take(0.1)
+    solver.closed = True  # e.g. a worker process that died
+    pool.give_back(solver)
+    wait_for(lambda: len(made) == 4 and len(pool._idle) == 3)
+    assert solver not in pool._idle and pool.instances == 3
+
+
+def test_close_closes_idle_instances_now_and_lent_ones_when_they_come_back():
+    pool = SolverPool(Closable, size=2, grace=0.0)
+    pool.fill(ready_within=5.0)
+    wait_for(lambda: len(pool._idle) == 2)
+    lent = pool.take(0.1)
+    idle = list(pool._idle)
+    pool.close()
+    assert all(s.closed for s in idle) and not lent.closed
+    pool.give_back(lent)
+    assert lent.closed and pool.instances == 0
+
+
+def test_the_refusal_names_the_hint_given():
+    pool = SolverPool(Counter(), size=1, grace=0.0, hint='raise solver_processes')
+    with pool.lend(0.1), pytest.raises(PlanError, match='raise solver_processes'):
+        pool.take(0.01)

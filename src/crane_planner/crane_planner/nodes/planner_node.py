@@ -5,8 +5,9 @@ answer with a ``nav_msgs/Path``; they move nothing. ``~/execute`` and
 ``~/execute/<method>`` plan the same way and also latch the plan on
 ``trajectory`` for the streamer. Every request gets one status on
 ``/diagnostics``. Requests run concurrently (MultiThreadedExecutor, one
-reentrant group) on the planning facade's solver pools, each solve bounded
-by ``max_solve_time``, so none waits behind another.
+reentrant group); NVF/RVF solves run in the planning facade's worker
+processes (``solver_processes``), each bounded by ``max_solve_time``, so
+none waits behind another.
 """
 from __future__ import annotations
 
@@ -72,9 +73,14 @@ PARAMETERS = {
     'max_solve_time': (1.0, 'budget of one NVF/RVF solve (s), > 0: a request not solved within it is '
                             'refused; every request is answered within this + 0.5 s',
                        float_range(0.0, 60.0)),
-    'solver_pool_size': (8, 'NVF/RVF solver instances per method, 1..32, made as concurrent requests need '
-                            'them (2-6 MB each; the first of a method builds its NLP, ~25 MB)',
-                         int_range(1, 32)),
+    'solver_pool_size': (8, 'NVF/RVF solver instances per method in the node process, 1..32, made as '
+                            'concurrent requests need them (2-6 MB each; the first of a method builds its NLP, '
+                            '~25 MB); they serve every NVF/RVF request when solver_processes is 0, else those '
+                            'finding every worker process busy', int_range(1, 32)),
+    'solver_processes': (3, 'worker processes solving NVF/RVF side by side, 0..16, started with the node '
+                            '(~40 MB each beyond what they share); 0 = solve in threads of the node process '
+                            "only, where solves take turns at IPOPT's linear solver (read-only)",
+                         dict(int_range(0, 16), read_only=True)),
 }
 
 
@@ -90,6 +96,7 @@ class Config:
     max_duration: float
     max_displacement: float
     solver_pool_size: int
+    solver_processes: int
 
     @classmethod
     def from_values(cls, v: dict) -> 'Config':
@@ -106,7 +113,14 @@ class Config:
             raise ParameterError('frame_id must not be empty')
         return cls(params, options, v['method'], check_nonnegative('sample_period', v['sample_period']),
                    v['frame_id'], check_positive('max_duration', v['max_duration']),
-                   check_positive('max_displacement', v['max_displacement']), int(v['solver_pool_size']))
+                   check_positive('max_displacement', v['max_displacement']), int(v['solver_pool_size']),
+                   int(v['solver_processes']))
+
+    def warmups(self) -> list[tuple]:
+        """``Planner.plan`` arguments that build the NVF/RVF solvers of this configuration (a typical move)."""
+        duration = min(3.0, self.max_duration)
+        return [(method, min(0.3, self.max_displacement), duration, self.params, self.options)
+                for method in VARIATIONAL_METHODS]
 
 
 class PlannerNode(Node):
@@ -121,7 +135,16 @@ class PlannerNode(Node):
         self._diagnostics = DiagnosticsPublisher(self)
         self._config = Config.from_values(values)  # bad overrides: ParameterError, see main()
         Guard(self, PARAMETERS, Config.from_values, self._apply, self._diagnostics)
-        self._planner = Planner(self._config.solver_pool_size)
+        self._planner = Planner(self._config.solver_pool_size, processes=self._config.solver_processes)
+        self._planner.warmups = self._config.warmups()
+        if self._config.solver_processes:
+            # before the services exist, so no request finds no worker; the others start meanwhile
+            t0 = time.perf_counter()
+            if self._planner.start_processes(ready_within=60.0):
+                self.get_logger().info(f'first of {self._config.solver_processes} solver processes ready '
+                                       f'in {time.perf_counter() - t0:.2f} s')
+            else:
+                self.get_logger().error('no solver process started within 60 s; NVF/RVF requests will be refused')
         self._trajectory = self.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
         group = ReentrantCallbackGroup()
         for execute, service in ((False, plan_service), (True, execute_service)):
@@ -138,11 +161,13 @@ class PlannerNode(Node):
 
     def _apply(self, config: Config, values, changes):
         self._planner.pool_size = config.solver_pool_size
+        self._planner.warmups = config.warmups()  # what a replaced worker builds first
         self._config = config  # applies to the next request
 
     def executor_threads(self) -> int:
-        """Enough executor threads for every pool full at once, plus the shapers' and parameter requests."""
-        return self._config.solver_pool_size * len(VARIATIONAL_METHODS) + 4
+        """Enough executor threads for every solver busy at once, plus the shapers' and parameter requests."""
+        config = self._config
+        return config.solver_processes + config.solver_pool_size * len(VARIATIONAL_METHODS) + 4
 
     # -- requests ---------------------------------------------------------
 
@@ -154,6 +179,11 @@ class PlannerNode(Node):
         config = self._config
         times, failed = {}, {}
         t_all = time.perf_counter()
+        if config.solver_processes:  # the node's own solvers, for requests finding every worker busy
+            try:
+                self._planner.warm_threads(config.warmups())
+            except Exception as exc:
+                self.get_logger().warn(f'building the in-node NVF/RVF solvers failed: {exc}')
         for method in METHODS:
             # long enough for every shaper; the variational solvers at a typical request
             duration = min(3.0 if method in VARIATIONAL_METHODS else 10.0, config.max_duration)
@@ -232,6 +262,7 @@ class PlannerNode(Node):
         if self._warmup.is_alive():
             self.get_logger().info('waiting for the solver warm-up to finish')
             self._warmup.join()
+        self._planner.close()
         super().destroy_node()
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,18 +130,44 @@ class Planner:
     the same NLP structure (``VariationalSolver.spawn``), which costs
     milliseconds. The options' ``solver`` picks the route.
 
+    With ``processes`` > 0, direct-route solves run instead in that many
+    worker processes (``workers.SolverProcess``, started by ``start_processes``
+    and kept), each with its own such Planner: IPOPT lets one MUMPS call at a
+    time run per process, so threads of one process still wait on each
+    other's factorizations, processes do not. A request that finds every
+    worker busy (e.g. with requests running to their time budget) is solved
+    in this process's threads after ``process_wait``, not refused. The
+    worker processes start from a fork server, so a script using them needs
+    the usual ``if __name__ == '__main__':`` guard (``multiprocessing``).
+
     Args:
         pool_size: most solver instances per key, >= 1 (settable).
         pool_wait: longest wait (s) for an instance when all are busy, after
             which the request is refused naming ``solver_pool_size``.
+        processes: worker processes for NVF/RVF (direct route); 0 = solve in
+            this process's threads.
     """
 
-    def __init__(self, pool_size: int = 8, pool_wait: float = 0.3):
+    #: With worker processes, a request is answered within ``max_solve_time`` + this (s),
+    #: even if its worker is still building a solver (its late answer is dropped).
+    answer_margin = 0.4
+    #: With worker processes, how long (s) a request waits for one to be idle before it
+    #: is solved in this process's threads instead (typical solves take 2-20 ms).
+    process_wait = 0.02
+
+    def __init__(self, pool_size: int = 8, pool_wait: float = 0.3, processes: int = 0):
         self.pool_wait = pool_wait
         self._pools: dict = {}  # VariationalSolver.key -> SolverPool
         self._seeds: dict = {}  # VariationalSolver.structure_of -> the first solver built for it
         self._lock = threading.Lock()
         self.pool_size = pool_size
+        #: ``plan`` argument tuples a new worker process solves before serving (its solvers built)
+        self.warmups: list[tuple] = []
+        self._processes = None
+        if processes:
+            from .workers import SolverProcess
+            self._processes = SolverPool(lambda: SolverProcess(self.warmups), check_count('solver_processes', processes),
+                                         'process', hint='raise solver_processes')
 
     @property
     def pool_size(self) -> int:
@@ -170,8 +197,52 @@ class Planner:
             check_axis_limits(plan, options)
             return plan
         # the variational solvers bound v and a_ref everywhere as path constraints
+        if self._processes is not None and options.solver == 'direct':
+            return self._solve_in_process(method, displacement, duration, params, options)
         with self._pool(method, options).lend(self.pool_wait) as solver:
             return solver.solve(displacement, duration, params)
+
+    def start_processes(self, ready_within: float = 60.0) -> bool:
+        """Start every worker process in the background (each warms up on ``warmups`` first).
+
+        Waits up to ``ready_within`` seconds for one to be ready; whether one is
+        (True without worker processes).
+        """
+        return self._processes is None or self._processes.fill(ready_within)
+
+    def close(self) -> None:
+        """Stop the worker processes (busy ones after their request)."""
+        if self._processes is not None:
+            self._processes.close()
+
+    def warm_threads(self, requests) -> None:
+        """Solve ``plan`` argument tuples in this process's threads, so its own solvers are built.
+
+        With worker processes these take the requests that find every worker
+        busy; warmed, such a request does not pay for a build.
+        """
+        for method, displacement, duration, params, options in requests:
+            with self._pool(method, options).lend(self.pool_wait) as solver:
+                solver.solve(*check_request(method, displacement, duration), params)
+
+    def _solve_in_process(self, method, displacement, duration, params, options) -> Plan:
+        t0 = time.monotonic()
+        try:
+            worker = self._processes.take(self.process_wait)
+        except PlanError:  # every worker is busy (hard requests): solve here rather than wait or refuse
+            with self._pool(method, options).lend(self.pool_wait) as solver:
+                return solver.solve(displacement, duration, params)
+        try:
+            timeout = None
+            if options.max_solve_time is not None:
+                timeout = max(options.max_solve_time + self.answer_margin - (time.monotonic() - t0), 0.05)
+            return worker.solve((method, displacement, duration, params, options), timeout)
+        finally:
+            if worker.late:  # back to the pool once its answer is in, so no caller waits behind it
+                threading.Thread(target=lambda: (worker.finish_late(), self._processes.give_back(worker)),
+                                 daemon=True).start()
+            else:
+                self._processes.give_back(worker)
 
     def _pool(self, method: str, options: PlanOptions):
         from .variational import VariationalSolver

@@ -9,7 +9,10 @@ takes 0.1-0.3 s on a loaded machine), and one in the request when every
 existing one stays busy for ``grace`` seconds (each instance holds a few
 MB). A request that finds ``size`` instances busy waits at most ``wait``
 seconds for one to come back, then is refused: answering late would break
-the planner's answer-time promise. Pure Python, no ROS import.
+the planner's answer-time promise. ``fill`` makes all ``size`` up front and
+keeps them (an instance that reports itself ``closed`` is dropped and
+replaced): for instances too slow to make on demand, such as worker
+processes (``workers.SolverProcess``). Pure Python, no ROS import.
 """
 from __future__ import annotations
 
@@ -31,12 +34,15 @@ class SolverPool:
         name: what the instances solve, for the refusal message.
         grace: how long (s) a request waits for a busy instance before a new
             one is made (typical NVF/RVF solves take 2-40 ms).
+        hint: what the refusal advises when all stay busy.
     """
 
-    def __init__(self, create, size: int, name: str = 'solver', grace: float = 0.02):
-        self._create, self.name, self.grace = create, name, grace
+    def __init__(self, create, size: int, name: str = 'solver', grace: float = 0.02,
+                 hint: str = 'raise solver_pool_size'):
+        self._create, self.name, self.grace, self.hint = create, name, grace, hint
         self._idle: list = []  # the most recently returned last: its warm start is the freshest
         self._count = 0  # instances in existence (idle, lent or being made)
+        self._keep_full = self._closing = False
         self._cond = threading.Condition()
         self.size = size
 
@@ -56,15 +62,45 @@ class SolverPool:
         """Instances in existence (idle, lent or being made)."""
         return self._count
 
+    def fill(self, ready_within: float = 0.0) -> bool:
+        """Make instances up to ``size`` in the background, and from now on replace those that close.
+
+        Waits up to ``ready_within`` seconds for one to be idle; whether one is.
+        """
+        with self._cond:
+            self._keep_full = True
+            missing = self._size - self._count
+            self._count += max(missing, 0)
+        for _ in range(missing):
+            threading.Thread(target=self._make_spare, daemon=True).start()
+        with self._cond:
+            return bool(self._cond.wait_for(lambda: self._idle, timeout=ready_within))
+
+    def close(self) -> None:
+        """Close the instances that have a ``close()``: idle ones now, lent ones when they come back."""
+        with self._cond:
+            self._keep_full, self._closing = False, True
+            idle, self._idle = self._idle, []
+            self._count -= len(idle)
+        for solver in idle:
+            getattr(solver, 'close', lambda: None)()
+
     @contextmanager
     def lend(self, wait: float):
-        """An idle instance for the block; PlanError if ``size`` stay busy for ``wait`` s."""
+        """An idle instance for the block (``take``, then ``give_back``)."""
+        solver = self.take(wait)
+        try:
+            yield solver
+        finally:
+            self.give_back(solver)
+
+    def take(self, wait: float):
+        """An idle instance, to ``give_back`` when done; PlanError if ``size`` stay busy for ``wait`` s."""
         with self._cond:
             if self._count and not self._idle:  # a busy one may come back before a new one is worth making
                 self._cond.wait_for(lambda: self._idle, timeout=min(self.grace, wait))
             if not self._cond.wait_for(lambda: self._idle or self._count < self._size, timeout=wait):
-                raise PlanError(f'all {self._count} {self.name} solvers stayed busy for {wait:g} s; '
-                                'raise solver_pool_size')
+                raise PlanError(f'all {self._count} {self.name} solvers stayed busy for {wait:g} s; {self.hint}')
             solver = self._idle.pop() if self._idle else None
             if solver is None:
                 self._count += 1
@@ -77,24 +113,31 @@ class SolverPool:
             try:
                 solver = self._create()
             except BaseException:
-                self._give_back(None)
+                self.give_back(None)
                 raise
-        try:
-            yield solver
-        finally:
-            self._give_back(solver)
+        return solver
 
     def _make_spare(self):
         try:
             spare = self._create()
         except Exception:  # the request that needs one will build it and report why
             spare = None
-        self._give_back(spare)
+        self.give_back(spare)
 
-    def _give_back(self, solver):
+    def give_back(self, solver) -> None:
+        """Return an instance from ``take``; one that reports itself ``closed`` is dropped (replaced after ``fill``)."""
+        closed = solver is None or getattr(solver, 'closed', False)
+        replace = drop = False
         with self._cond:
-            if solver is None or self._count > self._size:
+            if closed and self._keep_full and solver is not None and self._count <= self._size:
+                replace = True  # its count goes to the replacement
+            elif closed or self._count > self._size or self._closing:
                 self._count -= 1
+                drop = not closed
             else:
                 self._idle.append(solver)
             self._cond.notify()
+        if drop:  # beyond a reduced size, or the pool is closing
+            getattr(solver, 'close', lambda: None)()
+        if replace:
+            threading.Thread(target=self._make_spare, daemon=True).start()

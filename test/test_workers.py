@@ -1,0 +1,131 @@
+"""NVF/RVF in worker processes (crane_planner.planning.workers): real processes, real CasADi/IPOPT.
+
+The workers exist so that a solve never waits on another's linear algebra
+(IPOPT's MUMPS runs one call at a time per process); these tests check that
+what comes back is what an in-process solve gives, and that a worker that
+dies, is late or is busy never costs a request its answer or another its plan.
+"""
+import os
+import signal
+import threading
+
+import numpy as np
+import pytest
+
+from crane_msgs_py.params import CraneParams
+from crane_planner.planning import PlanError, Planner, PlanOptions
+from crane_planner.planning.workers import SolverProcess
+
+MODEL = CraneParams()
+OPTIONS = PlanOptions(max_solve_time=1.0)
+#: No plan exists that a solver finds in a second: 10 m in half a second.
+HOPELESS = ('rvf', 10.0, 0.5, MODEL, OPTIONS)
+WARMUPS = [(m, 0.3, 3.0, MODEL, OPTIONS) for m in ('nvf', 'rvf')]
+
+
+@pytest.fixture(scope='module')
+def planner():
+    planner = Planner(processes=2)
+    planner.warmups = WARMUPS
+    assert planner.start_processes(ready_within=60.0)
+    yield planner
+    planner.close()
+
+
+def wait_until(predicate, timeout=30.0):
+    event = threading.Event()
+    while not predicate():
+        assert timeout > 0, 'condition not met in time'
+        event.wait(0.05)
+        timeout -= 0.05
+
+
+@pytest.mark.parametrize('method, D, T', [('nvf', 0.3, 3.0), ('rvf', -0.6, 4.4), ('rvf', 1.0, 2.6)])
+def test_a_worker_returns_the_plan_an_in_process_solve_gives(planner, method, D, T):
+    remote = planner.plan(method, D, T, MODEL, OPTIONS)
+    local = Planner().plan(method, D, T, MODEL, OPTIONS)
+    t = np.linspace(0.0, T, 301)
+    # warm starts differ (each solver's last solution), so agreement is to the solver's tolerance
+    assert np.max(np.abs(remote.evaluate(t).position - local.evaluate(t).position)) < 1e-7 * max(abs(D), 1.0)
+    assert remote.evaluate(T).position[0] == pytest.approx(D, abs=1e-9)
+    assert remote.info['status'] == 'Solve_Succeeded'
+
+
+def test_a_refusal_in_a_worker_is_raised_in_the_caller_with_its_reason(planner):
+    with pytest.raises(PlanError, match=r'rvf: no plan for D=10 m, T=0.5 s within max_solve_time 1 s'):
+        planner.plan(*HOPELESS)
+
+
+def test_a_request_finding_every_worker_busy_is_solved_in_process_before_the_hopeless_ones_end(planner):
+    done, errors = [], []
+
+    def hopeless():
+        try:
+            planner.plan(*HOPELESS)
+        except PlanError as exc:
+            errors.append(exc)
+        done.append('hopeless')
+
+    threads = [threading.Thread(target=hopeless) for _ in range(2)]  # both workers busy for 1 s
+    for th in threads:
+        th.start()
+    wait_until(lambda: planner._processes.instances == 2 and not planner._processes._idle)
+    plan = planner.plan('rvf', 0.3, 3.0, MODEL, OPTIONS)
+    done.append('typical')
+    for th in threads:
+        th.join()
+    assert done[0] == 'typical' and len(errors) == 2  # answered while both workers still solved
+    assert plan.evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-9)
+
+
+def test_a_worker_that_dies_mid_solve_costs_one_refusal_and_is_replaced():
+    planner = Planner(processes=1)
+    planner.warmups = WARMUPS
+    try:
+        assert planner.start_processes(ready_within=60.0)
+        worker = planner._processes._idle[0]
+        errors = []
+
+        def hopeless():
+            try:
+                planner.plan(*HOPELESS)
+            except PlanError as exc:
+                errors.append(str(exc))
+
+        th = threading.Thread(target=hopeless)
+        th.start()
+        wait_until(lambda: not planner._processes._idle)
+        os.kill(worker.pid, signal.SIGKILL)
+        th.join()
+        assert errors and 'solver process ended while solving' in errors[0] and 'restarted' in errors[0]
+        wait_until(lambda: planner._processes._idle)  # the replacement is up
+        assert planner._processes._idle[0] is not worker and planner._processes.instances == 1
+        plan = planner.plan('nvf', 0.3, 3.0, MODEL, OPTIONS)
+        assert plan.evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-9)
+    finally:
+        planner.close()
+
+
+def test_a_late_answer_is_dropped_never_given_to_the_next_request():
+    worker = SolverProcess(WARMUPS)
+    try:
+        with pytest.raises(PlanError, match='no answer within'):
+            worker.solve(HOPELESS, timeout=0.05)
+        assert worker.late
+        worker.finish_late()
+        assert not worker.late and not worker.closed
+        plan = worker.solve(('nvf', 0.2, 3.5, MODEL, OPTIONS), timeout=10.0)
+        assert (plan.method, plan.displacement, plan.duration) == ('nvf', 0.2, 3.5)
+    finally:
+        worker.close()
+    assert not worker._process.is_alive()
+
+
+def test_workers_ignore_ctrl_c_and_end_with_their_parent_pipe():
+    worker = SolverProcess()
+    os.kill(worker.pid, signal.SIGINT)  # a terminal's Ctrl-C reaches the whole process group
+    plan = worker.solve(('nvf', 0.3, 3.0, MODEL, OPTIONS), timeout=30.0)
+    assert plan.displacement == 0.3
+    worker._conn.close()  # as when the parent ends
+    worker._process.join(timeout=10.0)
+    assert worker._process.exitcode == 0
