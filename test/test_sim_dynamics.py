@@ -96,3 +96,45 @@ def test_unforced_energy_is_conserved():
         assert np.abs(r.theta2[i]).max() > 0.05
         drift = np.abs(e - e[0]).max() / e[0]
         assert drift < 1e-6, f'start {i}: relative energy drift {drift:.2e}'
+
+
+def test_joint_damping_dissipates_exactly_the_rayleigh_power():
+    """Cart at rest, damped joints: dE/dt = -(c1 theta1'^2 + c2 theta2'^2) at every state.
+
+    dE/dt from the energy of Fig. 1's kinematics along the accelerations (a
+    central difference of E along the state's velocity), against the power of
+    the two joint torques: independent of how the damping enters Eqs. 18-19.
+    """
+    rng = np.random.default_rng(3)
+    p = CraneParams(c1=0.02, c2=0.011)
+    for _ in range(200):
+        th1, th2 = rng.uniform(-1.0, 1.0, 2)
+        d1, d2 = rng.uniform(-2.0, 2.0, 2)
+        dd1, dd2 = swing_accelerations(th1, th2, d1, d2, 0.0, p.L1, p.L2, p.m1, p.m2, p.g, p.c1, p.c2)
+        h = 1e-6
+        up = lagrangian_energy(th1 + h * d1, th2 + h * d2, d1 + h * dd1, d2 + h * dd2, p)
+        down = lagrangian_energy(th1 - h * d1, th2 - h * d2, d1 - h * dd1, d2 - h * dd2, p)
+        power = -(p.c1 * d1 ** 2 + p.c2 * d2 ** 2)
+        assert (up - down) / (2 * h) == pytest.approx(power, abs=1e-7)
+
+
+def test_damped_modes_from_linearizing_the_simulator_match_the_planning_model():
+    """Eigenvalues of a finite-difference linearization of the numpy model at rest vs model.modal_properties."""
+    from crane_planner.planning.model import modal_properties
+    p = CraneParams(L1=0.52, L2=0.35, m1=0.25, m2=0.18, c1=0.012, c2=0.004)
+    A = np.zeros((4, 4))
+    A[0, 2] = A[1, 3] = 1.0
+    h = 1e-7
+    for j in range(4):
+        dx = np.zeros(4)
+        dx[j] = h
+        up = swing_accelerations(*dx, 0.0, p.L1, p.L2, p.m1, p.m2, p.g, p.c1, p.c2)
+        down = swing_accelerations(*-dx, 0.0, p.L1, p.L2, p.m1, p.m2, p.g, p.c1, p.c2)
+        A[2:, j] = (np.array(up) - np.array(down)) / (2 * h)
+    lam = np.linalg.eigvals(A)
+    lam = sorted(lam[lam.imag > 0], key=abs)
+    omega, zeta = modal_properties(p)
+    for k in range(2):
+        assert omega[k] == pytest.approx(abs(lam[k]), rel=1e-6)
+        assert zeta[k] == pytest.approx(-lam[k].real / abs(lam[k]), rel=1e-5)
+    assert 0.005 < zeta[0] < 0.2 and 0.005 < zeta[1] < 0.2  # both modes really damped

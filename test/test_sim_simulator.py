@@ -230,3 +230,18 @@ def test_bad_references_and_plants_are_named():
         simulate([0.0, 1.0], [0.0, 0.0], {'L2': 0.4, 'm1': 1, 'm2': 1, 'g': 9.81, 'tau': 0})
     with pytest.raises(ParameterError, match='dt'):
         simulate([0.0, 1.0], [0.0, 0.0], P, dt=0.0)
+
+
+def test_measured_angles_add_seeded_noise_of_the_given_deviation():
+    from crane_sim.measurement import AngleNoise, measured_angles
+    t = np.arange(0.0, 4.0, 1e-3)
+    r = simulate(t, np.where(t < 0.5, 1.0, 0.0), CraneParams(), dt=1e-3, record_every=5)
+    a1, a2 = measured_angles(r, 2e-3, seed=5)
+    b1, _ = measured_angles(r, 2e-3, seed=5)
+    assert np.array_equal(a1, b1)  # reproducible
+    for noisy, true in ((a1, r.theta1), (a2, r.theta2)):
+        e = (noisy - true).ravel()
+        assert abs(e.mean()) < 3 * 2e-3 / np.sqrt(e.size) and np.std(e) == pytest.approx(2e-3, rel=0.1)
+    assert measured_angles(r, 0.0)[0] is r.theta1  # no noise: the angles themselves
+    with pytest.raises(ValueError, match='noise'):
+        AngleNoise(-1e-3)

@@ -10,7 +10,9 @@ import math
 from dataclasses import asdict, dataclass, fields, replace
 
 #: Names of the model parameters, in the contract's order.
-PARAMETER_NAMES = ('L1', 'L2', 'm1', 'm2', 'g', 'tau')
+PARAMETER_NAMES = ('L1', 'L2', 'm1', 'm2', 'g', 'tau', 'c1', 'c2')
+#: Those that may be 0 (the others must be > 0).
+NONNEGATIVE_PARAMETERS = ('tau', 'c1', 'c2')
 
 #: Human descriptions (units included), reused for CLI help and ROS parameter descriptors.
 PARAMETER_DESCRIPTIONS = {
@@ -20,6 +22,8 @@ PARAMETER_DESCRIPTIONS = {
     'm2': 'lower mass (load) m2 (kg), > 0',
     'g': 'gravitational acceleration g (m/s^2), > 0',
     'tau': 'axis servo time constant tau (s) of Eq. 6, >= 0 (0 = ideal tracking)',
+    'c1': 'viscous damping c1 of the upper pendulum joint (N m s/rad), >= 0 (0 = the paper\'s model)',
+    'c2': 'viscous damping c2 of the lower pendulum joint (N m s/rad), >= 0 (0 = the paper\'s model)',
 }
 
 
@@ -66,6 +70,11 @@ def check_choice(name: str, value, choices, error: type[ValueError] = ParameterE
     return value
 
 
+def check_parameter(name: str, value) -> float:
+    """``value`` of model parameter ``name`` as float, checked against its domain (ParameterError)."""
+    return (check_nonnegative if name in NONNEGATIVE_PARAMETERS else check_positive)(name, value)
+
+
 @dataclass(frozen=True)
 class CraneParams:
     """Double-pendulum crane (paper Fig. 1, Table 1) plus the axis servo of Eq. 6.
@@ -78,6 +87,11 @@ class CraneParams:
         g: gravitational acceleration (m/s^2).
         tau: first-order servo time constant (s); 0 means the cart follows
             the reference exactly.
+        c1, c2: viscous damping (N m s/rad) of the upper joint (torque
+            -c1 theta1' between cart and upper cable) and of the lower joint
+            (torque -c2 theta2' between the cables); 0 is the paper's
+            undamped model. The swing depends on them through c1/(m1+m2)
+            and c2/m2.
     """
 
     L1: float = 0.470
@@ -86,12 +100,13 @@ class CraneParams:
     m2: float = 0.201
     g: float = 9.81
     tau: float = 0.01
+    c1: float = 0.0
+    c2: float = 0.0
 
     def __post_init__(self):
         for f in fields(self):
-            check = check_nonnegative if f.name == 'tau' else check_positive
             # frozen dataclass: normalise to float through object.__setattr__
-            object.__setattr__(self, f.name, check(f.name, getattr(self, f.name)))
+            object.__setattr__(self, f.name, check_parameter(f.name, getattr(self, f.name)))
 
     def replace(self, **changes) -> 'CraneParams':
         """A copy with ``changes`` applied (validated); unknown names are an error."""

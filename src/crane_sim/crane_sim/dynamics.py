@@ -25,7 +25,12 @@ class SwingModel:
         [cos th2  1         ] [u1] = [(a cos phi - g sin phi)         - L1 sin th2 theta1'^2] = R1
 
     whose determinant m1 + m2 sin^2 th2 never vanishes for positive masses,
-    so Cramer's rule is safe everywhere:
+    so Cramer's rule is safe everywhere. Viscous joint damping (torques
+    -c1 theta1' and -c2 theta2', theta2' = phi' - theta1') enters as the
+    generalized forces of the dissipation function
+    D = c1 theta1'^2 / 2 + c2 (phi' - theta1')^2 / 2 in the same coordinates:
+    R0 += (-c1 theta1' + c2 theta2') / L1 and R1 += -c2 theta2' / (m2 L2).
+    Then
 
         theta1'' = (R0 - m2 cos th2 R1) / (L1 det),   phi'' = ((m1+m2) R1 - cos th2 R0) / (L2 det).
 
@@ -36,11 +41,12 @@ class SwingModel:
     their size.
 
     Args:
-        L1, L2, m1, m2, g: plant parameters (SI), scalars or arrays of one shape.
+        L1, L2, m1, m2, g, c1, c2: plant parameters (SI), scalars or arrays of one shape.
     """
 
-    def __init__(self, L1, L2, m1, m2, g):
-        L1, L2, m1, m2, g = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (L1, L2, m1, m2, g)))
+    def __init__(self, L1, L2, m1, m2, g, c1=0.0, c2=0.0):
+        L1, L2, m1, m2, g, c1, c2 = np.broadcast_arrays(
+            *(np.asarray(v, dtype=float) for v in (L1, L2, m1, m2, g, c1, c2)))
         mt, one = m1 + m2, np.ones_like(L1)
         self.m1, self.m2 = m1, m2
         lengths = np.stack((L1, L2))
@@ -51,6 +57,10 @@ class SwingModel:
         # Cramer numerators over L: own row - cos th2 * other row (the other row's 1/L swapped for ours)
         self._own = np.stack((one, mt))
         self._other = np.stack((m2 * L2 / L1, L1 / L2))
+        # damping over L of each row: theta1' and theta2' coefficients (None: undamped, skipped)
+        self._damping = None
+        if np.any(c1) or np.any(c2):
+            self._damping = (np.stack((-c1 / L1 ** 2, 0.0 * L1)), np.stack((c2 / L1 ** 2, -c2 / (m2 * L2 ** 2))))
 
     def accelerations(self, angles, rates, a_cart):
         """[theta1'', phi''] (stacked, shape (2, ...)) for angles = [theta1, phi],
@@ -59,17 +69,19 @@ class SwingModel:
         s2, c2 = np.sin(theta2), np.cos(theta2)
         r = self._a_scale * (a_cart * np.cos(angles)) - self._g_scale * np.sin(angles)
         r += self._centripetal * (s2 * (rates * rates)[::-1])
+        if self._damping is not None:
+            r += self._damping[0] * rates[0] + self._damping[1] * (rates[1] - rates[0])
         numer = self._own * r - c2 * (self._other * r[::-1])
         return numer / (self.m1 + self.m2 * (s2 * s2))
 
 
-def swing_accelerations(theta1, theta2, dtheta1, dtheta2, a_cart, L1, L2, m1, m2, g):
-    """Angular accelerations (theta1'', theta2'') of Eqs. 18-19 under cart acceleration a_cart.
+def swing_accelerations(theta1, theta2, dtheta1, dtheta2, a_cart, L1, L2, m1, m2, g, c1=0.0, c2=0.0):
+    """Angular accelerations (theta1'', theta2'') of Eqs. 18-19 (plus joint damping) under cart acceleration a_cart.
 
     All arguments broadcast against each other; returns two arrays of the
     broadcast shape.
     """
-    args = [np.asarray(v, dtype=float) for v in (theta1, theta2, dtheta1, dtheta2, a_cart, L1, L2, m1, m2, g)]
+    args = [np.asarray(v, dtype=float) for v in (theta1, theta2, dtheta1, dtheta2, a_cart, L1, L2, m1, m2, g, c1, c2)]
     th1, th2, d1, d2, a, *params = np.broadcast_arrays(*args)
     acc = SwingModel(*params).accelerations(np.stack((th1, th1 + th2)), np.stack((d1, d1 + d2)), a)
     return acc[0], acc[1] - acc[0]

@@ -29,8 +29,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from crane_msgs_py.params import (PARAMETER_NAMES, ParameterError, check_choice, check_count, check_nonnegative,
-                                  check_positive)
+from crane_msgs_py.params import (PARAMETER_NAMES, ParameterError, check_choice, check_count, check_parameter, check_positive)
 
 from .dynamics import SwingModel, load_excursion
 
@@ -58,12 +57,14 @@ class PlantBatch:
     m2: np.ndarray
     g: np.ndarray
     tau: np.ndarray
+    c1: np.ndarray
+    c2: np.ndarray
 
     @classmethod
     def of(cls, plants) -> 'PlantBatch':
         """From one params object / mapping, or a sequence of them (validated).
 
-        Anything with attributes (or keys) ``L1 L2 m1 m2 g tau`` is accepted,
+        Anything with attributes (or keys) ``L1 L2 m1 m2 g tau c1 c2`` is accepted,
         e.g. ``crane_msgs_py.params.CraneParams``.
         """
         if isinstance(plants, PlantBatch):
@@ -79,8 +80,7 @@ class PlantBatch:
                     value = p[name] if isinstance(p, Mapping) else getattr(p, name)
                 except (KeyError, AttributeError):
                     raise ParameterError(f'plant {i} has no parameter {name}') from None
-                check = check_nonnegative if name == 'tau' else check_positive
-                columns[name].append(check(name, value))
+                columns[name].append(check_parameter(name, value))
         return cls(**{name: np.array(v) for name, v in columns.items()})
 
     def __len__(self) -> int:
@@ -91,7 +91,7 @@ class PlantBatch:
         return PlantBatch(**{f.name: np.repeat(getattr(self, f.name), n) for f in fields(self)})
 
     def swing_model(self) -> SwingModel:
-        return SwingModel(self.L1, self.L2, self.m1, self.m2, self.g)
+        return SwingModel(self.L1, self.L2, self.m1, self.m2, self.g, self.c1, self.c2)
 
     def member(self, i: int) -> dict:
         """Plant ``i`` as a plain dict of floats."""
@@ -336,7 +336,7 @@ def simulate(t_ref, reference, plants, *, dt: float = 1e-3, t_end: float | None 
         t_ref: sample times (s), strictly increasing; the simulation starts at t_ref[0].
         reference: acceleration (m/s^2) or position (m) samples, shape (m,) for
             all plants or (n_batch, m), one row per plant.
-        plants: one params object (attributes or keys L1 L2 m1 m2 g tau) or a
+        plants: one params object (attributes or keys L1 L2 m1 m2 g tau c1 c2) or a
             sequence; a single plant with an (n_batch, m) reference is repeated.
         dt: integration step (s).
         t_end: last time (default t_ref[-1]); the grid t_ref[0] + k dt runs up to
@@ -428,7 +428,7 @@ class CraneSimulator:
     """One plant stepped in real time, with the same step as :func:`simulate`.
 
     Args:
-        params: plant parameters (attributes or keys L1 L2 m1 m2 g tau).
+        params: plant parameters (attributes or keys L1 L2 m1 m2 g tau c1 c2).
         dt: integration step (s).
         state: initial :class:`CraneState` (default at rest at y = 0).
     """

@@ -48,14 +48,17 @@ PARAMETERS = {
     'm2': (CraneParams.m2, PARAMETER_DESCRIPTIONS['m2'], float_range(0.0, 1e5)),
     'g': (CraneParams.g, PARAMETER_DESCRIPTIONS['g'], float_range(0.0, 100.0)),
     'tau': (CraneParams.tau, PARAMETER_DESCRIPTIONS['tau'], float_range(0.0, 10.0)),
+    'c1': (CraneParams.c1, PARAMETER_DESCRIPTIONS['c1'], float_range(0.0, 1e3)),
+    'c2': (CraneParams.c2, PARAMETER_DESCRIPTIONS['c2'], float_range(0.0, 1e3)),
     'method': ('rvf', f'method of ~/plan: one of {", ".join(METHODS)}',
                {'additional_constraints': f'one of {", ".join(METHODS)}'}),
     'robust_parameters': (['L1'], f'parameters RVF is made insensitive to, among {", ".join(ROBUST_PARAMETERS)}',
                           {'additional_constraints': f'distinct names among {", ".join(ROBUST_PARAMETERS)}'}),
     'shaper_frequencies': ([], 'shaper design frequencies (rad/s), one per mode; empty = the linearized '
                                "model's modal frequencies", {'additional_constraints': 'each > 0'}),
-    'shaper_damping': (0.0, 'shaper design damping ratio, >= 0 and < 1',
-                       float_range(0.0, 1.0)),
+    'shaper_damping': (-1.0, "shaper design damping ratio, >= 0 and < 1; -1 = the model's modal damping "
+                             'ratios (0 when c1 = c2 = 0; 0 with shaper_frequencies set)',
+                       float_range(-1.0, 1.0)),
     'intervals': (0, 'collocation intervals of NVF/RVF, 4..2000; 0 = the solver default',
                   int_range(0, 2000)),
     'sample_period': (0.0, 'knot spacing of returned plans (s); 0 = knots where the plan needs them '
@@ -105,7 +108,7 @@ class Config:
         check_choice('method', v['method'], METHODS)
         intervals = int(v['intervals'])
         options = PlanOptions(
-            omega=tuple(v['shaper_frequencies']) or None, damping=v['shaper_damping'],
+            omega=tuple(v['shaper_frequencies']) or None, damping=None if v['shaper_damping'] == -1.0 else v['shaper_damping'],
             robust=tuple(v['robust_parameters']), intervals=intervals or None,
             max_velocity=v['max_velocity'] or None, max_acceleration=v['max_acceleration'] or None,
             max_solve_time=check_positive('max_solve_time', v['max_solve_time']))

@@ -29,22 +29,29 @@ IDEAL_STATES = ('y', 'v', 'a') + SWING_STATES
 SERVO_STATES = ('y', 'v', 'a', 'a_ref') + SWING_STATES
 
 
-def swing_accelerations(theta1, theta2, dtheta1, dtheta2, a, L1, L2, m1, m2, g):
-    """(theta1'', theta2'') of Eqs. 18-19 for the cart acceleration ``a``.
+def swing_accelerations(theta1, theta2, dtheta1, dtheta2, a, L1, L2, m1, m2, g, c1=0.0, c2=0.0):
+    """(theta1'', theta2'') of Eqs. 18-19, plus viscous joint damping, for the cart acceleration ``a``.
 
     Eqs. 18-19 are linear in the angular accelerations:
-        [(m1+m2) L1 + m2 L2 c2,  m2 L2 c2] [th1'']   [(m1+m2)(a cos th1 - g sin th1) + m2 L2 (th1'+th2')^2 s2]
-        [L1 c2 + L2,             L2      ] [th2''] = [a cos(th1+th2) - g sin(th1+th2) - L1 th1'^2 s2         ]
-    with c2 = cos th2, s2 = sin th2. The determinant is L1 L2 (m1 + m2 s2^2) > 0,
-    so Cramer's rule is safe for every configuration. Works on CasADi
-    symbols and on floats.
+        [(m1+m2) L1 + m2 L2 k2,  m2 L2 k2] [th1'']   [(m1+m2)(a cos th1 - g sin th1) + m2 L2 (th1'+th2')^2 s2]
+        [L1 k2 + L2,             L2      ] [th2''] = [a cos(th1+th2) - g sin(th1+th2) - L1 th1'^2 s2         ]
+    with k2 = cos th2, s2 = sin th2. The determinant is L1 L2 (m1 + m2 s2^2) > 0,
+    so Cramer's rule is safe for every configuration. The first row is
+    Lagrange's equation of theta1 with the lower cable's absolute angle held
+    as a coordinate, over L1; the second that of the absolute angle, over
+    m2 L2. Joint damping (torques -c1 th1' at the cart, -c2 th2' between the
+    cables) adds their generalized forces: (-c1 th1' + c2 th2') / L1 to the
+    first right-hand side and -c2 th2' / (m2 L2) to the second. Works on
+    CasADi symbols and on floats.
     """
-    c2, s2 = ca.cos(theta2), ca.sin(theta2)
+    k2, s2 = ca.cos(theta2), ca.sin(theta2)
     mt = m1 + m2
-    m11, m12 = mt * L1 + m2 * L2 * c2, m2 * L2 * c2
-    m21, m22 = L1 * c2 + L2, L2
+    m11, m12 = mt * L1 + m2 * L2 * k2, m2 * L2 * k2
+    m21, m22 = L1 * k2 + L2, L2
     r1 = mt * (a * ca.cos(theta1) - g * ca.sin(theta1)) + m2 * L2 * (dtheta1 + dtheta2) ** 2 * s2
     r2 = a * ca.cos(theta1 + theta2) - g * ca.sin(theta1 + theta2) - L1 * dtheta1 ** 2 * s2
+    r1 += (c2 * dtheta2 - c1 * dtheta1) / L1
+    r2 -= c2 * dtheta2 / (m2 * L2)
     det = L1 * L2 * (m1 + m2 * s2 ** 2)
     return (m22 * r1 - m12 * r2) / det, (m11 * r2 - m21 * r1) / det
 
@@ -88,9 +95,9 @@ def crane_ode(servo: bool) -> CraneOde:
     u = ca.SX.sym('u')
     p = ca.SX.sym('p', len(PARAMETERS))
     s = dict(zip(names, ca.vertsplit(x)))
-    L1, L2, m1, m2, g, tau = ca.vertsplit(p)
+    L1, L2, m1, m2, g, tau, c1, c2 = ca.vertsplit(p)
     dd1, dd2 = swing_accelerations(s['theta1'], s['theta2'], s['dtheta1'], s['dtheta2'], s['a'],
-                                   L1, L2, m1, m2, g)
+                                   L1, L2, m1, m2, g, c1, c2)
     if servo:
         cart = [s['v'], s['a'], (s['a_ref'] - s['a']) / tau, u]
     else:

@@ -15,7 +15,7 @@ import numpy as np
 from crane_msgs_py.params import CraneParams, ParameterError, check_count, check_nonnegative, check_positive
 
 from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
-from .model import modal_frequencies
+from .model import modal_properties
 from .plan import Plan, PlanError
 from .pool import SolverPool
 from .shaped import shaped_plan
@@ -28,7 +28,9 @@ class PlanOptions:
     Attributes:
         omega: shaper design frequencies (rad/s), one per mode; None = from the
             linearized model.
-        damping: shaper design damping ratio (>= 0, < 1).
+        damping: shaper design damping ratio (>= 0, < 1); None = the model's
+            modal damping ratios (``model.modal_properties``) when ``omega``
+            is None too, else 0.
         robust: parameters RVF is made insensitive to.
         intervals: collocation intervals for NVF/RVF; None = solver default.
         solver: ``direct`` (CasADi collocation + IPOPT) or ``indirect``
@@ -41,7 +43,7 @@ class PlanOptions:
     """
 
     omega: tuple[float, ...] | None = None
-    damping: float = 0.0
+    damping: float | None = None
     robust: tuple[str, ...] = ('L1',)
     intervals: int | None = None
     solver: str = 'direct'
@@ -55,10 +57,11 @@ class PlanOptions:
             if len(omega) == 0:
                 raise ParameterError('omega needs at least one frequency')
             object.__setattr__(self, 'omega', omega)
-        damping = check_nonnegative('damping', self.damping)
-        if damping >= 1.0:
-            raise ParameterError(f'damping must be < 1, got {damping}')
-        object.__setattr__(self, 'damping', damping)
+        if self.damping is not None:
+            damping = check_nonnegative('damping', self.damping)
+            if damping >= 1.0:
+                raise ParameterError(f'damping must be < 1, got {damping}')
+            object.__setattr__(self, 'damping', damping)
         robust = tuple(self.robust)
         bad = [r for r in robust if r not in ROBUST_PARAMETERS]
         if bad:
@@ -192,8 +195,12 @@ class Planner:
         options = options or PlanOptions()
         displacement, duration = check_request(method, displacement, duration)
         if method in SHAPER_METHODS:
-            omegas = options.omega or modal_frequencies(params)
-            plan = shaped_plan(method, displacement, duration, omegas, options.damping)
+            if options.omega is not None:
+                omegas, zetas = options.omega, options.damping or 0.0
+            else:
+                omegas, zetas = modal_properties(params)
+                zetas = zetas if options.damping is None else options.damping
+            plan = shaped_plan(method, displacement, duration, omegas, zetas)
             check_axis_limits(plan, options)
             return plan
         # the variational solvers bound v and a_ref everywhere as path constraints

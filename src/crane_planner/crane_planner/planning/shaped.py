@@ -65,11 +65,11 @@ class ShapedPlan(Plan):
         return tuple(polyval(x, c[piece].T, tensor=False) for c in self._coefficients)
 
 
-def shaped_plan(method: str, displacement: float, duration: float, omegas, zeta: float) -> ShapedPlan:
+def shaped_plan(method: str, displacement: float, duration: float, omegas, zeta) -> ShapedPlan:
     """Plan from 0 to ``displacement`` (m) in ``duration`` (s) with ``method``'s shaper.
 
-    One shaper per mode frequency in ``omegas`` (rad/s, undamped), damping
-    ratio ``zeta``, cascaded. A duration not longer than the shaper cannot
+    One shaper per mode frequency in ``omegas`` (rad/s) with damping ratio
+    ``zeta`` (one for all, or one per mode), cascaded. A duration not longer than the shaper cannot
     be met and is a PlanError (contract: never a silently longer motion).
     """
     shaper = design(method, omegas, zeta)
@@ -80,7 +80,7 @@ def shaped_plan(method: str, displacement: float, duration: float, omegas, zeta:
     base = duration - shaper.duration
     info = {
         'omegas': [float(w) for w in np.atleast_1d(omegas)],
-        'zeta': float(zeta),
+        'zeta': np.broadcast_to(np.asarray(zeta, dtype=float), np.shape(np.atleast_1d(omegas))).tolist(),
         'impulse_times': shaper.times.tolist(),
         'impulse_amplitudes': shaper.amplitudes.tolist(),
         'shaper_duration': shaper.duration,

@@ -283,8 +283,11 @@ def cascade(*shapers: Shaper) -> Shaper:
 SHAPERS = {'zv': zv, 'nzv': nzv, 'zvd': zvd, 'ei': ei, 'mzv': mzv, 'zvdd': zvdd}
 
 
-def design(method: str, omegas, zeta: float = 0.0) -> Shaper:
-    """One ``method`` shaper per mode frequency in ``omegas`` (rad/s), cascaded (paper §4, ref. [13])."""
+def design(method: str, omegas, zeta=0.0) -> Shaper:
+    """One ``method`` shaper per mode frequency in ``omegas`` (rad/s), cascaded (paper §4, ref. [13]).
+
+    ``zeta``: the design damping ratio, one for all modes or one per mode.
+    """
     try:
         make = SHAPERS[method]
     except KeyError:
@@ -292,4 +295,5 @@ def design(method: str, omegas, zeta: float = 0.0) -> Shaper:
     omegas = np.atleast_1d(np.asarray(omegas, dtype=float))
     if omegas.ndim != 1 or omegas.size == 0:
         raise ParameterError('omegas needs at least one frequency')
-    return cascade(*(make(float(w), zeta) for w in omegas))
+    zetas = np.broadcast_to(np.asarray(zeta, dtype=float), omegas.shape)
+    return cascade(*(make(float(w), float(z)) for w, z in zip(omegas, zetas)))

@@ -69,16 +69,21 @@ def _robust_list(text: str) -> tuple[str, ...]:
     return names
 
 
-def _add_model_options(p: argparse.ArgumentParser):
-    g = p.add_argument_group('model (the planning model; defaults: paper Table 1, tau 0.01 s)')
+def _add_crane_options(g):
     defaults = CraneParams()
     for name in PARAMETER_NAMES:
         g.add_argument(f'--{name}', type=_finite, default=getattr(defaults, name),
                        metavar='X', help=f'{PARAMETER_DESCRIPTIONS[name]} (default {getattr(defaults, name)})')
+
+
+def _add_model_options(p: argparse.ArgumentParser):
+    g = p.add_argument_group('model (the planning model; defaults: paper Table 1, tau 0.01 s)')
+    _add_crane_options(g)
     g.add_argument('--omega', type=_finite, nargs=2, metavar=('W1', 'W2'),
                    help='shaper design frequencies (rad/s); default: linearized model')
-    g.add_argument('--damping', type=_finite, default=0.0, metavar='Z',
-                   help='shaper design damping ratio (default 0)')
+    g.add_argument('--damping', type=_finite, metavar='Z',
+                   help="shaper design damping ratio (default: the model's modal damping ratios, "
+                        '0 without --c1/--c2; 0 with --omega)')
     g.add_argument('--robust', type=_robust_list, default=('L1',), metavar='P[,P...]',
                    help=f'parameters RVF is made insensitive to, from {",".join(ROBUST_PARAMETERS)} (default L1)')
     g.add_argument('--intervals', type=_positive_int, metavar='N',
@@ -90,7 +95,9 @@ def _add_model_options(p: argparse.ArgumentParser):
 
 
 #: Plant parameters the evaluation may change (``--plant-X``) and ``sweep`` may vary (g stays).
-PLANT_PARAMETERS = ('L1', 'L2', 'm1', 'm2', 'tau')
+PLANT_PARAMETERS = ('L1', 'L2', 'm1', 'm2', 'tau', 'c1', 'c2')
+#: Those ``sweep`` varies relative to the model's value (the dampings' default is 0).
+SWEEP_PARAMETERS = ('L1', 'L2', 'm1', 'm2', 'tau')
 
 
 def _add_plant_options(p: argparse.ArgumentParser):
@@ -108,7 +115,7 @@ def _add_task_options(p: argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=PROG, description=__doc__.splitlines()[0].split(': ', 1)[1])
-    sub = parser.add_subparsers(dest='command', required=True, metavar='{plan,compare,sweep}', parser_class=_Parser)
+    sub = parser.add_subparsers(dest='command', required=True, metavar='{plan,compare,sweep,identify}', parser_class=_Parser)
 
     p = sub.add_parser('plan', help='make one plan and evaluate it on the plant')
     p.add_argument('--method', choices=METHODS, required=True)
@@ -129,7 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--plot', metavar='FILE', help='write a PNG: velocity, acceleration and load swing per method')
 
     p = sub.add_parser('sweep', help='residual load swing while one plant parameter varies')
-    p.add_argument('--param', choices=PLANT_PARAMETERS, default='L1')
+    p.add_argument('--param', choices=SWEEP_PARAMETERS, default='L1')
     p.add_argument('--span', type=_finite, default=0.3, metavar='R', help='relative span, values x (1 +- R) (default 0.3)')
     p.add_argument('--points', type=int, default=61, metavar='N', help='number of values (>= 2, default 61)')
     _add_task_options(p)
@@ -140,6 +147,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--json', action='store_true', help='print the sweep JSON object')
     p.add_argument('--csv', metavar='FILE', help='write value and one residual column (mm) per method')
     p.add_argument('--plot', metavar='FILE', help='write a PNG of residual load swing vs the parameter')
+
+    p = sub.add_parser('identify', help='estimate L1, L2, mass ratio, joint damping and tau from a recorded move')
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument('--csv', metavar='FILE', help='recording with columns t, cart, theta1, theta2 [, reference]')
+    _add_crane_options(p.add_argument_group(
+        'nominal model (its total mass m1 + m2 and g are kept; defaults: paper Table 1)'))
+    p.add_argument('--json', action='store_true', help='print the estimates as one JSON object')
+    p.add_argument('--params-out', metavar='FILE', help='write a ROS 2 params file for the planner node')
+    p.add_argument('--plot', metavar='FILE', help='write a PNG of the measured and fitted swing')
     return parser
 
 
@@ -297,7 +313,48 @@ def _print_sweep(result: dict):
         print(f'{v:>10.4f}' + ''.join(f'{result["methods"][m]["load_mm"][i]:>9.3f}' for m in methods))
 
 
-COMMANDS = {'plan': cmd_plan, 'compare': cmd_compare, 'sweep': cmd_sweep}
+def cmd_identify(args) -> int:
+    from crane_planner.identification import identify, read_csv
+    model = CraneParams(**{n: getattr(args, n) for n in PARAMETER_NAMES})
+    recording = read_csv(args.csv)
+    result = identify(recording, model)
+    if args.json:
+        print(json.dumps(result.as_json()))
+    else:
+        _print_identification(args.csv, recording, result)
+    for warning in result.warnings:
+        print(f'{PROG}: warning: {warning}', file=sys.stderr)
+    if args.params_out:
+        with open(args.params_out, 'w') as f:
+            f.write(result.params_yaml())
+        _say(args, f'wrote {args.params_out} (planner: --ros-args --params-file {args.params_out})')
+    if args.plot:
+        from .figures import plot_identification
+        plot_identification(recording, result, args.plot)
+        _say(args, f'wrote {args.plot}')
+    return 0
+
+
+def _print_identification(source: str, rec, result):
+    v, s = result.values, result.std
+    print(f'identified from {source}: {rec.t.size} samples at {1.0 / rec.period:.4g} Hz over {rec.duration:.2f} s')
+    print(f'{"parameter":<22}{"estimate":>12}{"std error":>12}')
+    rows = [('L1 (m)', 'L1', 4), ('L2 (m)', 'L2', 4), ('mass ratio m2/(m1+m2)', 'mass_ratio', 4),
+            ('c1 (N m s/rad)', 'c1', 6), ('c2 (N m s/rad)', 'c2', 6)]
+    if v['tau'] is not None:
+        rows.append(('tau (s)', 'tau', 5))
+    for label, key, digits in rows:
+        print(f'{label:<22}{v[key]:>12.{digits}f}{s[key]:>12.{digits}f}')
+    for k in (1, 2):
+        w, z = v[f'omega{k}'], v[f'zeta{k}']
+        print(f'mode {k}: omega {w:.4f} +- {s[f"omega{k}"]:.4f} rad/s ({w / (2 * math.pi):.4f} Hz), '
+              f'zeta {z:.4f} +- {s[f"zeta{k}"]:.4f}')
+    print(f'rms residual {1e3 * result.rms_residual_rad:.3f} mrad; {result.iterations} iterations, '
+          f'{result.fit_time_s:.2f} s')
+    print(f'planner model: {_describe(result.params)}')
+
+
+COMMANDS = {'plan': cmd_plan, 'compare': cmd_compare, 'sweep': cmd_sweep, 'identify': cmd_identify}
 
 
 def main(argv=None) -> int:

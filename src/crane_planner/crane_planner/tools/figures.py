@@ -78,3 +78,25 @@ def plot_sweep(result: dict, path: str, nominal: float | None = None):
     ax.grid(True, alpha=0.3)
     ax.legend()
     save_figure(fig, path)
+
+
+def plot_identification(recording, result, path: str):
+    """Measured and fitted swing angles (mrad) of ``crane-plan identify``, and their difference."""
+    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    t = recording.t - recording.t[0]
+    for ax, name, measured, fitted in ((axes[0], 'theta1', recording.theta1, result.theta1),
+                                       (axes[1], 'theta2', recording.theta2, result.theta2)):
+        ax.plot(t, 1e3 * measured, '.', ms=2.5, color='0.55', label='measured')
+        ax.plot(t, 1e3 * fitted, lw=1.2, color='C0', label='fitted model')
+        ax.set_ylabel(f'{name} (mrad)')
+        ax.legend(loc='upper right', fontsize=8)
+    axes[2].plot(t, 1e3 * (recording.theta1 - result.theta1), lw=0.8, label='theta1')
+    axes[2].plot(t, 1e3 * (recording.theta2 - result.theta2), lw=0.8, label='theta2')
+    axes[2].set_ylabel('residual (mrad)')
+    axes[2].set_xlabel('time (s)')
+    axes[2].legend(loc='upper right', fontsize=8)
+    v = result.values
+    axes[0].set_title(f'identified L1 {v["L1"]:.4f} m, L2 {v["L2"]:.4f} m, m2/(m1+m2) {v["mass_ratio"]:.3f}, '
+                      f'zeta {v["zeta1"]:.4f} / {v["zeta2"]:.4f}; rms residual {1e3 * result.rms_residual_rad:.2f} mrad',
+                      fontsize=9)
+    save_figure(fig, path)

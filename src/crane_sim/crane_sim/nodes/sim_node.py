@@ -34,11 +34,13 @@ from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (JOINT_STATES_TOPIC, OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, REFERENCE_TOPIC,
                                  RESET_SERVICE, SIM_NODE)
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
-from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError, check_choice
+from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError, check_choice,
+                                  check_nonnegative)
 from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
 
+from crane_sim.measurement import AngleNoise
 from crane_sim.playout import ReferencePlayout
 from crane_sim.simulator import INTERPOLATIONS, JOINT_NAMES, SOURCES, CraneSimulator, CraneState, SimulationError
 
@@ -73,6 +75,10 @@ PARAMETERS = {
                       'own interval); joint_states are stamped with plant time', float_range(0.0, 1.0)),
     'unstamped_period': (1e-3, 'period (s) of references without stamps (float64_array): each is taken to come '
                          'this long after the previous one, like commands at a fixed rate', float_range(1e-5, 1.0)),
+    'noise': (0.0, 'standard deviation (rad) of Gaussian noise added to the published theta1 and theta2 '
+                   '(a measurement such as a camera\'s; the simulation itself is exact); may change while running',
+              float_range(0.0, 1.0)),
+    'seed': (0, 'seed of the measurement noise; fixed at start-up', {**int_range(0, 2**31 - 1), 'read_only': True}),
     'sched_priority': (0, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
                        'feeds it one below (without the privilege a warning and normal scheduling); '
                        '0 = normal scheduling, enough: the playout delay absorbs late steps',
@@ -97,6 +103,7 @@ class SimNode(Node):
         self._unstamped_period_ns = round(p['unstamped_period'] * 1e9)
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._check, self._apply, self._diagnostics)
+        self._noise = AngleNoise(p['noise'], p['seed'])
         self._joint_state = joint_state_message(JOINT_NAMES)
         self._joint_states = self.create_publisher(JointState, JOINT_STATES_TOPIC, JOINT_STATES_QOS)
 
@@ -136,6 +143,7 @@ class SimNode(Node):
         for name, choices in (('reference_source', SOURCES), ('interpolation', INTERPOLATIONS),
                               ('reference_type', ('auto', *REFERENCE_TYPES))):
             check_choice(name, values[name], choices)
+        check_nonnegative('noise', values['noise'])
         if not values['playout_delay'] < values['reference_timeout']:
             raise ParameterError(f'playout_delay {values["playout_delay"]} s must be shorter than '
                                  f'reference_timeout {values["reference_timeout"]} s')
@@ -149,6 +157,8 @@ class SimNode(Node):
         if {c.name for c in changes} & set(PARAMETER_NAMES):
             self._pending_params = params  # the loop applies it before its next step
         self._source, self._interpolation = values['reference_source'], values['interpolation']
+        if values['noise'] != self._noise.std:
+            self._noise = AngleNoise(values['noise'], self._noise.seed)
         self._timeout_ns = round(values['reference_timeout'] * 1e9)
         self._unstamped_period_ns = round(values['unstamped_period'] * 1e9)
         self._playout_args = self._playout_args_of(values)  # the loop swaps its playout when this changes
@@ -262,6 +272,7 @@ class SimNode(Node):
             counts['timeouts'] = timeouts + playout.timeouts
             if ticker.tick % self._publish_every == 0:
                 positions, velocities = sim.joint_state()
+                positions[1], positions[2] = self._noise(positions[1], positions[2])
                 plant_time = epoch_ros + (ticker.tick + 1) * dt_ns - round(playout.delay * 1e9)
                 fill_joint_state(self._joint_state, plant_time, positions, velocities)
                 try:

@@ -1,0 +1,107 @@
+"""A recorded move: time, cart position, the two swing angles and optionally the cart reference.
+
+CSV layout (header row, any column order, extra columns ignored): ``t`` (s),
+``cart`` (m, measured or reference cart position), ``theta1``, ``theta2``
+(rad, paper conventions: theta2 relative to the upper cable), optional
+``reference`` (m, the reference the axis was given). Pure Python + numpy.
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+
+import numpy as np
+
+from crane_msgs_py.errors import PlanError
+
+REQUIRED_COLUMNS = ('t', 'cart', 'theta1', 'theta2')
+#: Fewest samples a fit is attempted on.
+MIN_SAMPLES = 20
+
+
+class RecordingError(PlanError):
+    """The data cannot be used as given; the message says why."""
+
+
+@dataclass(frozen=True)
+class Recording:
+    """Samples of one move, strictly increasing in time, all finite (checked on construction).
+
+    Attributes:
+        t: sample times (s).
+        cart: cart position (m).
+        theta1, theta2: swing angles (rad).
+        reference: cart reference position (m) at the same times, or None.
+    """
+
+    t: np.ndarray
+    cart: np.ndarray
+    theta1: np.ndarray
+    theta2: np.ndarray
+    reference: np.ndarray | None = None
+
+    def __post_init__(self):
+        columns = {'t': self.t, 'cart': self.cart, 'theta1': self.theta1, 'theta2': self.theta2}
+        if self.reference is not None:
+            columns['reference'] = self.reference
+        n = None
+        for name, values in columns.items():
+            values = np.asarray(values, dtype=float)
+            if values.ndim != 1:
+                raise RecordingError(f'{name} must be one column of numbers')
+            if n is not None and values.size != n:
+                raise RecordingError(f'{name} has {values.size} samples, t has {n}')
+            n = values.size
+            bad = np.flatnonzero(~np.isfinite(values))
+            if bad.size:
+                raise RecordingError(f'{name} is not finite at sample {bad[0]} (of {n})')
+            object.__setattr__(self, name, values)
+        if n < MIN_SAMPLES:
+            raise RecordingError(f'a recording needs at least {MIN_SAMPLES} samples, got {n}')
+        step = np.diff(self.t)
+        if np.any(step <= 0.0):
+            k = int(np.flatnonzero(step <= 0.0)[0])
+            raise RecordingError(f't must increase strictly; sample {k + 1} ({self.t[k + 1]:g} s) '
+                                 f'does not follow {self.t[k]:g} s')
+        if np.max(step) > 3.0 * np.median(step):
+            k = int(np.argmax(step))
+            raise RecordingError(f'a gap of {step[k]:g} s after t = {self.t[k]:g} s (median step '
+                                 f'{np.median(step):g} s): the samples must be evenly spaced')
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    @property
+    def period(self) -> float:
+        """Median sample spacing (s)."""
+        return float(np.median(np.diff(self.t)))
+
+
+def read_csv(path) -> Recording:
+    """A Recording from a CSV file; RecordingError names what is wrong with it."""
+    try:
+        with open(path, newline='') as f:
+            reader = csv.reader(f)
+            header = next(reader, None)
+            rows = [row for row in reader if row and any(cell.strip() for cell in row)]
+    except OSError as exc:
+        raise RecordingError(f'cannot read {path}: {exc.strerror or exc}') from None
+    except (csv.Error, UnicodeDecodeError) as exc:
+        raise RecordingError(f'{path} is not a readable CSV file: {exc}') from None
+    if header is None:
+        raise RecordingError(f'{path} is empty')
+    header = [h.strip() for h in header]
+    missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    if missing:
+        raise RecordingError(f'{path} lacks column(s) {", ".join(missing)} (header: {", ".join(header)})')
+    index = {name: header.index(name) for name in (*REQUIRED_COLUMNS, 'reference') if name in header}
+    columns = {name: [] for name in index}
+    for line, row in enumerate(rows, start=2):
+        for name, k in index.items():
+            try:
+                columns[name].append(float(row[k]))
+            except (IndexError, ValueError):
+                raise RecordingError(f'{path}, line {line}: column {name} is not a number: '
+                                     f'{row[k] if k < len(row) else "(missing)"!r}') from None
+    return Recording(**{name: np.array(values) for name, values in columns.items()})
