@@ -8,6 +8,8 @@ import time
 import uuid
 from pathlib import Path
 
+import pytest
+
 
 BIN = Path(sys.executable).parent
 DURATION, SETTLE = 2.5, 3.0
@@ -80,3 +82,23 @@ def test_demo_exits_nonzero_naming_a_node_that_dies(tmp_path):
     # Every other node was stopped with it.
     left = subprocess.run(['pgrep', '-f', f'__ns:={namespace}'], capture_output=True, text=True).stdout.split()
     assert left == []
+
+
+def test_commissioning_identifies_the_unknown_crane_and_cuts_its_residual_swing(tmp_path):
+    """Must hold: after commissioning, NVF and ZV leave <= 1/5 of their Table-1-model swing and <= 1 mm."""
+    r = subprocess.run([str(BIN / 'crane-demo'), '--methods', 'nvf,zv', '--cases', 'commission',
+                        '--duration', str(DURATION), '--settle', str(SETTLE), '--out', str(tmp_path),
+                        '--no-figures'], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    rows = {(row['case'], row['method']): row['residual_mm']
+            for row in json.loads((tmp_path / 'results.json').read_text())}
+    for method in ('nvf', 'zv'):
+        before, after = rows[('commission:model', method)], rows[('commission:identified', method)]
+        assert before > 2.0, rows  # the unknown crane really swings under the Table 1 model
+        assert after <= before / 5 and after <= 1.0, rows
+    report = json.loads((tmp_path / 'commission.json').read_text())
+    truth, found = report['truth'], report['identified']
+    assert found['L1'] == pytest.approx(truth['L1'], rel=0.01) and found['L2'] == pytest.approx(truth['L2'], rel=0.01)
+    assert found['mass_ratio'] == pytest.approx(truth['m2'] / (truth['m1'] + truth['m2']), rel=0.03)
+    assert 'ros__parameters:' in (tmp_path / 'commissioned_planner.yaml').read_text()
+    assert 'commission:model' in r.stdout and 'commission:identified' in r.stdout

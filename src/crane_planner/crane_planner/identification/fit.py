@@ -377,16 +377,20 @@ def _report(rec, model, sol, fun, jac, elapsed) -> Identification:
 def _servo_tau(rec: Recording) -> tuple[float | None, float | None]:
     """tau and its standard error from tau y' + y = y_ref (Eq. 6 from rest), or (None, None) without a reference.
 
-    y' is the derivative of the cart's quintic spline; least squares in the one unknown.
+    y' is the derivative of the cart's quintic spline. The cart may sit at an
+    offset from the reference (an axis that integrates its acceleration
+    command drifts), so the least squares has two unknowns, tau and a
+    constant offset b: y_ref - y = tau y' + b.
     """
     if rec.reference is None:
         return None, None
-    y = make_interp_spline(rec.t, rec.cart, k=5)
-    v = y.derivative(1)(rec.t)
-    e = rec.reference - rec.cart
-    vv = float(v @ v)
-    if vv == 0.0:
+    v = make_interp_spline(rec.t, rec.cart, k=5).derivative(1)(rec.t)
+    if not np.any(np.abs(v) > 1e-9):
         raise IdentificationError('the cart does not move, so tau cannot be estimated; record a move')
-    tau = float(v @ e) / vv
-    res = e - tau * v
-    return tau, math.sqrt(float(res @ res) / max(rec.t.size - 1, 1) / vv)
+    A = np.column_stack([v, np.ones_like(v)])
+    e = rec.reference - rec.cart
+    coef, *_ = np.linalg.lstsq(A, e, rcond=None)
+    res = e - A @ coef
+    variance = float(res @ res) / max(rec.t.size - 2, 1)
+    cov = variance * np.linalg.inv(A.T @ A)
+    return float(coef[0]), math.sqrt(float(cov[0, 0]))

@@ -68,6 +68,14 @@ class Recording:
             raise RecordingError(f'a gap of {step[k]:g} s after t = {self.t[k]:g} s (median step '
                                  f'{np.median(step):g} s): the samples must be evenly spaced')
 
+    def write_csv(self, path) -> None:
+        """Write the CSV layout ``read_csv`` reads (full float precision)."""
+        names = ['t', 'cart', 'theta1', 'theta2'] + (['reference'] if self.reference is not None else [])
+        with open(path, 'w', newline='') as f:
+            writer = csv.writer(f)
+            writer.writerow(names)
+            writer.writerows(zip(*(getattr(self, n).tolist() for n in names)))
+
     @property
     def duration(self) -> float:
         return float(self.t[-1] - self.t[0])

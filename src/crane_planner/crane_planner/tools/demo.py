@@ -2,9 +2,11 @@
 
 Starts the planner, streamer and sim nodes in one namespace of a private ROS
 graph, then for every case (nominal plant, L1 = 0.42 m as in paper §5.2, each
-with and without Ethernet-like impairment) and every method requests a move
-over the planner service, lets the streamer stream it at 1 kHz, and measures
-the residual load swing from the sim's 50 Hz joint_states. Prints one table,
+with and without Ethernet-like impairment; and ``commission``: a plant the
+planner does not know, measured with noise, identified from one excitation
+move, then planned for) and every method requests a move over the planner
+service, lets the streamer stream it at 1 kHz, and measures the residual load
+swing from the sim's 50 Hz joint_states. Prints one table,
 writes figures, stops every node it started. Exit status 0, 1 when a node
 fails to come up or dies (the reason on stderr), 2 on bad options.
 """
@@ -21,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.params import PARAMETER_NAMES, CraneParams
 
 from .harness import CraneHarness, HarnessError, start_crane_nodes
 from .processes import NodeDied, NodeGroup, find_executable, isolated_graph
@@ -36,19 +38,37 @@ NETWORK = {'network.delay': 0.002, 'network.jitter': 0.0005, 'network.distributi
 NETWORK_OFF = {'network.delay': 0.0, 'network.jitter': 0.0, 'network.loss': 0.0}
 
 
+#: The commissioning case's crane: unknown to the planner (L1 +12 %, L2 -10 %, m2 +15 %: the mass
+#: ratio 0.511 -> 0.546), with a little joint damping and a slower servo than the model's.
+UNKNOWN_PLANT = CraneParams(L1=0.47 * 1.12, L2=0.391 * 0.90, m2=0.201 * 1.15, c1=0.002, c2=0.0005, tau=0.015)
+#: Standard deviation (rad) of the sim's angle noise while the commissioning move is recorded.
+COMMISSION_NOISE = 1e-3
+#: The commissioning excitation: a quintic of the run's displacement in this long (s), and the
+#: free swing recorded after it (s): fast enough to swing both modes, long enough for 4 slow periods.
+EXCITATION_DURATION, EXCITATION_RECORD = 1.0, 8.0
+
+
 @dataclass(frozen=True)
 class Case:
     name: str
-    L1: float
+    plant: CraneParams  # the sim's, the true crane
     network: bool
+    commission: bool = False  # first plan with the planner's model, identify, then plan again
+
+    @property
+    def L1(self) -> float:
+        return self.plant.L1
 
 
 CASES = {
-    'nominal': Case('nominal', CraneParams().L1, False),
-    'perturbed': Case('perturbed', PERTURBED_L1, False),
-    'nominal+net': Case('nominal+net', CraneParams().L1, True),
-    'perturbed+net': Case('perturbed+net', PERTURBED_L1, True),
+    'nominal': Case('nominal', CraneParams(), False),
+    'perturbed': Case('perturbed', CraneParams(L1=PERTURBED_L1), False),
+    'nominal+net': Case('nominal+net', CraneParams(), True),
+    'perturbed+net': Case('perturbed+net', CraneParams(L1=PERTURBED_L1), True),
+    'commission': Case('commission', UNKNOWN_PLANT, False, commission=True),
 }
+#: Table columns of the commission case: before and after identification.
+BEFORE, AFTER = 'commission:model', 'commission:identified' 
 
 
 @dataclass
@@ -117,7 +137,7 @@ def progress(text: str):
     print(f'[{PROG}] {text}', file=sys.stderr, flush=True)
 
 
-def run_case_method(driver: CraneHarness, case: Case, method: str, args, L2: float) -> Run:
+def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: str | None = None) -> Run:
     from crane_msgs_py.conversions import joint_trajectory_to_arrays
     from crane_sim.dynamics import load_excursion
     from crane_sim.metrics import residual_load_mm
@@ -135,26 +155,80 @@ def run_case_method(driver: CraneHarness, case: Case, method: str, args, L2: flo
     if len(rec) < 10:
         raise HarnessError(f'only {len(rec)} joint_states during the {method} motion: is the sim publishing?')
     t = (rec[:, 0] - start_ns) * 1e-9
-    residual = float(residual_load_mm(t, rec[:, 1], rec[:, 2], case.L1, L2, after=T, until=T + args.settle))
-    plan_t, _, plan_v, plan_a = joint_trajectory_to_arrays(traj)
+    L1, L2 = case.plant.L1, case.plant.L2
+    residual = float(residual_load_mm(t, rec[:, 1], rec[:, 2], L1, L2, after=T, until=T + args.settle))
+    plan_t, plan_p, plan_v, plan_a = joint_trajectory_to_arrays(traj)
+    # the served plan as the streamer plays it: its peaks lie between knots (a ZVD base
+    # motion of 76 ms starts and ends at rest, so its knots carry no acceleration at all)
+    plan_t, plan_p, plan_v, plan_a = _dense(plan_t, plan_p, plan_v, plan_a)
     # After the move back, zero the swing: the simulated crane has no damping to wait for.
     back_end_ns = back_ns + round((args.return_duration + 0.05) * 1e9)
     driver.sleep((back_end_ns - driver.now_ns()) * 1e-9)
     driver.wait_for_state_after(back_end_ns)
     driver.reset_sim()
-    return Run(case.name, method, plan_time, float(np.max(np.abs(plan_a))), residual, t,
-               1e3 * load_excursion(rec[:, 1], rec[:, 2], case.L1, L2), plan_t, plan_v, plan_a)
+    return Run(name or case.name, method, plan_time, float(np.max(np.abs(plan_a))), residual, t,
+               1e3 * load_excursion(rec[:, 1], rec[:, 2], L1, L2), plan_t, plan_v, plan_a)
+
+
+def _dense(t, p, v, a, step: float = 2e-4):
+    """The served trajectory sampled every ``step`` s by the streamer's quintic Hermite interpolation."""
+    from crane_planner.streaming.hermite import QuinticHermite
+    grid = np.union1d(np.arange(t[0], t[-1], step), t)
+    return (grid, *QuinticHermite(t, p, v, a)(grid))
+
+
+def commission(driver: CraneHarness, args, model: CraneParams):
+    """Stream one excitation move with the sim's noise on, record joint_states, identify: (Recording, Identification).
+
+    The excitation is a quintic of ``args.displacement`` in EXCITATION_DURATION s
+    sent by the driver itself (no method plans a move meant to swing); the
+    reference beside the measured cart gives tau. Then the cart goes back.
+    """
+    from crane_planner.identification import Recording, identify
+    from crane_planner.planning.profiles import quintic
+    from crane_planner.planning.plan import Samples
+
+    D, T = args.displacement, EXCITATION_DURATION
+    t = np.linspace(0.0, T, 11)  # a quintic: Hermite between any knots is exact
+    samples = Samples(t, *quintic(t, D, T))
+    driver.set_parameters('sim', {'noise': COMMISSION_NOISE})
+    start_ns = driver.send(samples, 0.0, 'the excitation')
+    end_ns = start_ns + round((T + EXCITATION_RECORD) * 1e9)
+    driver.sleep((end_ns - driver.now_ns()) * 1e-9 - driver.lead())
+    back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns)
+    rec = driver.states_between(start_ns, end_ns)
+    driver.set_parameters('sim', {'noise': 0.0})
+    t_rec = (rec[:, 0] - start_ns) * 1e-9
+    recording = Recording(t_rec, rec[:, 3], rec[:, 1], rec[:, 2], quintic(t_rec, D, T)[0])
+    result = identify(recording, model)
+    back_end_ns = back_ns + round((args.return_duration + 0.05) * 1e9)
+    driver.sleep((back_end_ns - driver.now_ns()) * 1e-9)
+    driver.wait_for_state_after(back_end_ns)
+    driver.reset_sim()
+    return recording, result
+
+
+def columns(cases) -> list[str]:
+    """Table columns: one per case, two for the commission case (before and after identification)."""
+    return [name for c in cases for name in ((BEFORE, AFTER) if c.commission else (c.name,))]
+
+
+def _describe(identified) -> str:
+    v = identified.values
+    return (f'L1 {v["L1"]:.4f} m, L2 {v["L2"]:.4f} m, mass ratio {v["mass_ratio"]:.3f}, zeta {v["zeta1"]:.4f}/'
+            f'{v["zeta2"]:.4f}, tau {v["tau"]:.4f} s (truth L1 {UNKNOWN_PLANT.L1:.4f}, L2 {UNKNOWN_PLANT.L2:.4f}, '
+            f'mass ratio {UNKNOWN_PLANT.m2 / (UNKNOWN_PLANT.m1 + UNKNOWN_PLANT.m2):.3f}, tau {UNKNOWN_PLANT.tau:g})')
 
 
 def print_table(runs: list[Run], cases, methods):
     width = 24
     print('cells: peak reference acceleration (m/s^2) | residual load swing (mm) | plan round trip (ms)')
-    print(f'{"method":<8}' + ''.join(f'{c.name:>{width}}' for c in cases))
+    print(f'{"method":<8}' + ''.join(f'{c:>{width}}' for c in columns(cases)))
     by_key = {(r.case, r.method): r for r in runs}
     for m in methods:
         cells = []
-        for c in cases:
-            r = by_key.get((c.name, m))
+        for c in columns(cases):
+            r = by_key.get((c, m))
             cells.append(f'{r.peak_acceleration:6.3f} |{r.residual_mm:7.2f} |{1e3 * r.plan_time_s:5.0f}'
                          if r else '-')
         print(f'{m:<8}' + ''.join(f'{cell:>{width}}' for cell in cells))
@@ -165,7 +239,7 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
 
     out = Path(args.out)
     written = []
-    first_case = args.cases[0].name
+    first_case = columns(args.cases)[0]
     fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     for r in runs:
         if r.case == first_case:
@@ -180,16 +254,22 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
         ax.legend(ncol=5, fontsize=8)
     written.append(save_figure(fig, out / 'demo_plans.png'))
 
-    n = len(args.cases)
+    panels = [(name, case) for case in args.cases
+              for name in ((BEFORE, AFTER) if case.commission else (case.name,))]
+    n = len(panels)
     fig, axes = plt.subplots(n, 1, figsize=(9, 2.6 * n + 0.6), sharex=True, squeeze=False)
-    for ax, case in zip(axes[:, 0], args.cases):
+    for ax, (name, case) in zip(axes[:, 0], panels):
         for r in runs:
-            if r.case == case.name:
+            if r.case == name:
                 ax.plot(r.t, r.load_mm, label=f'{r.method.upper()} ({r.residual_mm:.2f} mm)')
         ax.axvline(args.duration, color='k', lw=0.6, ls=':')
         ax.set_ylabel('load (mm)')
-        ax.set_title(f'{case.name}: L1 = {case.L1:g} m' + (', network impairment' if case.network else ''),
-                     fontsize=10)
+        if case.commission:
+            title = (f'{name}: unknown crane (L1 {case.plant.L1:.3f}, L2 {case.plant.L2:.3f} m), planned with '
+                     + ('the Table 1 model' if name == BEFORE else 'the identified model'))
+        else:
+            title = f'{name}: L1 = {case.L1:g} m' + (', network impairment' if case.network else '')
+        ax.set_title(title, fontsize=10)
         ax.set_ylim(-12, 12)
         ax.grid(True, alpha=0.3)
         ax.legend(ncol=3, fontsize=7)
@@ -237,6 +317,7 @@ def main(argv=None) -> int:
 def _run(args, env: dict, t_start: float) -> int:
     out = Path(args.out)
     runs: list[Run] = []
+    identification = None
     log_dir = Path(tempfile.mkdtemp(prefix='crane-demo-'))
     timing_log = (out / 'streamer_timing.json').resolve()
     progress(f'ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, namespace {args.namespace}, node logs in {log_dir}')
@@ -247,24 +328,46 @@ def _run(args, env: dict, t_start: float) -> int:
             driver = CraneHarness(args.namespace, nodes, log=progress, node_name='crane_demo')
             driver.wait_until_up(args.methods, args.startup_timeout)
             progress(f'nodes up in {time.monotonic() - t_start:.1f} s')
-            L2 = CraneParams().L2
-            total, k = len(args.cases) * len(args.methods), 0
+            model = CraneParams()  # the planner's
+            total, k = len(columns(args.cases)) * len(args.methods), 0
             for case in args.cases:
-                driver.set_parameters('sim', {'L1': case.L1})
+                driver.set_parameters('sim', {name: getattr(case.plant, name) for name in PARAMETER_NAMES})
                 driver.set_parameters('streamer', NETWORK if case.network else NETWORK_OFF)
                 driver.reset_sim()
-                for method in args.methods:
-                    k += 1
-                    run = run_case_method(driver, case, method, args, L2)
-                    runs.append(run)
-                    progress(f'[{k:2d}/{total}] {case.name:<14} {method:<4} residual {run.residual_mm:6.2f} mm, '
-                             f'peak a_ref {run.peak_acceleration:.3f} m/s^2, plan {1e3 * run.plan_time_s:.0f} ms')
+                phases = [(BEFORE, model), (AFTER, None)] if case.commission else [(case.name, model)]
+                for name, planner_model in phases:
+                    if planner_model is None:  # commissioning: identify the crane, give the planner its model
+                        progress('commissioning: one excitation move, recorded with '
+                                 f'{1e3 * COMMISSION_NOISE:g} mrad angle noise')
+                        recording, identified = commission(driver, args, model)
+                        planner_model = identified.params
+                        identification = (recording, identified)
+                        progress(f'identified {_describe(identified)} in {identified.fit_time_s:.2f} s')
+                    driver.set_parameters('planner', {n: getattr(planner_model, n) for n in PARAMETER_NAMES})
+                    for method in args.methods:
+                        k += 1
+                        run = run_case_method(driver, case, method, args, name)
+                        runs.append(run)
+                        progress(f'[{k:2d}/{total}] {name:<22} {method:<4} residual {run.residual_mm:6.2f} mm, '
+                                 f'peak a_ref {run.peak_acceleration:.3f} m/s^2, '
+                                 f'plan {1e3 * run.plan_time_s:.0f} ms')
+                driver.set_parameters('planner', {n: getattr(model, n) for n in PARAMETER_NAMES})
             driver.close()
             driver = None
         # The nodes are stopped here, so the streamer has written its timing log.
         print_table(runs, args.cases, args.methods)
         (out / 'results.json').write_text(json.dumps([r.row() for r in runs], indent=1) + '\n')
         written = [out / 'results.json']
+        if identification is not None:
+            recording, identified = identification
+            (out / 'commission.json').write_text(json.dumps(
+                {'truth': UNKNOWN_PLANT.as_dict(), 'identified': identified.as_json()}, indent=1) + '\n')
+            (out / 'commissioned_planner.yaml').write_text(identified.params_yaml())
+            recording.write_csv(out / 'commission_recording.csv')
+            written += [out / 'commission.json', out / 'commissioned_planner.yaml', out / 'commission_recording.csv']
+            if not args.no_figures:
+                from .figures import plot_identification
+                written.append(plot_identification(recording, identified, out / 'demo_commission_fit.png'))
         if not args.no_figures:
             written += write_figures(runs, args, timing_log)
             sweep = run_sweep(args)

@@ -41,7 +41,7 @@ def plot_plan(ev, path: str):
     axes[2, 0].set_xlabel('time (s)')
     axes[2, 1].set_xlabel('time (s)')
     fig.suptitle(f'{plan.method.upper()}: {plan.displacement:g} m in {plan.duration:g} s')
-    save_figure(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_compare(evaluations, path: str):
@@ -62,7 +62,7 @@ def plot_compare(evaluations, path: str):
     if evaluations:
         p = evaluations[0].plan
         axes[0].set_title(f'{p.displacement:g} m in {p.duration:g} s')
-    save_figure(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_sweep(result: dict, path: str, nominal: float | None = None):
@@ -77,7 +77,7 @@ def plot_sweep(result: dict, path: str, nominal: float | None = None):
     ax.set_ylabel('residual load swing (mm)')
     ax.grid(True, alpha=0.3)
     ax.legend()
-    save_figure(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_identification(recording, result, path: str):
@@ -99,4 +99,4 @@ def plot_identification(recording, result, path: str):
     axes[0].set_title(f'identified L1 {v["L1"]:.4f} m, L2 {v["L2"]:.4f} m, m2/(m1+m2) {v["mass_ratio"]:.3f}, '
                       f'zeta {v["zeta1"]:.4f} / {v["zeta2"]:.4f}; rms residual {1e3 * result.rms_residual_rad:.2f} mrad',
                       fontsize=9)
-    save_figure(fig, path)
+    return save_figure(fig, path)

@@ -23,7 +23,7 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.client import PlannerClient
-from crane_msgs_py.conversions import joint_state_to_arrays, stamp_ns
+from crane_msgs_py.conversions import joint_state_to_arrays, samples_to_joint_trajectory, stamp_ns
 from crane_msgs_py.diagnostics import OK, level_of, status_values
 from crane_msgs_py.names import (JOINT_STATES_TOPIC, PLANNER_NODE, RESET_SERVICE, SIM_JOINTS, SIM_NODE,
                                  STREAMER_NODE, TRAJECTORY_TOPIC, service_of)
@@ -75,6 +75,7 @@ class CraneHarness:
                                       callback_group=group)
         self.node.create_subscription(JointTrajectory, TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS,
                                       callback_group=group)
+        self._trajectory_pub = self.node.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
         self._executor = MultiThreadedExecutor(num_threads=3)
         self._executor.add_node(self.node)
         self._spinning = spinning(self._executor)  # entered here, left in close()
@@ -163,6 +164,18 @@ class CraneHarness:
             raise HarnessError(f'planning {method} took {plan_time:.2f} s, past the motion start (machine overloaded?)')
         traj = self.trajectory(start_ns, f'the {method}')
         return self.streamed_start(start_ns, mark, method), plan_time, traj
+
+    def send(self, samples, start: float, what: str = 'the test') -> int:
+        """Stream a trajectory of one's own (``plan.Samples``, relative) from ``start`` m, :meth:`lead` from now.
+
+        Published on ``trajectory`` as the planner's ``~/execute`` does: for a
+        test move no method plans, such as a commissioning excitation. The
+        stamp the motion starts at.
+        """
+        start_ns = self.now_ns() + round(self.lead() * 1e9)
+        mark = self.planner.diagnostics.mark()
+        self._trajectory_pub.publish(samples_to_joint_trajectory(samples, start, start_ns))
+        return self.streamed_start(start_ns, mark, what)
 
     def sent_trajectories(self) -> list[int]:
         """Start stamps (ns) of every trajectory seen on the ``trajectory`` topic, in order."""
