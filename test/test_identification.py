@@ -8,6 +8,7 @@ simulator, not against the planner's model.
 import json
 import math
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
@@ -177,3 +178,87 @@ def test_read_csv_round_trips_a_recording(tmp_path):
     keep = np.r_[0:30, 36:60]  # ... a gap of six is not
     with pytest.raises(RecordingError, match='evenly spaced'):
         Recording(*(x[keep] for x in (rec.t, rec.cart, rec.theta1, rec.theta2)))
+
+
+def write_bag(path, rec: Recording, namespace='/crane'):
+    """A rosbag2 recording in MCAP storage of joint_states (+ the reference at 1 kHz), as a recorder writes it."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    T = ts.types
+    js_type, traj_type = 'sensor_msgs/msg/JointState', 'trajectory_msgs/msg/JointTrajectory'
+    t0 = 1_700_000_000 * 10**9
+
+    def header(ns):
+        return T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9),
+                                        frame_id='crane_base')
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        js = w.add_connection(f'{namespace}/joint_states', js_type, typestore=ts)
+        for k in range(rec.t.size):
+            ns = t0 + round(rec.t[k] * 1e9)
+            msg = T[js_type](header=header(ns), name=['cart', 'theta1', 'theta2'],
+                             position=np.array([rec.cart[k], rec.theta1[k], rec.theta2[k]]),
+                             velocity=np.zeros(3), effort=np.zeros(0))
+            w.write(js, ns, ts.serialize_cdr(msg, js_type))
+        if rec.reference is not None:
+            ref = w.add_connection(f'{namespace}/reference', traj_type, typestore=ts)
+            t = np.arange(rec.t[0], rec.t[-1], 1e-3)
+            for tk, p in zip(t, np.interp(t, rec.t, rec.reference)):
+                ns = t0 + round(tk * 1e9)
+                point = T['trajectory_msgs/msg/JointTrajectoryPoint'](
+                    positions=np.array([p]), velocities=np.zeros(1), accelerations=np.zeros(1), effort=np.zeros(0),
+                    time_from_start=T['builtin_interfaces/msg/Duration'](sec=0, nanosec=0))
+                msg = T[traj_type](header=header(ns), joint_names=['cart'], points=[point])
+                w.write(ref, ns, ts.serialize_cdr(msg, traj_type))
+
+
+def test_a_rosbag2_mcap_recording_gives_what_the_csv_gives(tmp_path):
+    truth = TABLE1.replace(L1=0.5, L2=0.36, tau=0.02)
+    rec = record(truth, reference=True)
+    write_csv(tmp_path / 'move.csv', rec)
+    write_bag(tmp_path / 'bag', rec)
+    assert list((tmp_path / 'bag').glob('*.mcap')) and (tmp_path / 'bag' / 'metadata.yaml').is_file()
+    from_csv, from_bag = (json.loads(run(*source, '--json').stdout)
+                          for source in (('--csv', str(tmp_path / 'move.csv')), ('--bag', str(tmp_path / 'bag'))))
+    for key in ('L1', 'L2', 'mass_ratio', 'omega1', 'omega2'):
+        assert from_bag[key] == pytest.approx(from_csv[key], rel=1e-6), key
+    assert from_bag['tau'] == pytest.approx(0.02, rel=0.05)  # the reference interpolated from 1 kHz samples
+    empty = tmp_path / 'empty'
+    empty.mkdir()
+    out = run('--bag', str(empty))
+    assert out.returncode == 2 and 'not a rosbag2 recording' in out.stderr
+
+
+def test_the_params_file_sets_the_planner_nodes_model(ros_domain, tmp_path):
+    """The planner started with identify's --params-out file (namespaced) reports the estimates as its parameters."""
+    import rclpy
+    from rclpy.parameter_client import AsyncParameterClient
+
+    from crane_planner.tools.processes import PLANNER, NodeGroup
+    truth = TABLE1.replace(L1=0.55, L2=0.3, tau=0.02, c1=0.003)
+    write_csv(tmp_path / 'move.csv', record(truth, reference=True))
+    out = run('--csv', str(tmp_path / 'move.csv'), '--json', '--params-out', str(tmp_path / 'crane.yaml'))
+    estimates = json.loads(out.stdout)
+    rclpy.init()
+    node = rclpy.create_node('params_file_check', namespace='/cell_7')
+    try:
+        with NodeGroup(ros_domain, tmp_path / 'logs') as nodes:
+            nodes.start(*PLANNER, namespace='/cell_7', params={'solver_processes': 1},
+                        params_file=tmp_path / 'crane.yaml')
+            client = AsyncParameterClient(node, 'crane_planner')
+            deadline = time.monotonic() + 60.0
+            while not client.wait_for_services(0.2):
+                nodes.check_alive()
+                assert time.monotonic() < deadline, 'planner parameter services never appeared'
+            future = client.get_parameters(['L1', 'L2', 'm1', 'm2', 'c1', 'c2', 'tau'])
+            rclpy.spin_until_future_complete(node, future, timeout_sec=10.0)
+            values = {name: v.double_value for name, v in zip(['L1', 'L2', 'm1', 'm2', 'c1', 'c2', 'tau'],
+                                                               future.result().values)}
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    assert values['L1'] == estimates['L1'] and values['L2'] == estimates['L2']
+    assert values['c1'] == estimates['c1'] and values['tau'] == estimates['tau']
+    total = TABLE1.m1 + TABLE1.m2
+    assert values['m2'] / total == pytest.approx(estimates['mass_ratio'], rel=1e-12)
+    assert values['m1'] + values['m2'] == pytest.approx(total, rel=1e-12)

@@ -113,3 +113,67 @@ def read_csv(path) -> Recording:
                 raise RecordingError(f'{path}, line {line}: column {name} is not a number: '
                                      f'{row[k] if k < len(row) else "(missing)"!r}') from None
     return Recording(**{name: np.array(values) for name, values in columns.items()})
+
+
+#: Topic names (their last part: the recording may be namespaced) read from a rosbag2 recording.
+JOINT_STATES_NAME, REFERENCE_NAME = 'joint_states', 'reference'
+
+
+def read_bag(path) -> Recording:
+    """A Recording from a rosbag2 recording (a folder with ``metadata.yaml``; MCAP or SQLite storage).
+
+    ``joint_states`` (``sensor_msgs/JointState``, joints ``cart``, ``theta1``,
+    ``theta2``) gives the samples, at their header stamps; ``reference``
+    (``trajectory_msgs/JointTrajectory``, the streamer's one-point samples), when
+    recorded, is interpolated onto them by stamp. A topic whose name ends in
+    ``/joint_states`` counts, so a namespaced setup's recording works too.
+    Read with ``rosbags`` (no ROS install needed).
+    """
+    from pathlib import Path
+
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.typesys import Stores, get_typestore
+
+    path = Path(path)
+    if not (path / 'metadata.yaml').is_file():
+        raise RecordingError(f'{path} is not a rosbag2 recording (no metadata.yaml in it)')
+    try:
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+            def named(name):
+                found = sorted({c.topic for c in reader.connections
+                                if c.topic == name or c.topic.endswith('/' + name)})
+                if len(found) > 1:
+                    raise RecordingError(f'{path} holds several {name} topics ({", ".join(found)}); '
+                                         'record one crane')
+                return [c for c in reader.connections if found and c.topic == found[0]]
+
+            states = named(JOINT_STATES_NAME)
+            if not states:
+                raise RecordingError(f'{path} holds no joint_states topic (topics: '
+                                     f'{", ".join(sorted({c.topic for c in reader.connections})) or "none"})')
+            rows = []
+            for conn, _, raw in reader.messages(connections=states):
+                msg = reader.deserialize(raw, conn.msgtype)
+                index = {name: k for k, name in enumerate(msg.name)}
+                if not all(j in index for j in ('cart', 'theta1', 'theta2')):
+                    raise RecordingError(f'joint_states in {path} lacks joint(s) cart, theta1 or theta2 '
+                                         f'(has {", ".join(msg.name)})')
+                stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+                rows.append((stamp, *(float(msg.position[index[j]]) for j in ('cart', 'theta1', 'theta2'))))
+            references = []
+            for conn, _, raw in reader.messages(connections=named(REFERENCE_NAME)):
+                msg = reader.deserialize(raw, conn.msgtype)
+                if getattr(msg, 'points', None) and len(msg.points[0].positions):  # unstamped arrays are skipped
+                    stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+                    references.append((stamp, float(msg.points[0].positions[0])))
+    except AnyReaderError as exc:
+        raise RecordingError(f'cannot read {path}: {exc}') from None
+    if not rows:
+        raise RecordingError(f'{path} holds no joint_states messages')
+    data = np.array(sorted(rows))
+    t0 = data[0, 0]
+    reference = None
+    if references:
+        ref = np.array(sorted(references))
+        reference = np.interp(data[:, 0], ref[:, 0], ref[:, 1])
+    return Recording(data[:, 0] - t0, data[:, 1], data[:, 2], data[:, 3], reference)

@@ -182,6 +182,9 @@ class PlannerNode(Node):
         config = self._config
         times, failed = {}, {}
         t_all = time.perf_counter()
+        # every worker up before the node says it is ready: one still building takes a core
+        if config.solver_processes and not self._planner.start_processes(120.0, all_of_them=True):
+            self.get_logger().warn('not every solver process started within 120 s')
         if config.solver_processes:  # the node's own solvers, for requests finding every worker busy
             try:
                 self._planner.warm_threads(config.warmups())

@@ -209,13 +209,15 @@ class Planner:
         with self._pool(method, options).lend(self.pool_wait) as solver:
             return solver.solve(displacement, duration, params)
 
-    def start_processes(self, ready_within: float = 60.0) -> bool:
+    def start_processes(self, ready_within: float = 60.0, all_of_them: bool = False) -> bool:
         """Start every worker process in the background (each warms up on ``warmups`` first).
 
-        Waits up to ``ready_within`` seconds for one to be ready; whether one is
-        (True without worker processes).
+        Waits up to ``ready_within`` seconds for one (or, ``all_of_them``, every
+        one) to be ready and idle; whether it is (True without worker processes).
         """
-        return self._processes is None or self._processes.fill(ready_within)
+        if self._processes is None:
+            return True
+        return self._processes.fill(ready_within, self._processes.size if all_of_them else 1)
 
     def close(self) -> None:
         """Stop the worker processes (busy ones after their request)."""

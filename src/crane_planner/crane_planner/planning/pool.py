@@ -62,10 +62,10 @@ class SolverPool:
         """Instances in existence (idle, lent or being made)."""
         return self._count
 
-    def fill(self, ready_within: float = 0.0) -> bool:
+    def fill(self, ready_within: float = 0.0, count: int = 1) -> bool:
         """Make instances up to ``size`` in the background, and from now on replace those that close.
 
-        Waits up to ``ready_within`` seconds for one to be idle; whether one is.
+        Waits up to ``ready_within`` seconds for ``count`` to be idle; whether they are.
         """
         with self._cond:
             self._keep_full = True
@@ -74,7 +74,8 @@ class SolverPool:
         for _ in range(missing):
             threading.Thread(target=self._make_spare, daemon=True).start()
         with self._cond:
-            return bool(self._cond.wait_for(lambda: self._idle, timeout=ready_within))
+            return bool(self._cond.wait_for(lambda: len(self._idle) >= min(count, self._size),
+                                            timeout=ready_within))
 
     def close(self) -> None:
         """Close the instances that have a ``close()``: idle ones now, lent ones when they come back."""

@@ -151,6 +151,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser('identify', help='estimate L1, L2, mass ratio, joint damping and tau from a recorded move')
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument('--csv', metavar='FILE', help='recording with columns t, cart, theta1, theta2 [, reference]')
+    source.add_argument('--bag', metavar='DIR', help='rosbag2 recording (MCAP or SQLite) of joint_states [and reference]')
     _add_crane_options(p.add_argument_group(
         'nominal model (its total mass m1 + m2 and g are kept; defaults: paper Table 1)'))
     p.add_argument('--json', action='store_true', help='print the estimates as one JSON object')
@@ -314,14 +315,15 @@ def _print_sweep(result: dict):
 
 
 def cmd_identify(args) -> int:
-    from crane_planner.identification import identify, read_csv
+    from crane_planner.identification import identify, read_bag, read_csv
     model = CraneParams(**{n: getattr(args, n) for n in PARAMETER_NAMES})
-    recording = read_csv(args.csv)
+    source = args.csv or args.bag
+    recording = read_csv(args.csv) if args.csv else read_bag(args.bag)
     result = identify(recording, model)
     if args.json:
         print(json.dumps(result.as_json()))
     else:
-        _print_identification(args.csv, recording, result)
+        _print_identification(source, recording, result)
     for warning in result.warnings:
         print(f'{PROG}: warning: {warning}', file=sys.stderr)
     if args.params_out:

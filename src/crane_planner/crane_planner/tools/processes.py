@@ -78,11 +78,13 @@ def find_executable(package: str, name: str) -> str:
     raise FileNotFoundError(f'executable {name!r} of package {package!r} not found (run `make install`?)')
 
 
-def ros_args(namespace: str | None = None, params: dict | None = None) -> list[str]:
-    """``--ros-args`` for a namespace and parameter overrides."""
+def ros_args(namespace: str | None = None, params: dict | None = None, params_file=None) -> list[str]:
+    """``--ros-args`` for a namespace, a parameters file and parameter overrides (which win over the file)."""
     args = ['--ros-args']
     if namespace:
         args += ['-r', f'__ns:={namespace}']
+    if params_file:
+        args += ['--params-file', str(params_file)]
     for key, value in (params or {}).items():
         args += ['-p', f'{key}:={_param_text(value)}']
     return args
@@ -125,11 +127,11 @@ class NodeGroup:
     processes: list = field(default_factory=list)
 
     def start(self, package: str, executable: str, *, name: str | None = None, namespace: str | None = None,
-              params: dict | None = None) -> NodeProcess:
+              params: dict | None = None, params_file=None) -> NodeProcess:
         self.log_dir.mkdir(parents=True, exist_ok=True)
         name = name or executable
         log_path = self.log_dir / f'{name}.log'
-        cmd = [find_executable(package, executable), *ros_args(namespace, params)]
+        cmd = [find_executable(package, executable), *ros_args(namespace, params, params_file)]
         with open(log_path, 'w') as log:
             popen = subprocess.Popen(cmd, env=self.env, stdout=log, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True)
