@@ -105,17 +105,24 @@ class Transcription:
     """
 
     degree = 4
+    #: Weight of the cost of Eqs. 10/15 beside the duration in the free-time NLP: enough
+    #: to make the optimum unique (the limits alone leave the inside of the motion free).
+    free_time_cost_weight = 1e-9
 
-    def __init__(self, problem: Problem, intervals: int, limits: bool):
+    def __init__(self, problem: Problem, intervals: int, limits: bool, free_time: bool = False):
         t0 = time.perf_counter()
-        self.problem, self.intervals, self.limits = problem, intervals, limits
+        self.problem, self.intervals, self.limits, self.free_time = problem, intervals, limits, free_time
         nx, N, d = problem.nx, intervals, self.degree
         self.tau_nodes, C, self.B, self.basis = radau_coefficients(d)
         npar = len(PROBLEM_PARAMETERS)
         P = ca.SX.sym('P', npar + N)
         Pp, frac = P[:npar], P[npar:]
-        w = ca.SX.sym('w', nx + N * d * (nx + 1))
-        body = ca.reshape(w[nx:], nx + 1, N * d)
+        w = ca.SX.sym('w', nx + N * d * (nx + 1) + (1 if free_time else 0))
+        # free final time: T = sigma T_0 with sigma the last variable and T_0 the parameter T, which
+        # keeps scaling the states; every interval length is then sigma frac[k] of T_0
+        sigma = w[-1] if free_time else 1
+        frac = frac * sigma
+        body = ca.reshape(w[nx:nx + N * d * (nx + 1)], nx + 1, N * d)
         Xc, Uc = body[:nx, :], body[nx, :]
         Pm = ca.repmat(Pp, 1, N * d)
         Fc, Gc = problem.F.map(N * d)(Xc, Uc, Pm), problem.G.map(N * d)(Xc, Uc, Pm)
@@ -128,21 +135,24 @@ class Transcription:
                 J += frac[k] * self.B[j] * Gc[k * d + j - 1]
         g = [ca.vertcat(*res), xs[-1]]
         if limits:
-            # Bound the plan's reference velocity and acceleration polynomials
+            # Bound the plan's reference velocity, acceleration and jerk polynomials
             # (CollocationPlan) on whole intervals through their Bernstein
             # coefficients (a polynomial lies in their hull), not just at the
-            # nodes: near-bang-bang solutions overshoot between nodes.
+            # nodes: near-bang-bang solutions overshoot between nodes. Jerk is
+            # dA/ds / frac in units of P/T^3 (A the acceleration in P/T^2).
             nodes = ca.horzcat(w[:nx], Xc)
             v, a = problem.reference_va.map(N * d + 1)(nodes, ca.repmat(Pp, 1, N * d + 1))
-            to_bv, to_ba = bernstein_matrix(d + 1), bernstein_matrix(d)
-            bv, ba = [], []
+            to_bv, to_ba, to_bj = bernstein_matrix(d + 1), bernstein_matrix(d), bernstein_matrix(d - 1)
+            bv, ba, bj = [], [], []
             for k in range(N):
                 coef = ca.mtimes(self.basis.T, a[0, k * d:k * d + d + 1].T)  # acceleration, monomials in s
                 vel = ca.vertcat(v[0, k * d], frac[k] * coef / np.arange(1, d + 2))
                 bv.append(ca.mtimes(to_bv, vel))
                 ba.append(ca.mtimes(to_ba, coef))
-            g += [ca.vertcat(*bv), ca.vertcat(*ba)]
-        self.nlp = {'x': w, 'p': P, 'f': J, 'g': ca.vertcat(*g)}
+                bj.append(ca.mtimes(to_bj, coef[1:] * np.arange(1, d + 1)) / frac[k])
+            g += [ca.vertcat(*bv), ca.vertcat(*ba), ca.vertcat(*bj)]
+        objective = sigma + self.free_time_cost_weight * J if free_time else J
+        self.nlp = {'x': w, 'p': P, 'f': objective, 'g': ca.vertcat(*g)}
         self.ng = self.nlp['g'].shape[0]
         self.nres = nx * N * d
         self.nw = w.shape[0]
@@ -176,7 +186,7 @@ class Transcription:
     def states(self, w: np.ndarray) -> np.ndarray:
         """Scaled states at s = 0 and at every collocation point, shape (nx, N*d + 1)."""
         nx, N, d = self.problem.nx, self.intervals, self.degree
-        body = w[nx:].reshape(N * d, nx + 1).T
+        body = w[nx:nx + N * d * (nx + 1)].reshape(N * d, nx + 1).T
         return np.hstack([w[:nx, None], body[:nx]])
 
     def interval_nodes(self, w: np.ndarray) -> np.ndarray:
@@ -266,6 +276,7 @@ class _Instance:
     solver: ca.Function
     callback: _Yielding
     warm: tuple | None = None  # (sign of D, x0 / lam_x0 / lam_g0 of the solution)
+    T0: float | None = None  # free-time instances: the duration T = sigma T0 is scaled by
 
 
 class DirectSolver(VariationalSolver):
@@ -368,7 +379,7 @@ class DirectSolver(VariationalSolver):
         """Whether a further attempt may start, the first having started at ``t0`` (see ``retry_window``)."""
         return self.max_solve_time is None or time.perf_counter() - t0 <= self.retry_window
 
-    def _bounds(self, tr: Transcription, displacement: float, sx: np.ndarray, limits) -> dict:
+    def _bounds(self, tr: Transcription, displacement: float, duration: float, sx: np.ndarray, limits) -> dict:
         pb = tr.problem
         x0, xT = pb.boundary(displacement)
         lbx = np.full(tr.nw, -np.inf)
@@ -379,11 +390,13 @@ class DirectSolver(VariationalSolver):
         lbg[tr.nres:end] = ubg[tr.nres:end] = xT
         if tr.limits:
             d = tr.degree
-            vmax, amax = limits
+            vmax, amax, jmax = limits
+            sa = sx[pb.states.index('a')]
             vmax = np.inf if vmax is None else vmax / sx[pb.states.index('v')]
-            amax = np.inf if amax is None else amax / sx[pb.states.index('a')]
+            amax = np.inf if amax is None else amax / sa
+            jmax = np.inf if jmax is None else jmax / (sa / duration)
             # less IPOPT's bound relaxation (1e-8 relative), so the limit itself holds
-            bound = np.repeat([vmax, amax], tr.intervals * np.array([d + 2, d + 1])) * (1 - 2e-8)
+            bound = np.repeat([vmax, amax, jmax], tr.intervals * np.array([d + 2, d + 1, d])) * (1 - 2e-8)
             lbg[end:], ubg[end:] = -bound, bound
         return dict(lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
 
@@ -397,7 +410,7 @@ class DirectSolver(VariationalSolver):
         pvec = np.concatenate([pb.parameters(displacement, duration, params, self.weights), frac])
         sx, su = pb.scales(pvec[:len(PROBLEM_PARAMETERS)])
         sx, su = np.array(sx, dtype=float).ravel(), float(su)
-        args = dict(p=pvec, **self._bounds(tr, displacement, sx, (self.max_velocity, self.max_acceleration)))
+        args = dict(p=pvec, **self._bounds(tr, displacement, duration, sx, self.limits))
         t0 = time.perf_counter()
 
         def cold():  # the initial guess; only computed when needed
@@ -416,16 +429,104 @@ class DirectSolver(VariationalSolver):
         if not stats['success']:
             raise PlanError(self._failure_message(stats, solver, tr, displacement, duration, pvec, sx, cold(), t0))
         inst.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
-        N = tr.intervals
-        nodes = tr.interval_nodes(np.array(sol['x']).ravel()) * sx  # (N, d+1, nx), SI units
-        pos, vel, acc = pb.reference({n: nodes[:, :, i] for i, n in enumerate(pb.states)}, params.tau)
-        mesh = duration * breakpoints(frac)
         info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),
                 'solve_time_s': solve_time, 'build_time_s': build_time,
-                'objective': float(sol['f']) * duration * su ** 2, 'intervals': N,
+                'objective': float(sol['f']) * duration * su ** 2, 'intervals': tr.intervals,
                 'robust': list(self.robust), 'sensitivities': list(pb.robust), 'servo_model': servo}
+        return self._plan(tr, np.array(sol['x']).ravel(), sx, displacement, duration, frac, params, info)
+
+    def _plan(self, tr, w, sx, displacement, duration, frac, params, info) -> CollocationPlan:
+        """The CollocationPlan of the solution ``w`` (states scaled by ``sx``) lasting ``duration`` s."""
+        pb = tr.problem
+        nodes = tr.interval_nodes(w) * sx  # (N, d+1, nx), SI units
+        pos, vel, acc = pb.reference({n: nodes[:, :, i] for i, n in enumerate(pb.states)}, params.tau)
         return CollocationPlan(self.method, float(displacement), float(duration), info,
-                               mesh=mesh, coef=acc @ tr.basis, start=np.stack([pos[:, 0], vel[:, 0]], axis=1))
+                               mesh=duration * breakpoints(frac), coef=acc @ tr.basis,
+                               start=np.stack([pos[:, 0], vel[:, 0]], axis=1))
+
+    # -- the fastest plan ----------------------------------------------------------
+
+    def fastest(self, displacement: float, params: CraneParams) -> CollocationPlan:
+        """The shortest plan of ``displacement`` (m) within this solver's axis limits: free final time.
+
+        One NLP with the duration as a variable (``Transcription(free_time=True)``:
+        T = sigma T_0, minimizing sigma plus a small multiple of the cost of
+        Eqs. 10/15). It starts from a fixed-duration solution at a T_0 that
+        solves (found by trying 1.5, 2.25, ... times ``shortest_duration_bound``),
+        then from its own last solution. T* is where a limit binds.
+        """
+        from .shaped import shortest_duration_bound
+        if self.max_velocity is None and self.max_acceleration is None:
+            raise PlanError('the fastest plan needs max_velocity or max_acceleration (or both)')
+        if displacement == 0.0:
+            raise PlanError('the fastest plan needs a nonzero displacement')
+        servo = params.tau > 0.0
+        bound = shortest_duration_bound(displacement, self.limits)
+        with self._lock:
+            t_build = time.perf_counter()
+            inst = self._free_instance(servo)
+            build_time = time.perf_counter() - t_build
+            tr, solver, pb = inst.transcription, inst.solver, inst.transcription.problem
+            t0 = time.perf_counter()
+            fixed_solves = 0
+            for attempt in range(2):
+                if inst.warm is None:  # a first solution: fixed durations until one solves
+                    T0 = 1.5 * bound
+                    for _ in range(30):
+                        fixed_solves += 1
+                        try:
+                            self._solve(displacement, T0, params, self.mesh(T0, params))
+                            break
+                        except PlanError:
+                            T0 *= 1.5
+                    else:
+                        raise PlanError(f'{self.method}: no plan of {displacement:g} m within the limits found')
+                    start = {'x0': np.append(np.array(self._instances[servo].warm[1]['x0']).ravel(), 1.0)}
+                    inst.T0 = T0
+                else:
+                    T0 = inst.T0
+                    start = self._warm_start(inst.warm, displacement)
+                frac = self.mesh(T0, params)
+                pvec = np.concatenate([pb.parameters(displacement, T0, params, self.weights), frac])
+                sx, _ = pb.scales(pvec[:len(PROBLEM_PARAMETERS)])
+                sx = np.array(sx, dtype=float).ravel()
+                args = self._bounds(tr, displacement, T0, sx, self.limits)
+                args['lbx'][-1] = bound / T0 * (1.0 - 1e-9)  # sigma: no motion beats the bound
+                inst.callback.begin()
+                sol = solver(p=pvec, **args, **start)
+                stats = solver.stats()
+                if stats['success']:
+                    break
+                if inst.warm is None or attempt:
+                    raise self._fastest_failed(stats, displacement)
+                inst.warm = None  # the last solution was too far from this request: start afresh
+            w = np.array(sol['x']).ravel()
+            inst.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
+            info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),
+                    'solve_time_s': time.perf_counter() - t0, 'build_time_s': build_time,
+                    'intervals': tr.intervals, 'robust': list(self.robust), 'sensitivities': list(pb.robust),
+                    'servo_model': servo, 'fastest': {'scale_duration_s': T0, 'fixed_solves': fixed_solves,
+                                                      'lower_bound_s': bound}}
+            return self._plan(tr, w, sx, displacement, float(w[-1]) * T0, frac, params, info)
+
+    def _fastest_failed(self, stats, displacement) -> PlanError:
+        return PlanError(f'{self.method}: the fastest plan of {displacement:g} m did not solve '
+                         f'(IPOPT status {stats["return_status"]})')
+
+    def _free_instance(self, servo: bool) -> _Instance:
+        key = ('free', servo)
+        inst = self._instances.get(key)
+        if inst is None:
+            with self._transcriptions_lock:
+                tr = self._transcriptions.get(key)
+                if tr is None:
+                    tr = self._transcriptions[key] = Transcription(self.problem(servo), self.intervals,
+                                                                   True, free_time=True)
+            callback = _Yielding(tr.nw, tr.ng, tr.nlp['p'].shape[0])
+            # a warm start sits at its optimum: a small barrier parameter keeps IPOPT there
+            options = dict(self._ipopt_options(), iteration_callback=callback, **{'ipopt.mu_init': 1e-6})
+            inst = self._instances[key] = _Instance(tr, tr.nlpsol(options), callback)
+        return inst
 
     @staticmethod
     def _warm_start(warm: tuple, displacement: float) -> dict:
@@ -452,15 +553,16 @@ class DirectSolver(VariationalSolver):
                     'or raise max_solve_time')
         if not self.has_limits:
             return f'{self.method} solver did not converge for {where} (IPOPT status {status})'
-        # Name the limit: the ones that fail on their own, else the pair.
-        limits = {'max_velocity': (self.max_velocity, None), 'max_acceleration': (None, self.max_acceleration)}
-        present = [n for n in limits if getattr(self, n) is not None]
+        # Name the limit: the ones that fail on their own, else all of them.
+        names = ('max_velocity', 'max_acceleration', 'max_jerk')
+        present = [n for n in names if getattr(self, n) is not None]
         failing = []
-        if len(present) == 2:
-            for name, values in limits.items():
+        if len(present) > 1:
+            for name in present:
                 if not self._may_retry(t0):
                     break
-                solver(p=pvec, **self._bounds(tr, displacement, sx, values), **cold)
+                alone = tuple(getattr(self, n) if n == name else None for n in names)
+                solver(p=pvec, **self._bounds(tr, displacement, duration, sx, alone), **cold)
                 if not solver.stats()['success']:
                     failing.append(name)
         culprits = failing or present

@@ -10,15 +10,16 @@ import threading
 import time
 from dataclasses import dataclass
 
-import numpy as np
 
-from crane_msgs_py.params import CraneParams, ParameterError, check_count, check_nonnegative, check_positive
+from crane_msgs_py.params import (CraneParams, ParameterError, check_choice, check_count, check_nonnegative,
+                                  check_positive)
 
 from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
 from .model import modal_properties
 from .plan import Plan, PlanError
 from .pool import SolverPool
-from .shaped import shaped_plan
+from .profiles import BASES
+from .shaped import fastest_shaped, shaped_plan
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,10 @@ class PlanOptions:
             (the paper's TPBVP, scipy solve_bvp).
         max_velocity: axis limit |v| (m/s), None = no limit.
         max_acceleration: axis limit |a_ref| (m/s^2), None = no limit.
+        max_jerk: axis limit on the reference's jerk (m/s^3), None = no limit.
+        base: the motion shapers shape: ``quintic`` (the paper's) or
+            ``limits`` (the jerk-limited time-optimal profile under the limits,
+            ``profiles.limited_base``).
         max_solve_time: budget (s) of one NVF/RVF solve, > 0: a request not
             solved within it is refused (direct route only); None = the
             route's own cap.
@@ -49,6 +54,8 @@ class PlanOptions:
     solver: str = 'direct'
     max_velocity: float | None = None
     max_acceleration: float | None = None
+    max_jerk: float | None = None
+    base: str = 'quintic'
     max_solve_time: float | None = None
 
     def __post_init__(self):
@@ -76,7 +83,10 @@ class PlanOptions:
             object.__setattr__(self, 'intervals', int(self.intervals))
         if self.solver not in ('direct', 'indirect'):
             raise ParameterError(f"solver must be 'direct' or 'indirect', got {self.solver!r}")
-        for name in ('max_velocity', 'max_acceleration', 'max_solve_time'):
+        check_choice('base', self.base, BASES)
+        if self.base == 'limits' and self.max_velocity is None and self.max_acceleration is None:
+            raise ParameterError('the limits base needs max_velocity or max_acceleration (or both)')
+        for name in ('max_velocity', 'max_acceleration', 'max_jerk', 'max_solve_time'):
             v = getattr(self, name)
             if v is not None:
                 object.__setattr__(self, name, check_positive(name, v))
@@ -100,23 +110,23 @@ def check_request(method: str, displacement, duration) -> tuple[float, float]:
     return displacement, duration
 
 
-#: Samples over a plan when checking its peaks: at T = 3 s every 0.15 ms, where a
-#: piecewise quintic's sampled peak is within 1e-8 of the true one.
-_LIMIT_CHECK_SAMPLES = 20_000
+LIMITS = (('max_velocity', 'm/s'), ('max_acceleration', 'm/s^2'), ('max_jerk', 'm/s^3'))
 
 
-def check_axis_limits(plan: Plan, options: PlanOptions) -> None:
-    """PlanError naming the limit if the plan's |v| or |a_ref| peak exceeds it.
+def limits_of(options: PlanOptions) -> tuple:
+    """(max_velocity, max_acceleration, max_jerk) of ``options``, None for none."""
+    return options.max_velocity, options.max_acceleration, options.max_jerk
+
+
+def check_axis_limits(plan, options: PlanOptions) -> None:
+    """PlanError naming the limit if the shaped plan's |v|, |a_ref| or |jerk| peak exceeds it.
 
     A shaper cannot trade time for peaks: the shaped profile is fixed by the
     method and the duration, so an exceeded limit is an error, not a constraint.
     """
-    if options.max_velocity is None and options.max_acceleration is None:
+    if all(limit is None for limit in limits_of(options)):
         return
-    s = plan.evaluate(np.linspace(0.0, plan.duration, _LIMIT_CHECK_SAMPLES + 1))
-    for name, limit, unit, values in (('max_velocity', options.max_velocity, 'm/s', s.velocity),
-                                      ('max_acceleration', options.max_acceleration, 'm/s^2', s.acceleration)):
-        peak = float(np.max(np.abs(values)))
+    for (name, unit), limit, peak in zip(LIMITS, limits_of(options), plan.peaks()):
         if limit is not None and peak > limit * (1.0 + 1e-6):
             raise PlanError(f'{plan.method} plan exceeds {name} {limit:g} {unit} (peak {peak:.4g}); '
                             'lengthen the duration or raise the limit')
@@ -195,12 +205,8 @@ class Planner:
         options = options or PlanOptions()
         displacement, duration = check_request(method, displacement, duration)
         if method in SHAPER_METHODS:
-            if options.omega is not None:
-                omegas, zetas = options.omega, options.damping or 0.0
-            else:
-                omegas, zetas = modal_properties(params)
-                zetas = zetas if options.damping is None else options.damping
-            plan = shaped_plan(method, displacement, duration, omegas, zetas)
+            omegas, zetas = shaper_design(params, options)
+            plan = shaped_plan(method, displacement, duration, omegas, zetas, options.base, limits_of(options))
             check_axis_limits(plan, options)
             return plan
         # the variational solvers bound v and a_ref everywhere as path constraints
@@ -208,6 +214,32 @@ class Planner:
             return self._solve_in_process(method, displacement, duration, params, options)
         with self._pool(method, options).lend(self.pool_wait) as solver:
             return solver.solve(displacement, duration, params)
+
+    def fastest(self, method: str, displacement: float, params: CraneParams | None = None,
+                options: PlanOptions | None = None) -> Plan:
+        """The shortest rest-to-rest plan of ``displacement`` (m) within the options' axis limits.
+
+        Needs max_velocity or max_acceleration (a motion without either could
+        be arbitrarily fast). Shapers: ``shaped.fastest_shaped``; NVF/RVF: the
+        free-final-time NLP (``direct.DirectSolver.fastest``), on the same
+        pooled solvers as ``plan`` (in this process's threads also when the
+        planner has worker processes).
+        """
+        params = params or CraneParams()
+        options = options or PlanOptions()
+        check_request(method, displacement, 1.0)
+        limits = limits_of(options)
+        if limits[0] is None and limits[1] is None:
+            raise PlanError('the fastest plan needs max_velocity or max_acceleration (or both)')
+        displacement = float(displacement)
+        if displacement == 0.0:
+            raise PlanError('the fastest plan needs a nonzero displacement')
+        if method in SHAPER_METHODS:
+            return fastest_shaped(method, displacement, *shaper_design(params, options), limits, options.base)
+        if options.solver != 'direct':
+            raise PlanError('the fastest NVF/RVF plan needs the direct solver (free final time)')
+        with self._pool(method, options).lend(self.pool_wait) as solver:
+            return solver.fastest(displacement, params)
 
     def start_processes(self, ready_within: float = 60.0, all_of_them: bool = False) -> bool:
         """Start every worker process in the background (each warms up on ``warmups`` first).
@@ -275,6 +307,14 @@ class Planner:
         with self._lock:
             self._seeds.setdefault(structure, solver)
         return solver
+
+
+def shaper_design(params: CraneParams, options: PlanOptions) -> tuple:
+    """(frequencies rad/s, damping ratios) the shapers are designed for: the options' or the model's modes."""
+    if options.omega is not None:
+        return options.omega, options.damping or 0.0
+    omegas, zetas = modal_properties(params)
+    return omegas, (zetas if options.damping is None else options.damping)
 
 
 def variational_solver(method: str, options: PlanOptions, **overrides):

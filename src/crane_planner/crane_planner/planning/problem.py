@@ -220,13 +220,13 @@ def breakpoints(frac: np.ndarray) -> np.ndarray:
     return s
 
 
-def axis_limit_error(displacement: float, duration: float, max_velocity, max_acceleration):
+def axis_limit_error(displacement: float, duration: float, max_velocity, max_acceleration, max_jerk=None):
     """A PlanError if no rest-to-rest motion of D in T can respect the limits, else None.
 
     Necessary conditions (exact bounds of the bang-bang motion; a smooth
     reference needs strictly more): peak velocity > |D|/T, peak acceleration
-    > 4|D|/T^2 and, with both limits, T > |D|/v_max + v_max/a_max when the
-    velocity limit is reached.
+    > 4|D|/T^2, peak jerk > 32|D|/T^3 and, with both velocity and acceleration
+    limits, T > |D|/v_max + v_max/a_max when the velocity limit is reached.
     """
     D, T = abs(displacement), duration
     D_ = D * (1 + 1e-12)  # 0.1 m/s * 3 s is 0.30000000000000004 m
@@ -236,6 +236,9 @@ def axis_limit_error(displacement: float, duration: float, max_velocity, max_acc
     if max_acceleration is not None and max_acceleration * T ** 2 <= 4 * D_:
         return PlanError(f'infeasible: max_acceleration {max_acceleration:g} m/s^2 is too low to move {D:g} m '
                          f'in {T:g} s (needs more than {4 * D / T ** 2:g} m/s^2)')
+    if max_jerk is not None and max_jerk * T ** 3 <= 32 * D_:
+        return PlanError(f'infeasible: max_jerk {max_jerk:g} m/s^3 is too low to move {D:g} m in {T:g} s '
+                         f'(needs more than {32 * D / T ** 3:g} m/s^3)')
     if max_velocity is not None and max_acceleration is not None and max_velocity ** 2 < D * max_acceleration:
         t_min = D / max_velocity + max_velocity / max_acceleration
         if T <= t_min:

@@ -48,6 +48,7 @@ class VariationalSolver:
         self.robust = tuple(options.robust) if method == 'rvf' else ()
         self.max_velocity = options.max_velocity
         self.max_acceleration = options.max_acceleration
+        self.max_jerk = options.max_jerk
         #: the budget (s) of one solve, None = the route's own cap
         self.max_solve_time = options.max_solve_time
         self._problems = {}
@@ -57,6 +58,7 @@ class VariationalSolver:
     def key(method: str, options) -> tuple:
         """Everything that makes two solvers differ: the NLP structure, the limit values and the time budget."""
         return (*VariationalSolver.structure_of(method, options), options.max_velocity, options.max_acceleration,
+                options.max_jerk,
                 options.max_solve_time)
 
     @staticmethod
@@ -64,7 +66,7 @@ class VariationalSolver:
         """What a solver builds depends on: the route, the method, intervals, robust set, whether limits are set."""
         return (options.solver, method, options.intervals or VariationalSolver.default_intervals,
                 tuple(options.robust) if method == 'rvf' else (),
-                options.max_velocity is not None or options.max_acceleration is not None)
+                any(x is not None for x in (options.max_velocity, options.max_acceleration, options.max_jerk)))
 
     @property
     def structure(self) -> tuple:
@@ -79,7 +81,12 @@ class VariationalSolver:
 
     @property
     def has_limits(self) -> bool:
-        return self.max_velocity is not None or self.max_acceleration is not None
+        return any(x is not None for x in self.limits)
+
+    @property
+    def limits(self) -> tuple:
+        """(max_velocity, max_acceleration, max_jerk) of the reference, None for none."""
+        return self.max_velocity, self.max_acceleration, self.max_jerk
 
     def problem(self, servo: bool) -> Problem:
         if servo not in self._problems:
@@ -111,11 +118,11 @@ class VariationalSolver:
                             'with tau = 0 the model has no servo dynamics to be insensitive to')
         if self.has_limits and not self.handles_limits:
             raise PlanError(f'the {self.route} solver does not handle axis limits '
-                            '(max_velocity, max_acceleration); use the direct solver')
+                            '(max_velocity, max_acceleration, max_jerk); use the direct solver')
         if self.max_solve_time is not None and not self.handles_time_budget:
             raise PlanError(f'the {self.route} solver cannot bound its solve time (max_solve_time); '
                             'use the direct solver')
-        err = axis_limit_error(displacement, duration, self.max_velocity, self.max_acceleration)
+        err = axis_limit_error(displacement, duration, *self.limits)
         if err is not None:
             raise err
         frac = self.mesh(duration, params)

@@ -18,6 +18,7 @@ from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneP
 
 from .evaluate import DEFAULT_SETTLE, plan_report, residual_load_mm, simulate_plan, simulate_plans, vary_parameter
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, Planner, PlanOptions
+from crane_planner.planning.profiles import BASES
 
 PROG = 'crane-plan'
 
@@ -92,6 +93,10 @@ def _add_model_options(p: argparse.ArgumentParser):
                    help='nvf/rvf solver: direct collocation + IPOPT, or the paper\'s indirect TPBVP')
     g.add_argument('--max-velocity', type=_finite, metavar='V', help='axis limit |v| (m/s): a path constraint for nvf/rvf, a check for shapers')
     g.add_argument('--max-acceleration', type=_finite, metavar='A', help='axis limit |a_ref| (m/s^2): a path constraint for nvf/rvf, a check for shapers')
+    g.add_argument('--max-jerk', type=_finite, metavar='J', help='axis limit on the reference jerk (m/s^3): a path constraint for nvf/rvf, a check for shapers')
+    g.add_argument('--base', choices=BASES, default='quintic',
+                   help="shapers' base motion: the paper's quintic, or the jerk-limited time-optimal profile under "
+                        'the limits (default quintic)')
 
 
 #: Plant parameters the evaluation may change (``--plant-X``) and ``sweep`` may vary (g stays).
@@ -108,9 +113,15 @@ def _add_plant_options(p: argparse.ArgumentParser):
                    help=f'seconds observed after the motion (default {DEFAULT_SETTLE:g})')
 
 
-def _add_task_options(p: argparse.ArgumentParser):
+def _add_task_options(p: argparse.ArgumentParser, fastest: bool = False):
     p.add_argument('--displacement', type=_finite, required=True, metavar='D', help='cart displacement (m)')
-    p.add_argument('--duration', type=_finite, required=True, metavar='T', help='motion duration (s), > 0')
+    if not fastest:
+        p.add_argument('--duration', type=_finite, required=True, metavar='T', help='motion duration (s), > 0')
+        return
+    when = p.add_mutually_exclusive_group(required=True)
+    when.add_argument('--duration', type=_finite, metavar='T', help='motion duration (s), > 0')
+    when.add_argument('--fastest', action='store_true',
+                      help='the shortest duration within the axis limits (needs --max-velocity or --max-acceleration)')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -119,7 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser('plan', help='make one plan and evaluate it on the plant')
     p.add_argument('--method', choices=METHODS, required=True)
-    _add_task_options(p)
+    _add_task_options(p, fastest=True)
     _add_model_options(p)
     _add_plant_options(p)
     p.add_argument('--json', action='store_true', help='print the contract JSON object')
@@ -164,7 +175,8 @@ def _model_and_options(args) -> tuple[CraneParams, PlanOptions]:
     model = CraneParams(**{n: getattr(args, n) for n in PARAMETER_NAMES})
     options = PlanOptions(omega=tuple(args.omega) if args.omega else None, damping=args.damping,
                           robust=args.robust, intervals=args.intervals, solver=args.solver,
-                          max_velocity=args.max_velocity, max_acceleration=args.max_acceleration)
+                          max_velocity=args.max_velocity, max_acceleration=args.max_acceleration,
+                          max_jerk=args.max_jerk, base=args.base)
     return model, options
 
 
@@ -176,7 +188,10 @@ def _plant(args, model: CraneParams) -> CraneParams:
 
 def _timed_plan(planner: Planner, method, args, model, options) -> tuple[Plan, float]:
     t0 = time.perf_counter()
-    plan = planner.plan(method, args.displacement, args.duration, model, options)
+    if getattr(args, 'fastest', False):
+        plan = planner.fastest(method, args.displacement, model, options)
+    else:
+        plan = planner.plan(method, args.displacement, args.duration, model, options)
     return plan, time.perf_counter() - t0
 
 
