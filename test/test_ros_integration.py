@@ -514,6 +514,31 @@ def test_axis_limit_set_on_the_planner_applies_to_the_next_request(crane):
     assert crane.planner.plan('zv', 5.0, 5.3, 3.0).position[-1] == pytest.approx(5.3, abs=1e-9)
 
 
+def test_fastest_services_answer_the_shortest_plan_within_the_limits_and_refuse_without(crane):
+    """~/fastest/<method>: the goal stamp is ignored, the last pose carries the end time, equal to the
+    planning core's own fastest plan; refused naming the missing limit when none is set."""
+    from crane_planner.planning import Planner, PlanOptions
+    from crane_msgs_py.params import CraneParams
+    with pytest.raises(PlanError, match='needs max_velocity or max_acceleration'):
+        crane.planner.fastest('zv', 5.0, 5.3)
+    crane.driver.set_parameters('planner', {'max_velocity': 0.25, 'max_acceleration': 0.5})
+    sent = len(crane.driver.sent_trajectories())
+    try:
+        offline = Planner()
+        for method in ('zv', 'nvf'):
+            plan = crane.planner.fastest(method, 5.0, 5.3)
+            expected = offline.fastest(method, 0.3, CraneParams(), PlanOptions(max_velocity=0.25,
+                                                                               max_acceleration=0.5))
+            assert plan.t[-1] == pytest.approx(expected.duration, rel=1e-6)
+            assert plan.position[-1] == pytest.approx(5.3, abs=1e-9)
+            speed = np.diff(plan.position) / np.diff(plan.t)
+            assert np.max(np.abs(speed)) <= 0.25 * (1 + 1e-6)
+        crane.driver.sleep(0.3)
+        assert len(crane.driver.sent_trajectories()) == sent  # previews: nothing for the streamer
+    finally:
+        crane.driver.set_parameters('planner', {'max_velocity': 0.0, 'max_acceleration': 0.0})
+
+
 # --------------------------------------------------------------------------- sim input checks
 
 

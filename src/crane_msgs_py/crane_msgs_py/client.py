@@ -26,7 +26,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from .conversions import path_to_arrays, set_stamp
 from .diagnostics import ERROR, DiagnosticsReader, status_float, status_values
 from .errors import PlanError
-from .names import PLANNER_NODE, execute_service, plan_service, service_of
+from .names import PLANNER_NODE, planner_service, service_of
 
 #: The planner's per-request diagnostic task (status ``<planner>: plan``).
 PLAN_TASK = 'plan'
@@ -60,8 +60,8 @@ def plan_request(start: float, goal: float, duration: float, start_ns: int = 0) 
 
 
 class PlannerClient:
-    """Calls ``<planner>/plan[/<method>]`` and ``<planner>/execute[/<method>]`` of the planner
-    node in the caller's namespace."""
+    """Calls ``<planner>/plan[/<method>]``, ``<planner>/execute[/<method>]``, ``.../fastest/<method>``
+    and ``.../execute_fastest/<method>`` of the planner node in the caller's namespace."""
 
     def __init__(self, node, planner: str = PLANNER_NODE, callback_group=None):
         self._node = node
@@ -72,26 +72,28 @@ class PlannerClient:
         self.diagnostics = DiagnosticsReader(node, callback_group=self._group)
         self._status_name = f'{planner.rsplit("/", 1)[-1]}: {PLAN_TASK}'
 
-    def _client(self, method: str | None, execute: bool = False):
+    def _client(self, method: str | None, kind: str = 'plan'):
         with self._lock:
-            client = self._clients.get((method, execute))
+            client = self._clients.get((method, kind))
             if client is None:
-                name = service_of(self._planner, (execute_service if execute else plan_service)(method))
-                client = self._clients[method, execute] = self._node.create_client(
+                name = service_of(self._planner, planner_service(kind, method))
+                client = self._clients[method, kind] = self._node.create_client(
                     GetPlan, name, callback_group=self._group)
             return client
 
-    def wait_for_service(self, method: str | None = None, timeout: float = 10.0, execute: bool = False) -> bool:
-        return self._client(method, execute).wait_for_service(timeout_sec=timeout)
+    def wait_for_service(self, method: str | None = None, timeout: float = 10.0, execute: bool = False,
+                         kind: str | None = None) -> bool:
+        return self._client(method, kind or ('execute' if execute else 'plan')).wait_for_service(timeout_sec=timeout)
 
     def call(self, method: str | None, start: float, goal: float, duration: float,
-             start_ns: int = 0, timeout: float = 60.0, execute: bool = False) -> Path:
+             start_ns: int = 0, timeout: float = 60.0, execute: bool = False, kind: str | None = None) -> Path:
         """The raw response path (empty on failure); TimeoutError if no answer in ``timeout`` s.
 
         ``method`` None calls ``~/plan`` (the planner's ``method`` parameter);
-        ``execute`` calls ``~/execute[/<method>]`` instead.
+        ``execute`` calls ``~/execute[/<method>]`` instead, ``kind`` any of
+        ``names.PLANNER_SERVICES`` (for ``fastest`` kinds ``duration`` is ignored).
         """
-        client = self._client(method, execute)
+        client = self._client(method, kind or ('execute' if execute else 'plan'))
         if not client.wait_for_service(timeout_sec=timeout):
             raise TimeoutError(f'planner service {client.srv_name} not available')
         future = client.call_async(plan_request(start, goal, duration, start_ns))
@@ -113,7 +115,20 @@ class PlannerClient:
         Raises PlanError with the planner's reason (its ERROR status for this
         request), or saying none arrived within ``reason_timeout`` s.
         """
-        return self._request(False, method, start, goal, duration, start_ns, timeout, reason_timeout)
+        return self._request('plan', method, start, goal, duration, start_ns, timeout, reason_timeout)
+
+    def fastest(self, method: str, start: float, goal: float, start_ns: int = 0, timeout: float = 60.0,
+                reason_timeout: float = 2.0) -> PathPlan:
+        """The shortest plan from ``start`` to ``goal`` within the planner's axis limits; moves nothing.
+
+        Its duration is the last knot's time (``PathPlan.t[-1]``).
+        """
+        return self._request('fastest', method, start, goal, 0.0, start_ns, timeout, reason_timeout)
+
+    def execute_fastest(self, method: str, start: float, goal: float, start_ns: int = 0, timeout: float = 60.0,
+                        reason_timeout: float = 2.0) -> PathPlan:
+        """Like ``fastest``, and the planner sends the plan to the streamer: the crane moves."""
+        return self._request('execute_fastest', method, start, goal, 0.0, start_ns, timeout, reason_timeout)
 
     def execute(self, method: str | None, start: float, goal: float, duration: float,
                 start_ns: int = 0, timeout: float = 60.0, reason_timeout: float = 2.0) -> PathPlan:
@@ -122,15 +137,14 @@ class PlannerClient:
         The streamer still refuses a plan that does not start at its hold
         position or arrives while it streams another (see its diagnostics).
         """
-        return self._request(True, method, start, goal, duration, start_ns, timeout, reason_timeout)
+        return self._request('execute', method, start, goal, duration, start_ns, timeout, reason_timeout)
 
-    def _request(self, execute, method, start, goal, duration, start_ns, timeout, reason_timeout) -> PathPlan:
+    def _request(self, service, method, start, goal, duration, start_ns, timeout, reason_timeout) -> PathPlan:
         mark = self.diagnostics.mark()
-        path = self.call(method, start, goal, duration, start_ns, timeout, execute)
+        path = self.call(method, start, goal, duration, start_ns, timeout, kind=service)
         if path.poses:
             t, x = path_to_arrays(path)
             return PathPlan(t, x, start_ns, path)
-        service = 'execute' if execute else 'plan'
 
         def same_request(status):
             values = status_values(status)
@@ -138,7 +152,8 @@ class PlannerClient:
                     and values.get('service', service) == service
                     and _same(status_float(status, 'start'), start)
                     and _same(status_float(status, 'goal'), goal)
-                    and _same(status_float(status, 'duration'), duration))
+                    and (service in ('fastest', 'execute_fastest')
+                         or _same(status_float(status, 'duration'), duration)))
 
         status = self.diagnostics.wait_for(same_request, reason_timeout, after=mark,
                                            name=self._status_name, level=ERROR)

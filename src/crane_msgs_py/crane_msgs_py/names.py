@@ -22,6 +22,11 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 #: Private services, as the node creating them names them.
 PLAN_SERVICE = '~/plan'
 EXECUTE_SERVICE = '~/execute'
+FASTEST_SERVICE = '~/fastest'
+EXECUTE_FASTEST_SERVICE = '~/execute_fastest'
+#: The planner's service kinds: preview, execute, and both for the shortest duration within the limits.
+PLANNER_SERVICES = {'plan': PLAN_SERVICE, 'execute': EXECUTE_SERVICE, 'fastest': FASTEST_SERVICE,
+                    'execute_fastest': EXECUTE_FASTEST_SERVICE}
 START_SERVICE = '~/start'
 STOP_SERVICE = '~/stop'
 RESET_SERVICE = '~/reset'
@@ -47,6 +52,12 @@ def plan_service(method: str | None = None) -> str:
 def execute_service(method: str | None = None) -> str:
     """``~/execute`` (the node's default method) or ``~/execute/<method>``."""
     return EXECUTE_SERVICE if method is None else f'{EXECUTE_SERVICE}/{method}'
+
+
+def planner_service(kind: str, method: str | None = None) -> str:
+    """``~/<kind>`` or ``~/<kind>/<method>`` for a kind of ``PLANNER_SERVICES``."""
+    base = PLANNER_SERVICES[kind]
+    return base if method is None else f'{base}/{method}'
 
 
 def service_of(node_name: str, private_name: str) -> str:

@@ -3,7 +3,9 @@
 ``~/plan`` (the ``method`` parameter) and ``~/plan/<method>`` compute and
 answer with a ``nav_msgs/Path``; they move nothing. ``~/execute`` and
 ``~/execute/<method>`` plan the same way and also latch the plan on
-``trajectory`` for the streamer. Every request gets one status on
+``trajectory`` for the streamer. ``~/fastest[/<method>]`` and
+``~/execute_fastest[/<method>]`` do the same for the shortest duration within
+the axis limits (the goal stamp is ignored; the last pose carries the end time). Every request gets one status on
 ``/diagnostics``. Requests run concurrently (MultiThreadedExecutor, one
 reentrant group); NVF/RVF solves run in the planning facade's worker
 processes (``solver_processes``), each bounded by ``max_solve_time``, so
@@ -25,7 +27,7 @@ from trajectory_msgs.msg import JointTrajectory
 from crane_msgs_py.client import PLAN_TASK
 from crane_msgs_py.conversions import samples_to_joint_trajectory, samples_to_path, stamp_ns
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from crane_msgs_py.names import DEFAULT_FRAME_ID, PLANNER_NODE, TRAJECTORY_TOPIC, execute_service, plan_service
+from crane_msgs_py.names import DEFAULT_FRAME_ID, PLANNER_NODE, PLANNER_SERVICES, TRAJECTORY_TOPIC, planner_service
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError,
                                   check_choice, check_nonnegative, check_positive)
@@ -36,6 +38,7 @@ from crane_msgs_py.runner import run
 from crane_planner.planning import (METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanError, Planner,
                                     PlanOptions, check_request)
 from crane_planner.planning.plan import time_grid
+from crane_planner.planning.profiles import BASES
 from crane_planner.streaming.knots import knot_times
 
 #: name -> (default, description, range descriptor fields). Ranges are the
@@ -73,6 +76,11 @@ PARAMETERS = {
                      float_range(0.0, 1e3)),
     'max_acceleration': (0.0, 'axis limit |a| of the reference (m/s^2); 0 = no limit',
                          float_range(0.0, 1e4)),
+    'max_jerk': (0.0, 'axis limit on the jerk of the reference (m/s^3); 0 = no limit',
+                 float_range(0.0, 1e6)),
+    'shaper_base': ('quintic', "the motion shapers shape: 'quintic' (the paper's) or 'limits' (the jerk-limited "
+                               'time-optimal profile under the axis limits; needs max_velocity or max_acceleration)',
+                    {'additional_constraints': f'one of {", ".join(BASES)}'}),
     'max_solve_time': (1.0, 'budget of one NVF/RVF solve (s), > 0: a request not solved within it is '
                             'refused; every request is answered within this + 0.5 s',
                        float_range(0.0, 60.0)),
@@ -111,6 +119,7 @@ class Config:
             omega=tuple(v['shaper_frequencies']) or None, damping=None if v['shaper_damping'] == -1.0 else v['shaper_damping'],
             robust=tuple(v['robust_parameters']), intervals=intervals or None,
             max_velocity=v['max_velocity'] or None, max_acceleration=v['max_acceleration'] or None,
+            max_jerk=v['max_jerk'] or None, base=v['shaper_base'],
             max_solve_time=check_positive('max_solve_time', v['max_solve_time']))
         if not v['frame_id']:
             raise ParameterError('frame_id must not be empty')
@@ -150,15 +159,16 @@ class PlannerNode(Node):
                 self.get_logger().error('no solver process started within 60 s; NVF/RVF requests will be refused')
         self._trajectory = self.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
         group = ReentrantCallbackGroup()
-        for execute, service in ((False, plan_service), (True, execute_service)):
-            self.create_service(GetPlan, service(), lambda req, res, e=execute: self._serve(None, req, res, e),
+        for kind in PLANNER_SERVICES:
+            self.create_service(GetPlan, planner_service(kind), lambda req, res, k=kind: self._serve(None, req, res, k),
                                 callback_group=group)
             for method in METHODS:
-                self.create_service(GetPlan, service(method),
-                                    lambda req, res, m=method, e=execute: self._serve(m, req, res, e),
+                self.create_service(GetPlan, planner_service(kind, method),
+                                    lambda req, res, m=method, k=kind: self._serve(m, req, res, k),
                                     callback_group=group)
         self.get_logger().info(f'serving {", ".join(METHODS)} on {self.get_fully_qualified_name()}/plan/<method> '
-                               '(preview) and .../execute/<method> (plan and send to the streamer)')
+                               '(preview), .../execute/<method> (plan and send to the streamer), and '
+                               '.../fastest/<method>, .../execute_fastest/<method> (shortest within the limits)')
         self._warmup = threading.Thread(target=self._build_solvers, name='solver-warmup', daemon=True)
         self._warmup.start()
 
@@ -210,18 +220,19 @@ class PlannerNode(Node):
                                  **{f'{m}_s': v for m, v in times.items()},
                                  **{f'{m}_error': e for m, e in failed.items()})
 
-    def _serve(self, method, request, response, execute: bool):
+    def _serve(self, method, request, response, kind: str):
         config = self._config
         method = method or config.method
+        execute, fastest = kind.startswith('execute'), kind.endswith('fastest')
         t0 = time.perf_counter()
         start = request.start.pose.position.x
         goal = request.goal.pose.position.x
         start_ns = stamp_ns(request.start.header.stamp)
         duration = (stamp_ns(request.goal.header.stamp) - start_ns) * 1e-9
-        values = {'method': method, 'service': 'execute' if execute else 'plan', 'start': start, 'goal': goal,
+        values = {'method': method, 'service': kind, 'start': start, 'goal': goal,
                   'displacement': goal - start, 'duration': duration}
         try:
-            samples, plan = self._plan(config, method, start, goal, duration)
+            samples, plan = self._plan(config, method, start, goal, None if fastest else duration)
         except ValueError as exc:  # PlanError, ParameterError: the request cannot be served
             return self._refuse(response, str(exc), values, t0)
         except Exception as exc:  # a solver bug must not kill the node or leave the caller waiting
@@ -233,9 +244,11 @@ class PlannerNode(Node):
             self._trajectory.publish(samples_to_joint_trajectory(samples, start, start_ns, config.frame_id))
         done = time.perf_counter()
         info = plan.info
+        if fastest:
+            values['duration'] = plan.duration
         self._diagnostics.report(
-            PLAN_TASK, OK, f'{method}: {len(samples.t)} knots' + (', sent for execution' if execute else ''),
-            **values, solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
+            PLAN_TASK, OK, f'{method}: {len(samples.t)} knots' + (f' in {plan.duration:.4f} s' if fastest else '')
+            + (', sent for execution' if execute else ''), **values, solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
             iterations=info.get('iterations', 0), plan_time=solved - t0, message_time=done - solved,
             knots=len(samples.t), error='')
         # per request at debug level: /diagnostics has them, and an info line costs 0.4 ms
@@ -243,16 +256,25 @@ class PlannerNode(Node):
                                 f'{len(samples.t)} knots, planned in {solved - t0:.3f} s')
         return response
 
-    def _plan(self, config: Config, method: str, start: float, goal: float, duration: float):
+    def _plan(self, config: Config, method: str, start: float, goal: float, duration: float | None):
+        """(knot samples, plan); ``duration`` None: the fastest within the axis limits."""
         if not (math.isfinite(start) and math.isfinite(goal)):
             raise PlanError(f'start and goal positions must be finite, got start={start}, goal={goal}')
-        displacement, duration = check_request(method, goal - start, duration)
-        if duration > config.max_duration:
-            raise PlanError(f'duration {duration:g} s exceeds max_duration {config.max_duration:g} s')
+        displacement, _ = check_request(method, goal - start, duration or 1.0)
         if abs(displacement) > config.max_displacement:
             raise PlanError(f'displacement {displacement:g} m exceeds max_displacement '
                             f'{config.max_displacement:g} m')
-        plan = self._planner.plan(method, displacement, duration, config.params, config.options)
+        if duration is None:
+            plan = self._planner.fastest(method, displacement, config.params, config.options)
+            duration = plan.duration
+        else:
+            duration = check_request(method, displacement, duration)[1]
+            if duration > config.max_duration:
+                raise PlanError(f'duration {duration:g} s exceeds max_duration {config.max_duration:g} s')
+            plan = self._planner.plan(method, displacement, duration, config.params, config.options)
+        if duration > config.max_duration:
+            raise PlanError(f'the fastest {method} plan lasts {duration:g} s, beyond max_duration '
+                            f'{config.max_duration:g} s')
         times = knot_times(plan) if config.sample_period == 0.0 else time_grid(duration, config.sample_period)
         return plan.evaluate(times), plan
 
