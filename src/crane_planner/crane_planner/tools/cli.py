@@ -126,7 +126,7 @@ def _add_task_options(p: argparse.ArgumentParser, fastest: bool = False):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=PROG, description=__doc__.splitlines()[0].split(': ', 1)[1])
-    sub = parser.add_subparsers(dest='command', required=True, metavar='{plan,compare,sweep,identify}', parser_class=_Parser)
+    sub = parser.add_subparsers(dest='command', required=True, metavar='{plan,compare,sweep,choose,identify}', parser_class=_Parser)
 
     p = sub.add_parser('plan', help='make one plan and evaluate it on the plant')
     p.add_argument('--method', choices=METHODS, required=True)
@@ -158,6 +158,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--json', action='store_true', help='print the sweep JSON object')
     p.add_argument('--csv', metavar='FILE', help='write value and one residual column (mm) per method')
     p.add_argument('--plot', metavar='FILE', help='write a PNG of residual load swing vs the parameter')
+
+    p = sub.add_parser('choose', help='per method: the fastest move within the axis limits and its worst swing '
+                                      'over an uncertainty band; marks the fastest within a tolerance')
+    p.add_argument('--displacement', type=_finite, required=True, metavar='D', help='cart displacement (m)')
+    p.add_argument('--span', type=_finite, default=0.2, metavar='R',
+                   help='relative uncertainty of L1: plants at L1 x (1 +- R) (default 0.2)')
+    p.add_argument('--span-L2', type=_finite, metavar='R',
+                   help='relative uncertainty of L2 too: each L1 also with L2 x (1 - R), L2, L2 x (1 + R)')
+    p.add_argument('--points', type=int, default=21, metavar='N', help='L1 values of the band (>= 2, default 21)')
+    p.add_argument('--tolerance-mm', type=_finite, default=1.0, metavar='X',
+                   help='largest acceptable residual load swing over the band (mm, default 1)')
+    p.add_argument('--methods', type=_method_list, metavar='M,M,...', help='methods to weigh (default: all)')
+    p.add_argument('--settle', type=_finite, default=DEFAULT_SETTLE, metavar='S',
+                   help=f'seconds observed after each motion (default {DEFAULT_SETTLE:g})')
+    _add_model_options(p)
+    p.add_argument('--json', action='store_true', help='print the choice as one JSON object')
+    p.add_argument('--plot', metavar='FILE', help='write a PNG: worst residual vs fastest duration per method')
 
     p = sub.add_parser('identify', help='estimate L1, L2, mass ratio, joint damping and tau from a recorded move')
     source = p.add_mutually_exclusive_group(required=True)
@@ -371,7 +388,55 @@ def _print_identification(source: str, rec, result):
     print(f'planner model: {_describe(result.params)}')
 
 
-COMMANDS = {'plan': cmd_plan, 'compare': cmd_compare, 'sweep': cmd_sweep, 'identify': cmd_identify}
+def cmd_choose(args) -> int:
+    from .choose import band, choose
+    if args.points < 2:
+        raise UsageError(f'argument --points: the band needs at least 2 points, got {args.points}')
+    for name in ('span', 'span_L2'):
+        value = getattr(args, name)
+        if value is not None and not 0.0 <= value < 1.0:
+            raise UsageError(f'argument --{name.replace("_", "-")}: must be in [0, 1), got {value}')
+    if args.tolerance_mm < 0:
+        raise UsageError(f'argument --tolerance-mm: must be >= 0, got {args.tolerance_mm}')
+    _check_settle(args)
+    model, options = _model_and_options(args)
+    if options.max_velocity is None and options.max_acceleration is None:
+        raise UsageError('choose needs axis limits: --max-velocity and/or --max-acceleration')
+    plants = band(model, args.span, args.points, args.span_L2)
+    result = choose(args.displacement, model, options, args.methods, plants, args.tolerance_mm, args.settle,
+                    progress=lambda m: print(f'{PROG}: {m} done', file=sys.stderr))
+    if args.json:
+        print(json.dumps(result.as_json()))
+    else:
+        _print_choice(args, result)
+    if args.plot:
+        from .figures import plot_choice
+        plot_choice(result, args.plot)
+        _say(args, f'wrote {args.plot}')
+    return 0
+
+
+def _print_choice(args, result):
+    L1s = sorted({a for a, _ in result.plants})
+    L2s = sorted({b for _, b in result.plants})
+    print(f'{args.displacement:g} m, limits v {args.max_velocity or "-"} m/s, a {args.max_acceleration or "-"} m/s^2, '
+          f'j {args.max_jerk or "-"} m/s^3; band L1 {L1s[0]:.3f}-{L1s[-1]:.3f} m'
+          + (f', L2 {L2s[0]:.3f}-{L2s[-1]:.3f} m' if len(L2s) > 1 else '') + f' ({len(result.plants)} plants)')
+    head = f'{"method":<7}{"T* s":>8}{"peak v":>9}{"peak a":>9}{"peak j":>9}{"worst mm":>10}  verdict'
+    print(head)
+    print('-' * len(head))
+    for c in result.candidates:
+        if c.duration is None:
+            print(f'{c.method:<7}{"-":>8}{"-":>9}{"-":>9}{"-":>9}{"-":>10}  {c.verdict}')
+            continue
+        mark = '*' if c.method == result.chosen else ' '
+        print(f'{c.method:<6}{mark}{c.duration:>8.3f}{c.peak_velocity:>9.4f}{c.peak_acceleration:>9.4f}'
+              f'{c.peak_jerk:>9.3f}{c.worst_residual_mm:>10.3f}  {c.verdict}')
+    print(f'chosen: {result.chosen or "none (no method within the tolerance)"}')
+
+
+COMMANDS = {'plan': cmd_plan, 'compare': cmd_compare, 'sweep': cmd_sweep, 'choose': cmd_choose,
+            'identify': cmd_identify}
 
 
 def main(argv=None) -> int:

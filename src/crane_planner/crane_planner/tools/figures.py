@@ -100,3 +100,34 @@ def plot_identification(recording, result, path: str):
                       f'zeta {v["zeta1"]:.4f} / {v["zeta2"]:.4f}; rms residual {1e3 * result.rms_residual_rad:.2f} mrad',
                       fontsize=9)
     return save_figure(fig, path)
+
+
+def plot_choice(result, path: str):
+    """``crane-plan choose``: worst residual over the band vs fastest duration per method, and the swing over L1."""
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
+    ok = [c for c in result.candidates if c.duration is not None]
+    for c in ok:
+        chosen = c.method == result.chosen
+        ax.scatter(c.duration, max(c.worst_residual_mm, 1e-3), s=90 if chosen else 40,
+                   marker='*' if chosen else 'o', zorder=3)
+        ax.annotate(c.method.upper() + (' (chosen)' if chosen else ''), (c.duration, max(c.worst_residual_mm, 1e-3)),
+                    textcoords='offset points', xytext=(6, 4), fontsize=9)
+    ax.axhline(result.tolerance_mm, color='k', lw=0.8, ls='--', label=f'tolerance {result.tolerance_mm:g} mm')
+    ax.set_yscale('log')
+    ax.set_xlabel('fastest duration within the limits (s)')
+    ax.set_ylabel('worst residual load swing over the band (mm)')
+    ax.set_title(f'{result.displacement:g} m: which method?', fontsize=10)
+    ax.grid(True, which='both', alpha=0.3)
+    ax.legend(fontsize=8)
+    L1 = np.array([a for a, _ in result.plants])
+    for c in ok:
+        order = np.argsort(L1, kind='stable')
+        ax2.plot(L1[order], np.maximum(np.array(c.residual_mm)[order], 1e-3), '.-', ms=3, label=c.method.upper())
+    ax2.axhline(result.tolerance_mm, color='k', lw=0.8, ls='--')
+    ax2.set_yscale('log')
+    ax2.set_xlabel('plant L1 (m)')
+    ax2.set_ylabel('residual load swing (mm)')
+    ax2.set_title('at each method\'s fastest duration', fontsize=10)
+    ax2.grid(True, which='both', alpha=0.3)
+    ax2.legend(fontsize=8, ncol=2)
+    return save_figure(fig, path)
