@@ -452,9 +452,11 @@ class DirectSolver(VariationalSolver):
         One NLP with the duration as a variable (``Transcription(free_time=True)``:
         T = sigma T_0, minimizing sigma plus a small multiple of the cost of
         Eqs. 10/15). It starts from a fixed-duration solution at a T_0 that
-        solves (found by trying 1.5, 2.25, ... times ``shortest_duration_bound``),
+        solves (found by trying 1.3, 1.95, ... times the shortest quintic within
+        the limits: a duration far below T* costs a failed solve of seconds),
         then from its own last solution. T* is where a limit binds.
         """
+        from .profiles import quintic_duration
         from .shaped import shortest_duration_bound
         if self.max_velocity is None and self.max_acceleration is None:
             raise PlanError('the fastest plan needs max_velocity or max_acceleration (or both)')
@@ -471,7 +473,7 @@ class DirectSolver(VariationalSolver):
             fixed_solves = 0
             for attempt in range(2):
                 if inst.warm is None:  # a first solution: fixed durations until one solves
-                    T0 = 1.5 * bound
+                    T0 = max(1.3 * quintic_duration(displacement, *self.limits), 1.5 * bound)
                     for _ in range(30):
                         fixed_solves += 1
                         try:

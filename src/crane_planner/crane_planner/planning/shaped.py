@@ -231,17 +231,21 @@ def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base:
     else:
         raise PlanError(f'{method}: no plan of {D:g} m found within the limits')
     # with a jerk limit the shaped jerk jumps (the quintic's jerk steps at its ends add up
-    # where two shifted bases meet): feasible windows are narrow, scan finely throughout
-    found = _first_feasible(beyond, lo, hi, coarse=_FINE_STEP if j is not None else _COARSE_STEP)
+    # where two shifted bases meet): feasible windows are narrow, scan finely throughout;
+    # velocity and acceleration are continuous in the base length, their dips wide
+    if j is not None:
+        found = _first_feasible(beyond, lo, hi, steps=(_FINE_STEP, _FINE_STEP))
+    else:
+        found = _first_feasible(beyond, lo, hi, steps=(_COARSE_STEP,))
     plan = make(found)
     return plan if _limit_ratio(plan, limits) <= 1.0 else make(found * (1.0 + _FINE_STEP))
 
 
-def _first_feasible(beyond, lo: float, hi: float, coarse: float) -> float:
+def _first_feasible(beyond, lo: float, hi: float, steps) -> float:
     """About the smallest x in [lo, hi] with beyond(x) <= 0, beyond(hi) <= 0 given.
 
-    Scans up in coarse steps, then in fine steps through the coarse step
-    before the first feasible point, then refines by Brent's method: the
+    Scans up in relative ``steps`` (each scan through the step before the
+    previous scan's first feasible point), then refines by Brent's method: the
     shaped peaks are not monotonic in the base length (MZV's dip by ~7 % over
     a few per cent), so a plain bracket from lo to hi can land above a shorter
     feasible length.
@@ -250,7 +254,7 @@ def _first_feasible(beyond, lo: float, hi: float, coarse: float) -> float:
     if hi <= lo or beyond(lo) <= 0.0:
         return lo if beyond(lo) <= 0.0 else hi
     previous, x = lo, lo
-    for step in (coarse, _FINE_STEP):
+    for step in steps:
         x = previous
         while True:
             x = min(x * (1.0 + step), hi)
@@ -258,8 +262,8 @@ def _first_feasible(beyond, lo: float, hi: float, coarse: float) -> float:
                 break
             previous = x
         # previous: infeasible, x: feasible, at most one step apart
-    return brentq(beyond, previous, x, xtol=1e-9 * x, rtol=1e-10) if previous < x else x
+    return brentq(beyond, previous, x, xtol=1e-6 * x) if previous < x else x
 
 
 #: Relative steps of ``_first_feasible``'s scans.
-_COARSE_STEP, _FINE_STEP = 0.05, 0.005
+_COARSE_STEP, _FINE_STEP = 0.1, 0.005
