@@ -451,10 +451,11 @@ class DirectSolver(VariationalSolver):
 
         One NLP with the duration as a variable (``Transcription(free_time=True)``:
         T = sigma T_0, minimizing sigma plus a small multiple of the cost of
-        Eqs. 10/15). It starts from a fixed-duration solution at a T_0 that
-        solves (found by trying 1.3, 1.95, ... times the shortest quintic within
-        the limits: a duration far below T* costs a failed solve of seconds),
-        then from its own last solution. T* is where a limit binds.
+        Eqs. 10/15). It starts from its own last solution; the first time (or
+        if that fails) from the quintic guess at T_0 = 1.3 times the shortest
+        quintic within the limits, and failing that from a fixed-duration
+        solution (durations 1.5 times apart until one solves). T* is where a
+        limit binds.
         """
         from .profiles import quintic_duration
         from .shaped import shortest_duration_bound
@@ -471,8 +472,12 @@ class DirectSolver(VariationalSolver):
             tr, solver, pb = inst.transcription, inst.solver, inst.transcription.problem
             t0 = time.perf_counter()
             fixed_solves = 0
-            for attempt in range(2):
-                if inst.warm is None:  # a first solution: fixed durations until one solves
+            for attempt in range(3):
+                if attempt == 0 and inst.warm is None:  # first: from the quintic's guess, no fixed NLP needed
+                    T0 = max(1.3 * quintic_duration(displacement, *self.limits), 1.5 * bound)
+                    start = {'x0': np.append(tr.guess(displacement, self.mesh(T0, params)), 1.0)}
+                    inst.T0 = T0
+                elif inst.warm is None:  # else a fixed-duration solution: durations until one solves
                     T0 = max(1.3 * quintic_duration(displacement, *self.limits), 1.5 * bound)
                     for _ in range(30):
                         fixed_solves += 1
@@ -499,9 +504,9 @@ class DirectSolver(VariationalSolver):
                 stats = solver.stats()
                 if stats['success']:
                     break
-                if inst.warm is None or attempt:
+                if attempt == 2:
                     raise self._fastest_failed(stats, displacement)
-                inst.warm = None  # the last solution was too far from this request: start afresh
+                inst.warm = None  # not from here: from a fixed-duration solution
             w = np.array(sol['x']).ravel()
             inst.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
             info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),

@@ -17,7 +17,7 @@ from crane_msgs_py.params import CraneParams
 
 from crane_planner.planning import PlanError, Planner, PlanOptions
 
-from .evaluate import residual_load_mm, simulate_plan
+from .evaluate import residual_load_mm, simulate_plans
 
 
 @dataclass
@@ -71,7 +71,7 @@ def choose(displacement: float, model: CraneParams, options: PlanOptions, method
            tolerance_mm: float, settle: float, planner: Planner | None = None, progress=None) -> Choice:
     """Evaluate every method's fastest plan over ``plants``; pick the fastest within ``tolerance_mm``."""
     planner = planner or Planner()
-    candidates = []
+    candidates, plans = [], []
     for method in methods:
         c = Candidate(method)
         try:
@@ -81,11 +81,14 @@ def choose(displacement: float, model: CraneParams, options: PlanOptions, method
         else:
             c.duration = plan.duration
             c.peak_velocity, c.peak_acceleration, c.peak_jerk = _peaks(plan)
-            c.residual_mm = residual_load_mm(simulate_plan(plan, plants, settle)).tolist()
-            c.worst_residual_mm = max(c.residual_mm)
+            plans.append((c, plan))
         candidates.append(c)
         if progress:
             progress(method)
+    if plans:  # every (plan, plant) pair in one simulation
+        for (c, _), ev in zip(plans, simulate_plans([p for _, p in plans], plants, settle)):
+            c.residual_mm = residual_load_mm(ev).tolist()
+            c.worst_residual_mm = max(c.residual_mm)
     fit = [c for c in candidates if c.duration is not None and c.worst_residual_mm <= tolerance_mm]
     chosen = min(fit, key=lambda c: c.duration) if fit else None
     for c in candidates:

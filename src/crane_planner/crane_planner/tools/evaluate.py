@@ -15,7 +15,8 @@ from crane_msgs_py.params import CraneParams
 from crane_sim.metrics import peak, rms, swing_metrics
 from crane_sim.simulator import STATE_NAMES, PlantBatch, SimResult, simulate
 
-from crane_planner.planning import Plan, PlanError, Samples
+from crane_planner.planning import Plan, Samples
+from crane_planner.planning.plan import time_grid
 
 #: Simulation step and reference sample period used to evaluate plans (s).
 EVAL_STEP = 1e-3
@@ -37,10 +38,12 @@ def simulate_plans(plans, plants, settle: float = DEFAULT_SETTLE) -> list[Evalua
     """Simulate every plan on every plant over [0, T + settle], in one batch.
 
     The simulator is vectorized and its cost per step is mostly fixed, so all
-    (plan, plant) pairs share one run. The plans must have the same duration.
+    (plan, plant) pairs share one run, over [0, max T + settle]: a shorter
+    plan rests at its goal after its end, and each plan's figures are taken
+    over its own [0, T] and [T, T + settle].
 
     Args:
-        plans: plans of equal duration.
+        plans: the plans (durations may differ).
         plants: one CraneParams or a sequence of them.
         settle: seconds observed after the motion.
 
@@ -49,21 +52,18 @@ def simulate_plans(plans, plants, settle: float = DEFAULT_SETTLE) -> list[Evalua
     """
     plans = list(plans)
     plants = [plants] if isinstance(plants, CraneParams) else list(plants)
-    durations = {p.duration for p in plans}
-    if len(durations) != 1:
-        raise PlanError(f'plans evaluated together must share one duration, got {sorted(durations)}')
-    duration = durations.pop()
-    samples = [p.sample(EVAL_STEP) for p in plans]
+    longest = max(p.duration for p in plans)
+    t = time_grid(longest, EVAL_STEP)
     n = len(plants)
-    reference = np.repeat(np.stack([s.acceleration for s in samples]), n, axis=0)
-    sim = simulate(samples[0].t, reference, plants * len(plans), dt=EVAL_STEP,
-                   t_end=duration + settle, interpolation='linear')
-    metrics = swing_metrics(sim, None, duration, settle)
+    reference = np.repeat(np.stack([p.evaluate(t).acceleration for p in plans]), n, axis=0)
+    sim = simulate(t, reference, plants * len(plans), dt=EVAL_STEP, t_end=longest + settle,
+                   interpolation='linear')
     evaluations, batch = [], PlantBatch.of(plants)
-    for k, (plan, s) in enumerate(zip(plans, samples)):
+    for k, plan in enumerate(plans):
         rows = slice(k * n, (k + 1) * n)
         part = SimResult(sim.t, *(getattr(sim, f)[rows] for f in STATE_NAMES), plants=batch)
-        evaluations.append(Evaluation(plan, s, part, metrics[rows]))
+        evaluations.append(Evaluation(plan, plan.sample(EVAL_STEP), part,
+                                      swing_metrics(part, None, plan.duration, settle)))
     return evaluations
 
 
