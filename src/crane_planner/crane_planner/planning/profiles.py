@@ -28,6 +28,9 @@ QUINTIC_PEAKS = (15.0 / 8.0, 10.0 / math.sqrt(3.0), 60.0)
 #: Taylor coefficients kept per piece (degree 5).
 ORDER = 5
 _BINOMIAL = np.array([[math.comb(n, m) for n in range(ORDER + 1)] for m in range(ORDER + 1)], dtype=float)
+# Taylor shift of a degree-5 polynomial by dx: c'_m = sum_n C(n, m) dx^(n - m) c_n, as one product
+_SHIFT_POWER = np.clip(np.arange(ORDER + 1)[None, :] - np.arange(ORDER + 1)[:, None], 0, None)  # [m, n] -> n - m
+_SHIFT_MASK = np.triu(_BINOMIAL)
 BASES = ('quintic', 'limits')
 
 
@@ -76,14 +79,10 @@ class BaseProfile:
         """
         x = np.atleast_1d(np.asarray(x, dtype=float))
         k = self.piece(x) if piece is None else np.asarray(piece)
-        c = self.coefficients[k]
         dx = x - self.breaks[k]
-        # shift each piece polynomial to x: c'_m = sum_n C(n, m) c_n dx^(n - m)
-        out = np.zeros_like(c)
-        for m in range(ORDER + 1):
-            for n in range(m, ORDER + 1):
-                out[:, m] += _BINOMIAL[m, n] * c[:, n] * dx ** (n - m)
-        return out
+        # shift each piece polynomial to x: c'_m = sum_n C(n, m) dx^(n - m) c_n
+        shift = _SHIFT_MASK * dx[:, None, None] ** _SHIFT_POWER
+        return np.einsum('imn,in->im', shift, self.coefficients[k])
 
     def stretched(self, duration: float) -> 'BaseProfile':
         """The same motion slowed down in time to last ``duration`` (s) (>= this one's): peaks fall as 1/s^k."""

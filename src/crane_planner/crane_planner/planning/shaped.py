@@ -18,6 +18,9 @@ from .profiles import ORDER, BaseProfile, limited_base, quintic_base
 from .shapers import Shaper, design
 
 
+#: Matrices taking position coefficients (powers of t) to those of its 0th..3rd derivatives.
+_DERIVATIVES = [np.array([polyder(np.eye(ORDER + 1)[i], n) for i in range(ORDER + 1)]) for n in range(4)]
+
 #: Samples per piece when looking for a plan's peaks (``ShapedPlan.peaks``).
 _PEAK_SAMPLES = 48
 
@@ -62,7 +65,7 @@ class ShapedPlan(Plan):
         coefficients = np.einsum('bik,i->bk', taylor, self.shaper.amplitudes)
         self._breaks = breaks
         # position, velocity, acceleration, jerk per piece, in powers of (t - break)
-        self._coefficients = [polyder(coefficients, n, axis=1) for n in range(4)]
+        self._coefficients = [coefficients @ d for d in _DERIVATIVES]
 
     def peaks(self) -> tuple[float, float, float]:
         """Peak |velocity|, |acceleration|, |jerk| over [0, T], to ~1e-7 relative.
@@ -213,8 +216,13 @@ def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base:
         # A base shorter than the closest impulse spacing does not overlap itself: the plan's
         # peaks are then the base's times the largest |amplitude|, which bounds the search below.
         spacing = float(np.min(np.diff(shaper.times))) if shaper.times.size > 1 else math.inf
-        alone = quintic_duration(float(np.max(np.abs(shaper.amplitudes))) * D, v, a, j)
+        largest = float(np.max(np.abs(shaper.amplitudes)))
+        alone = quintic_duration(largest * D, v, a, j)
         lo = max(shortest_duration_bound(D, limits) - Ts, min(spacing, alone), 1e-9)
+        if v is not None and np.all(shaper.amplitudes > 0.0):
+            # the base's velocity is >= 0, so with positive impulses the plan's is at least the
+            # largest impulse's share of it wherever that one peaks, however the bases overlap
+            lo = max(lo, quintic_duration(largest * D, v))
         hi = max(quintic_duration(D, v, a, j), lo)
     elif base == 'limits':
         lo = limited_base(D, v, a, j).duration
