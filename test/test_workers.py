@@ -20,7 +20,9 @@ MODEL = CraneParams()
 OPTIONS = PlanOptions(max_solve_time=1.0)
 #: No plan exists that a solver finds in a second: 10 m in half a second.
 HOPELESS = ('rvf', 10.0, 0.5, MODEL, OPTIONS)
-WARMUPS = [(m, 0.3, 3.0, MODEL, OPTIONS) for m in ('nvf', 'rvf')]
+#: The same as a worker request.
+HOPELESS_REQUEST = ('plan', HOPELESS)
+WARMUPS = [('plan', (m, 0.3, 3.0, MODEL, OPTIONS)) for m in ('nvf', 'rvf')]
 
 
 @pytest.fixture(scope='module')
@@ -110,11 +112,11 @@ def test_a_late_answer_is_dropped_never_given_to_the_next_request():
     worker = SolverProcess(WARMUPS)
     try:
         with pytest.raises(PlanError, match='no answer within'):
-            worker.solve(HOPELESS, timeout=0.05)
+            worker.solve(HOPELESS_REQUEST, timeout=0.05)
         assert worker.late
         worker.finish_late()
         assert not worker.late and not worker.closed
-        plan = worker.solve(('nvf', 0.2, 3.5, MODEL, OPTIONS), timeout=10.0)
+        plan = worker.solve(('plan', ('nvf', 0.2, 3.5, MODEL, OPTIONS)), timeout=10.0)
         assert (plan.method, plan.displacement, plan.duration) == ('nvf', 0.2, 3.5)
     finally:
         worker.close()
@@ -124,8 +126,16 @@ def test_a_late_answer_is_dropped_never_given_to_the_next_request():
 def test_workers_ignore_ctrl_c_and_end_with_their_parent_pipe():
     worker = SolverProcess()
     os.kill(worker.pid, signal.SIGINT)  # a terminal's Ctrl-C reaches the whole process group
-    plan = worker.solve(('nvf', 0.3, 3.0, MODEL, OPTIONS), timeout=30.0)
+    plan = worker.solve(('plan', ('nvf', 0.3, 3.0, MODEL, OPTIONS)), timeout=30.0)
     assert plan.displacement == 0.3
     worker._conn.close()  # as when the parent ends
     worker._process.join(timeout=10.0)
     assert worker._process.exitcode == 0
+
+
+def test_a_worker_answers_the_fastest_plan_as_an_in_process_planner_does(planner):
+    options = PlanOptions(max_velocity=0.25, max_acceleration=0.5, max_solve_time=5.0)
+    remote = planner.fastest('nvf', 0.3, MODEL, options)
+    local = Planner().fastest('nvf', 0.3, MODEL, options)
+    assert remote.duration == pytest.approx(local.duration, rel=1e-6)
+    assert 'fastest' in remote.info

@@ -129,10 +129,16 @@ class Config:
                    int(v['solver_processes']))
 
     def warmups(self) -> list[tuple]:
-        """``Planner.plan`` arguments that build the NVF/RVF solvers of this configuration (a typical move)."""
-        duration = min(3.0, self.max_duration)
-        return [(method, min(0.3, self.max_displacement), duration, self.params, self.options)
-                for method in VARIATIONAL_METHODS]
+        """Requests ``(operation, arguments)`` that build the NVF/RVF solvers of this configuration.
+
+        A typical move, and with velocity or acceleration limits its fastest
+        plan (the free-final-time NLP), so the first of either is answered warm.
+        """
+        D, duration = min(0.3, self.max_displacement), min(3.0, self.max_duration)
+        requests = [('plan', (method, D, duration, self.params, self.options)) for method in VARIATIONAL_METHODS]
+        if self.options.max_velocity is not None or self.options.max_acceleration is not None:
+            requests += [('fastest', (method, D, self.params, self.options)) for method in VARIATIONAL_METHODS]
+        return requests
 
 
 class PlannerNode(Node):

@@ -174,7 +174,8 @@ class Planner:
         self._seeds: dict = {}  # VariationalSolver.structure_of -> the first solver built for it
         self._lock = threading.Lock()
         self.pool_size = pool_size
-        #: ``plan`` argument tuples a new worker process solves before serving (its solvers built)
+        #: requests ``(operation, arguments)`` (``plan`` or ``fastest``) a new worker process answers
+        #: before serving, so its solvers are built
         self.warmups: list[tuple] = []
         self._processes = None
         if processes:
@@ -221,9 +222,8 @@ class Planner:
 
         Needs max_velocity or max_acceleration (a motion without either could
         be arbitrarily fast). Shapers: ``shaped.fastest_shaped``; NVF/RVF: the
-        free-final-time NLP (``direct.DirectSolver.fastest``), on the same
-        pooled solvers as ``plan`` (in this process's threads also when the
-        planner has worker processes).
+        free-final-time NLP (``direct.DirectSolver.fastest``), where ``plan``
+        solves (worker processes, else pooled solvers).
         """
         params = params or CraneParams()
         options = options or PlanOptions()
@@ -238,6 +238,8 @@ class Planner:
             return fastest_shaped(method, displacement, *shaper_design(params, options), limits, options.base)
         if options.solver != 'direct':
             raise PlanError('the fastest NVF/RVF plan needs the direct solver (free final time)')
+        if self._processes is not None:
+            return self._solve_in_process(method, displacement, None, params, options)
         with self._pool(method, options).lend(self.pool_wait) as solver:
             return solver.fastest(displacement, params)
 
@@ -257,27 +259,36 @@ class Planner:
             self._processes.close()
 
     def warm_threads(self, requests) -> None:
-        """Solve ``plan`` argument tuples in this process's threads, so its own solvers are built.
+        """Answer requests ``(operation, arguments)`` in this process's threads, so its own solvers are built.
 
         With worker processes these take the requests that find every worker
         busy; warmed, such a request does not pay for a build.
         """
-        for method, displacement, duration, params, options in requests:
+        for operation, (method, displacement, *rest) in requests:
+            options = rest[-1]
             with self._pool(method, options).lend(self.pool_wait) as solver:
-                solver.solve(*check_request(method, displacement, duration), params)
+                if operation == 'fastest':
+                    solver.fastest(float(displacement), rest[0])
+                else:
+                    solver.solve(*check_request(method, displacement, rest[0]), rest[1])
 
     def _solve_in_process(self, method, displacement, duration, params, options) -> Plan:
+        """``plan`` (or with ``duration`` None ``fastest``) in a worker process."""
         t0 = time.monotonic()
         try:
             worker = self._processes.take(self.process_wait)
         except PlanError:  # every worker is busy (hard requests): solve here rather than wait or refuse
             with self._pool(method, options).lend(self.pool_wait) as solver:
+                if duration is None:
+                    return solver.fastest(displacement, params)
                 return solver.solve(displacement, duration, params)
+        request = (('fastest', (method, displacement, params, options)) if duration is None
+                   else ('plan', (method, displacement, duration, params, options)))
         try:
             timeout = None
-            if options.max_solve_time is not None:
+            if options.max_solve_time is not None and duration is not None:
                 timeout = max(options.max_solve_time + self.answer_margin - (time.monotonic() - t0), 0.05)
-            return worker.solve((method, displacement, duration, params, options), timeout)
+            return worker.solve(request, timeout)
         finally:
             if worker.late:  # back to the pool once its answer is in, so no caller waits behind it
                 threading.Thread(target=lambda: (worker.finish_late(), self._processes.give_back(worker)),

@@ -47,9 +47,9 @@ def _serve(conn, warmups) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     from .planner import Planner
     planner = Planner(pool_size=1)
-    for request in warmups:  # a failed warm-up only means building on first use
+    for operation, arguments in warmups:  # a failed warm-up only means building on first use
         try:
-            planner.plan(*request)
+            getattr(planner, operation)(*arguments)
         except Exception:
             pass
     try:
@@ -58,8 +58,9 @@ def _serve(conn, warmups) -> None:
             request = conn.recv()
             if request is None:
                 return
+            operation, arguments = request
             try:
-                reply = ('plan', planner.plan(*request))
+                reply = ('plan', getattr(planner, operation)(*arguments))
             except (PlanError, ParameterError) as exc:
                 reply = (type(exc).__name__, str(exc))
             except Exception as exc:  # a solver bug: the caller reports it, the worker lives on
@@ -73,8 +74,9 @@ class SolverProcess:
     """One worker process; ``solve`` sends it a request and waits for the answer. One caller at a time.
 
     Args:
-        warmups: ``Planner.plan`` argument tuples the worker solves before it
-            is ready, so that its first real request finds its solvers built.
+        warmups: requests ``(operation, arguments)`` (as ``solve`` takes them)
+            the worker answers before it is ready, so that its first real
+            request finds its solvers built.
         start_timeout: longest wait (s) for the worker to be ready.
     """
 
@@ -100,7 +102,8 @@ class SolverProcess:
         return self._process.pid
 
     def solve(self, request: tuple, timeout: float | None):
-        """``Planner.plan(*request)`` in the worker: its plan, or its PlanError/ParameterError raised here.
+        """``(operation, arguments)``: ``Planner.<operation>(*arguments)`` in the worker (``plan`` or
+        ``fastest``): its plan, or its PlanError/ParameterError raised here.
 
         PlanError too if the worker does not answer within ``timeout`` seconds
         (None = no limit; it is then ``late`` until ``finish_late``), or if it
