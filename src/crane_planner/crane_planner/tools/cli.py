@@ -21,6 +21,8 @@ from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, 
 from crane_planner.planning.profiles import BASES
 
 PROG = 'crane-plan'
+#: Seconds ``choose`` observes after each motion by default (``sweep`` and ``plan``: DEFAULT_SETTLE).
+CHOOSE_SETTLE = 5.0
 
 
 class UsageError(Exception):
@@ -170,8 +172,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--tolerance-mm', type=_finite, default=1.0, metavar='X',
                    help='largest acceptable residual load swing over the band (mm, default 1)')
     p.add_argument('--methods', type=_method_list, metavar='M,M,...', help='methods to weigh (default: all)')
-    p.add_argument('--settle', type=_finite, default=DEFAULT_SETTLE, metavar='S',
-                   help=f'seconds observed after each motion (default {DEFAULT_SETTLE:g})')
+    p.add_argument('--settle', type=_finite, default=CHOOSE_SETTLE, metavar='S',
+                   help=f'seconds observed after each motion (default {CHOOSE_SETTLE:g}: about three periods '
+                        'of the slow mode, where the two modes have met in phase)')
     _add_model_options(p)
     p.add_argument('--json', action='store_true', help='print the choice as one JSON object')
     p.add_argument('--plot', metavar='FILE', help='write a PNG: worst residual vs fastest duration per method')
