@@ -1,0 +1,88 @@
+"""config/*.yaml: every declared parameter at its default, and each node starts from its file.
+
+The files are written by tools/make_params_files.py from the nodes' own
+parameter tables; the first test fails when a node's parameters change and
+the files are not regenerated. The nodes run as real processes and report
+their values over the parameter services.
+"""
+import copy
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / 'tools'))
+import make_params_files  # noqa: E402
+
+#: A few values each node gets from a changed copy of its file (the rest stay at the defaults).
+CHANGES = {'planner': {'L1': 0.5, 'max_solve_time': 2.0, 'method': 'zv', 'robust_parameters': ['L1', 'L2'],
+                       'solver_processes': 1},
+           'streamer': {'network': {'delay': 0.001, 'seed': 7}, 'start_tolerance': 2e-6},
+           'sim': {'L2': 0.4, 'noise': 0.001, 'c1': 0.002}}
+
+
+def flatten(tree: dict, prefix: str = '') -> dict:
+    out = {}
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            out.update(flatten(value, f'{prefix}{key}.'))
+        else:
+            out[f'{prefix}{key}'] = value
+    return out
+
+
+@pytest.mark.parametrize('stem, node, executable, table', make_params_files.nodes())
+def test_the_files_hold_every_parameter_at_its_default(stem, node, executable, table):
+    path = ROOT / 'config' / f'{stem}.yaml'
+    assert path.read_text() == make_params_files.render(node, executable, table), \
+        f'{path} is stale: run .venv/bin/python tools/make_params_files.py'
+    values = flatten(yaml.safe_load(path.read_text())[f'/**/{node}']['ros__parameters'])
+    for name, (default, description, _) in table.items():
+        if isinstance(default, list) and not default:
+            assert f'# {name.rpartition(".")[2]}: []' in path.read_text()
+        else:
+            assert values[name] == default, name
+        assert description.split()[0] in path.read_text()
+
+
+@pytest.mark.parametrize('stem, node, executable, table', make_params_files.nodes())
+def test_each_node_starts_from_its_file_and_reports_the_files_values(ros_domain, tmp_path, stem, node,
+                                                                     executable, table):
+    import rclpy
+    from rclpy.parameter_client import AsyncParameterClient
+
+    from crane_planner.tools.processes import NodeGroup
+    document = yaml.safe_load((ROOT / 'config' / f'{stem}.yaml').read_text())
+    params = document[f'/**/{node}']['ros__parameters']
+    changed = copy.deepcopy(params)
+    for key, value in CHANGES[stem].items():
+        if isinstance(value, dict):
+            changed[key].update(value)
+        else:
+            changed[key] = value
+    path = tmp_path / f'{stem}.yaml'
+    path.write_text(yaml.safe_dump({f'/**/{node}': {'ros__parameters': changed}}))
+    expected = flatten(changed)
+    package, name = executable.split()
+    rclpy.init()
+    probe = rclpy.create_node(f'probe_{stem}', namespace='/files')
+    try:
+        with NodeGroup(ros_domain, tmp_path / 'logs') as nodes:
+            nodes.start(package, name, namespace='/files', params_file=path)
+            client = AsyncParameterClient(probe, node)
+            deadline = time.monotonic() + 60.0
+            while not client.wait_for_services(0.2):
+                nodes.check_alive()
+                assert time.monotonic() < deadline, f'{node} parameter services never appeared'
+            future = client.get_parameters(list(expected))
+            rclpy.spin_until_future_complete(probe, future, timeout_sec=10.0)
+            reported = future.result().values
+    finally:
+        probe.destroy_node()
+        rclpy.try_shutdown()
+    from rclpy.parameter import parameter_value_to_python
+    for (name, value), got in zip(expected.items(), reported):
+        assert parameter_value_to_python(got) == value, name

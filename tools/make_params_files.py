@@ -1,0 +1,79 @@
+"""Write config/planner.yaml, config/streamer.yaml and config/sim.yaml from the nodes' declared parameters.
+
+Every parameter at its default, its description as a comment, in the ROS 2
+parameters-file layout (``--ros-args --params-file config/<node>.yaml``). The
+node key is ``/**/<node name>``, so a file applies in any namespace. Run after
+changing a node's parameters; test/test_params_files.py checks the files match.
+
+    .venv/bin/python tools/make_params_files.py
+"""
+import json
+import sys
+import textwrap
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def nodes():
+    from crane_msgs_py.names import PLANNER_NODE, SIM_NODE, STREAMER_NODE
+    from crane_planner.nodes import planner_node, streamer_node
+    from crane_sim.nodes import sim_node
+    return [('planner', PLANNER_NODE, 'crane_planner planner', planner_node.PARAMETERS),
+            ('streamer', STREAMER_NODE, 'crane_planner streamer', streamer_node.PARAMETERS),
+            ('sim', SIM_NODE, 'crane_sim sim', sim_node.PARAMETERS)]
+
+
+def value_text(value) -> str:
+    """A YAML scalar or flow sequence (JSON is valid YAML for these).
+
+    A float always gets a decimal point: YAML 1.1 parsers (PyYAML, and rcl's
+    parameter files) read ``1e-06`` as a string, ``1.0e-06`` as a number.
+    """
+    if isinstance(value, float):
+        mantissa, e, exponent = repr(value).partition('e')
+        return (mantissa if '.' in mantissa else mantissa + '.0') + e + exponent
+    if isinstance(value, list):
+        return '[' + ', '.join(value_text(v) for v in value) + ']'
+    return json.dumps(value)
+
+
+def render(node: str, executable: str, table: dict) -> str:
+    lines = [f'# {node}: every parameter at its default, with its description.',
+             f'#   ros2 run {executable} --ros-args --params-file config/{node_file(node)}.yaml',
+             '# (outside a ROS install: .venv/bin/<executable> --ros-args --params-file ...)',
+             f'/**/{node}:', '  ros__parameters:']
+    groups: dict = {}
+    for name, (default, description, _) in table.items():
+        head, _, tail = name.rpartition('.')
+        groups.setdefault(head, []).append((tail, default, description))
+    for group, entries in groups.items():
+        indent = '    '
+        if group:
+            lines.append(f'    {group}:')
+            indent = '      '
+        for name, default, description in entries:
+            for line in textwrap.wrap(description, 96 - len(indent)):
+                lines.append(f'{indent}# {line}')
+            if isinstance(default, list) and not default:
+                # an empty list has no element type for the parameters file: left at the node's default
+                lines.append(f'{indent}# {name}: []   (empty: the default; give values to set it)')
+            else:
+                lines.append(f'{indent}{name}: {value_text(default)}')
+    return '\n'.join(lines) + '\n'
+
+
+def node_file(node: str) -> str:
+    return {'crane_planner': 'planner', 'crane_streamer': 'streamer', 'crane_sim': 'sim'}[node]
+
+
+def main() -> int:
+    for stem, node, executable, table in nodes():
+        path = ROOT / 'config' / f'{stem}.yaml'
+        path.write_text(render(node, executable, table))
+        print(f'wrote {path}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
