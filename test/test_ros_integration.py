@@ -605,3 +605,46 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
     # the positions are played out and differentiated over the plant's steps: the cart comes to rest
     # at the goal even when a stall re-anchored the unstamped samples' grid (it once drifted 0.5 m)
     assert float(values['y']) == pytest.approx(D, abs=5e-3)
+
+
+def test_markers_draw_the_crane_of_the_published_joint_states(crane):
+    """crane_markers at the joint_states rate, in crane_base: the masses where the same joint_states put
+    them (x1 = y - L1 sin th1, x2 = x1 - L2 sin(th1 + th2); z down the cables) within 1e-9 m."""
+    from sensor_msgs.msg import JointState
+    from visualization_msgs.msg import MarkerArray
+
+    from crane_msgs_py.conversions import CABLES_MARKER, CART_MARKER, MASS1_MARKER, MASS2_MARKER, stamp_ns
+    from crane_msgs_py.qos import JOINT_STATES_QOS, MARKERS_QOS
+    L1, L2 = 0.47, 0.391
+    states, markers = {}, {}
+    subs = [crane.node.create_subscription(JointState, 'joint_states',
+                                           lambda m: states.setdefault(stamp_ns(m.header.stamp), m), JOINT_STATES_QOS),
+            crane.node.create_subscription(MarkerArray, 'crane_markers',
+                                           lambda m: markers.setdefault(stamp_ns(m.markers[0].header.stamp), m),
+                                           MARKERS_QOS)]
+    try:
+        start_ns, _, _ = crane.driver.move('zv', crane.hold, crane.next_goal(), 2.0)  # let it swing
+        crane.hold = crane.next_goal()
+        crane.sleep_until(start_ns + 1_500_000_000)
+    finally:
+        for sub in subs:
+            crane.node.destroy_subscription(sub)
+    common = sorted(set(states) & set(markers))
+    assert len(common) >= 50, f'{len(common)} stamps with both joint_states and markers'
+    swing = 0.0
+    for stamp in common:
+        y, th1, th2 = states[stamp].position
+        m = markers[stamp].markers
+        x1, z1 = y - L1 * np.sin(th1), -L1 * np.cos(th1)
+        x2, z2 = x1 - L2 * np.sin(th1 + th2), z1 - L2 * np.cos(th1 + th2)
+        assert m[MASS1_MARKER].pose.position.x == pytest.approx(x1, abs=1e-9)
+        assert m[MASS1_MARKER].pose.position.z == pytest.approx(z1, abs=1e-9)
+        assert m[MASS2_MARKER].pose.position.x == pytest.approx(x2, abs=1e-9)
+        assert m[MASS2_MARKER].pose.position.z == pytest.approx(z2, abs=1e-9)
+        assert m[CART_MARKER].pose.position.x == pytest.approx(y, abs=1e-12)
+        assert [p.x for p in m[CABLES_MARKER].points] == pytest.approx([y, x1, x2], abs=1e-9)
+        assert {mk.header.frame_id for mk in m} == {'crane_base'}
+        swing = max(swing, abs(th1))
+    assert swing > 0.01  # the crane really swung: the check is not of a crane at rest
+    rate = (len(common) - 1) / ((common[-1] - common[0]) * 1e-9)
+    assert rate == pytest.approx(50.0, rel=0.05)

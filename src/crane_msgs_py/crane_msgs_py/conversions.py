@@ -24,11 +24,12 @@ import math
 
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import Point, PoseStamped
 from nav_msgs.msg import Path
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from visualization_msgs.msg import Marker, MarkerArray
 
 from .names import (CART_JOINT, DEFAULT_FRAME_ID, OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, OUTPUTS,
                     SIM_JOINTS)
@@ -242,3 +243,41 @@ def joint_state_to_arrays(msg: JointState, names) -> tuple[np.ndarray, np.ndarra
     vel = (np.asarray(msg.velocity, dtype=float)[order] if len(msg.velocity) == len(msg.name)
            else np.full(len(order), math.nan))
     return pos, vel
+
+
+#: Marker ids of ``crane_markers``: the cart, the two cables (one strip), the two masses.
+CART_MARKER, CABLES_MARKER, MASS1_MARKER, MASS2_MARKER = range(4)
+
+
+def crane_markers_message(frame_id: str = DEFAULT_FRAME_ID) -> MarkerArray:
+    """A reusable MarkerArray drawing the crane in ``frame_id`` (x along the rail, z up): a cart
+    (cube), the cables (one line strip cart - m1 - m2) and the masses (spheres); fill with
+    ``fill_crane_markers``."""
+    shapes = [(CART_MARKER, Marker.CUBE, (0.10, 0.06, 0.04), (0.3, 0.3, 0.35)),
+              (CABLES_MARKER, Marker.LINE_STRIP, (0.006, 0.0, 0.0), (0.1, 0.1, 0.1)),
+              (MASS1_MARKER, Marker.SPHERE, (0.04, 0.04, 0.04), (0.2, 0.45, 0.8)),
+              (MASS2_MARKER, Marker.SPHERE, (0.05, 0.05, 0.05), (0.85, 0.35, 0.1))]
+    msg = MarkerArray()
+    for marker_id, kind, (sx, sy, sz), (r, g, b) in shapes:
+        m = Marker()
+        m.header.frame_id = frame_id
+        m.ns, m.id, m.type, m.action = 'crane', marker_id, kind, Marker.ADD
+        m.scale.x, m.scale.y, m.scale.z = sx, sy, sz
+        m.color.r, m.color.g, m.color.b, m.color.a = r, g, b, 1.0
+        m.pose.orientation.w = 1.0
+        if kind == Marker.LINE_STRIP:
+            m.points = [Point(), Point(), Point()]
+        msg.markers.append(m)
+    return msg
+
+
+def fill_crane_markers(msg: MarkerArray, stamp: int, cart: float, x1: float, z1: float, x2: float, z2: float):
+    """Write the stamp and the cart and mass positions (m, ``crane_sim.dynamics.mass_positions``) in place."""
+    markers = msg.markers
+    for m in markers:
+        set_stamp(m.header.stamp, stamp)
+    markers[CART_MARKER].pose.position.x = cart
+    a, b, c = markers[CABLES_MARKER].points
+    a.x, a.z, b.x, b.z, c.x, c.z = cart, 0.0, x1, z1, x2, z2
+    for m, x, z in ((markers[MASS1_MARKER], x1, z1), (markers[MASS2_MARKER], x2, z2)):
+        m.pose.position.x, m.pose.position.z = x, z

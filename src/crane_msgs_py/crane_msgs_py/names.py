@@ -16,6 +16,7 @@ SIM_NODE = 'crane_sim'
 TRAJECTORY_TOPIC = 'trajectory'
 REFERENCE_TOPIC = 'reference'
 JOINT_STATES_TOPIC = 'joint_states'
+MARKERS_TOPIC = 'crane_markers'
 #: Absolute, as diagnostic_aggregator and rqt_robot_monitor expect.
 DIAGNOSTICS_TOPIC = '/diagnostics'
 

@@ -41,6 +41,12 @@ JOINT_STATES_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=25,
     reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
 
+#: ``crane_markers``: reliable (RViz2's MarkerArray display subscribes reliable; a best-effort
+#: publisher would not match it), volatile, a short queue: a late frame is worth nothing.
+MARKERS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=5,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+
 #: ``/diagnostics``: reliable, and transient local with a short history so a
 #: reader that has just joined (a ``PlannerClient`` created right before its
 #: first request) still gets the status of a request answered before its

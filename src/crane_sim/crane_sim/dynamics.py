@@ -87,6 +87,17 @@ def swing_accelerations(theta1, theta2, dtheta1, dtheta2, a_cart, L1, L2, m1, m2
     return acc[0], acc[1] - acc[0]
 
 
+def mass_positions(cart, theta1, theta2, L1, L2):
+    """(x1, z1, x2, z2) (m) of the two masses in the rail frame (x along the rail, z up, cart at z = 0).
+
+    Fig. 1: x1 = y - L1 sin(theta1), z1 = -L1 cos(theta1),
+    x2 = x1 - L2 sin(theta1 + theta2), z2 = z1 - L2 cos(theta1 + theta2).
+    """
+    phi = theta1 + theta2
+    x1, z1 = cart - L1 * np.sin(theta1), -L1 * np.cos(theta1)
+    return x1, z1, x1 - L2 * np.sin(phi), z1 - L2 * np.cos(phi)
+
+
 def load_excursion(theta1, theta2, L1, L2):
     """Horizontal offset (m) of the load m2 from its rest position below the cart.
 

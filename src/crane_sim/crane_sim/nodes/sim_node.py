@@ -28,18 +28,21 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
+from visualization_msgs.msg import MarkerArray
 
-from crane_msgs_py.conversions import fill_joint_state, joint_state_message, read_reference
+from crane_msgs_py.conversions import (crane_markers_message, fill_crane_markers, fill_joint_state,
+                                       joint_state_message, read_reference)
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from crane_msgs_py.names import (JOINT_STATES_TOPIC, OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, REFERENCE_TOPIC,
-                                 RESET_SERVICE, SIM_NODE)
+from crane_msgs_py.names import (DEFAULT_FRAME_ID, JOINT_STATES_TOPIC, MARKERS_TOPIC, OUTPUT_FLOAT64_ARRAY,
+                                 OUTPUT_JOINT_TRAJECTORY, REFERENCE_TOPIC, RESET_SERVICE, SIM_NODE)
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError, check_choice,
                                   check_nonnegative)
-from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS
+from crane_msgs_py.qos import JOINT_STATES_QOS, MARKERS_QOS, REFERENCE_EVERY_SAMPLE_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
 
+from crane_sim.dynamics import mass_positions
 from crane_sim.measurement import AngleNoise
 from crane_sim.playout import ReferencePlayout
 from crane_sim.simulator import INTERPOLATIONS, JOINT_NAMES, SOURCES, CraneSimulator, CraneState, SimulationError
@@ -75,6 +78,8 @@ PARAMETERS = {
                       'own interval); joint_states are stamped with plant time', float_range(0.0, 1.0)),
     'unstamped_period': (1e-3, 'period (s) of references without stamps (float64_array): each is taken to come '
                          'this long after the previous one, like commands at a fixed rate', float_range(1e-5, 1.0)),
+    'frame_id': (DEFAULT_FRAME_ID, 'frame of the crane_markers (x along the rail, z up); fixed at start-up',
+                 {'read_only': True}),
     'noise': (0.0, 'standard deviation (rad) of Gaussian noise added to the published theta1 and theta2 '
                    '(a measurement such as a camera\'s; the simulation itself is exact); may change while running',
               float_range(0.0, 1.0)),
@@ -104,6 +109,8 @@ class SimNode(Node):
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._check, self._apply, self._diagnostics)
         self._noise = AngleNoise(p['noise'], p['seed'])
+        self._markers = crane_markers_message(p['frame_id'])
+        self._markers_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, MARKERS_QOS)
         self._joint_state = joint_state_message(JOINT_NAMES)
         self._joint_states = self.create_publisher(JointState, JOINT_STATES_TOPIC, JOINT_STATES_QOS)
 
@@ -245,6 +252,7 @@ class SimNode(Node):
         epoch_ros = ros_now + (epoch - time.monotonic_ns())  # ROS time of step 0
         dt_ns, dt = ticker.period, ticker.period * 1e-9
         playout_args, playout, timeouts = None, None, 0
+        lengths = (sim.params['L1'], sim.params['L2'])  # of the markers: the live plant's
         while not self._loop_thread.stopping.is_set():
             deadline = ticker.deadline
             now = sleep_until(deadline, 0)
@@ -252,6 +260,7 @@ class SimNode(Node):
             if self._pending_params is not None:
                 params, self._pending_params = self._pending_params, None
                 sim.set_params(params)
+                lengths = (params.L1, params.L2)
             if self._playout_args is not playout_args:
                 playout_args = self._playout_args
                 timeouts += playout.timeouts if playout else 0
@@ -275,8 +284,12 @@ class SimNode(Node):
                 positions[1], positions[2] = self._noise(positions[1], positions[2])
                 plant_time = epoch_ros + (ticker.tick + 1) * dt_ns - round(playout.delay * 1e9)
                 fill_joint_state(self._joint_state, plant_time, positions, velocities)
+                # the crane as measured: the published angles, the live cable lengths
+                fill_crane_markers(self._markers, plant_time, positions[0],
+                                   *mass_positions(positions[0], positions[1], positions[2], *lengths))
                 try:
                     self._joint_states.publish(self._joint_state)
+                    self._markers_pub.publish(self._markers)
                 except Exception:  # the context is shut down (SIGINT): end quietly
                     return
                 counts['published'] += 1
