@@ -22,6 +22,7 @@ setup(
             'streamer = crane_planner.nodes.streamer_node:main',
             'crane-plan = crane_planner.tools.cli:main',
             'crane-demo = crane_planner.tools.demo:main',
+            'crane-record = crane_planner.tools.record:main',
         ],
     },
 )

@@ -111,6 +111,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--sweep-points', type=int, default=25, metavar='N',
                    help='points of the L1 +-30 %% sweep figure (crane-plan sweep), 0 = skip (default 25)')
     p.add_argument('--no-figures', action='store_true', help='write results.json only')
+    record = p.add_mutually_exclusive_group()
+    record.add_argument('--record', metavar='DIR',
+                        help='rosbag2 (MCAP) recording of reference, joint_states, trajectory, /diagnostics and '
+                             'crane_markers (default OUT/recording, replaced if there)')
+    record.add_argument('--no-record', action='store_true', help='record nothing')
     p.add_argument('--startup-timeout', type=float, default=90.0, metavar='S',
                    help='seconds for the nodes to come up and the planner to build its solvers (default 90)')
     return p
@@ -306,6 +311,41 @@ def run_sweep(args) -> Path | None:
     return path
 
 
+def start_recorder(args, env: dict, log_dir: Path):
+    """``crane-record`` of the demo's topics into ``--record`` (default OUT/recording), as a process."""
+    import shutil
+    import signal  # noqa: F401  (stop_recorder)
+    bag = Path(args.record or Path(args.out) / 'recording')
+    if bag.exists() and args.record is None:
+        shutil.rmtree(bag)  # the demo's own recording of an earlier run
+    log = open(log_dir / 'crane-record.log', 'w')
+    proc = subprocess.Popen([find_executable('crane_planner', 'crane-record'), '--namespace', args.namespace,
+                             '--out', str(bag)], env=env, stdout=log, stderr=subprocess.STDOUT,
+                            start_new_session=True)
+    proc.bag, proc.log_path = bag, log_dir / 'crane-record.log'
+    deadline = time.monotonic() + 30.0
+    while 'recording' not in proc.log_path.read_text():
+        if proc.poll() is not None or time.monotonic() > deadline:
+            raise HarnessError(f'crane-record did not start: {proc.log_path.read_text().strip()[-300:]}')
+        time.sleep(0.1)
+    progress(f'recording into {bag}')
+    return proc
+
+
+def stop_recorder(proc) -> Path:
+    """Stop ``crane-record`` (SIGINT: it closes the recording) and return the recording's folder."""
+    import signal
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=30.0)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise HarnessError('crane-record did not stop within 30 s') from None
+    if proc.returncode != 0:
+        raise HarnessError(f'crane-record failed: {proc.log_path.read_text().strip()[-300:]}')
+    return proc.bag
+
+
 def main(argv=None) -> int:
     args = _parse(argv)
     Path(args.out).mkdir(parents=True, exist_ok=True)
@@ -327,6 +367,7 @@ def _run(args, env: dict, t_start: float) -> int:
             start_crane_nodes(nodes, args.namespace, streamer_params={'timing_log': str(timing_log)})
             driver = CraneHarness(args.namespace, nodes, log=progress, node_name='crane_demo')
             driver.wait_until_up(args.methods, args.startup_timeout)
+            recorder = None if args.no_record else start_recorder(args, env, log_dir)
             progress(f'nodes up in {time.monotonic() - t_start:.1f} s')
             model = CraneParams()  # the planner's
             total, k = len(columns(args.cases)) * len(args.methods), 0
@@ -352,12 +393,14 @@ def _run(args, env: dict, t_start: float) -> int:
                                  f'peak a_ref {run.peak_acceleration:.3f} m/s^2, '
                                  f'plan {1e3 * run.plan_time_s:.0f} ms')
                 driver.set_parameters('planner', {n: getattr(model, n) for n in PARAMETER_NAMES})
+            if recorder is not None:
+                written_bag = stop_recorder(recorder)
             driver.close()
             driver = None
         # The nodes are stopped here, so the streamer has written its timing log.
         print_table(runs, args.cases, args.methods)
         (out / 'results.json').write_text(json.dumps([r.row() for r in runs], indent=1) + '\n')
-        written = [out / 'results.json']
+        written = [out / 'results.json'] + ([written_bag] if not args.no_record else [])
         if identification is not None:
             recording, identified = identification
             (out / 'commission.json').write_text(json.dumps(
