@@ -84,3 +84,32 @@ def test_compare_and_sweep_json(tmp_path):
     zv, zvd = out['methods']['zv']['load_mm'], out['methods']['zvd']['load_mm']
     # ZVD is the robust shaper: at +-30 % of L1 it must leave less swing than ZV.
     assert zvd[0] < zv[0] and zvd[-1] < zv[-1]
+
+
+def test_progress_goes_to_stderr_as_plain_lines_and_json_stays_clean():
+    """Not a terminal: one line per step on stderr; stdout holds the JSON alone."""
+    r = run('sweep', '--param', 'L1', '--points', '3', '--displacement', '0.3', '--duration', '3',
+            '--methods', 'zv,nvf', '--json')
+    assert r.returncode == 0, r.stderr
+    json.loads(r.stdout)
+    lines = r.stderr.strip().splitlines()
+    assert lines == ['crane-plan: sweep 1/3 planned zv', 'crane-plan: sweep 2/3 planned nvf',
+                     'crane-plan: sweep 3/3 simulated 2 x 3 runs']
+
+
+def test_progress_on_a_terminal_is_a_bar_not_lines():
+    """A stream that is a terminal gets tqdm's bar (carriage returns, a percentage), not one line per step."""
+    import io
+
+    from crane_planner.tools.progress import Progress
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+    term, log = Terminal(), io.StringIO()
+    for stream in (term, log):
+        with Progress(4, 'sweep', 'crane-plan', stream) as progress:
+            for k in range(4):
+                progress.step(f'step {k}')
+    assert '\r' in term.getvalue() and '%' in term.getvalue() and 'crane-plan: sweep' not in term.getvalue()
+    assert log.getvalue().splitlines() == [f'crane-plan: sweep {k + 1}/4 step {k}' for k in range(4)]

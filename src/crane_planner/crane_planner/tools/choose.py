@@ -84,11 +84,13 @@ def choose(displacement: float, model: CraneParams, options: PlanOptions, method
             plans.append((c, plan))
         candidates.append(c)
         if progress:
-            progress(method)
+            progress(f'{method}: ' + (f'{c.duration:.3f} s' if c.duration is not None else 'refused'))
     if plans:  # every (plan, plant) pair in one simulation
         for (c, _), ev in zip(plans, simulate_plans([p for _, p in plans], plants, settle)):
             c.residual_mm = residual_load_mm(ev).tolist()
             c.worst_residual_mm = max(c.residual_mm)
+    if progress:
+        progress(f'simulated {len(plans)} x {len(plants)} runs')
     fit = [c for c in candidates if c.duration is not None and c.worst_residual_mm <= tolerance_mm]
     chosen = min(fit, key=lambda c: c.duration) if fit else None
     for c in candidates:

@@ -17,6 +17,7 @@ import numpy as np
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
 
 from .evaluate import DEFAULT_SETTLE, plan_report, residual_load_mm, simulate_plan, simulate_plans, vary_parameter
+from .progress import Progress
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, Planner, PlanOptions
 from crane_planner.planning.profiles import BASES
 
@@ -269,7 +270,7 @@ def _write_plan_csv(path: str, ev):
         w.writerows(cols.tolist())
 
 
-def _plans(args, model, options) -> tuple[list[Plan], list[float]]:
+def _plans(args, model, options, progress=None) -> tuple[list[Plan], list[float]]:
     """Plans of ``args.methods``; with the default (all) methods, impossible ones are skipped with a note."""
     planner, plans, times = Planner(), [], []
     explicit = args.methods_given
@@ -281,6 +282,9 @@ def _plans(args, model, options) -> tuple[list[Plan], list[float]]:
                 raise
             print(f'{PROG}: skipped {method}: {e}', file=sys.stderr)
             continue
+        finally:
+            if progress is not None:
+                progress.step(f'planned {method}')
         plans.append(plan)
         times.append(plan_time)
     if not plans:
@@ -320,10 +324,12 @@ def cmd_sweep(args) -> int:
     model, options = _model_and_options(args)
     base_plant = _plant(args, model)
     values, plants = vary_parameter(base_plant, args.param, args.span, args.points)
-    plans, _ = _plans(args, model, options)
+    with Progress(len(args.methods) + 1, 'sweep', PROG) as progress:
+        plans, _ = _plans(args, model, options, progress)
+        evaluations = simulate_plans(plans, plants, args.settle)
+        progress.step(f'simulated {len(plans)} x {len(plants)} runs')
     result = {'param': args.param, 'values': values.tolist(), 'methods': {
-        ev.plan.method: {'load_mm': residual_load_mm(ev).tolist()}
-        for ev in simulate_plans(plans, plants, args.settle)}}
+        ev.plan.method: {'load_mm': residual_load_mm(ev).tolist()} for ev in evaluations}}
     if args.json:
         print(json.dumps(result))
     else:
@@ -353,8 +359,11 @@ def cmd_identify(args) -> int:
     from crane_planner.identification import identify, read_bag, read_csv
     model = CraneParams(**{n: getattr(args, n) for n in PARAMETER_NAMES})
     source = args.csv or args.bag
-    recording = read_csv(args.csv) if args.csv else read_bag(args.bag)
-    result = identify(recording, model)
+    with Progress(2, 'identify', PROG) as progress:
+        recording = read_csv(args.csv) if args.csv else read_bag(args.bag)
+        progress.step(f'read {recording.t.size} samples')
+        result = identify(recording, model)
+        progress.step(f'fitted in {result.iterations} iterations')
     if args.json:
         print(json.dumps(result.as_json()))
     else:
@@ -406,8 +415,9 @@ def cmd_choose(args) -> int:
     if options.max_velocity is None and options.max_acceleration is None:
         raise UsageError('choose needs axis limits: --max-velocity and/or --max-acceleration')
     plants = band(model, args.span, args.points, args.span_L2)
-    result = choose(args.displacement, model, options, args.methods, plants, args.tolerance_mm, args.settle,
-                    progress=lambda m: print(f'{PROG}: {m} done', file=sys.stderr))
+    with Progress(len(args.methods) + 1, 'choose', PROG) as progress:
+        result = choose(args.displacement, model, options, args.methods, plants, args.tolerance_mm, args.settle,
+                        progress=progress.step)
     if args.json:
         print(json.dumps(result.as_json()))
     else:
