@@ -129,7 +129,7 @@ def _add_task_options(p: argparse.ArgumentParser, fastest: bool = False):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=PROG, description=__doc__.splitlines()[0].split(': ', 1)[1])
-    sub = parser.add_subparsers(dest='command', required=True, metavar='{plan,compare,sweep,choose,identify}', parser_class=_Parser)
+    sub = parser.add_subparsers(dest='command', required=True, metavar='{plan,compare,sweep,choose,identify,report}', parser_class=_Parser)
 
     p = sub.add_parser('plan', help='make one plan and evaluate it on the plant')
     p.add_argument('--method', choices=METHODS, required=True)
@@ -179,6 +179,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_model_options(p)
     p.add_argument('--json', action='store_true', help='print the choice as one JSON object')
     p.add_argument('--plot', metavar='FILE', help='write a PNG: worst residual vs fastest duration per method')
+
+    p = sub.add_parser('report', help='figures and a residual-swing table from a rosbag2 recording')
+    p.add_argument('bag', metavar='BAG_DIR', help='a recording of crane-record or crane-demo --record')
+    p.add_argument('--out', default='.', metavar='DIR', help='folder for the figures (default .)')
+    p.add_argument('--settle', type=_finite, metavar='S',
+                   help='seconds after each motion the residual is taken over (default: until the next motion)')
+    p.add_argument('--json', action='store_true', help='print the table as JSON')
 
     p = sub.add_parser('identify', help='estimate L1, L2, mass ratio, joint damping and tau from a recorded move')
     source = p.add_mutually_exclusive_group(required=True)
@@ -448,8 +455,35 @@ def _print_choice(args, result):
     print(f'chosen: {result.chosen or "none (no method within the tolerance)"}')
 
 
+def cmd_report(args) -> int:
+    from pathlib import Path
+
+    from .report import motion_table, read_bag, write_figures
+    if args.settle is not None and args.settle < 0:
+        raise UsageError(f'argument --settle: must be >= 0, got {args.settle}')
+    with Progress(2, 'report', PROG) as progress:
+        data = read_bag(args.bag)
+        progress.step(f'read {len(data.states)} joint_states, {len(data.reference)} references')
+        rows = motion_table(data, args.settle)
+        written = write_figures(data, Path(args.out))
+        progress.step(f'{len(written)} figures')
+    if args.json:
+        print(json.dumps({'L1': data.L1, 'L2': data.L2, 'motions': rows}))
+    else:
+        print(f'{args.bag}: {len(data.states)} joint_states over {data.states[-1, 0]:.1f} s, '
+              f'{len(data.reference)} reference samples, {len(rows)} motions; L1 {data.L1:.3f} m, L2 {data.L2:.3f} m')
+        print(f'{"start s":>9}{"T s":>8}{"goal m":>9}{"observed s":>12}{"residual mm":>13}')
+        for r in rows:
+            residual = '-' if r['residual_mm'] is None else f'{r["residual_mm"]:.3f}'
+            print(f'{r["start_s"]:>9.3f}{r["duration_s"]:>8.3f}{r["goal_m"]:>9.4f}{r["observed_s"]:>12.2f}'
+                  f'{residual:>13}')
+    for path in written:
+        _say(args, f'wrote {path}')
+    return 0
+
+
 COMMANDS = {'plan': cmd_plan, 'compare': cmd_compare, 'sweep': cmd_sweep, 'choose': cmd_choose,
-            'identify': cmd_identify}
+            'identify': cmd_identify, 'report': cmd_report}
 
 
 def main(argv=None) -> int:

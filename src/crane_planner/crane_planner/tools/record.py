@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import rclpy
-from rclpy.experimental import EventsExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
@@ -135,8 +135,7 @@ def main(argv=None) -> int:
         signal.signal(sig, lambda *_: stop.set())
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('crane_record', namespace=args.namespace)
-    # 1 kHz of references: the events executor takes them with a fraction of the wait-set executors' overhead
-    executor = EventsExecutor()
+    executor = SingleThreadedExecutor()
     executor.add_node(node)
     recorder = None
     try:
