@@ -18,9 +18,9 @@ from crane_msgs_py.params import CraneParams
 from crane_planner.identification import IdentificationError, Recording, identify, read_csv
 from crane_planner.identification.recording import RecordingError
 from crane_planner.planning.profiles import quintic
-from crane_sim.dynamics import swing_accelerations
 from crane_sim.measurement import measured_angles
 from crane_sim.simulator import simulate
+from references import linearized_modes
 
 CRANE_PLAN = str(Path(__file__).resolve().parents[1] / '.venv' / 'bin' / 'crane-plan')
 TABLE1 = CraneParams()
@@ -34,22 +34,6 @@ def record(plant, after=8.0, noise=1e-3, seed=0, D=0.3, move=1.0, rate=50.0, ref
     r = simulate(t, acceleration, plant, dt=1e-3, record_every=every)
     theta1, theta2 = measured_angles(r, noise, seed)
     return Recording(r.t, r.y[0], theta1[0], theta2[0], position[::every] if reference else None)
-
-
-def linearized_modes(p: CraneParams):
-    """(omega, zeta) per mode from the eigenvalues of the simulator's equations linearized at rest (finite differences)."""
-    A = np.zeros((4, 4))
-    A[0, 2] = A[1, 3] = 1.0
-    h = 1e-7
-    for j in range(4):
-        dx = np.zeros(4)
-        dx[j] = h
-        up = swing_accelerations(*dx, 0.0, p.L1, p.L2, p.m1, p.m2, p.g, p.c1, p.c2)
-        down = swing_accelerations(*-dx, 0.0, p.L1, p.L2, p.m1, p.m2, p.g, p.c1, p.c2)
-        A[2:, j] = (np.array(up) - np.array(down)) / (2 * h)
-    lam = np.linalg.eigvals(A)
-    lam = sorted(lam[lam.imag > 0], key=abs)
-    return [abs(x) for x in lam], [-x.real / abs(x) for x in lam]
 
 
 def random_plant(rng, spread=0.3) -> CraneParams:
