@@ -61,7 +61,7 @@ def test_demo_exits_nonzero_when_nodes_do_not_come_up(tmp_path):
 
 def test_demo_exits_nonzero_naming_a_node_that_dies(tmp_path):
     namespace = f'/demo_{uuid.uuid4().hex[:8]}'
-    proc = _demo(tmp_path, '--methods', 'zv,nvf,rvf', '--cases', 'nominal', '--namespace', namespace)
+    proc = _demo(tmp_path, '--methods', 'zv,nvf,rvf', '--cases', 'nominal', '--namespace', namespace, '--no-record')
     try:
         deadline = time.monotonic() + 60
         sim_pid = None
@@ -89,7 +89,7 @@ def test_commissioning_identifies_the_unknown_crane_and_cuts_its_residual_swing(
     """Must hold: after commissioning, NVF and ZV leave <= 1/5 of their Table-1-model swing and <= 1 mm."""
     r = subprocess.run([str(BIN / 'crane-demo'), '--methods', 'nvf,zv', '--cases', 'commission',
                         '--duration', str(DURATION), '--settle', str(SETTLE), '--out', str(tmp_path),
-                        '--no-figures'], capture_output=True, text=True, timeout=300)
+                        '--no-figures', '--no-record'], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     rows = {(row['case'], row['method']): row['residual_mm']
             for row in json.loads((tmp_path / 'results.json').read_text())}

@@ -311,7 +311,7 @@ def run_sweep(args) -> Path | None:
     return path
 
 
-def start_recorder(args, env: dict, log_dir: Path):
+def start_recorder(args, env: dict, log_dir: Path, nodes: NodeGroup):
     """``crane-record`` of the demo's topics into ``--record`` (default OUT/recording), as a process."""
     import shutil
     import signal  # noqa: F401  (stop_recorder)
@@ -325,6 +325,7 @@ def start_recorder(args, env: dict, log_dir: Path):
     proc.bag, proc.log_path = bag, log_dir / 'crane-record.log'
     deadline = time.monotonic() + 30.0
     while 'recording' not in proc.log_path.read_text():
+        nodes.check_alive()  # a node that dies meanwhile is the error to report, not the recorder
         if proc.poll() is not None or time.monotonic() > deadline:
             raise HarnessError(f'crane-record did not start: {proc.log_path.read_text().strip()[-300:]}')
         time.sleep(0.1)
@@ -367,7 +368,7 @@ def _run(args, env: dict, t_start: float) -> int:
             start_crane_nodes(nodes, args.namespace, streamer_params={'timing_log': str(timing_log)})
             driver = CraneHarness(args.namespace, nodes, log=progress, node_name='crane_demo')
             driver.wait_until_up(args.methods, args.startup_timeout)
-            recorder = None if args.no_record else start_recorder(args, env, log_dir)
+            recorder = None if args.no_record else start_recorder(args, env, log_dir, nodes)
             progress(f'nodes up in {time.monotonic() - t_start:.1f} s')
             model = CraneParams()  # the planner's
             total, k = len(columns(args.cases)) * len(args.methods), 0
