@@ -458,7 +458,7 @@ class DirectSolver(VariationalSolver):
         limit binds.
         """
         from .profiles import quintic_duration
-        from .shaped import shortest_duration_bound
+        from .limits import shortest_duration_bound
         if self.max_velocity is None and self.max_acceleration is None:
             raise PlanError('the fastest plan needs max_velocity or max_acceleration (or both)')
         if displacement == 0.0:

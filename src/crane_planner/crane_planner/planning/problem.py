@@ -4,8 +4,8 @@
 normalized time s = t / T, for both solution routes: the direct one
 (``crane_planner.planning.direct``: Radau collocation + IPOPT) and the paper's
 indirect one (``crane_planner.planning.indirect``: Pontryagin's TPBVP). The
-mesh both start from and the necessary conditions of the axis limits live
-here too, so the routes share them; neither route imports the other.
+mesh both start from lives here too, so the routes share it (the axis
+limits' necessary conditions are in ``limits``); neither route imports the other.
 
 Scaling: with P = max(|D|, P_MIN) the states are divided by their natural
 sizes (position P, velocity P/T, acceleration P/T^2, swing angle P/(g T^2),
@@ -27,7 +27,6 @@ from scipy.optimize import brentq
 from crane_msgs_py.params import CraneParams
 
 from .dynamics import PARAMETERS, augment, crane_ode
-from .plan import PlanError
 from .profiles import QUINTIC
 
 #: Smallest position scale (m): a request for D = 0 is still well scaled.
@@ -218,30 +217,3 @@ def breakpoints(frac: np.ndarray) -> np.ndarray:
     s = np.concatenate([[0.0], np.cumsum(frac)])
     s[-1] = 1.0
     return s
-
-
-def axis_limit_error(displacement: float, duration: float, max_velocity, max_acceleration, max_jerk=None):
-    """A PlanError if no rest-to-rest motion of D in T can respect the limits, else None.
-
-    Necessary conditions (exact bounds of the bang-bang motion; a smooth
-    reference needs strictly more): peak velocity > |D|/T, peak acceleration
-    > 4|D|/T^2, peak jerk > 32|D|/T^3 and, with both velocity and acceleration
-    limits, T > |D|/v_max + v_max/a_max when the velocity limit is reached.
-    """
-    D, T = abs(displacement), duration
-    D_ = D * (1 + 1e-12)  # 0.1 m/s * 3 s is 0.30000000000000004 m
-    if max_velocity is not None and max_velocity * T <= D_:
-        return PlanError(f'infeasible: max_velocity {max_velocity:g} m/s is too low to move {D:g} m in '
-                         f'{T:g} s (needs more than {D / T:g} m/s)')
-    if max_acceleration is not None and max_acceleration * T ** 2 <= 4 * D_:
-        return PlanError(f'infeasible: max_acceleration {max_acceleration:g} m/s^2 is too low to move {D:g} m '
-                         f'in {T:g} s (needs more than {4 * D / T ** 2:g} m/s^2)')
-    if max_jerk is not None and max_jerk * T ** 3 <= 32 * D_:
-        return PlanError(f'infeasible: max_jerk {max_jerk:g} m/s^3 is too low to move {D:g} m in {T:g} s '
-                         f'(needs more than {32 * D / T ** 3:g} m/s^3)')
-    if max_velocity is not None and max_acceleration is not None and max_velocity ** 2 < D * max_acceleration:
-        t_min = D / max_velocity + max_velocity / max_acceleration
-        if T <= t_min:
-            return PlanError(f'infeasible: max_velocity {max_velocity:g} m/s and max_acceleration '
-                             f'{max_acceleration:g} m/s^2 together need more than {t_min:g} s to move {D:g} m')
-    return None

@@ -93,17 +93,6 @@ class BaseProfile:
         return BaseProfile(self.kind, self.displacement, float(duration), self.breaks * scale,
                            self.coefficients / scale ** np.arange(ORDER + 1))
 
-    def peaks(self) -> tuple[float, float, float]:
-        """Peak |velocity|, |acceleration|, |jerk| over the motion."""
-        t = np.linspace(0.0, self.duration, 4001)
-        k = self.piece(t)
-        dx = t - self.breaks[k]
-        out = []
-        for order in (1, 2, 3):
-            c = np.array([poly.polyder(row, order) for row in self.coefficients])
-            out.append(float(np.max(np.abs(np.sum(c[k] * dx[:, None] ** np.arange(c.shape[1]), axis=1)))))
-        return tuple(out)
-
 
 def quintic_base(displacement: float, duration: float) -> BaseProfile:
     """The paper's base: the rest-to-rest quintic D P(t/T) as one piece."""

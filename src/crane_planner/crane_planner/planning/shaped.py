@@ -14,6 +14,7 @@ import numpy as np
 from numpy.polynomial.polynomial import polyder, polyval
 
 from .plan import Plan, PlanError
+from .limits import shortest_duration_bound
 from .profiles import ORDER, BaseProfile, limited_base, quintic_base
 from .shapers import Shaper, design
 
@@ -143,24 +144,6 @@ def shaped_plan(method: str, displacement: float, duration: float, omegas, zeta,
 def _limit_ratio(plan: ShapedPlan, limits) -> float:
     """The largest of the plan's peak |v|, |a|, |j| over its limit (limits None are skipped)."""
     return max(peak / limit for peak, limit in zip(plan.peaks(), limits) if limit is not None)
-
-
-def shortest_duration_bound(displacement: float, limits) -> float:
-    """A lower bound (s) on any rest-to-rest motion of ``displacement`` within ``limits`` = (v, a, j).
-
-    |D| / v_max (velocity), 2 sqrt(|D| / a_max) (bang-bang acceleration) and
-    (32 |D| / j_max)^(1/3) (bang-bang jerk).
-    """
-    D = abs(float(displacement))
-    v, a, j = limits
-    bounds = [0.0]
-    if v is not None:
-        bounds.append(D / v)
-    if a is not None:
-        bounds.append(2.0 * math.sqrt(D / a))
-    if j is not None:
-        bounds.append((32.0 * D / j) ** (1.0 / 3.0))
-    return max(bounds)
 
 
 #: ``fastest_shaped`` aims this far below the binding limit, so that the plan's

@@ -14,7 +14,8 @@ from crane_msgs_py.params import CraneParams
 
 from .methods import VARIATIONAL_METHODS
 from .plan import Plan, PlanError
-from .problem import Problem, Weights, axis_limit_error, graded_mesh, servo_layer, uniform_mesh
+from .limits import axis_limit_error
+from .problem import Problem, Weights, graded_mesh, servo_layer, uniform_mesh
 
 class VariationalSolver:
     """NVF or RVF plans for one (method, intervals, robust set, limits); thread-safe.

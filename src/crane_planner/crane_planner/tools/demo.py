@@ -314,7 +314,6 @@ def run_sweep(args) -> Path | None:
 def start_recorder(args, env: dict, log_dir: Path, nodes: NodeGroup):
     """``crane-record`` of the demo's topics into ``--record`` (default OUT/recording), as a process."""
     import shutil
-    import signal  # noqa: F401  (stop_recorder)
     bag = Path(args.record or Path(args.out) / 'recording')
     if bag.exists() and args.record is None:
         shutil.rmtree(bag)  # the demo's own recording of an earlier run

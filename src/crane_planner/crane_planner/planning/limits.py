@@ -1,0 +1,60 @@
+"""Axis limits of the reference: what no rest-to-rest motion can beat. Pure Python.
+
+A motion of |D| in T needs a peak velocity above |D|/T, a peak acceleration
+above 4|D|/T^2 (bang-bang) and a peak jerk above 32|D|/T^3 (bang-bang jerk):
+the refusal of an infeasible request (``axis_limit_error``) and the lower end
+of every fastest-plan search (``shortest_duration_bound``) are these bounds.
+"""
+from __future__ import annotations
+
+import math
+
+from .plan import PlanError
+
+
+def shortest_duration_bound(displacement: float, limits) -> float:
+    """A lower bound (s) on any rest-to-rest motion of ``displacement`` within ``limits`` = (v, a, j).
+
+    |D| / v_max (velocity), 2 sqrt(|D| / a_max) (bang-bang acceleration),
+    (32 |D| / j_max)^(1/3) (bang-bang jerk) and, with both velocity and
+    acceleration limits where the velocity limit is reached, |D|/v_max + v_max/a_max.
+    """
+    D = abs(float(displacement))
+    v, a, j = limits
+    bounds = [0.0]
+    if v is not None:
+        bounds.append(D / v)
+    if a is not None:
+        bounds.append(2.0 * math.sqrt(D / a))
+    if j is not None:
+        bounds.append((32.0 * D / j) ** (1.0 / 3.0))
+    if v is not None and a is not None and v ** 2 < D * a:
+        bounds.append(D / v + v / a)
+    return max(bounds)
+
+
+def axis_limit_error(displacement: float, duration: float, max_velocity, max_acceleration, max_jerk=None):
+    """A PlanError if no rest-to-rest motion of D in T can respect the limits, else None.
+
+    Necessary conditions (exact bounds of the bang-bang motion; a smooth
+    reference needs strictly more): peak velocity > |D|/T, peak acceleration
+    > 4|D|/T^2, peak jerk > 32|D|/T^3 and, with both velocity and acceleration
+    limits, T > |D|/v_max + v_max/a_max when the velocity limit is reached.
+    """
+    D, T = abs(displacement), duration
+    D_ = D * (1 + 1e-12)  # 0.1 m/s * 3 s is 0.30000000000000004 m
+    if max_velocity is not None and max_velocity * T <= D_:
+        return PlanError(f'infeasible: max_velocity {max_velocity:g} m/s is too low to move {D:g} m in '
+                         f'{T:g} s (needs more than {D / T:g} m/s)')
+    if max_acceleration is not None and max_acceleration * T ** 2 <= 4 * D_:
+        return PlanError(f'infeasible: max_acceleration {max_acceleration:g} m/s^2 is too low to move {D:g} m '
+                         f'in {T:g} s (needs more than {4 * D / T ** 2:g} m/s^2)')
+    if max_jerk is not None and max_jerk * T ** 3 <= 32 * D_:
+        return PlanError(f'infeasible: max_jerk {max_jerk:g} m/s^3 is too low to move {D:g} m in {T:g} s '
+                         f'(needs more than {32 * D / T ** 3:g} m/s^3)')
+    if max_velocity is not None and max_acceleration is not None and max_velocity ** 2 < D * max_acceleration:
+        t_min = D / max_velocity + max_velocity / max_acceleration
+        if T <= t_min:
+            return PlanError(f'infeasible: max_velocity {max_velocity:g} m/s and max_acceleration '
+                             f'{max_acceleration:g} m/s^2 together need more than {t_min:g} s to move {D:g} m')
+    return None
