@@ -273,14 +273,14 @@ class PlannerNode(Node):
         if duration is None:
             plan = self._planner.fastest(method, displacement, config.params, config.options)
             duration = plan.duration
+            if duration > config.max_duration:
+                raise PlanError(f'the fastest {method} plan lasts {duration:g} s, beyond max_duration '
+                                f'{config.max_duration:g} s')
         else:
             duration = check_request(method, displacement, duration)[1]
             if duration > config.max_duration:
                 raise PlanError(f'duration {duration:g} s exceeds max_duration {config.max_duration:g} s')
             plan = self._planner.plan(method, displacement, duration, config.params, config.options)
-        if duration > config.max_duration:
-            raise PlanError(f'the fastest {method} plan lasts {duration:g} s, beyond max_duration '
-                            f'{config.max_duration:g} s')
         times = knot_times(plan) if config.sample_period == 0.0 else time_grid(duration, config.sample_period)
         return plan.evaluate(times), plan
 

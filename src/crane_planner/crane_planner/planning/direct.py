@@ -458,11 +458,8 @@ class DirectSolver(VariationalSolver):
         limit binds.
         """
         from .profiles import quintic_duration
-        from .limits import shortest_duration_bound
-        if self.max_velocity is None and self.max_acceleration is None:
-            raise PlanError('the fastest plan needs max_velocity or max_acceleration (or both)')
-        if displacement == 0.0:
-            raise PlanError('the fastest plan needs a nonzero displacement')
+        from .limits import check_fastest_request, shortest_duration_bound
+        displacement = check_fastest_request(displacement, self.limits)
         servo = params.tau > 0.0
         bound = shortest_duration_bound(displacement, self.limits)
         with self._lock:

@@ -12,6 +12,18 @@ import math
 from .plan import PlanError
 
 
+def check_fastest_request(displacement: float, limits) -> float:
+    """``displacement`` as float if a fastest plan of it within ``limits`` = (v, a, j) is a question at
+    all, else PlanError: without a velocity or acceleration limit a motion could be arbitrarily fast,
+    and a motion of 0 m takes no time."""
+    if limits[0] is None and limits[1] is None:
+        raise PlanError('the fastest plan needs max_velocity or max_acceleration (or both)')
+    displacement = float(displacement)
+    if displacement == 0.0:
+        raise PlanError('the fastest plan needs a nonzero displacement')
+    return displacement
+
+
 def shortest_duration_bound(displacement: float, limits) -> float:
     """A lower bound (s) on any rest-to-rest motion of ``displacement`` within ``limits`` = (v, a, j).
 

@@ -18,6 +18,7 @@ from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
 from .model import modal_properties
 from .plan import Plan, PlanError
 from .pool import SolverPool
+from .limits import check_fastest_request
 from .profiles import BASES
 from .shaped import fastest_shaped, shaped_plan
 
@@ -229,11 +230,7 @@ class Planner:
         options = options or PlanOptions()
         check_request(method, displacement, 1.0)
         limits = limits_of(options)
-        if limits[0] is None and limits[1] is None:
-            raise PlanError('the fastest plan needs max_velocity or max_acceleration (or both)')
-        displacement = float(displacement)
-        if displacement == 0.0:
-            raise PlanError('the fastest plan needs a nonzero displacement')
+        displacement = check_fastest_request(displacement, limits)  # before a worker is asked
         if method in SHAPER_METHODS:
             return fastest_shaped(method, displacement, *shaper_design(params, options), limits, options.base)
         if options.solver != 'direct':

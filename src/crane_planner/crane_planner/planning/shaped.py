@@ -14,7 +14,7 @@ import numpy as np
 from numpy.polynomial.polynomial import polyder, polyval
 
 from .plan import Plan, PlanError
-from .limits import shortest_duration_bound
+from .limits import check_fastest_request, shortest_duration_bound
 from .profiles import ORDER, BaseProfile, limited_base, quintic_base
 from .shapers import Shaper, design
 
@@ -172,11 +172,7 @@ def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base:
 
     from .profiles import quintic_duration
     v, a, j = limits
-    if v is None and a is None:
-        raise PlanError('the fastest plan needs max_velocity or max_acceleration (or both)')
-    D = float(displacement)
-    if D == 0.0:
-        raise PlanError('the fastest plan needs a nonzero displacement')
+    D = check_fastest_request(displacement, limits)
     shaper = design(method, omegas, zeta)
     Ts = shaper.duration
 
