@@ -72,7 +72,7 @@ class SolverPool:
             missing = self._size - self._count
             self._count += max(missing, 0)
         for _ in range(missing):
-            threading.Thread(target=self._make_spare, daemon=True).start()
+            self._make_spare_in_background()
         with self._cond:
             return bool(self._cond.wait_for(lambda: len(self._idle) >= min(count, self._size),
                                             timeout=ready_within))
@@ -109,7 +109,7 @@ class SolverPool:
                 # the last idle one is lent: make a spare off the request path, so the next
                 # request beside this one does not pay for a build
                 self._count += 1
-                threading.Thread(target=self._make_spare, daemon=True).start()
+                self._make_spare_in_background()
         if solver is None:
             try:
                 solver = self._create()
@@ -117,6 +117,9 @@ class SolverPool:
                 self.give_back(None)
                 raise
         return solver
+
+    def _make_spare_in_background(self):
+        threading.Thread(target=self._make_spare, daemon=True).start()
 
     def _make_spare(self):
         try:
@@ -141,4 +144,4 @@ class SolverPool:
         if drop:  # beyond a reduced size, or the pool is closing
             getattr(solver, 'close', lambda: None)()
         if replace:
-            threading.Thread(target=self._make_spare, daemon=True).start()
+            self._make_spare_in_background()
