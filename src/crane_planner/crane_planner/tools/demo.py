@@ -341,8 +341,10 @@ def stop_recorder(proc) -> Path:
     except subprocess.TimeoutExpired:
         proc.kill()
         raise HarnessError('crane-record did not stop within 30 s') from None
+    log = proc.log_path.read_text().strip()
     if proc.returncode != 0:
-        raise HarnessError(f'crane-record failed: {proc.log_path.read_text().strip()[-300:]}')
+        raise HarnessError(f'crane-record failed: {log[-300:]}')
+    progress(log.splitlines()[-1])  # what it recorded, and lost, per topic
     return proc.bag
 
 
