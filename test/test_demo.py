@@ -129,26 +129,31 @@ def test_the_demo_records_a_rosbag2_mcap_that_an_independent_reader_reads(tmp_pa
             '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
             '/crane_demo/crane_markers': 'visualization_msgs/msg/MarkerArray'}
         assert all(s.encoding == 'ros2msg' and len(s.data) > 100 for s in types.values())
-        stamps, references, sent, trajectories = [], [], [], []
+        stamps, references, sent, trajectories, log_times = [], [], [], [], []
         for _, channel, message, ros in reader.iter_decoded_messages():
+            stamp = ros.header.stamp.sec * 10**9 + ros.header.stamp.nanosec if hasattr(ros, 'header') else None
             if channel.topic.endswith('/joint_states'):
-                stamps.append(ros.header.stamp.sec * 10**9 + ros.header.stamp.nanosec)
+                stamps.append(stamp)
                 assert list(ros.name) == ['cart', 'theta1', 'theta2'] and len(ros.position) == 3
             elif channel.topic.endswith('/reference'):
-                references.append(message.log_time)
+                references.append(stamp)
+                log_times.append(message.log_time)
             elif channel.topic == '/diagnostics':
                 for status in ros.status:
                     if status.name == 'crane_streamer: stream' and status.hardware_id == '/crane_demo/crane_streamer':
-                        sent.append((message.log_time, int({kv.key: kv.value for kv in status.values}['sent'])))
+                        sent.append((stamp, int({kv.key: kv.value for kv in status.values}['sent'])))
             elif channel.topic.endswith('/trajectory'):
                 trajectories.append(ros)
     gaps = np.diff(stamps)
     assert len(stamps) > 200 and np.all(np.abs(gaps - 20_000_000) <= 1_000), sorted(set(gaps.tolist()))[:5]
-    (t0, n0), (t1, n1) = sent[0], sent[-1]
+    # Every reference sample the streamer reports sending between two of its reports was recorded.
+    # By the messages' own stamps: /diagnostics is latched, so the first reports the recorder receives
+    # were made before it subscribed; only reports made after its first reference sample count.
+    (t0, n0), *_, (t1, n1) = [(t, n) for t, n in sent if t > min(references)]
     recorded = sum(1 for t in references if t0 < t <= t1)
-    # Not yet what issue 12 asks (>= 99 %): on this 2-core machine the Python recorder keeps 50-100 %
-    # of the 1 kHz reference beside the three nodes (README, Recording). Asserted: it records it at all.
-    assert n1 - n0 > 2000 and recorded > 0.3 * (n1 - n0), (recorded, n1 - n0)
+    assert n1 - n0 > 2000 and recorded >= 0.99 * (n1 - n0), (recorded, n1 - n0)
+    # stamped with the receive time: within 50 ms of the sample's own stamp (the streamer's tick)
+    assert np.percentile(np.abs(np.subtract(log_times, references)), 99) < 50e6
     # the demo's two moves: 0.3 m in 2.5 s with ZV, and back in 1.25 s with NVF
     ends = sorted((round(tr.points[-1].positions[0], 9), tr.points[-1].time_from_start.sec
                    + 1e-9 * tr.points[-1].time_from_start.nanosec) for tr in trajectories)
