@@ -187,9 +187,15 @@ def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base:
                           base=profile)
 
     target = 1.0 - FASTEST_MARGIN
+    ratios = {}  # base length -> limit ratio: Brent starts from the scan's last two lengths
+
+    def ratio(length) -> float:
+        if length not in ratios:
+            ratios[length] = _limit_ratio(make(length), limits)
+        return ratios[length]
 
     def beyond(length) -> float:  # > 0: the plan with this base length exceeds a limit
-        return _limit_ratio(make(length), limits) - target
+        return ratio(length) - target
 
     if base == 'quintic':
         # A base shorter than the closest impulse spacing does not overlap itself: the plan's
@@ -205,9 +211,8 @@ def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base:
         hi = max(quintic_duration(D, v, a, j), lo)
     elif base == 'limits':
         lo = limited_base(D, v, a, j).duration
-        first = make(lo)
-        if _limit_ratio(first, limits) <= 1.0 + 1e-9:  # the base's own plateaus may meet a limit exactly
-            return first
+        if ratio(lo) <= 1.0 + 1e-9:  # the base's own plateaus may meet a limit exactly
+            return make(lo)
         hi = 1.5 * lo
     else:
         raise PlanError(f"base must be 'quintic' or 'limits', got {base!r}")
@@ -224,8 +229,7 @@ def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base:
         found = _first_feasible(beyond, lo, hi, steps=(_FINE_STEP, _FINE_STEP))
     else:
         found = _first_feasible(beyond, lo, hi, steps=(_COARSE_STEP,))
-    plan = make(found)
-    return plan if _limit_ratio(plan, limits) <= 1.0 else make(found * (1.0 + _FINE_STEP))
+    return make(found if ratio(found) <= 1.0 else found * (1.0 + _FINE_STEP))
 
 
 def _first_feasible(beyond, lo: float, hi: float, steps) -> float:
