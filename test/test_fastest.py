@@ -118,6 +118,20 @@ def test_the_limits_base_is_never_slower_and_needs_no_check_with_positive_impuls
     assert s.position[-1] == pytest.approx(sign * D, abs=1e-12) and abs(s.velocity).max() < 1e-12
 
 
+@pytest.mark.parametrize('method', ['nvf', 'rvf'])
+def test_a_fastest_request_stops_at_max_solve_time_and_names_it(method):
+    """The free-time attempts together stop at the budget (IPOPT is stopped between iterations),
+    refused naming it; with a budget that allows it, the same request answers the same T*."""
+    from crane_planner.planning.direct import DirectSolver
+    tight = DirectSolver(method, PlanOptions(max_velocity=0.25, max_acceleration=0.5, max_solve_time=1e-3))
+    with pytest.raises(PlanError, match=f'{method}: no fastest plan of 0.3 m within max_solve_time 0.001 s'):
+        tight.fastest(0.3, CraneParams())
+    roomy = DirectSolver(method, PlanOptions(max_velocity=0.25, max_acceleration=0.5, max_solve_time=5.0))
+    plan = roomy.fastest(0.3, CraneParams())
+    assert plan.duration == pytest.approx(Planner().fastest(method, 0.3, CraneParams(), PAPER).duration, rel=1e-6)
+    assert max(ratios(plan, LIMITS)) >= 0.995
+
+
 def test_the_fastest_needs_a_velocity_or_acceleration_limit(planner):
     for method in ('zv', 'nvf'):
         with pytest.raises(PlanError, match='needs max_velocity or max_acceleration'):

@@ -230,7 +230,9 @@ class _Yielding(ca.Callback):
     it. Once a solve has run ``after`` s, it sleeps half as long as its last
     iteration took after each one (it then gets at most 2/3 of the time), so
     short solves get the linear solver in between. Typical solves never get
-    there.
+    there. Past a ``deadline`` it stops IPOPT at its next iteration (status
+    ``User_Requested_Stop``): a request made of several solves (``fastest``)
+    ends within its budget.
     """
 
     after = 0.05
@@ -239,11 +241,13 @@ class _Yielding(ca.Callback):
         ca.Callback.__init__(self)
         self._sizes = {'x': nx, 'lam_x': nx, 'g': ng, 'lam_g': ng, 'f': 1, 'lam_p': np_}
         self.start = self._last = 0.0
+        self.deadline = math.inf
         self.construct('yielding', {})
 
-    def begin(self):
-        """Mark the start of an attempt."""
+    def begin(self, deadline: float | None = None):
+        """Mark the start of an attempt; stop it past ``deadline`` (``time.perf_counter`` s), if given."""
         self.start = self._last = time.perf_counter()
+        self.deadline = math.inf if deadline is None else deadline
 
     def get_n_in(self):
         return ca.nlpsol_n_out()
@@ -262,6 +266,8 @@ class _Yielding(ca.Callback):
 
     def eval(self, arg):
         now = time.perf_counter()
+        if now > self.deadline:
+            return [1]
         if now - self.start > self.after:
             time.sleep(min(0.5 * (now - self._last), 0.02))
         self._last = time.perf_counter()
@@ -312,6 +318,7 @@ class DirectSolver(VariationalSolver):
         self._transcriptions_lock = threading.Lock()
         self._instances = {}  # servo -> _Instance, this solver's own
         self._warm_source = None  # the solver this one was spawned from: its first warm start
+        self._deadline = None  # while a fastest request runs: when its budget ends (perf_counter s)
 
     def spawn(self, options=None) -> 'DirectSolver':
         """Another solver like this one (for ``options``, default this one's).
@@ -420,7 +427,7 @@ class DirectSolver(VariationalSolver):
         for k, start in enumerate(starts):
             if k and not self._may_retry(t0):
                 break
-            inst.callback.begin()
+            inst.callback.begin(self._deadline)
             sol = solver(**args, **start())
             stats = solver.stats()
             if stats['success'] or stats['return_status'] == 'Maximum_WallTime_Exceeded':
@@ -455,7 +462,8 @@ class DirectSolver(VariationalSolver):
         if that fails) from the quintic guess at T_0 = 1.3 times the shortest
         quintic within the limits, and failing that from a fixed-duration
         solution (durations 1.5 times apart until one solves). T* is where a
-        limit binds.
+        limit binds. With a ``max_solve_time`` the attempts together (the build
+        of the NLP aside) stop at that budget: a PlanError names it.
         """
         from .profiles import quintic_duration
         from .limits import check_fastest_request, shortest_duration_bound
@@ -468,50 +476,71 @@ class DirectSolver(VariationalSolver):
             build_time = time.perf_counter() - t_build
             tr, solver, pb = inst.transcription, inst.solver, inst.transcription.problem
             t0 = time.perf_counter()
-            fixed_solves = 0
-            for attempt in range(3):
-                if attempt == 0 and inst.warm is None:  # first: from the quintic's guess, no fixed NLP needed
-                    T0 = max(1.3 * quintic_duration(displacement, *self.limits), 1.5 * bound)
-                    start = {'x0': np.append(tr.guess(displacement, self.mesh(T0, params)), 1.0)}
-                    inst.T0 = T0
-                elif inst.warm is None:  # else a fixed-duration solution: durations until one solves
-                    T0 = max(1.3 * quintic_duration(displacement, *self.limits), 1.5 * bound)
-                    for _ in range(30):
-                        fixed_solves += 1
-                        try:
-                            self._solve(displacement, T0, params, self.mesh(T0, params))
-                            break
-                        except PlanError:
-                            T0 *= 1.5
-                    else:
-                        raise PlanError(f'{self.method}: no plan of {displacement:g} m within the limits found')
-                    start = {'x0': np.append(np.array(self._instances[servo].warm[1]['x0']).ravel(), 1.0)}
-                    inst.T0 = T0
+            self._deadline = None if self.max_solve_time is None else t0 + self.max_solve_time
+            try:
+                return self._fastest(inst, displacement, params, servo, bound, build_time, t0)
+            finally:
+                self._deadline = None
+
+    def _fastest(self, inst, displacement, params, servo, bound, build_time, t0) -> CollocationPlan:
+        """``fastest``'s attempts, under ``self._deadline`` (see there)."""
+        from .profiles import quintic_duration
+        tr, solver, pb = inst.transcription, inst.solver, inst.transcription.problem
+        fixed_solves = 0
+        for attempt in range(3):
+            self._check_deadline(displacement, attempt)
+            if attempt == 0 and inst.warm is None:  # first: from the quintic's guess, no fixed NLP needed
+                T0 = max(1.3 * quintic_duration(displacement, *self.limits), 1.5 * bound)
+                start = {'x0': np.append(tr.guess(displacement, self.mesh(T0, params)), 1.0)}
+                inst.T0 = T0
+            elif inst.warm is None:  # else a fixed-duration solution: durations until one solves
+                T0 = max(1.3 * quintic_duration(displacement, *self.limits), 1.5 * bound)
+                for _ in range(30):
+                    self._check_deadline(displacement, attempt)
+                    fixed_solves += 1
+                    try:
+                        self._solve(displacement, T0, params, self.mesh(T0, params))
+                        break
+                    except PlanError:
+                        T0 *= 1.5
                 else:
-                    T0 = inst.T0
-                    start = self._warm_start(inst.warm, displacement)
-                frac = self.mesh(T0, params)
-                pvec = np.concatenate([pb.parameters(displacement, T0, params, self.weights), frac])
-                sx, _ = pb.scales(pvec[:len(PROBLEM_PARAMETERS)])
-                sx = np.array(sx, dtype=float).ravel()
-                args = self._bounds(tr, displacement, T0, sx, self.limits)
-                args['lbx'][-1] = bound / T0 * (1.0 - 1e-9)  # sigma: no motion beats the bound
-                inst.callback.begin()
-                sol = solver(p=pvec, **args, **start)
-                stats = solver.stats()
-                if stats['success']:
-                    break
-                if attempt == 2:
-                    raise self._fastest_failed(stats, displacement)
-                inst.warm = None  # not from here: from a fixed-duration solution
-            w = np.array(sol['x']).ravel()
-            inst.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
-            info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),
-                    'solve_time_s': time.perf_counter() - t0, 'build_time_s': build_time,
-                    'intervals': tr.intervals, 'robust': list(self.robust), 'sensitivities': list(pb.robust),
-                    'servo_model': servo, 'fastest': {'scale_duration_s': T0, 'fixed_solves': fixed_solves,
-                                                      'lower_bound_s': bound}}
-            return self._plan(tr, w, sx, displacement, float(w[-1]) * T0, frac, params, info)
+                    raise PlanError(f'{self.method}: no plan of {displacement:g} m within the limits found')
+                start = {'x0': np.append(np.array(self._instances[servo].warm[1]['x0']).ravel(), 1.0)}
+                inst.T0 = T0
+            else:
+                T0 = inst.T0
+                start = self._warm_start(inst.warm, displacement)
+            frac = self.mesh(T0, params)
+            pvec = np.concatenate([pb.parameters(displacement, T0, params, self.weights), frac])
+            sx, _ = pb.scales(pvec[:len(PROBLEM_PARAMETERS)])
+            sx = np.array(sx, dtype=float).ravel()
+            args = self._bounds(tr, displacement, T0, sx, self.limits)
+            args['lbx'][-1] = bound / T0 * (1.0 - 1e-9)  # sigma: no motion beats the bound
+            inst.callback.begin(self._deadline)
+            sol = solver(p=pvec, **args, **start)
+            stats = solver.stats()
+            if stats['success']:
+                break
+            if stats['return_status'] == 'User_Requested_Stop':  # the deadline: the warm start stays good
+                self._check_deadline(displacement, attempt + 1)
+            if attempt == 2:
+                raise self._fastest_failed(stats, displacement)
+            inst.warm = None  # not from here: from a fixed-duration solution
+        w = np.array(sol['x']).ravel()
+        inst.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
+        info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),
+                'solve_time_s': time.perf_counter() - t0, 'build_time_s': build_time,
+                'intervals': tr.intervals, 'robust': list(self.robust), 'sensitivities': list(pb.robust),
+                'servo_model': servo, 'fastest': {'scale_duration_s': T0, 'fixed_solves': fixed_solves,
+                                                  'lower_bound_s': bound}}
+        return self._plan(tr, w, sx, displacement, float(w[-1]) * T0, frac, params, info)
+
+    def _check_deadline(self, displacement: float, attempts: int) -> None:
+        """A PlanError naming ``max_solve_time`` once a fastest request's budget is spent."""
+        if self._deadline is not None and time.perf_counter() > self._deadline:
+            raise PlanError(f'{self.method}: no fastest plan of {displacement:g} m within max_solve_time '
+                            f'{self.max_solve_time:g} s ({attempts} attempt{"s" if attempts != 1 else ""} '
+                            'of the free-time NLP did not finish); raise max_solve_time')
 
     def _fastest_failed(self, stats, displacement) -> PlanError:
         return PlanError(f'{self.method}: the fastest plan of {displacement:g} m did not solve '

@@ -43,9 +43,10 @@ class PlanOptions:
         base: the motion shapers shape: ``quintic`` (the paper's) or
             ``limits`` (the jerk-limited time-optimal profile under the limits,
             ``profiles.limited_base``).
-        max_solve_time: budget (s) of one NVF/RVF solve, > 0: a request not
-            solved within it is refused (direct route only); None = the
-            route's own cap.
+        max_solve_time: budget (s) of one NVF/RVF request, > 0: a plan, or
+            a fastest plan's attempts together, not solved within it is refused
+            (direct route only; building a solver is not counted, except by
+            the caller's wait on a worker process); None = the route's own cap.
     """
 
     omega: tuple[float, ...] | None = None
@@ -283,7 +284,7 @@ class Planner:
                    else ('plan', (method, displacement, duration, params, options)))
         try:
             timeout = None
-            if options.max_solve_time is not None and duration is not None:
+            if options.max_solve_time is not None:
                 timeout = max(options.max_solve_time + self.answer_margin - (time.monotonic() - t0), 0.05)
             return worker.solve(request, timeout)
         finally:
