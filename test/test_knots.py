@@ -11,7 +11,9 @@ import pytest
 
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import METHODS, SHAPER_METHODS, Planner
+from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.plan import Plan
+from crane_planner.planning.shaped import shaped_plan
 from crane_planner.streaming.hermite import QuinticHermite
 from crane_planner.streaming.knots import knot_times
 
@@ -88,3 +90,14 @@ def test_acceleration_tolerance_is_relative_to_the_peak():
     # the same in other units: scaling D scales nothing relative
     big = SineStep('cycloid', 300.0, 3.0)
     assert np.array_equal(knot_times(big, position_tol=1e9, acceleration_tol=1e-4), tight)
+
+
+@pytest.mark.parametrize('duration', [3.0000000002, 2.9999999998, 3.0])
+def test_knots_are_a_stamp_apart_when_the_duration_is_off_the_nanosecond_grid(duration):
+    """The end of the last shifted base is a breakpoint at T; rounded to the nanosecond it fell just
+    below an off-grid T and made a second end knot 0.2 ns before it: one stamp for two poses."""
+    plan = shaped_plan('zv', 0.3, duration, modal_frequencies(CraneParams()), 0.0)
+    t = knot_times(plan)
+    assert t[0] == 0.0 and t[-1] == duration
+    assert np.diff(t).min() >= 1e-9 * (1 - 1e-6)
+    assert t.size == 8  # the breakpoints of ZV's four shifted quintics: 0, 3 inside starts, 3 inside ends, T

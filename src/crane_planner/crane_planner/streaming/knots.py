@@ -51,7 +51,9 @@ def knot_times(plan, position_tol: float = POSITION_TOL, acceleration_tol: float
         return np.rint(np.asarray(x, dtype=float) / resolution) * resolution
 
     t = np.unique(grid(np.clip(plan.breakpoints(), 0.0, plan.duration)))
-    t = np.union1d(t[(t > 0.0) & (t < plan.duration)], [0.0, plan.duration])
+    # a breakpoint at the end rounds to the grid up to half a step below T: it is the end knot
+    # (two knots closer than a stamp's resolution would carry the same stamp)
+    t = np.union1d(t[(t >= resolution) & (t <= plan.duration - resolution)], [0.0, plan.duration])
     inner = (np.arange(_CHECKS) + 0.5) / _CHECKS
     a_peak = 0.0
     while True:
