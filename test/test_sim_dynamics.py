@@ -5,7 +5,7 @@ import pytest
 from crane_msgs_py.params import CraneParams
 from crane_sim.dynamics import load_excursion, swing_accelerations
 from crane_sim.simulator import simulate
-from references import linearized_modes
+from references import lagrangian_energy, linearized_modes
 
 P = CraneParams()
 
@@ -20,22 +20,6 @@ def eq18_eq19_residuals(th1, th2, d1, d2, dd1, dd2, a, p):
            + p.L1 * (d1 ** 2 * np.sin(th2) + dd1 * np.cos(th2))
            - a * np.cos(th1 + th2))
     return r18, r19
-
-
-def lagrangian_energy(th1, th2, d1, d2, p):
-    """Kinetic plus potential energy of the two masses, cart at rest (Fig. 1 kinematics).
-
-    x_m1 = -L1 sin th1, z_m1 = -L1 cos th1, x_m2 = x_m1 - L2 sin(th1+th2),
-    z_m2 = z_m1 - L2 cos(th1+th2); potential measured from the hanging rest.
-    """
-    phi, dphi = th1 + th2, d1 + d2
-    vx1, vz1 = -p.L1 * np.cos(th1) * d1, p.L1 * np.sin(th1) * d1
-    vx2, vz2 = vx1 - p.L2 * np.cos(phi) * dphi, vz1 + p.L2 * np.sin(phi) * dphi
-    z1 = -p.L1 * np.cos(th1)
-    z2 = z1 - p.L2 * np.cos(phi)
-    kinetic = 0.5 * p.m1 * (vx1**2 + vz1**2) + 0.5 * p.m2 * (vx2**2 + vz2**2)
-    rest = -p.g * (p.m1 * p.L1 + p.m2 * (p.L1 + p.L2))
-    return kinetic + p.g * (p.m1 * z1 + p.m2 * z2) - rest
 
 
 def test_accelerations_satisfy_eqs_18_19():
