@@ -19,11 +19,14 @@ from .profiles import ORDER, BaseProfile, limited_base, quintic_base
 from .shapers import Shaper, design
 
 
-#: Matrices taking position coefficients (powers of t) to those of its 0th..3rd derivatives.
-_DERIVATIVES = [np.array([polyder(np.eye(ORDER + 1)[i], n) for i in range(ORDER + 1)]) for n in range(4)]
+#: Matrices taking position coefficients (powers of t) to those of its 0th..3rd derivatives, (4, 6, 6)
+#: (the highest powers of a derivative are zero).
+_DERIVATIVES = np.array([[np.pad(polyder(np.eye(ORDER + 1)[i], n), (0, n)) for i in range(ORDER + 1)]
+                         for n in range(4)])
 
-#: Samples per piece when looking for a plan's peaks (``ShapedPlan.peaks``).
+#: Samples per piece when looking for a plan's peaks (``ShapedPlan.peaks``), as fractions of the piece.
 _PEAK_SAMPLES = 48
+_PEAK_GRID = np.linspace(0.0, 1.0, _PEAK_SAMPLES)[None, :]
 
 
 @dataclass(kw_only=True)
@@ -65,8 +68,8 @@ class ShapedPlan(Plan):
         taylor[:, :, 0] += np.where(inside >= ends, D, 0.0)
         coefficients = np.einsum('bik,i->bk', taylor, self.shaper.amplitudes)
         self._breaks = breaks
-        # position, velocity, acceleration, jerk per piece, in powers of (t - break)
-        self._coefficients = [coefficients @ d for d in _DERIVATIVES]
+        # position, velocity, acceleration, jerk per piece, in powers of (t - break): (4, pieces, 6)
+        self._coefficients = coefficients @ _DERIVATIVES
 
     def peaks(self) -> tuple[float, float, float]:
         """Peak |velocity|, |acceleration|, |jerk| over [0, T], to ~1e-7 relative.
@@ -77,24 +80,26 @@ class ShapedPlan(Plan):
         sampling of the whole plan (``fastest`` evaluates it a dozen times).
         """
         breaks = self._breaks[self._breaks < self.duration]
-        ends = np.append(breaks[1:], self.duration)
-        x = (ends - breaks)[:, None] * np.linspace(0.0, 1.0, _PEAK_SAMPLES)[None, :]
-        out = []
-        for order in (1, 2, 3):
-            c = self._coefficients[order][: breaks.size]
-            values = np.repeat(c[:, -1:], x.shape[1], axis=1)
-            for k in range(c.shape[1] - 2, -1, -1):  # Horner, all pieces at once
-                values = values * x + c[:, k:k + 1]
-            values = np.abs(values)
-            k, i = np.unravel_index(np.argmax(values), values.shape)
-            peak = values[k, i]
-            if 0 < i < _PEAK_SAMPLES - 1:
-                y0, y1, y2 = values[k, i - 1], peak, values[k, i + 1]
-                curvature = y0 - 2.0 * y1 + y2
-                if curvature < 0.0:
-                    peak = y1 - 0.125 * (y2 - y0) ** 2 / curvature
-            out.append(float(peak))
-        return tuple(out)
+        n = breaks.size
+        x = (np.append(breaks[1:], self.duration) - breaks)[:, None] * _PEAK_GRID  # (pieces, samples)
+        c = self._coefficients[1:, :n]  # velocity, acceleration, jerk: (3, pieces, 6)
+        values = c[:, :, -1:] * x
+        for k in range(ORDER - 1, 0, -1):  # Horner, all orders and pieces at once
+            values += c[:, :, k:k + 1]
+            values *= x
+        values += c[:, :, :1]
+        values = np.abs(values).reshape(3, -1)
+        best = np.argmax(values, axis=1)
+        rows = np.arange(3)
+        peak = values[rows, best]
+        # the parabola through the largest sample and its neighbours in the same piece
+        inner = (best % _PEAK_SAMPLES > 0) & (best % _PEAK_SAMPLES < _PEAK_SAMPLES - 1)
+        y0 = values[rows, np.where(inner, best - 1, best)]
+        y2 = values[rows, np.where(inner, best + 1, best)]
+        curvature = y0 - 2.0 * peak + y2
+        refine = inner & (curvature < 0.0)
+        peak = np.where(refine, peak - 0.125 * (y2 - y0) ** 2 / np.where(refine, curvature, -1.0), peak)
+        return tuple(float(p) for p in peak)
 
     def breakpoints(self) -> np.ndarray:
         return self._breaks[self._breaks <= self.duration]
@@ -128,17 +133,22 @@ def shaped_plan(method: str, displacement: float, duration: float, omegas, zeta,
         profile = limited_base(displacement, *limits, duration=length)
     else:
         raise PlanError(f"base must be 'quintic' or 'limits', got {base!r}")
-    info = {
+    return _described(ShapedPlan(method=method, displacement=displacement, duration=duration, info={},
+                                 shaper=shaper, base=profile), omegas, zeta)
+
+
+def _described(plan: ShapedPlan, omegas, zeta) -> ShapedPlan:
+    """``plan`` with its ``info``: the shaper's design and the base (what a report shows)."""
+    plan.info.update({
         'omegas': [float(w) for w in np.atleast_1d(omegas)],
         'zeta': np.broadcast_to(np.asarray(zeta, dtype=float), np.shape(np.atleast_1d(omegas))).tolist(),
-        'impulse_times': shaper.times.tolist(),
-        'impulse_amplitudes': shaper.amplitudes.tolist(),
-        'shaper_duration': shaper.duration,
-        'base': base,
-        'base_duration': length,
-    }
-    return ShapedPlan(method=method, displacement=displacement, duration=duration, info=info,
-                      shaper=shaper, base=profile)
+        'impulse_times': plan.shaper.times.tolist(),
+        'impulse_amplitudes': plan.shaper.amplitudes.tolist(),
+        'shaper_duration': plan.shaper.duration,
+        'base': plan.base.kind,
+        'base_duration': plan.base.duration,
+    })
+    return plan
 
 
 def _limit_ratio(plan: ShapedPlan, limits) -> float:
@@ -176,14 +186,11 @@ def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base:
     shaper = design(method, omegas, zeta)
     Ts = shaper.duration
 
-    def make(length):
-        profile = (quintic_base(D, length) if base == 'quintic'
-                   else limited_base(D, v, a, j, duration=length))
-        info = {'omegas': [float(w) for w in np.atleast_1d(omegas)],
-                'zeta': np.broadcast_to(np.asarray(zeta, dtype=float), np.shape(np.atleast_1d(omegas))).tolist(),
-                'impulse_times': shaper.times.tolist(), 'impulse_amplitudes': shaper.amplitudes.tolist(),
-                'shaper_duration': Ts, 'base': base, 'base_duration': length}
-        return ShapedPlan(method=method, displacement=D, duration=Ts + length, info=info, shaper=shaper,
+    fastest_base = limited_base(D, v, a, j) if base == 'limits' else None
+
+    def make(length):  # the plan with a base of this length, not yet described (the search's many)
+        profile = quintic_base(D, length) if base == 'quintic' else fastest_base.stretched(length)
+        return ShapedPlan(method=method, displacement=D, duration=Ts + length, info={}, shaper=shaper,
                           base=profile)
 
     target = 1.0 - FASTEST_MARGIN
@@ -194,8 +201,8 @@ def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base:
             ratios[length] = _limit_ratio(make(length), limits)
         return ratios[length]
 
-    def beyond(length) -> float:  # > 0: the plan with this base length exceeds a limit
-        return ratio(length) - target
+    def beyond(length) -> float:  # > 0: the plan with this base length exceeds a limit (log: see Brent)
+        return math.log(ratio(length) / target)
 
     if base == 'quintic':
         # A base shorter than the closest impulse spacing does not overlap itself: the plan's
@@ -210,9 +217,9 @@ def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base:
             lo = max(lo, quintic_duration(largest * D, v))
         hi = max(quintic_duration(D, v, a, j), lo)
     elif base == 'limits':
-        lo = limited_base(D, v, a, j).duration
+        lo = fastest_base.duration
         if ratio(lo) <= 1.0 + 1e-9:  # the base's own plateaus may meet a limit exactly
-            return make(lo)
+            return _described(make(lo), omegas, zeta)
         hi = 1.5 * lo
     else:
         raise PlanError(f"base must be 'quintic' or 'limits', got {base!r}")
@@ -229,7 +236,7 @@ def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base:
         found = _first_feasible(beyond, lo, hi, steps=(_FINE_STEP, _FINE_STEP))
     else:
         found = _first_feasible(beyond, lo, hi, steps=(_COARSE_STEP,))
-    return make(found if ratio(found) <= 1.0 else found * (1.0 + _FINE_STEP))
+    return _described(make(found if ratio(found) <= 1.0 else found * (1.0 + _FINE_STEP)), omegas, zeta)
 
 
 def _first_feasible(beyond, lo: float, hi: float, steps) -> float:
@@ -253,7 +260,12 @@ def _first_feasible(beyond, lo: float, hi: float, steps) -> float:
                 break
             previous = x
         # previous: infeasible, x: feasible, at most one step apart
-    return brentq(beyond, previous, x, xtol=1e-6 * x) if previous < x else x
+    if not previous < x:
+        return x
+    # in log-log coordinates a peak of order k is about linear (c D / Tb^k), so Brent's first
+    # secant steps land close: 2-3 evaluations instead of 4-5
+    u = brentq(lambda u: beyond(math.exp(u)), math.log(previous), math.log(x), xtol=1e-6)
+    return math.exp(u)
 
 
 #: Relative steps of ``_first_feasible``'s scans.
