@@ -231,15 +231,18 @@ class _Yielding(ca.Callback):
     it. Once a solve has run ``after`` s while another solve of this process
     is running (``solving``), it sleeps half as long as its last iteration
     took after each one (it then gets at most 2/3 of the time), so short
-    solves get the linear solver in between. Typical solves never get there,
-    and a solve alone (a worker process's) never sleeps: on a slow host a
-    warm free-time solve passes ``after`` and slept a quarter of its time for
-    nobody. Past a ``deadline`` it stops IPOPT at its next iteration (status
+    solves get the linear solver in between. Typical solves never get there.
+    A solve alone in its process (a worker's) does the same only past
+    ``alone_after`` s: by then it is likely one that runs to its budget, and
+    leaves a third of its core to the other processes' typical requests;
+    a warm fastest request (60-120 ms on a slow host) is not slowed down.
+    Past a ``deadline`` it stops IPOPT at its next iteration (status
     ``User_Requested_Stop``): a request made of several solves (``fastest``)
     ends within its budget.
     """
 
     after = 0.05
+    alone_after = 0.2
     _active = 0  # solves running in this process (all instances)
     _active_lock = threading.Lock()
 
@@ -283,7 +286,7 @@ class _Yielding(ca.Callback):
         now = time.perf_counter()
         if now > self.deadline:
             return [1]
-        if now - self.start > self.after and _Yielding._active > 1:
+        if now - self.start > (self.after if _Yielding._active > 1 else self.alone_after):
             time.sleep(min(0.5 * (now - self._last), 0.02))
         self._last = time.perf_counter()
         return [0]
