@@ -232,10 +232,11 @@ class _Yielding(ca.Callback):
     is running (``solving``), it sleeps half as long as its last iteration
     took after each one (it then gets at most 2/3 of the time), so short
     solves get the linear solver in between. Typical solves never get there.
-    A solve alone in its process (a worker's) does the same only past
-    ``alone_after`` s: by then it is likely one that runs to its budget, and
-    leaves a third of its core to the other processes' typical requests;
-    a warm fastest request (60-120 ms on a slow host) is not slowed down.
+    A solve alone in its process (a worker's) pauses only past ``alone_after``
+    s, and then as long as its last iteration took: by then it is likely one
+    that runs to its budget, and it leaves half its core to the other
+    processes' typical requests; a warm fastest request (60-120 ms on a slow
+    host) is not slowed down.
     Past a ``deadline`` it stops IPOPT at its next iteration (status
     ``User_Requested_Stop``): a request made of several solves (``fastest``)
     ends within its budget.
@@ -286,8 +287,10 @@ class _Yielding(ca.Callback):
         now = time.perf_counter()
         if now > self.deadline:
             return [1]
-        if now - self.start > (self.after if _Yielding._active > 1 else self.alone_after):
+        if _Yielding._active > 1 and now - self.start > self.after:
             time.sleep(min(0.5 * (now - self._last), 0.02))
+        elif now - self.start > self.alone_after:
+            time.sleep(min(now - self._last, 0.02))
         self._last = time.perf_counter()
         return [0]
 
