@@ -81,13 +81,14 @@ class Recorder:
         self._writer = Writer(self.out, version=9, storage_plugin=StoragePlugin.MCAP)
         self._writer.open()
         self._lock = threading.Lock()
-        self._connections, self._subscriptions = {}, {}
+        self._connections, self._subscriptions, self._expected = {}, {}, {}
         self.counts, self.lost = {}, {}
         self._last_sequence = {}
         self._closed = False
 
     def start(self, timeout: float) -> list[str]:
-        """Subscribe to every topic once it has a publisher; the topics still missing after ``timeout`` s."""
+        """Subscribe to every topic once it has a publisher, and wait for the subscriptions to match
+        their publishers; the topics still missing after ``timeout`` s."""
         deadline = time.monotonic() + timeout
         missing = list(self.topics)
         while missing:
@@ -99,6 +100,12 @@ class Recorder:
             if not missing or time.monotonic() > deadline:
                 break
             time.sleep(0.05)
+        # A subscription in the graph is not yet matched with its publishers: what they publish
+        # before the match is lost (the demo's first trajectory was, once). Recording starts
+        # when every subscription counts the publishers the graph showed.
+        while time.monotonic() < deadline and any(
+                sub.get_publisher_count() < self._expected[topic] for topic, sub in self._subscriptions.items()):
+            time.sleep(0.01)
         return missing
 
     def _subscribe(self, topic: str, type_name: str):
@@ -106,6 +113,7 @@ class Recorder:
         with self._lock:
             self._connections[topic] = self._writer.add_connection(topic, type_name, typestore=self._typestore)
             self.counts[topic] = 0
+            self._expected[topic] = len(publishers)
             if len(publishers) == 1:  # sequence numbers are per publisher: gaps mean something only for one
                 self.lost[topic], self._last_sequence[topic] = 0, None
             # the callback never runs (the node is not spun): drain() takes the messages
