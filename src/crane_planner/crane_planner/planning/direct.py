@@ -455,7 +455,7 @@ class DirectSolver(VariationalSolver):
                 break
         solve_time = time.perf_counter() - t0
         if not stats['success']:
-            raise PlanError(self._failure_message(stats, solver, tr, displacement, duration, pvec, sx, cold(), t0))
+            raise PlanError(self._failure_message(stats, inst, displacement, duration, pvec, sx, cold(), t0))
         inst.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
         info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),
                 'solve_time_s': solve_time, 'build_time_s': build_time,
@@ -599,7 +599,8 @@ class DirectSolver(VariationalSolver):
             return start
         return {k: -v for k, v in start.items()}
 
-    def _failure_message(self, stats, solver, tr, displacement, duration, pvec, sx, cold, t0) -> str:
+    def _failure_message(self, stats, inst: _Instance, displacement, duration, pvec, sx, cold, t0) -> str:
+        tr, solver = inst.transcription, inst.solver
         where = f'D={displacement:g} m, T={duration:g} s'
         status = stats['return_status']
         if status == 'Maximum_WallTime_Exceeded':
@@ -619,7 +620,8 @@ class DirectSolver(VariationalSolver):
                 if not self._may_retry(t0):
                     break
                 alone = tuple(getattr(self, n) if n == name else None for n in names)
-                solver(p=pvec, **self._bounds(tr, displacement, duration, sx, alone), **cold)
+                with inst.callback.solving(self._deadline):  # counted and timed like every solve
+                    solver(p=pvec, **self._bounds(tr, displacement, duration, sx, alone), **cold)
                 if not solver.stats()['success']:
                     failing.append(name)
         culprits = failing or present
