@@ -13,7 +13,8 @@ import sys
 import time
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.planning import Planner, PlanOptions
+from crane_planner.planning import PlanOptions
+from crane_planner.serving import Planner
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.shaped import shaped_plan
 from crane_planner.tools.choose import band, choose

@@ -22,7 +22,7 @@ import time
 
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import PlanOptions
-from crane_planner.planning.planner import variational_solver
+from crane_planner.planning.dispatch import variational_solver
 
 D, T = 0.3, 3.0
 REPEATS = 25

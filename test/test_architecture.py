@@ -1,4 +1,5 @@
-"""The tree's rule: only the ROS adapters import ROS.
+"""The tree's rules: only the ROS adapters import ROS; the paper's mathematics imports no serving machinery;
+no import circle.
 
 A module may import rclpy, a message/service package or another ROS module
 only if it is a node (``<package>/nodes/``), one of the two ROS tools (the
@@ -78,7 +79,7 @@ def violations(found: dict[str, Path]) -> list[str]:
 
 def test_only_nodes_ros_tools_and_msgs_adapters_import_ros():
     found = modules()
-    assert len(found) > 40 and 'crane_planner.planning.planner' in found  # the walk sees the tree
+    assert len(found) > 40 and 'crane_planner.planning.dispatch' in found  # the walk sees the tree
     assert violations(found) == []
 
 
@@ -108,3 +109,76 @@ def test_the_rule_lets_nodes_and_pure_imports_pass(tmp_path):
     assert violations({'crane_planner.tools.fake': path}) == []
     path.write_text('import rclpy\nfrom nav_msgs.srv import GetPlan\n')
     assert violations({'crane_planner.nodes.fake': path}) == []
+
+
+#: Rooms of crane_planner the planning core (the paper's mathematics) must never import.
+PLANNING_MUST_NOT_IMPORT = ('crane_planner.serving', 'crane_planner.nodes', 'crane_planner.tools',
+                            'crane_planner.streaming')
+
+
+def planning_violations(found: dict[str, Path]) -> list[str]:
+    return [f'{path.name}:{line}: {module} imports {name}'
+            for module, path in found.items() if module.startswith('crane_planner.planning')
+            for line, name in imports(module, path)
+            if name.startswith(PLANNING_MUST_NOT_IMPORT) or is_ros(name)]
+
+
+def import_graph(found: dict[str, Path]) -> dict[str, set[str]]:
+    """Module -> the modules of the three packages it imports (lazily too), by dotted name."""
+    return {module: {name for _, name in imports(module, path) if name in found and name != module}
+            for module, path in found.items()}
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Every strongly connected component of more than one module (Tarjan), i.e. each import circle."""
+    index, low, stack, on_stack, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_planning_core_imports_no_serving_node_tool_or_ros_module():
+    found = modules()
+    assert 'crane_planner.serving.planner' in found and 'crane_planner.planning.direct' in found
+    assert planning_violations(found) == []
+
+
+def test_no_import_circle_anywhere():
+    assert cycles(import_graph(modules())) == []
+
+
+@pytest.mark.parametrize('source', ['from ..serving.pool import SolverPool\n',
+                                    'def f():\n    from crane_planner.serving import Planner\n',
+                                    'from ..nodes import planner_node\n'])
+def test_the_planning_rule_flags_an_import_of_the_serving_machinery(tmp_path, source):
+    path = tmp_path / 'fake.py'
+    path.write_text(source)
+    assert len(planning_violations({'crane_planner.planning.fake': path})) >= 1
+
+
+def test_the_circle_check_finds_a_lazy_circle():
+    assert cycles({'a': {'b'}, 'b': {'c'}, 'c': {'a'}, 'd': {'a'}}) == [['a', 'b', 'c']]
+    assert cycles({'a': {'b'}, 'b': set()}) == []

@@ -15,7 +15,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.planning import METHODS, SHAPER_METHODS, PlanError, Planner, PlanOptions
+from crane_planner.planning import METHODS, SHAPER_METHODS, PlanError, PlanOptions
+from crane_planner.serving import Planner
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.profiles import limited_base, quintic_duration
 from crane_planner.planning.shaped import fastest_shaped, shaped_plan

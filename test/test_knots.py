@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.planning import METHODS, SHAPER_METHODS, Planner
+from crane_planner.planning import METHODS, SHAPER_METHODS
+from crane_planner.serving import Planner
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.plan import Plan
 from crane_planner.planning.shaped import shaped_plan

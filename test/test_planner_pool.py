@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from crane_msgs_py.params import CraneParams, ParameterError
-from crane_planner.planning import PlanError, Planner, PlanOptions
+from crane_planner.planning import PlanError, PlanOptions
+from crane_planner.serving import Planner
 from crane_planner.planning.direct import DirectSolver
 from crane_planner.planning.indirect import IndirectSolver
 

@@ -1,11 +1,11 @@
-"""SolverPool (crane_planner.planning.pool): lends each instance to one caller, grows lazily, never blocks long."""
+"""SolverPool (crane_planner.serving.pool): lends each instance to one caller, grows lazily, never blocks long."""
 import threading
 import time
 
 import pytest
 
 from crane_planner.planning.plan import PlanError
-from crane_planner.planning.pool import SolverPool
+from crane_planner.serving.pool import SolverPool
 
 
 class Counter:

@@ -47,7 +47,7 @@ _OFFLINE = {}
 
 def offline_plan(method: str, displacement: float, duration: float):
     """The same request planned in this process by the planning core (crane-plan's planner)."""
-    from crane_planner.planning import Planner
+    from crane_planner.serving import Planner
     planner = _OFFLINE.setdefault('planner', Planner())
     return planner.plan(method, displacement, duration, NOMINAL)
 
@@ -517,7 +517,8 @@ def test_axis_limit_set_on_the_planner_applies_to_the_next_request(crane):
 def test_fastest_services_answer_the_shortest_plan_within_the_limits_and_refuse_without(crane):
     """~/fastest/<method>: the goal stamp is ignored, the last pose carries the end time, equal to the
     planning core's own fastest plan; refused naming the missing limit when none is set."""
-    from crane_planner.planning import Planner, PlanOptions
+    from crane_planner.planning import PlanOptions
+    from crane_planner.serving import Planner
     from crane_msgs_py.params import CraneParams
     with pytest.raises(PlanError, match='needs max_velocity or max_acceleration'):
         crane.planner.fastest('zv', 5.0, 5.3)

@@ -1,4 +1,4 @@
-"""NVF/RVF in worker processes (crane_planner.planning.workers): real processes, real CasADi/IPOPT.
+"""NVF/RVF in worker processes (crane_planner.serving.workers): real processes, real CasADi/IPOPT.
 
 The workers exist so that a solve never waits on another's linear algebra
 (IPOPT's MUMPS runs one call at a time per process); these tests check that
@@ -13,16 +13,18 @@ import numpy as np
 import pytest
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.planning import PlanError, Planner, PlanOptions
-from crane_planner.planning.workers import SolverProcess
+from crane_planner.planning import PlanError, PlanOptions
+from crane_planner.planning.dispatch import VariationalRequest
+from crane_planner.serving import Planner
+from crane_planner.serving.workers import SolverProcess
 
 MODEL = CraneParams()
 OPTIONS = PlanOptions(max_solve_time=1.0)
 #: No plan exists that a solver finds in a second: 10 m in half a second.
 HOPELESS = ('rvf', 10.0, 0.5, MODEL, OPTIONS)
 #: The same as a worker request.
-HOPELESS_REQUEST = ('plan', HOPELESS)
-WARMUPS = [('plan', (m, 0.3, 3.0, MODEL, OPTIONS)) for m in ('nvf', 'rvf')]
+HOPELESS_REQUEST = VariationalRequest('plan', *HOPELESS)
+WARMUPS = [VariationalRequest('plan', m, 0.3, 3.0, MODEL, OPTIONS) for m in ('nvf', 'rvf')]
 
 
 @pytest.fixture(scope='module')
@@ -117,7 +119,7 @@ def test_a_late_answer_is_dropped_never_given_to_the_next_request():
         assert worker.late
         worker.finish_late()
         assert not worker.late and not worker.closed
-        plan = worker.solve(('plan', ('nvf', 0.2, 3.5, MODEL, OPTIONS)), timeout=10.0)
+        plan = worker.solve(VariationalRequest('plan', 'nvf', 0.2, 3.5, MODEL, OPTIONS), timeout=10.0)
         assert (plan.method, plan.displacement, plan.duration) == ('nvf', 0.2, 3.5)
     finally:
         worker.close()
@@ -127,7 +129,7 @@ def test_a_late_answer_is_dropped_never_given_to_the_next_request():
 def test_workers_ignore_ctrl_c_and_end_with_their_parent_pipe():
     worker = SolverProcess()
     os.kill(worker.pid, signal.SIGINT)  # a terminal's Ctrl-C reaches the whole process group
-    plan = worker.solve(('plan', ('nvf', 0.3, 3.0, MODEL, OPTIONS)), timeout=30.0)
+    plan = worker.solve(VariationalRequest('plan', 'nvf', 0.3, 3.0, MODEL, OPTIONS), timeout=30.0)
     assert plan.displacement == 0.3
     worker._conn.close()  # as when the parent ends
     worker._process.join(timeout=10.0)

@@ -35,10 +35,11 @@ from crane_msgs_py.qos import TRAJECTORY_QOS
 from crane_msgs_py.realtime import fix_mmap_threshold
 from crane_msgs_py.runner import run
 
-from crane_planner.planning import (METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanError, Planner,
-                                    PlanOptions, check_request)
+from crane_planner.planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanError, PlanOptions, check_request
+from crane_planner.planning.dispatch import VariationalRequest
 from crane_planner.planning.plan import time_grid
 from crane_planner.planning.profiles import BASES
+from crane_planner.serving import Planner
 from crane_planner.streaming.knots import knot_times
 
 #: name -> (default, description, range descriptor fields). Ranges are the
@@ -128,16 +129,18 @@ class Config:
                    check_positive('max_displacement', v['max_displacement']), int(v['solver_pool_size']),
                    int(v['solver_processes']))
 
-    def warmups(self) -> list[tuple]:
-        """Requests ``(operation, arguments)`` that build the NVF/RVF solvers of this configuration.
+    def warmups(self) -> list[VariationalRequest]:
+        """Requests that build the NVF/RVF solvers of this configuration.
 
         A typical move, and with velocity or acceleration limits its fastest
         plan (the free-final-time NLP), so the first of either is answered warm.
         """
         D, duration = min(0.3, self.max_displacement), min(3.0, self.max_duration)
-        requests = [('plan', (method, D, duration, self.params, self.options)) for method in VARIATIONAL_METHODS]
+        requests = [VariationalRequest('plan', method, D, duration, self.params, self.options)
+                    for method in VARIATIONAL_METHODS]
         if self.options.max_velocity is not None or self.options.max_acceleration is not None:
-            requests += [('fastest', (method, D, self.params, self.options)) for method in VARIATIONAL_METHODS]
+            requests += [VariationalRequest('fastest', method, D, None, self.params, self.options)
+                         for method in VARIATIONAL_METHODS]
         return requests
 
 

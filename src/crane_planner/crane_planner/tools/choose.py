@@ -16,7 +16,8 @@ import numpy as np
 
 from crane_msgs_py.params import CraneParams
 
-from crane_planner.planning import PlanError, Planner, PlanOptions
+from crane_planner.planning import PlanError, PlanOptions
+from crane_planner.serving import Planner
 
 from .evaluate import residual_load_mm, simulate_plans
 

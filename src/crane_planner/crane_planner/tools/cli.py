@@ -18,7 +18,8 @@ from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneP
 
 from .evaluate import DEFAULT_SETTLE, plan_report, residual_load_mm, simulate_plan, simulate_plans, vary_parameter
 from .progress import Progress
-from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, Planner, PlanOptions
+from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, PlanOptions
+from crane_planner.serving import Planner
 from crane_planner.planning.profiles import BASES
 
 PROG = 'crane-plan'

@@ -4,8 +4,9 @@ Why processes: IPOPT serializes every MUMPS call of a process behind one
 mutex (MUMPS keeps Fortran state), so two solves in threads of one process
 take turns at each factorization; a 15 ms solve beside one that runs to its
 1 s budget took 40-300 ms. Each worker is a process of its own (its own
-MUMPS), running a ``Planner`` for one request at a time and keeping its
-solvers and warm starts between requests.
+MUMPS), running one ``dispatch.VariationalRequest`` at a time on its own
+solvers (``dispatch.SolverCache``) and keeping them and their warm starts
+between requests.
 
 Workers start from a fork server that has imported CasADi and the planning
 core once (``multiprocessing`` "forkserver": a clean process, never a fork
@@ -23,10 +24,11 @@ import threading
 
 from crane_msgs_py.params import ParameterError
 
-from .plan import PlanError
+from ..planning.plan import PlanError
 
-#: Module the fork server imports before forking workers: CasADi and the whole solver.
-_PRELOAD = ['crane_planner.planning.direct', 'crane_planner.planning.planner']
+#: Modules the fork server imports before forking workers: CasADi and the whole solver.
+_PRELOAD = ['crane_planner.planning.dispatch', 'crane_planner.planning.direct', 'crane_planner.planning.free_time',
+            'crane_planner.serving.yielding']
 _CONTEXT = None
 _CONTEXT_LOCK = threading.Lock()
 #: exceptions a worker reports by name, raised again in the caller
@@ -45,11 +47,12 @@ def _context():
 def _serve(conn, warmups) -> None:
     """A worker's life: warm up, say ready, then answer requests until the pipe closes or None arrives."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    from .planner import Planner
-    planner = Planner(pool_size=1)
-    for operation, arguments in warmups:  # a failed warm-up only means building on first use
+    from ..planning.dispatch import SolverCache
+    from .yielding import YieldingCallback
+    solvers = SolverCache(iteration_callback=YieldingCallback)  # workers serve the direct route only
+    for request in warmups:  # a failed warm-up only means building on first use
         try:
-            getattr(planner, operation)(*arguments)
+            solvers(request)
         except Exception:
             pass
     try:
@@ -58,9 +61,8 @@ def _serve(conn, warmups) -> None:
             request = conn.recv()
             if request is None:
                 return
-            operation, arguments = request
             try:
-                reply = ('plan', getattr(planner, operation)(*arguments))
+                reply = ('plan', solvers(request))
             except (PlanError, ParameterError) as exc:
                 reply = (type(exc).__name__, str(exc))
             except Exception as exc:  # a solver bug: the caller reports it, the worker lives on
@@ -74,9 +76,9 @@ class SolverProcess:
     """One worker process; ``solve`` sends it a request and waits for the answer. One caller at a time.
 
     Args:
-        warmups: requests ``(operation, arguments)`` (as ``solve`` takes them)
-            the worker answers before it is ready, so that its first real
-            request finds its solvers built.
+        warmups: ``VariationalRequest``s (as ``solve`` takes them) the
+            worker answers before it is ready, so that its first real request
+            finds its solvers built.
         start_timeout: longest wait (s) for the worker to be ready.
     """
 
@@ -101,9 +103,9 @@ class SolverProcess:
     def pid(self) -> int:
         return self._process.pid
 
-    def solve(self, request: tuple, timeout: float | None):
-        """``(operation, arguments)``: ``Planner.<operation>(*arguments)`` in the worker (``plan`` or
-        ``fastest``): its plan, or its PlanError/ParameterError raised here.
+    def solve(self, request, timeout: float | None):
+        """A ``dispatch.VariationalRequest`` run in the worker: its plan, or its PlanError/ParameterError
+        raised here.
 
         PlanError too if the worker does not answer within ``timeout`` seconds
         (None = no limit; it is then ``late`` until ``finish_late``), or if it

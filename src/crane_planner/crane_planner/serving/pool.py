@@ -21,7 +21,7 @@ from contextlib import contextmanager
 
 from crane_msgs_py.params import check_count
 
-from .plan import PlanError
+from ..planning.plan import PlanError
 
 
 class SolverPool:

@@ -1,0 +1,214 @@
+"""Radau collocation of the NVF/RVF ``Problem``: the NLP transcription and the plan it yields.
+
+``Transcription`` discretizes a ``problem.Problem`` once into a CasADi NLP
+whose parameters carry each request (D, T, model, mesh), so nothing is rebuilt
+per request; its solution is a ``CollocationPlan``, evaluated exactly from the
+collocation polynomials. Axis limits are bounds on the plan's polynomials'
+Bernstein coefficients (``bernstein_matrix``). The solves live in
+``direct`` (fixed duration) and ``free_time`` (the shortest duration).
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from .plan import Plan
+from .problem import PROBLEM_PARAMETERS, Problem, breakpoints
+
+
+def radau_coefficients(degree: int):
+    """Nodes (0 and the Radau points), derivative matrix C, quadrature weights B and
+    the monomial coefficients of the Lagrange basis on those nodes.
+
+    C[r, j] = l_r'(tau_j), B[j] = int_0^1 l_j; B[0] = 0 because the Radau
+    rule of ``degree`` points integrates l_0 (of degree ``degree``) exactly.
+    """
+    nodes = np.array([0.0] + list(ca.collocation_points(degree, 'radau')))
+    n = degree + 1
+    V = np.vander(nodes, n, increasing=True)
+    basis = np.linalg.solve(V, np.eye(n)).T  # basis[r, k]: coefficient of s^k in l_r
+    dbasis = basis[:, 1:] * np.arange(1, n)
+    C = np.array([[np.polyval(dbasis[r, ::-1], t) for t in nodes] for r in range(n)])
+    B = basis @ (1.0 / np.arange(1, n + 1))
+    return nodes, C, B, basis
+
+
+def bernstein_matrix(degree: int) -> np.ndarray:
+    """Matrix from a polynomial's monomial coefficients on [0, 1] to its Bernstein coefficients.
+
+    The polynomial lies within the hull of its Bernstein coefficients.
+    """
+    return np.array([[math.comb(i, k) / math.comb(degree, k) if k <= i else 0.0 for k in range(degree + 1)]
+                     for i in range(degree + 1)])
+
+
+@dataclass
+class CollocationPlan(Plan):
+    """A plan evaluated from the collocation polynomial of the reference acceleration.
+
+    On mesh interval k, [mesh[k], mesh[k+1]] of length h, the reference
+    acceleration is the collocation polynomial A_k(s) = sum_i coef[k, i] s^i
+    (s in [0, 1]) of a_ref (servo) or a (tau = 0); velocity and position
+    are its integrals from the interval's start values start[k] = (position,
+    velocity), and the jerk is A_k'/h. So the four samples are exactly one
+    trajectory; the integrals end exactly on the next interval's start
+    values because the Radau rule integrates these polynomials exactly, the
+    same way the collocation equations do.
+    """
+
+    mesh: np.ndarray = field(default=None, repr=False)
+    coef: np.ndarray = field(default=None, repr=False)
+    start: np.ndarray = field(default=None, repr=False)
+
+    def breakpoints(self) -> np.ndarray:
+        return np.asarray(self.mesh, dtype=float)
+
+    def _evaluate(self, t):
+        k = np.clip(np.searchsorted(self.mesh, t, side='right') - 1, 0, len(self.mesh) - 2)
+        h = self.mesh[k + 1] - self.mesh[k]
+        s = ((t - self.mesh[k]) / h)[:, None]
+        c = self.coef[k]
+        i = np.arange(c.shape[1])
+        acc = np.sum(c * s ** i, axis=1)
+        jerk = np.sum((c * i)[:, 1:] * s ** i[:-1], axis=1) / h
+        vel = self.start[k, 1] + h * np.sum(c * s ** (i + 1) / (i + 1), axis=1)
+        pos = (self.start[k, 0] + h * s[:, 0] * self.start[k, 1]
+               + h ** 2 * np.sum(c * s ** (i + 2) / ((i + 1) * (i + 2)), axis=1))
+        return pos, vel, acc, jerk
+
+
+class Transcription:
+    """Radau collocation of a ``Problem`` on ``intervals`` mesh intervals, built once.
+
+    Radau IIA is stiffly accurate, which the servo's fast mode (rate 1/tau)
+    and the boundary layers it causes need. Degree 4 (order 7 at the mesh
+    points) is more accurate per NLP variable than degree 3 here.
+
+    NLP variables: the scaled state at s = 0, then per interval the states and
+    input at the ``degree`` Radau points; the last point is the interval's
+    end, which starts the next one. NLP parameters: the problem parameters
+    and the mesh interval fractions, so a new request (D, T, model) never
+    rebuilds anything. Rest at s = 0 is a bound on the first variables,
+    rest at s = 1 a constraint on the last state.
+    """
+
+    degree = 4
+    #: Weight of the cost of Eqs. 10/15 beside the duration in the free-time NLP: enough
+    #: to make the optimum unique (the limits alone leave the inside of the motion free).
+    free_time_cost_weight = 1e-9
+
+    def __init__(self, problem: Problem, intervals: int, limits: bool, free_time: bool = False):
+        t0 = time.perf_counter()
+        self.problem, self.intervals, self.limits, self.free_time = problem, intervals, limits, free_time
+        nx, N, d = problem.nx, intervals, self.degree
+        self.tau_nodes, C, self.B, self.basis = radau_coefficients(d)
+        npar = len(PROBLEM_PARAMETERS)
+        P = ca.SX.sym('P', npar + N)
+        Pp, frac = P[:npar], P[npar:]
+        w = ca.SX.sym('w', nx + N * d * (nx + 1) + (1 if free_time else 0))
+        # free final time: T = sigma T_0 with sigma the last variable and T_0 the parameter T, which
+        # keeps scaling the states; every interval length is then sigma frac[k] of T_0
+        sigma = w[-1] if free_time else 1
+        frac = frac * sigma
+        body = ca.reshape(w[nx:nx + N * d * (nx + 1)], nx + 1, N * d)
+        Xc, Uc = body[:nx, :], body[nx, :]
+        Pm = ca.repmat(Pp, 1, N * d)
+        Fc, Gc = problem.F.map(N * d)(Xc, Uc, Pm), problem.G.map(N * d)(Xc, Uc, Pm)
+        res, J, xs = [], 0, [w[:nx]]
+        for k in range(N):
+            xs = [xs[-1]] + [Xc[:, k * d + j] for j in range(d)]
+            for j in range(1, d + 1):
+                xp = sum(C[r, j] * xs[r] for r in range(d + 1))
+                res.append(xp - frac[k] * Fc[:, k * d + j - 1])
+                J += frac[k] * self.B[j] * Gc[k * d + j - 1]
+        g = [ca.vertcat(*res), xs[-1]]
+        if limits:
+            # Bound the plan's reference velocity, acceleration and jerk polynomials
+            # (CollocationPlan) on whole intervals through their Bernstein
+            # coefficients (a polynomial lies in their hull), not just at the
+            # nodes: near-bang-bang solutions overshoot between nodes. Jerk is
+            # dA/ds / frac in units of P/T^3 (A the acceleration in P/T^2).
+            nodes = ca.horzcat(w[:nx], Xc)
+            v, a = problem.reference_va.map(N * d + 1)(nodes, ca.repmat(Pp, 1, N * d + 1))
+            to_bv, to_ba, to_bj = bernstein_matrix(d + 1), bernstein_matrix(d), bernstein_matrix(d - 1)
+            bv, ba, bj = [], [], []
+            for k in range(N):
+                coef = ca.mtimes(self.basis.T, a[0, k * d:k * d + d + 1].T)  # acceleration, monomials in s
+                vel = ca.vertcat(v[0, k * d], frac[k] * coef / np.arange(1, d + 2))
+                bv.append(ca.mtimes(to_bv, vel))
+                ba.append(ca.mtimes(to_ba, coef))
+                bj.append(ca.mtimes(to_bj, coef[1:] * np.arange(1, d + 1)) / frac[k])
+            g += [ca.vertcat(*bv), ca.vertcat(*ba), ca.vertcat(*bj)]
+        objective = sigma + self.free_time_cost_weight * J if free_time else J
+        self.nlp = {'x': w, 'p': P, 'f': objective, 'g': ca.vertcat(*g)}
+        self.ng = self.nlp['g'].shape[0]
+        self.nres = nx * N * d
+        self.nw = w.shape[0]
+        self._derivatives = None
+        self._lock = threading.Lock()
+        self.build_time = time.perf_counter() - t0
+
+    def nlpsol(self, options: dict) -> ca.Function:
+        """A new IPOPT instance of this NLP with ``options``.
+
+        The first one generates the NLP's derivatives (most of a solver's
+        build time: 0.3 s for NVF, 0.8 s for RVF); later ones reuse them and
+        cost about 15 ms. Instances share only those functions, which each
+        instance calls with its own work arrays, so instances solve side by
+        side in different threads; one instance keeps per-call state and must
+        serve one call at a time.
+        """
+        options = dict(options, no_nlp_grad=True, calc_lam_p=False)  # the multipliers of p are never used
+        with self._lock:
+            if self._derivatives is None:
+                t0 = time.perf_counter()
+                solver = ca.nlpsol('variational', 'ipopt', self.nlp, options)
+                self._derivatives = {'grad_f': solver.get_function('nlp_grad_f'),
+                                     'jac_g': solver.get_function('nlp_jac_g'),
+                                     'hess_lag': solver.get_function('nlp_hess_l')}
+                self.build_time += time.perf_counter() - t0
+                return solver
+        return ca.nlpsol('variational', 'ipopt', self.nlp, dict(options, **self._derivatives))
+
+    # views of the variable vector
+    def states(self, w: np.ndarray) -> np.ndarray:
+        """Scaled states at s = 0 and at every collocation point, shape (nx, N*d + 1)."""
+        nx, N, d = self.problem.nx, self.intervals, self.degree
+        body = w[nx:nx + N * d * (nx + 1)].reshape(N * d, nx + 1).T
+        return np.hstack([w[:nx, None], body[:nx]])
+
+    def interval_nodes(self, w: np.ndarray) -> np.ndarray:
+        """Scaled states at the nodes (start, Radau points) of each interval, (N, d+1, nx)."""
+        N, d = self.intervals, self.degree
+        X = self.states(w)
+        idx = np.arange(N)[:, None] * d + np.arange(d + 1)
+        return X[:, idx].transpose(1, 2, 0)
+
+    def node_times(self, frac: np.ndarray) -> np.ndarray:
+        """Normalized times of the nodes returned by ``states``."""
+        s = (breakpoints(frac)[:-1, None] + np.outer(frac, self.tau_nodes[1:])).ravel()
+        return np.concatenate([[0.0], s])
+
+    def costate_estimate(self, frac: np.ndarray, solution: dict):
+        """(s, X, Lambda) of ``solution`` (x0 and lam_g0 of a warm start): scaled states and costates at every node.
+
+        Stationarity of the NLP Lagrangian in the input at collocation point
+        (k, j) reads h B_j G_u - h mu_kj^T F_u = 0, the discrete form of
+        dH/du = G_u + lambda^T F_u = 0, so lambda(t_kj) ~ -mu_kj / B_j. The
+        node s = 0 takes the costate of the first collocation point.
+        """
+        w = np.array(solution['x0']).ravel()
+        mu = np.array(solution['lam_g0']).ravel()[:self.nres].reshape(-1, self.problem.nx).T
+        lam = -mu / np.tile(self.B[1:], self.intervals)
+        return self.node_times(frac), self.states(w), np.hstack([lam[:, :1], lam])
+
+    def guess(self, displacement: float, frac: np.ndarray) -> np.ndarray:
+        s = self.node_times(frac)
+        X, U = self.problem.initial_guess(displacement, s)
+        body = np.vstack([X[:, 1:], U[None, 1:]])
+        return np.concatenate([X[:, 0], body.T.ravel()])

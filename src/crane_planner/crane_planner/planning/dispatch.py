@@ -1,0 +1,288 @@
+"""One entry point for every method: check a request, pick the shaper or the variational route, plan.
+
+``plan`` and ``fastest`` validate a request and make a shaped plan here, or
+hand a ``VariationalRequest`` to a ``variational`` callable that runs it on
+an NVF/RVF solver: by default a new solver each time; ``SolverCache`` keeps
+them (one caller at a time, e.g. a worker process); the serving layer
+(``crane_planner.serving.Planner``) lends them from pools and worker
+processes. So the CLI, the planner node and every worker accept and refuse
+exactly the same requests with the same messages. Pure Python, no ROS import.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+from crane_msgs_py.params import (CraneParams, ParameterError, check_choice, check_nonnegative,
+                                  check_positive)
+
+from .limits import check_fastest_request
+from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
+from .model import modal_properties
+from .plan import Plan, PlanError
+from .profiles import BASES
+from .shaped import fastest_shaped, shaped_plan
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """Method options beyond the model (contract: ``crane-plan`` model options).
+
+    Attributes:
+        omega: shaper design frequencies (rad/s), one per mode; None = from the
+            linearized model.
+        damping: shaper design damping ratio (>= 0, < 1); None = the model's
+            modal damping ratios (``model.modal_properties``) when ``omega``
+            is None too, else 0.
+        robust: parameters RVF is made insensitive to.
+        intervals: collocation intervals for NVF/RVF; None = solver default.
+        solver: ``direct`` (CasADi collocation + IPOPT) or ``indirect``
+            (the paper's TPBVP, scipy solve_bvp).
+        max_velocity: axis limit |v| (m/s), None = no limit.
+        max_acceleration: axis limit |a_ref| (m/s^2), None = no limit.
+        max_jerk: axis limit on the reference's jerk (m/s^3), None = no limit.
+        base: the motion shapers shape: ``quintic`` (the paper's) or
+            ``limits`` (the jerk-limited time-optimal profile under the limits,
+            ``profiles.limited_base``).
+        max_solve_time: budget (s) of one NVF/RVF request, > 0: a plan, or
+            a fastest plan's attempts together, not solved within it is refused
+            (direct route only; building a solver is not counted, except by
+            the caller's wait on a worker process); None = the route's own cap.
+    """
+
+    omega: tuple[float, ...] | None = None
+    damping: float | None = None
+    robust: tuple[str, ...] = ('L1',)
+    intervals: int | None = None
+    solver: str = 'direct'
+    max_velocity: float | None = None
+    max_acceleration: float | None = None
+    max_jerk: float | None = None
+    base: str = 'quintic'
+    max_solve_time: float | None = None
+
+    def __post_init__(self):
+        if self.omega is not None:
+            omega = tuple(check_positive('omega', w) for w in self.omega)
+            if len(omega) == 0:
+                raise ParameterError('omega needs at least one frequency')
+            object.__setattr__(self, 'omega', omega)
+        if self.damping is not None:
+            damping = check_nonnegative('damping', self.damping)
+            if damping >= 1.0:
+                raise ParameterError(f'damping must be < 1, got {damping}')
+            object.__setattr__(self, 'damping', damping)
+        robust = tuple(self.robust)
+        bad = [r for r in robust if r not in ROBUST_PARAMETERS]
+        if bad:
+            raise ParameterError(
+                f'robust parameter(s) {", ".join(bad)} not among {", ".join(ROBUST_PARAMETERS)}')
+        if len(set(robust)) != len(robust) or not robust:
+            raise ParameterError('robust needs one or more distinct parameters')
+        object.__setattr__(self, 'robust', robust)
+        if self.intervals is not None:
+            if int(self.intervals) != self.intervals or not 4 <= int(self.intervals) <= 2000:
+                raise ParameterError(f'intervals must be an integer in [4, 2000], got {self.intervals}')
+            object.__setattr__(self, 'intervals', int(self.intervals))
+        if self.solver not in ('direct', 'indirect'):
+            raise ParameterError(f"solver must be 'direct' or 'indirect', got {self.solver!r}")
+        check_choice('base', self.base, BASES)
+        if self.base == 'limits' and self.max_velocity is None and self.max_acceleration is None:
+            raise ParameterError('the limits base needs max_velocity or max_acceleration (or both)')
+        for name in ('max_velocity', 'max_acceleration', 'max_jerk', 'max_solve_time'):
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, check_positive(name, v))
+
+
+def check_request(method: str, displacement, duration) -> tuple[float, float]:
+    """Validate the method name and a (D, T) pair; return them as floats."""
+    if method not in METHODS:
+        raise PlanError(f'unknown method {method!r}; choose from {", ".join(METHODS)}')
+    try:
+        displacement = float(displacement)
+        duration = float(duration)
+    except (TypeError, ValueError):
+        raise PlanError('displacement and duration must be numbers') from None
+    if not math.isfinite(displacement):
+        raise PlanError(f'displacement must be finite, got {displacement}')
+    if not math.isfinite(duration):
+        raise PlanError(f'duration must be finite, got {duration}')
+    if duration <= 0.0:
+        raise PlanError(f'duration must be > 0, got {duration}')
+    return displacement, duration
+
+
+LIMITS = (('max_velocity', 'm/s'), ('max_acceleration', 'm/s^2'), ('max_jerk', 'm/s^3'))
+
+
+def limits_of(options: PlanOptions) -> tuple:
+    """(max_velocity, max_acceleration, max_jerk) of ``options``, None for none."""
+    return options.max_velocity, options.max_acceleration, options.max_jerk
+
+
+def check_axis_limits(plan, options: PlanOptions) -> None:
+    """PlanError naming the limit if the shaped plan's |v|, |a_ref| or |jerk| peak exceeds it.
+
+    A shaper cannot trade time for peaks: the shaped profile is fixed by the
+    method and the duration, so an exceeded limit is an error, not a constraint.
+    """
+    if all(limit is None for limit in limits_of(options)):
+        return
+    for (name, unit), limit, peak in zip(LIMITS, limits_of(options), plan.peaks()):
+        if limit is not None and peak > limit * (1.0 + 1e-6):
+            raise PlanError(f'{plan.method} plan exceeds {name} {limit:g} {unit} (peak {peak:.4g}); '
+                            'lengthen the duration or raise the limit')
+
+
+def check_request(method: str, displacement, duration) -> tuple[float, float]:
+    """Validate the method name and a (D, T) pair; return them as floats."""
+    if method not in METHODS:
+        raise PlanError(f'unknown method {method!r}; choose from {", ".join(METHODS)}')
+    try:
+        displacement = float(displacement)
+        duration = float(duration)
+    except (TypeError, ValueError):
+        raise PlanError('displacement and duration must be numbers') from None
+    if not math.isfinite(displacement):
+        raise PlanError(f'displacement must be finite, got {displacement}')
+    if not math.isfinite(duration):
+        raise PlanError(f'duration must be finite, got {duration}')
+    if duration <= 0.0:
+        raise PlanError(f'duration must be > 0, got {duration}')
+    return displacement, duration
+
+
+LIMITS = (('max_velocity', 'm/s'), ('max_acceleration', 'm/s^2'), ('max_jerk', 'm/s^3'))
+
+
+def limits_of(options: PlanOptions) -> tuple:
+    """(max_velocity, max_acceleration, max_jerk) of ``options``, None for none."""
+    return options.max_velocity, options.max_acceleration, options.max_jerk
+
+
+def check_axis_limits(plan, options: PlanOptions) -> None:
+    """PlanError naming the limit if the shaped plan's |v|, |a_ref| or |jerk| peak exceeds it.
+
+    A shaper cannot trade time for peaks: the shaped profile is fixed by the
+    method and the duration, so an exceeded limit is an error, not a constraint.
+    """
+    if all(limit is None for limit in limits_of(options)):
+        return
+    for (name, unit), limit, peak in zip(LIMITS, limits_of(options), plan.peaks()):
+        if limit is not None and peak > limit * (1.0 + 1e-6):
+            raise PlanError(f'{plan.method} plan exceeds {name} {limit:g} {unit} (peak {peak:.4g}); '
+                            'lengthen the duration or raise the limit')
+
+
+@dataclass(frozen=True)
+class VariationalRequest:
+    """A checked NVF/RVF request, as a solver runs it (and a worker process receives it).
+
+    ``operation`` ``plan``: from 0 to ``displacement`` (m) in ``duration`` (s);
+    ``fastest``: the shortest plan within the options' limits (``duration`` None).
+    """
+
+    operation: str
+    method: str
+    displacement: float
+    duration: float | None
+    params: CraneParams
+    options: PlanOptions
+
+    def run(self, solver) -> Plan:
+        """This request on ``solver`` (a ``variational.VariationalSolver`` for this method and options)."""
+        if self.operation == 'fastest':
+            return solver.fastest(self.displacement, self.params)
+        return solver.solve(self.displacement, self.duration, self.params)
+
+
+#: Runs a VariationalRequest on some solver and returns its plan.
+Variational = Callable[[VariationalRequest], Plan]
+
+
+def plan(method: str, displacement: float, duration: float, params: CraneParams | None = None,
+         options: PlanOptions | None = None, variational: Variational | None = None) -> Plan:
+    """A rest-to-rest plan from 0 to ``displacement`` (m) in ``duration`` (s).
+
+    Shapers are planned here; NVF/RVF by ``variational`` (default: a new
+    solver, see the module docstring). Raises PlanError (or its
+    ParameterError sibling, both ValueError) with a message naming the problem.
+    """
+    params = params or CraneParams()
+    options = options or PlanOptions()
+    displacement, duration = check_request(method, displacement, duration)
+    if method in SHAPER_METHODS:
+        omegas, zetas = shaper_design(params, options)
+        shaped = shaped_plan(method, displacement, duration, omegas, zetas, options.base, limits_of(options))
+        check_axis_limits(shaped, options)
+        return shaped
+    # the variational solvers bound v and a_ref everywhere as path constraints
+    return (variational or _new_solver)(VariationalRequest('plan', method, displacement, duration, params, options))
+
+
+def fastest(method: str, displacement: float, params: CraneParams | None = None,
+            options: PlanOptions | None = None, variational: Variational | None = None) -> Plan:
+    """The shortest rest-to-rest plan of ``displacement`` (m) within the options' axis limits.
+
+    Needs max_velocity or max_acceleration (a motion without either could
+    be arbitrarily fast). Shapers: ``shaped.fastest_shaped``; NVF/RVF: the
+    free-final-time NLP (``free_time``) by ``variational``.
+    """
+    params = params or CraneParams()
+    options = options or PlanOptions()
+    check_request(method, displacement, 1.0)
+    limits = limits_of(options)
+    displacement = check_fastest_request(displacement, limits)  # before a solver is asked
+    if method in SHAPER_METHODS:
+        return fastest_shaped(method, displacement, *shaper_design(params, options), limits, options.base)
+    if options.solver != 'direct':
+        raise PlanError('the fastest NVF/RVF plan needs the direct solver (free final time)')
+    return (variational or _new_solver)(VariationalRequest('fastest', method, displacement, None, params, options))
+
+
+def _new_solver(request: VariationalRequest) -> Plan:
+    return request.run(variational_solver(request.method, request.options))
+
+
+class SolverCache:
+    """NVF/RVF solvers kept per ``VariationalSolver.key``, with their warm starts: a ``Variational``
+    for one caller at a time (a worker process, a script).
+
+    Args:
+        overrides: solver settings given to every solver it makes (``variational_solver``).
+    """
+
+    def __init__(self, **overrides):
+        self.overrides = overrides
+        self._solvers: dict = {}
+
+    def __call__(self, request: VariationalRequest) -> Plan:
+        from .variational import VariationalSolver
+        key = VariationalSolver.key(request.method, request.options)
+        solver = self._solvers.get(key)
+        if solver is None:
+            solver = self._solvers[key] = variational_solver(request.method, request.options, **self.overrides)
+        return request.run(solver)
+
+
+def shaper_design(params: CraneParams, options: PlanOptions) -> tuple:
+    """(frequencies rad/s, damping ratios) the shapers are designed for: the options' or the model's modes."""
+    if options.omega is not None:
+        return options.omega, options.damping or 0.0
+    omegas, zetas = modal_properties(params)
+    return omegas, (zetas if options.damping is None else options.damping)
+
+
+def variational_solver(method: str, options: PlanOptions, **overrides):
+    """A new NVF/RVF solver of the route ``options.solver`` picks: ``direct`` (CasADi
+    collocation + IPOPT, the fast path) or ``indirect`` (the paper's TPBVP).
+
+    Imported here, not at the top: CasADi loads only when a variational plan is asked for.
+    """
+    if options.solver == 'indirect':
+        from .indirect import IndirectSolver
+        return IndirectSolver(method, options, **overrides)
+    from .direct import DirectSolver
+    return DirectSolver(method, options, **overrides)
