@@ -1,6 +1,6 @@
-"""config/*.yaml: every declared parameter at its default, and each node starts from its file.
+"""Each package's config/<node>.yaml: every declared parameter at its default, and each node starts from its file.
 
-The files are written by tools/make_params_files.py from the nodes' own
+The files are written by devtools/make_params_files.py from the nodes' own
 parameter tables; the first test fails when a node's parameters change and
 the files are not regenerated. The nodes run as real processes and report
 their values over the parameter services.
@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / 'tools'))
+sys.path.insert(0, str(ROOT / 'devtools'))
 import make_params_files  # noqa: E402
 
 #: A few values each node gets from a changed copy of its file (the rest stay at the defaults).
@@ -36,9 +36,9 @@ def flatten(tree: dict, prefix: str = '') -> dict:
 
 @pytest.mark.parametrize('stem, node, executable, table', make_params_files.nodes())
 def test_the_files_hold_every_parameter_at_its_default(stem, node, executable, table):
-    path = ROOT / 'config' / f'{stem}.yaml'
+    path = make_params_files.config_path(stem, executable)
     assert path.read_text() == make_params_files.render(node, executable, table), \
-        f'{path} is stale: run .venv/bin/python tools/make_params_files.py'
+        f'{path} is stale: run .venv/bin/python devtools/make_params_files.py'
     values = flatten(yaml.safe_load(path.read_text())[f'/**/{node}']['ros__parameters'])
     for name, (default, description, _) in table.items():
         if isinstance(default, list) and not default:
@@ -55,7 +55,7 @@ def test_each_node_starts_from_its_file_and_reports_the_files_values(ros_domain,
     from rclpy.parameter_client import AsyncParameterClient
 
     from crane_planner.tools.processes import NodeGroup
-    document = yaml.safe_load((ROOT / 'config' / f'{stem}.yaml').read_text())
+    document = yaml.safe_load(make_params_files.config_path(stem, executable).read_text())
     params = document[f'/**/{node}']['ros__parameters']
     changed = copy.deepcopy(params)
     for key, value in CHANGES[stem].items():

@@ -44,6 +44,18 @@ def test_colcon_build_installs_packages(colcon_install):
             assert path.stat().st_mode & 0o111
 
 
+#: The parameters files each package installs into share/<package>/config (ROS packages' layout).
+CONFIG_FILES = {'crane_planner': ('planner.yaml', 'streamer.yaml'), 'crane_sim': ('sim.yaml',)}
+
+
+def test_colcon_build_installs_each_packages_parameters_files(colcon_install):
+    for pkg, names in CONFIG_FILES.items():
+        for name in names:
+            installed = colcon_install / pkg / 'share' / pkg / 'config' / name
+            assert installed.exists(), f'{installed} missing'
+            assert installed.read_text() == (ROOT / 'src' / pkg / 'config' / name).read_text()
+
+
 ANSWERING_SERVICE = {'planner': 'crane_planner/plan/zv', 'streamer': 'crane_streamer/start', 'sim': 'crane_sim/reset'}
 
 

@@ -1,11 +1,14 @@
-"""Write config/planner.yaml, config/streamer.yaml and config/sim.yaml from the nodes' declared parameters.
+"""Write each package's config/<node>.yaml from the nodes' declared parameters.
 
-Every parameter at its default, its description as a comment, in the ROS 2
-parameters-file layout (``--ros-args --params-file config/<node>.yaml``). The
-node key is ``/**/<node name>``, so a file applies in any namespace. Run after
-changing a node's parameters; test/test_params_files.py checks the files match.
+``src/crane_planner/config/planner.yaml``, ``.../streamer.yaml`` and
+``src/crane_sim/config/sim.yaml``: every parameter at its default, its
+description as a comment, in the ROS 2 parameters-file layout
+(``--ros-args --params-file``); the packages install them into
+``share/<package>/config``. The node key is ``/**/<node name>``, so a file
+applies in any namespace. Run after changing a node's parameters;
+test/ros/test_params_files.py checks the files match.
 
-    .venv/bin/python tools/make_params_files.py
+    .venv/bin/python devtools/make_params_files.py
 """
 import json
 import sys
@@ -40,8 +43,9 @@ def value_text(value) -> str:
 
 def render(node: str, executable: str, table: dict) -> str:
     lines = [f'# {node}: every parameter at its default, with its description.',
-             f'#   ros2 run {executable} --ros-args --params-file config/{node_file(node)}.yaml',
-             '# (outside a ROS install: .venv/bin/<executable> --ros-args --params-file ...)',
+             f'#   ros2 run {executable} --ros-args --params-file '
+             f'$(ros2 pkg prefix {executable.split()[0]})/share/{executable.split()[0]}/config/{node_file(node)}.yaml',
+             '# (outside a ROS install: .venv/bin/<executable> --ros-args --params-file src/<package>/config/...)',
              f'/**/{node}:', '  ros__parameters:']
     groups: dict = {}
     for name, (default, description, _) in table.items():
@@ -67,9 +71,14 @@ def node_file(node: str) -> str:
     return {'crane_planner': 'planner', 'crane_streamer': 'streamer', 'crane_sim': 'sim'}[node]
 
 
+def config_path(stem: str, executable: str) -> Path:
+    """Where the file of the node ``stem`` lives: its package's config folder."""
+    return ROOT / 'src' / executable.split()[0] / 'config' / f'{stem}.yaml'
+
+
 def main() -> int:
     for stem, node, executable, table in nodes():
-        path = ROOT / 'config' / f'{stem}.yaml'
+        path = config_path(stem, executable)
         path.write_text(render(node, executable, table))
         print(f'wrote {path}')
     return 0
