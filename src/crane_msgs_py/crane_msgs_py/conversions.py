@@ -31,8 +31,7 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
-from .names import (CART_JOINT, DEFAULT_FRAME_ID, OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, OUTPUTS,
-                    SIM_JOINTS)
+from .names import CART_JOINT, DEFAULT_FRAME_ID, OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, OUTPUTS, SIM_JOINTS
 from .params import check_choice
 
 NS = 1_000_000_000

@@ -29,7 +29,14 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from crane_msgs_py.params import (PARAMETER_NAMES, ParameterError, check_choice, check_count, check_parameter, check_positive)
+from crane_msgs_py.params import (
+    PARAMETER_NAMES,
+    ParameterError,
+    check_choice,
+    check_count,
+    check_parameter,
+    check_positive,
+)
 
 from .dynamics import SwingModel, load_excursion
 

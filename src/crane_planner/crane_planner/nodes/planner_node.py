@@ -29,13 +29,26 @@ from crane_msgs_py.conversions import samples_to_joint_trajectory, samples_to_pa
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import DEFAULT_FRAME_ID, PLANNER_NODE, PLANNER_SERVICES, TRAJECTORY_TOPIC, planner_service
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
-from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError,
-                                  check_choice, check_nonnegative, check_positive)
+from crane_msgs_py.params import (
+    PARAMETER_DESCRIPTIONS,
+    PARAMETER_NAMES,
+    CraneParams,
+    ParameterError,
+    check_choice,
+    check_nonnegative,
+    check_positive,
+)
 from crane_msgs_py.qos import TRAJECTORY_QOS
 from crane_msgs_py.realtime import fix_mmap_threshold
 from crane_msgs_py.runner import run
-
-from crane_planner.planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanError, PlanOptions, check_request
+from crane_planner.planning import (
+    METHODS,
+    ROBUST_PARAMETERS,
+    VARIATIONAL_METHODS,
+    PlanError,
+    PlanOptions,
+    check_request,
+)
 from crane_planner.planning.dispatch import VariationalRequest
 from crane_planner.planning.plan import time_grid
 from crane_planner.planning.profiles import BASES
@@ -117,7 +130,8 @@ class Config:
         check_choice('method', v['method'], METHODS)
         intervals = int(v['intervals'])
         options = PlanOptions(
-            omega=tuple(v['shaper_frequencies']) or None, damping=None if v['shaper_damping'] == -1.0 else v['shaper_damping'],
+            omega=tuple(v['shaper_frequencies']) or None,
+            damping=None if v['shaper_damping'] == -1.0 else v['shaper_damping'],
             robust=tuple(v['robust_parameters']), intervals=intervals or None,
             max_velocity=v['max_velocity'] or None, max_acceleration=v['max_acceleration'] or None,
             max_jerk=v['max_jerk'] or None, base=v['shaper_base'],
@@ -257,7 +271,8 @@ class PlannerNode(Node):
             values['duration'] = plan.duration
         self._diagnostics.report(
             PLAN_TASK, OK, f'{method}: {len(samples.t)} knots' + (f' in {plan.duration:.4f} s' if fastest else '')
-            + (', sent for execution' if execute else ''), **values, solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
+            + (', sent for execution' if execute else ''), **values, solve_time=info.get('solve_time_s', solved - t0),
+            build_time=info.get('build_time_s', 0.0),
             iterations=info.get('iterations', 0), plan_time=solved - t0, message_time=done - solved,
             knots=len(samples.t), error='')
         # per request at debug level: /diagnostics has them, and an info line costs 0.4 ms

@@ -1,12 +1,15 @@
 """Streamer node: the plan on ``trajectory`` as a 1 kHz ``reference`` (contract: ROS 2 nodes, streamer).
 
-A motion is sampled once, when its trajectory arrives, at every tick it will
-occupy (quintic Hermite through the knots, ``hermite.QuinticHermite``); the
-loop thread then only looks samples up. The loop runs on its own thread at
-absolute deadlines of the monotonic clock, never waits on the executor,
+The motion rules (which trajectories are accepted, where a motion starts,
+what each tick publishes, the hold between motions) are the pure core's,
+``reference_stream.ReferenceStream``; this node translates messages, keeps
+time and reports. A trajectory published before the node started (a latched
+old plan) is refused here: only the transport knows when it was published.
+The loop runs on its own thread at absolute deadlines of the monotonic
+clock, never waits on the executor, asks the core for each tick's sample,
 fills one pre-allocated message per tick and, with network impairment on,
 holds samples in a ``impairment.DelayLine`` and publishes them itself when
-they are due. Between motions it publishes the hold position.
+they are due.
 """
 from __future__ import annotations
 
@@ -14,9 +17,7 @@ import json
 import math
 import threading
 import time
-from dataclasses import dataclass
 
-import numpy as np
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from std_srvs.srv import Trigger
@@ -24,15 +25,21 @@ from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.conversions import fill_reference, joint_trajectory_to_arrays, reference_message, stamp_ns
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from crane_msgs_py.names import (OUTPUT_JOINT_TRAJECTORY, OUTPUTS, REFERENCE_TOPIC,
-                                 START_SERVICE, STOP_SERVICE, STREAMER_NODE, TRAJECTORY_TOPIC)
+from crane_msgs_py.names import (
+    OUTPUT_JOINT_TRAJECTORY,
+    OUTPUTS,
+    REFERENCE_TOPIC,
+    START_SERVICE,
+    STOP_SERVICE,
+    STREAMER_NODE,
+    TRAJECTORY_TOPIC,
+)
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.qos import REFERENCE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
-
-from crane_planner.streaming.hermite import QuinticHermite
 from crane_planner.streaming.impairment import DISTRIBUTIONS, DelayLine, Impairment
+from crane_planner.streaming.reference_stream import ReferenceStream
 
 STREAM_TASK = 'stream'
 TRAJECTORY_TASK = 'trajectory'
@@ -68,27 +75,6 @@ PARAMETERS = {
 }
 
 
-@dataclass(frozen=True)
-class Motion:
-    """A trajectory sampled at the ticks it occupies: tick ``first_tick + i`` publishes sample i."""
-
-    first_tick: int
-    position: list
-    velocity: list
-    acceleration: list
-    duration: float  # s
-    late: float      # s the start was shifted: the trajectory came after its start stamp
-
-    @property
-    def end_position(self) -> float:
-        return self.position[-1]
-
-    @property
-    def summary(self) -> str:
-        return (f'{self.position[0]:.6g} -> {self.end_position:.6g} m in {self.duration:.3f} s, '
-                f'{len(self.position)} ticks' + (f', started {self.late:.3f} s late' if self.late else ''))
-
-
 class StreamerNode(Node):
     """The ``crane_streamer`` node."""
 
@@ -100,19 +86,15 @@ class StreamerNode(Node):
         self._ticker = Ticker(round(1e9 / p['rate']))
         self._period_ns = self._ticker.period
         self._busy_wait_ns = round(p['busy_wait'] * 1e9)
-        self._start_tolerance = p['start_tolerance']
         self._timing_log = p['timing_log']
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._impairment_of, self._apply, self._diagnostics)
         self._publisher = self.create_publisher(type(self._msg), REFERENCE_TOPIC, REFERENCE_QOS)
 
-        # State shared with the loop thread. The loop owns _hold, _motion and
-        # the ticker; the executor hands motions over through _incoming.
-        self._lock = threading.Lock()
-        self._hold = float(p['initial_position'])
-        self._motion: Motion | None = None
-        self._incoming: Motion | None = None
-        self._epoch_ros = 0  # ROS time (ns) of tick 0
+        # Shared with the loop thread (the core is thread-safe); the loop owns the ticker.
+        # _running wakes the loop; the core's state decides what trajectories it takes.
+        self._stream = ReferenceStream(self._period_ns, p['initial_position'], p['start_tolerance'],
+                                       stopped=not p['auto_start'])
         self._running = threading.Event()
         self._created_ns = self.get_clock().now().nanoseconds
         self._lateness = Lateness(keep_all=bool(self._timing_log))
@@ -131,7 +113,7 @@ class StreamerNode(Node):
             self._running.set()
         self._loop_thread = LoopThread(self, self._loop, 'reference-loop', p['sched_priority'])
         self.get_logger().info(f'streaming {p["output"]} on {self.resolve_topic_name(REFERENCE_TOPIC)} at '
-                               f'{p["rate"]:g} Hz, hold {self._hold:g} m'
+                               f'{p["rate"]:g} Hz, hold {self._stream.hold:g} m'
                                + ('' if p['auto_start'] else ' (waiting for ~/start)'))
 
     # -- parameters -------------------------------------------------------
@@ -143,7 +125,7 @@ class StreamerNode(Node):
                           reorder=values['network.reorder'], seed=values['network.seed'])
 
     def _apply(self, impairment: Impairment, values, changes):
-        self._start_tolerance = values['start_tolerance']
+        self._stream.start_tolerance = values['start_tolerance']
         self._busy_wait_ns = round(values['busy_wait'] * 1e9)
         if impairment != self._impairment:
             self._impairment = impairment  # the loop picks it up at its next tick
@@ -153,60 +135,23 @@ class StreamerNode(Node):
 
     def _on_trajectory(self, msg: JointTrajectory, info: dict):
         now_ns = self.get_clock().now().nanoseconds
+        start_ns = stamp_ns(msg.header.stamp)
         try:
-            motion = self._motion_of(msg, now_ns, info)
+            if info.get('source_timestamp', now_ns) < self._created_ns:
+                raise ValueError('published before this streamer started (a latched old plan is not replayed)')
+            motion = self._stream.accept(*joint_trajectory_to_arrays(msg), start_ns, now_ns)
         except ValueError as exc:
             self.refused += 1
             self.get_logger().error(f'trajectory refused: {exc}')
             self._diagnostics.report(TRAJECTORY_TASK, ERROR, f'trajectory refused: {exc}', error=str(exc),
-                                     hold_position=self._hold, points=len(msg.points),
-                                     start_stamp=stamp_ns(msg.header.stamp))
+                                     hold_position=self._stream.hold, points=len(msg.points),
+                                     start_stamp=start_ns)
             return
         self.accepted += 1
         self.get_logger().info(f'trajectory accepted: {motion.summary}')
         self._diagnostics.report(TRAJECTORY_TASK, OK, f'trajectory accepted: {motion.summary}',
-                                 hold_position=self._hold, points=len(msg.points),
-                                 start_stamp=stamp_ns(msg.header.stamp), late_start=motion.late, error='')
-
-    def _motion_of(self, msg: JointTrajectory, now_ns: int, info: dict) -> Motion:
-        """Check a trajectory and hand it to the loop as a Motion; ValueError says why not.
-
-        The motion starts at the header stamp plus the first point's time (a
-        zero stamp: at once), from the first tick at or after it. A start the
-        loop has already passed is shifted to the next tick whole: never a jump.
-        """
-        if info.get('source_timestamp', now_ns) < self._created_ns:
-            raise ValueError('published before this streamer started (a latched old plan is not replayed)')
-        t, p, v, a = joint_trajectory_to_arrays(msg)
-        interp = QuinticHermite(t, p, v, a)  # ValueError: no points, not increasing, not finite
-        duration_ns = round((t[-1] - t[0]) * 1e9)
-        header_ns = stamp_ns(msg.header.stamp)
-        start_ns = header_ns + round(t[0] * 1e9) if header_ns else 0
-        if start_ns and start_ns + duration_ns < now_ns:
-            raise ValueError(f'it ended {(now_ns - start_ns - duration_ns) * 1e-9:.3f} s ago')
-        period = self._period_ns
-        with self._lock:
-            if not self._running.is_set():
-                raise ValueError('the streamer is stopped (call ~/start)')
-            if not self._epoch_ros:
-                raise ValueError('the stream has not started yet')
-            if self._motion is not None or self._incoming is not None:
-                raise ValueError('a motion is streaming; a new one is accepted only after it ends')
-            if abs(p[0] - self._hold) > self._start_tolerance:
-                raise ValueError(f'it starts at {p[0]:.6g} m, not at the hold position {self._hold:.6g} m '
-                                 f'(a jump of {p[0] - self._hold:.3g} m)')
-            first = self._ticker.tick + 2  # a tick the loop cannot have reached yet
-            offset = late = 0  # offset: time (ns) into the motion at the first tick
-            if start_ns:
-                due = -(-(start_ns - self._epoch_ros) // period)  # first tick at or after the start
-                if due >= first:
-                    first, offset = due, self._epoch_ros + due * period - start_ns
-                else:
-                    late = self._epoch_ros + first * period - start_ns
-            n = max(0, -(-(duration_ns - offset) // period)) + 1  # the last sample at or past the end
-            pos, vel, acc = interp(t[0] + (offset + period * np.arange(n)) * 1e-9)
-            self._incoming = Motion(first, pos.tolist(), vel.tolist(), acc.tolist(), duration_ns * 1e-9, late * 1e-9)
-            return self._incoming
+                                 hold_position=self._stream.hold, points=len(msg.points),
+                                 start_stamp=start_ns, late_start=motion.late, error='')
 
     # -- services ------------------------------------------------------------
 
@@ -215,8 +160,9 @@ class StreamerNode(Node):
         if self._running.is_set():
             response.message = 'already streaming'
         else:
+            self._stream.resume()
             self._running.set()
-            response.message = f'streaming, hold {self._hold:g} m'
+            response.message = f'streaming, hold {self._stream.hold:g} m'
         self.get_logger().info(response.message)
         return response
 
@@ -225,8 +171,9 @@ class StreamerNode(Node):
         if not self._running.is_set():
             response.message = 'already stopped'
         else:
-            with self._lock:
-                self._running.clear()
+            self._running.clear()
+            if self._stream.stop() is not None:  # dropped where it was
+                self.get_logger().warn(f'stopped during a motion; holding {self._stream.hold:g} m')
             response.message = 'stopped'
         self.get_logger().info(response.message)
         return response
@@ -241,15 +188,17 @@ class StreamerNode(Node):
 
     def _run(self):
         """Stream until stopped; ticks count from a fresh epoch."""
-        ticker = self._ticker
-        with self._lock:
-            ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
-            self._epoch_ros = ros_now + (epoch - time.monotonic_ns())
-            if self._first_tick_ns is None:  # where the timing log starts
-                self._first_tick_ns = self._epoch_ros
+        ticker, stream = self._ticker, self._stream
+        ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
+        epoch_ros = ros_now + (epoch - time.monotonic_ns())  # ROS time of tick 0
+        if not stream.start(epoch_ros, lambda: ticker.tick):
+            return  # stopped meanwhile
+        if self._first_tick_ns is None:  # where the timing log starts
+            self._first_tick_ns = epoch_ros
         impairment = line = None
-        msg, publisher, lateness = self._msg, self._publisher, self._lateness
-        while self._running.is_set() and not self._loop_thread.stopping.is_set():
+        msg, publisher, lateness, sample = self._msg, self._publisher, self._lateness, stream.sample
+        # stream.running, not _running: a ~/stop and ~/start between two ticks still restart the epoch
+        while stream.running and not self._loop_thread.stopping.is_set():
             if self._impairment is not impairment:
                 impairment = self._impairment
                 if line is not None:  # flush what was in flight on the old link
@@ -260,8 +209,8 @@ class StreamerNode(Node):
             now = self._wait(deadline, line)
             lateness.add(now - deadline)
             self.ticks += 1
-            position, velocity, acceleration = self._sample(k)
-            stamp = self._epoch_ros + k * ticker.period
+            position, velocity, acceleration = sample(k)
+            stamp = epoch_ros + k * ticker.period
             if line is None:
                 fill_reference(msg, stamp, position, velocity, acceleration)
                 if not self._publish(msg, publisher):
@@ -270,10 +219,6 @@ class StreamerNode(Node):
                 line.send(now * 1e-9, (stamp, position, velocity, acceleration))
                 self._deliver(line, now * 1e-9)
             self.skipped += ticker.advance(now)
-        with self._lock:  # stopped: an unfinished motion is dropped where it was
-            if self._motion is not None:
-                self.get_logger().warn(f'stopped during a motion; holding {self._hold:g} m')
-            self._motion = self._incoming = None
         if line is not None:
             self._deliver(line, math.inf)
 
@@ -302,24 +247,6 @@ class StreamerNode(Node):
         self.sent += 1
         return True
 
-    def _sample(self, k: int) -> tuple[float, float, float]:
-        """Position, velocity, acceleration due at tick k; takes over and ends motions."""
-        motion = self._motion
-        if motion is None:
-            motion = self._incoming
-            if motion is None or k < motion.first_tick:
-                return self._hold, 0.0, 0.0
-            with self._lock:
-                self._motion, self._incoming = motion, None
-        i = k - motion.first_tick
-        if i < len(motion.position):
-            self._hold = motion.position[i]
-            return motion.position[i], motion.velocity[i], motion.acceleration[i]
-        with self._lock:
-            self._hold = motion.end_position
-            self._motion = None
-        return self._hold, 0.0, 0.0
-
     # -- diagnostics (executor thread) --------------------------------------
 
     def _report(self):
@@ -329,7 +256,7 @@ class StreamerNode(Node):
         self._ticks_window, self._window_start = ticks, now
         summary = lateness_summary_us(self._lateness.take())
         running = self._running.is_set()
-        state = ('streaming' if self._motion is not None else 'holding') if running else 'stopped'
+        state = ('streaming' if self._stream.streaming else 'holding') if running else 'stopped'
         error = self._loop_thread.error
         level = ERROR if error else WARN if self.skipped else OK
         message = f'the loop stopped: {error}' if error else f'{state} at {rate:.1f} Hz'
@@ -337,7 +264,7 @@ class StreamerNode(Node):
         self._diagnostics.report(
             STREAM_TASK, level, message, state=state, rate_hz=rate,
             target_rate_hz=1e9 / self._period_ns, **summary, ticks=self.ticks, sent=self.sent, dropped=self.dropped,
-            reordered=self.reordered, skipped=self.skipped, hold_position=self._hold,
+            reordered=self.reordered, skipped=self.skipped, hold_position=self._stream.hold,
             trajectories_accepted=self.accepted, trajectories_refused=self.refused,
             network_delay=imp.delay, network_jitter=imp.jitter, network_distribution=imp.distribution,
             network_loss=imp.loss, network_reorder=imp.reorder)

@@ -14,8 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Callable
 
-from crane_msgs_py.params import (CraneParams, ParameterError, check_choice, check_nonnegative,
-                                  check_positive)
+from crane_msgs_py.params import CraneParams, ParameterError, check_choice, check_nonnegative, check_positive
 
 from .limits import check_fastest_request
 from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
@@ -94,46 +93,6 @@ class PlanOptions:
             v = getattr(self, name)
             if v is not None:
                 object.__setattr__(self, name, check_positive(name, v))
-
-
-def check_request(method: str, displacement, duration) -> tuple[float, float]:
-    """Validate the method name and a (D, T) pair; return them as floats."""
-    if method not in METHODS:
-        raise PlanError(f'unknown method {method!r}; choose from {", ".join(METHODS)}')
-    try:
-        displacement = float(displacement)
-        duration = float(duration)
-    except (TypeError, ValueError):
-        raise PlanError('displacement and duration must be numbers') from None
-    if not math.isfinite(displacement):
-        raise PlanError(f'displacement must be finite, got {displacement}')
-    if not math.isfinite(duration):
-        raise PlanError(f'duration must be finite, got {duration}')
-    if duration <= 0.0:
-        raise PlanError(f'duration must be > 0, got {duration}')
-    return displacement, duration
-
-
-LIMITS = (('max_velocity', 'm/s'), ('max_acceleration', 'm/s^2'), ('max_jerk', 'm/s^3'))
-
-
-def limits_of(options: PlanOptions) -> tuple:
-    """(max_velocity, max_acceleration, max_jerk) of ``options``, None for none."""
-    return options.max_velocity, options.max_acceleration, options.max_jerk
-
-
-def check_axis_limits(plan, options: PlanOptions) -> None:
-    """PlanError naming the limit if the shaped plan's |v|, |a_ref| or |jerk| peak exceeds it.
-
-    A shaper cannot trade time for peaks: the shaped profile is fixed by the
-    method and the duration, so an exceeded limit is an error, not a constraint.
-    """
-    if all(limit is None for limit in limits_of(options)):
-        return
-    for (name, unit), limit, peak in zip(LIMITS, limits_of(options), plan.peaks()):
-        if limit is not None and peak > limit * (1.0 + 1e-6):
-            raise PlanError(f'{plan.method} plan exceeds {name} {limit:g} {unit} (peak {peak:.4g}); '
-                            'lengthen the duration or raise the limit')
 
 
 def check_request(method: str, displacement, duration) -> tuple[float, float]:

@@ -13,11 +13,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial.polynomial import polyder, polyval
 
-from .plan import Plan, PlanError
 from .limits import check_fastest_request, shortest_duration_bound
+from .plan import Plan, PlanError
 from .profiles import ORDER, BaseProfile, limited_base, quintic_base
 from .shapers import Shaper, design
-
 
 #: Matrices taking position coefficients (powers of t) to those of its 0th..3rd derivatives, (4, 6, 6)
 #: (the highest powers of a derivative are zero).
@@ -162,7 +161,9 @@ FASTEST_MARGIN = 1e-4
 
 
 def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base: str = 'quintic') -> ShapedPlan:
-    """The shortest ``method`` plan of ``displacement`` (m) within ``limits`` = (max_velocity, max_acceleration, max_jerk).
+    """The shortest ``method`` plan of ``displacement`` (m) within ``limits``.
+
+    ``limits`` = (max_velocity, max_acceleration, max_jerk).
 
     None for no limit; at least one of velocity and acceleration. The shaper's
     own length is fixed, so what is searched is the base motion:

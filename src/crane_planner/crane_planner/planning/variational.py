@@ -12,10 +12,11 @@ import numpy as np
 
 from crane_msgs_py.params import CraneParams
 
+from .limits import axis_limit_error
 from .methods import VARIATIONAL_METHODS
 from .plan import Plan, PlanError
-from .limits import axis_limit_error
 from .problem import Problem, Weights, graded_mesh, servo_layer, uniform_mesh
+
 
 class VariationalSolver:
     """NVF or RVF plans for one (method, intervals, robust set, limits); thread-safe.

@@ -77,8 +77,9 @@ class Planner:
         self.warmups: list[VariationalRequest] = []
         self._processes = None
         if processes:
-            self._processes = SolverPool(lambda: SolverProcess(self.warmups), check_count('solver_processes', processes),
-                                         'process', hint='raise solver_processes')
+            self._processes = SolverPool(lambda: SolverProcess(self.warmups),
+                                         check_count('solver_processes', processes), 'process',
+                                         hint='raise solver_processes')
 
     @property
     def pool_size(self) -> int:

@@ -1,4 +1,4 @@
-"""``crane-plan choose``: per method, the fastest move within the axis limits and its worst swing over an uncertainty band.
+"""``crane-plan choose``: per method, the fastest move within the axis limits, and its worst swing over a band.
 
 For each method: the fastest plan (``Planner.fastest``), its peaks (of the
 reference, exact for shapers, dense for NVF/RVF), and the worst residual load
@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from crane_msgs_py.params import CraneParams
-
 from crane_planner.planning import PlanError, PlanOptions
 from crane_planner.serving import Planner
 

@@ -15,12 +15,12 @@ import time
 import numpy as np
 
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
+from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, PlanOptions
+from crane_planner.planning.profiles import BASES
+from crane_planner.serving import Planner
 
 from .evaluate import DEFAULT_SETTLE, plan_report, residual_load_mm, simulate_plan, simulate_plans, vary_parameter
 from .progress import Progress
-from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, PlanOptions
-from crane_planner.serving import Planner
-from crane_planner.planning.profiles import BASES
 
 PROG = 'crane-plan'
 #: Seconds ``choose`` observes after each motion by default (``sweep`` and ``plan``: DEFAULT_SETTLE).
@@ -95,9 +95,10 @@ def _add_model_options(p: argparse.ArgumentParser):
                    help='collocation intervals for nvf/rvf (default: solver default)')
     g.add_argument('--solver', choices=('direct', 'indirect'), default='direct',
                    help='nvf/rvf solver: direct collocation + IPOPT, or the paper\'s indirect TPBVP')
-    g.add_argument('--max-velocity', type=_finite, metavar='V', help='axis limit |v| (m/s): a path constraint for nvf/rvf, a check for shapers')
-    g.add_argument('--max-acceleration', type=_finite, metavar='A', help='axis limit |a_ref| (m/s^2): a path constraint for nvf/rvf, a check for shapers')
-    g.add_argument('--max-jerk', type=_finite, metavar='J', help='axis limit on the reference jerk (m/s^3): a path constraint for nvf/rvf, a check for shapers')
+    limit = 'a path constraint for nvf/rvf, a check for shapers'
+    g.add_argument('--max-velocity', type=_finite, metavar='V', help=f'axis limit |v| (m/s): {limit}')
+    g.add_argument('--max-acceleration', type=_finite, metavar='A', help=f'axis limit |a_ref| (m/s^2): {limit}')
+    g.add_argument('--max-jerk', type=_finite, metavar='J', help=f'axis limit on the reference jerk (m/s^3): {limit}')
     g.add_argument('--base', choices=BASES, default='quintic',
                    help="shapers' base motion: the paper's quintic, or the jerk-limited time-optimal profile under "
                         'the limits (default quintic)')
@@ -130,7 +131,8 @@ def _add_task_options(p: argparse.ArgumentParser, fastest: bool = False):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=PROG, description=__doc__.splitlines()[0].split(': ', 1)[1])
-    sub = parser.add_subparsers(dest='command', required=True, metavar='{plan,compare,sweep,choose,identify,report}', parser_class=_Parser)
+    sub = parser.add_subparsers(dest='command', required=True, metavar='{plan,compare,sweep,choose,identify,report}',
+                                parser_class=_Parser)
 
     p = sub.add_parser('plan', help='make one plan and evaluate it on the plant')
     p.add_argument('--method', choices=METHODS, required=True)
@@ -138,7 +140,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_model_options(p)
     _add_plant_options(p)
     p.add_argument('--json', action='store_true', help='print the contract JSON object')
-    p.add_argument('--csv', metavar='FILE', help='write time, position, velocity, acceleration, jerk, theta1, theta2 (1 ms)')
+    p.add_argument('--csv', metavar='FILE',
+                   help='write time, position, velocity, acceleration, jerk, theta1, theta2 (1 ms)')
     p.add_argument('--plot', metavar='FILE', help='write a PNG of the plan profiles and the swing')
 
     p = sub.add_parser('compare', help='make and evaluate plans of several methods')
@@ -152,7 +155,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser('sweep', help='residual load swing while one plant parameter varies')
     p.add_argument('--param', choices=SWEEP_PARAMETERS, default='L1')
-    p.add_argument('--span', type=_finite, default=0.3, metavar='R', help='relative span, values x (1 +- R) (default 0.3)')
+    p.add_argument('--span', type=_finite, default=0.3, metavar='R',
+                   help='relative span, values x (1 +- R) (default 0.3)')
     p.add_argument('--points', type=int, default=61, metavar='N', help='number of values (>= 2, default 61)')
     _add_task_options(p)
     p.add_argument('--methods', type=_method_list, metavar='M,M,...',
@@ -191,7 +195,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser('identify', help='estimate L1, L2, mass ratio, joint damping and tau from a recorded move')
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument('--csv', metavar='FILE', help='recording with columns t, cart, theta1, theta2 [, reference]')
-    source.add_argument('--bag', metavar='DIR', help='rosbag2 recording (MCAP or SQLite) of joint_states [and reference]')
+    source.add_argument('--bag', metavar='DIR',
+                        help='rosbag2 recording (MCAP or SQLite) of joint_states [and reference]')
     _add_crane_options(p.add_argument_group(
         'nominal model (its total mass m1 + m2 and g are kept; defaults: paper Table 1)'))
     p.add_argument('--json', action='store_true', help='print the estimates as one JSON object')

@@ -68,7 +68,7 @@ CASES = {
     'commission': Case('commission', UNKNOWN_PLANT, False, commission=True),
 }
 #: Table columns of the commission case: before and after identification.
-BEFORE, AFTER = 'commission:model', 'commission:identified' 
+BEFORE, AFTER = 'commission:model', 'commission:identified'
 
 
 @dataclass
@@ -190,8 +190,8 @@ def commission(driver: CraneHarness, args, model: CraneParams):
     reference beside the measured cart gives tau. Then the cart goes back.
     """
     from crane_planner.identification import Recording, identify
-    from crane_planner.planning.profiles import quintic
     from crane_planner.planning.plan import Samples
+    from crane_planner.planning.profiles import quintic
 
     D, T = args.displacement, EXCITATION_DURATION
     t = np.linspace(0.0, T, 11)  # a quintic: Hermite between any knots is exact

@@ -12,11 +12,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from crane_msgs_py.params import CraneParams
-from crane_sim.metrics import peak, rms, swing_metrics
-from crane_sim.simulator import STATE_NAMES, PlantBatch, SimResult, simulate
-
 from crane_planner.planning import Plan, Samples
 from crane_planner.planning.plan import time_grid
+from crane_sim.metrics import peak, rms, swing_metrics
+from crane_sim.simulator import STATE_NAMES, PlantBatch, SimResult, simulate
 
 #: Simulation step and reference sample period used to evaluate plans (s).
 EVAL_STEP = 1e-3

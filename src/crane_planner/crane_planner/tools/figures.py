@@ -97,7 +97,8 @@ def plot_identification(recording, result, path: str):
     axes[2].legend(loc='upper right', fontsize=8)
     v = result.values
     axes[0].set_title(f'identified L1 {v["L1"]:.4f} m, L2 {v["L2"]:.4f} m, m2/(m1+m2) {v["mass_ratio"]:.3f}, '
-                      f'zeta {v["zeta1"]:.4f} / {v["zeta2"]:.4f}; rms residual {1e3 * result.rms_residual_rad:.2f} mrad',
+                      f'zeta {v["zeta1"]:.4f} / {v["zeta2"]:.4f}; '
+                      f'rms residual {1e3 * result.rms_residual_rad:.2f} mrad',
                       fontsize=9)
     return save_figure(fig, path)
 

@@ -25,8 +25,16 @@ from trajectory_msgs.msg import JointTrajectory
 from crane_msgs_py.client import PlannerClient
 from crane_msgs_py.conversions import joint_state_to_arrays, samples_to_joint_trajectory, stamp_ns
 from crane_msgs_py.diagnostics import OK, level_of, status_values
-from crane_msgs_py.names import (JOINT_STATES_TOPIC, PLANNER_NODE, RESET_SERVICE, SIM_JOINTS, SIM_NODE,
-                                 STREAMER_NODE, TRAJECTORY_TOPIC, service_of)
+from crane_msgs_py.names import (
+    JOINT_STATES_TOPIC,
+    PLANNER_NODE,
+    RESET_SERVICE,
+    SIM_JOINTS,
+    SIM_NODE,
+    STREAMER_NODE,
+    TRAJECTORY_TOPIC,
+    service_of,
+)
 from crane_msgs_py.qos import JOINT_STATES_QOS, TRAJECTORY_QOS
 from crane_msgs_py.runner import spinning
 

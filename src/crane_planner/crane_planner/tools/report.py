@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 
 from crane_msgs_py.params import CraneParams
-
 from crane_planner.identification.recording import RecordingError
 
 

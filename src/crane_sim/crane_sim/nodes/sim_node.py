@@ -4,8 +4,9 @@ The plant (``crane_sim.simulator.CraneSimulator``: Eqs. 18-19 plus the servo
 of Eq. 6) is stepped every ``step`` seconds on its own thread at absolute
 deadlines of the monotonic clock and publishes ``joint_states`` every
 1/``publish_rate`` of simulated time. References arrive on the executor, are
-checked there (non-finite, stale and out-of-order ones are ignored and
-counted, latency and gaps measured) and handed to the loop through a queue;
+checked, stamped and counted there (``reference_intake.ReferenceIntake``:
+non-finite, stale and out-of-order ones are ignored, latency and gaps
+measured, unstamped ones put on a grid) and handed to the loop through a queue;
 the loop plays them out by their stamps, ``playout_delay`` behind
 (``playout.ReferencePlayout``): the plant's time runs that far behind the
 clock, and ``joint_states`` carry plant time, so they line up with the
@@ -21,7 +22,6 @@ import time
 from collections import deque
 
 import numpy as np
-
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -30,21 +30,40 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from crane_msgs_py.conversions import (crane_markers_message, fill_crane_markers, fill_joint_state,
-                                       joint_state_message, read_reference)
+from crane_msgs_py.conversions import (
+    crane_markers_message,
+    fill_crane_markers,
+    fill_joint_state,
+    joint_state_message,
+    read_reference,
+)
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from crane_msgs_py.names import (DEFAULT_FRAME_ID, JOINT_STATES_TOPIC, MARKERS_TOPIC, OUTPUT_FLOAT64_ARRAY,
-                                 OUTPUT_JOINT_TRAJECTORY, REFERENCE_TOPIC, RESET_SERVICE, SIM_NODE)
+from crane_msgs_py.names import (
+    DEFAULT_FRAME_ID,
+    JOINT_STATES_TOPIC,
+    MARKERS_TOPIC,
+    OUTPUT_FLOAT64_ARRAY,
+    OUTPUT_JOINT_TRAJECTORY,
+    REFERENCE_TOPIC,
+    RESET_SERVICE,
+    SIM_NODE,
+)
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
-from crane_msgs_py.params import (PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError, check_choice,
-                                  check_nonnegative)
+from crane_msgs_py.params import (
+    PARAMETER_DESCRIPTIONS,
+    PARAMETER_NAMES,
+    CraneParams,
+    ParameterError,
+    check_choice,
+    check_nonnegative,
+)
 from crane_msgs_py.qos import JOINT_STATES_QOS, MARKERS_QOS, REFERENCE_EVERY_SAMPLE_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
-
 from crane_sim.dynamics import mass_positions
 from crane_sim.measurement import AngleNoise
 from crane_sim.playout import ReferencePlayout
+from crane_sim.reference_intake import ReferenceIntake
 from crane_sim.simulator import INTERPOLATIONS, JOINT_NAMES, SOURCES, CraneSimulator, CraneState, SimulationError
 
 SIM_TASK = 'sim'
@@ -104,8 +123,6 @@ class SimNode(Node):
         self._sim = CraneSimulator(CraneParams(**{n: p[n] for n in PARAMETER_NAMES}), dt=self._ticker.period * 1e-9)
         self._publish_every = max(1, round(1.0 / (p['publish_rate'] * p['step'])))
         self._source, self._interpolation = p['reference_source'], p['interpolation']
-        self._timeout_ns = round(p['reference_timeout'] * 1e9)
-        self._unstamped_period_ns = round(p['unstamped_period'] * 1e9)
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._check, self._apply, self._diagnostics)
         self._noise = AngleNoise(p['noise'], p['seed'])
@@ -118,19 +135,16 @@ class SimNode(Node):
         self._inbox: deque = deque(maxlen=1000)   # (stamp ns, position, acceleration), checked
         self._pending_params: CraneParams | None = None
         self._reset_requested = threading.Event()
-        self._last_stamp = -math.inf
-        self.counts = dict.fromkeys(('received', 'accepted', 'nonfinite', 'stale', 'out_of_order', 'malformed',
-                                     'missing', 'timeouts', 'steps', 'skipped', 'published'), 0)
+        # The loop's counts (out_of_order: a sample a swapped playout could not take); the
+        # intake's own are the executor's: one writer per dict. The diagnostics add them up.
+        self.counts = dict.fromkeys(('out_of_order', 'timeouts', 'steps', 'skipped', 'published'), 0)
         self._lateness = Lateness()
-        # The stream as received: latency (arrival - stamp, ns) and gaps; the sender's period is
-        # taken as the shortest interval seen between consecutive stamps.
-        self._latency: list[int] = []
-        self._interval = math.inf
         self._window = (time.monotonic(), 0, 0)  # (time, steps, published) at the last report
 
         self._reference_sub = None
         self._reference_type = p['reference_type']
         self._playout_args = self._playout_args_of(p)
+        self._intake = ReferenceIntake(*self._intake_args_of(p))
         if self._reference_type == 'auto':
             self._type_timer = self.create_timer(0.2, self._detect_reference_type)
             self._detect_reference_type()
@@ -160,15 +174,18 @@ class SimNode(Node):
         source = 'position' if self._reference_type == OUTPUT_FLOAT64_ARRAY else values['reference_source']
         return values['playout_delay'], values['reference_timeout'], values['interpolation'], source
 
+    def _intake_args_of(self, values: dict) -> tuple:
+        delay, timeout, _, source = self._playout_args_of(values)
+        return timeout, delay, values['unstamped_period'], source == 'position'
+
     def _apply(self, params: CraneParams, values, changes):
         if {c.name for c in changes} & set(PARAMETER_NAMES):
             self._pending_params = params  # the loop applies it before its next step
         self._source, self._interpolation = values['reference_source'], values['interpolation']
         if values['noise'] != self._noise.std:
             self._noise = AngleNoise(values['noise'], self._noise.seed)
-        self._timeout_ns = round(values['reference_timeout'] * 1e9)
-        self._unstamped_period_ns = round(values['unstamped_period'] * 1e9)
         self._playout_args = self._playout_args_of(values)  # the loop swaps its playout when this changes
+        self._intake.configure(*self._intake_args_of(values))
 
     # -- references (executor thread) ----------------------------------------
 
@@ -187,55 +204,21 @@ class SimNode(Node):
         self.get_logger().info(f'reference type {kind}')
         if kind == OUTPUT_FLOAT64_ARRAY:  # positions only, timed by their arrival
             self._playout_args = (*self._playout_args[:3], 'position')  # what _playout_args_of gives now
+            self._intake.positions_only = True  # and _intake_args_of
             if self._source == 'acceleration':
                 self.get_logger().warn('float64_array references carry positions only: '
                                        'reconstructing the acceleration from them')
 
     def _on_reference(self, msg):
-        counts = self.counts
-        counts['received'] += 1
         now = self.get_clock().now().nanoseconds
         try:
             stamp, position, _, acceleration = read_reference(msg)
         except ValueError:
-            counts['malformed'] += 1
+            self._intake.count_malformed()
             return
-        stamped = bool(stamp)
-        if not stamped:  # a Float64MultiArray, or an unstamped point: timed by its arrival
-            stamp = self._arrival_stamp(now)
-        if self._playout_args[3] == 'position':  # only positions count
-            acceleration = 0.0
-        if not (math.isfinite(position) and math.isfinite(acceleration)):
-            counts['nonfinite'] += 1
-        elif stamped and now - stamp > self._timeout_ns:
-            counts['stale'] += 1
-        elif stamped and stamp <= self._last_stamp:
-            counts['out_of_order'] += 1
-        else:
-            interval = stamp - self._last_stamp
-            if stamped and interval < math.inf:  # (unstamped samples have no latency or gaps to see)
-                self._interval = min(self._interval, interval)
-                counts['missing'] += max(0, round(interval / self._interval) - 1)
-                self._latency.append(now - stamp)
-            self._last_stamp = stamp
-            counts['accepted'] += 1
-            self._inbox.append((stamp, position, acceleration))
-
-    def _arrival_stamp(self, now: int) -> int:
-        """A stamp for an unstamped sample (a Float64MultiArray): the sender's regular grid.
-
-        Without stamps only arrivals time the samples, and they bunch up
-        behind any delay; second differences of positions so timed would
-        explode. So each sample is stamped ``unstamped_period`` after the
-        previous one, as a controller taking commands at a fixed rate does;
-        the grid is re-anchored at the arrival when the two part by more than
-        the playout delay (the sender paused, or runs slower); the playout
-        differentiates positions over the plant's steps, so such a gap costs
-        a jerk, not the end position. A lost sample shifts the grid by a
-        period: an unstamped stream cannot tell.
-        """
-        grid = self._last_stamp + self._unstamped_period_ns
-        return grid if now - grid <= self._playout_args[0] * 1e9 else now
+        sample = self._intake.receive(now, stamp, position, acceleration)
+        if sample is not None:
+            self._inbox.append(sample)
 
     def _on_reset(self, request, response):
         self._reset_requested.set()
@@ -298,13 +281,15 @@ class SimNode(Node):
     # -- diagnostics (executor thread) ----------------------------------------
 
     def _report(self):
-        counts = dict(self.counts)
+        counts = dict(self._intake.counts)
+        for key, n in self.counts.items():
+            counts[key] = counts.get(key, 0) + n
         now = time.monotonic()
         t0, steps0, published0 = self._window
         self._window = (now, counts['steps'], counts['published'])
         elapsed = now - t0
         ignored = sum(counts[k] for k in ('nonfinite', 'stale', 'out_of_order', 'malformed'))
-        latency, self._latency = np.asarray(self._latency, dtype=float) * 1e-6, []
+        latency = np.asarray(self._intake.take_latencies(), dtype=float) * 1e-6
         p50, p99 = np.percentile(latency, [50, 99]) if latency.size else (math.nan, math.nan)
         state = self._sim.state
         error = self._loop_thread.error
@@ -316,7 +301,7 @@ class SimNode(Node):
             joint_states_rate_hz=(counts['published'] - published0) / elapsed,
             **lateness_summary_us(self._lateness.take()), **counts, ignored=ignored,
             reference_latency_p50_ms=p50, reference_latency_p99_ms=p99,
-            reference_interval_ms=self._interval * 1e-6,
+            reference_interval_ms=self._intake.sender_period_ns * 1e-6,
             reference_type=self._reference_type, reference_source=self._source,
             playout_delay=self._playout_args[0],
             interpolation=self._interpolation, y=state.y, theta1=state.theta1, theta2=state.theta2,

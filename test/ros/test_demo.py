@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-
 BIN = Path(sys.executable).parent
 DURATION, SETTLE = 2.5, 2.0  # the demo's default settle: more than the slow mode's 1.73 s period
 

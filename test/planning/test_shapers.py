@@ -11,12 +11,25 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.linalg import expm
 
 from crane_msgs_py.params import ParameterError
-from crane_planner.planning.shapers import (SHAPERS, Shaper, cascade, design, ei, ei_flanking_frequencies, mzv,
-                                   nzv, residual_vibration, zv, zvd, zvdd)
+from crane_planner.planning.shapers import (
+    SHAPERS,
+    Shaper,
+    cascade,
+    design,
+    ei,
+    ei_flanking_frequencies,
+    mzv,
+    nzv,
+    residual_vibration,
+    zv,
+    zvd,
+    zvdd,
+)
 
 ZERO_VIBRATION = ('zv', 'nzv', 'zvd', 'zvdd', 'mzv')
 DAMPINGS = (0.0, 0.05, 0.2)

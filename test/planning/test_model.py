@@ -3,7 +3,8 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from crane_msgs_py.params import CraneParams, ParameterError
 from crane_planner.planning.model import linearized_matrices, modal_frequencies

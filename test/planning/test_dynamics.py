@@ -12,8 +12,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.planning.dynamics import (PARAMETERS, SWING_STATES, augment, crane_ode, sensitivity_states,
-                                    swing_accelerations)
+from crane_planner.planning.dynamics import (
+    PARAMETERS,
+    SWING_STATES,
+    augment,
+    crane_ode,
+    sensitivity_states,
+    swing_accelerations,
+)
 from crane_planner.planning.model import linearized_matrices
 from crane_sim import dynamics as sim_dynamics
 

@@ -4,13 +4,12 @@ import math
 import numpy as np
 import pytest
 import scipy.linalg
+from references import lagrangian_energy
 
 from crane_msgs_py.params import CraneParams, ParameterError
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.profiles import quintic
-from crane_sim.simulator import (CraneSimulator, CraneState, SimulationError,
-                                 simulate)
-from references import lagrangian_energy
+from crane_sim.simulator import CraneSimulator, CraneState, SimulationError, simulate
 
 P = CraneParams()
 

@@ -11,10 +11,10 @@ import pytest
 
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import METHODS, SHAPER_METHODS
-from crane_planner.serving import Planner
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.plan import Plan
 from crane_planner.planning.shaped import shaped_plan
+from crane_planner.serving import Planner
 from crane_planner.streaming.hermite import QuinticHermite
 from crane_planner.streaming.knots import knot_times
 

@@ -10,8 +10,8 @@ import pytest
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import PlanError, PlanOptions
 from crane_planner.planning.direct import DirectSolver
-from crane_planner.planning.indirect import IndirectSolver
 from crane_planner.planning.dispatch import variational_solver
+from crane_planner.planning.indirect import IndirectSolver
 
 MODEL = CraneParams()  # Table 1, tau = 0.01 s
 D = 0.3

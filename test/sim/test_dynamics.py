@@ -1,11 +1,11 @@
 """crane_sim.dynamics against the paper's Eqs. 18-19 and the Lagrangian energy."""
 import numpy as np
 import pytest
+from references import lagrangian_energy, linearized_modes
 
 from crane_msgs_py.params import CraneParams
 from crane_sim.dynamics import load_excursion, swing_accelerations
 from crane_sim.simulator import simulate
-from references import lagrangian_energy, linearized_modes
 
 P = CraneParams()
 

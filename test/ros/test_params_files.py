@@ -6,14 +6,16 @@ the files are not regenerated. The nodes run as real processes and report
 their values over the parameter services.
 """
 import copy
+import json
 import sys
 import time
 from pathlib import Path
 
 import pytest
 import yaml
+from identification.recordings import TABLE1, record, run_identify, write_csv
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / 'devtools'))
 import make_params_files  # noqa: E402
 
@@ -94,3 +96,38 @@ def test_each_node_starts_from_its_file_and_reports_the_files_values(ros_domain,
     from rclpy.parameter import parameter_value_to_python
     for (name, value), got in zip(expected.items(), reported):
         assert parameter_value_to_python(got) == value, name
+
+
+def test_the_params_file_sets_the_planner_nodes_model(ros_domain, tmp_path):
+    """The planner started with identify's --params-out file (namespaced) reports the estimates as its parameters."""
+    import rclpy
+    from rclpy.parameter_client import AsyncParameterClient
+
+    from crane_planner.tools.processes import PLANNER, NodeGroup
+    truth = TABLE1.replace(L1=0.55, L2=0.3, tau=0.02, c1=0.003)
+    write_csv(tmp_path / 'move.csv', record(truth, reference=True))
+    out = run_identify('--csv', str(tmp_path / 'move.csv'), '--json', '--params-out', str(tmp_path / 'crane.yaml'))
+    estimates = json.loads(out.stdout)
+    rclpy.init()
+    node = rclpy.create_node('params_file_check', namespace='/cell_7')
+    try:
+        with NodeGroup(ros_domain, tmp_path / 'logs') as nodes:
+            nodes.start(*PLANNER, namespace='/cell_7', params={'solver_processes': 1},
+                        params_file=tmp_path / 'crane.yaml')
+            client = AsyncParameterClient(node, 'crane_planner')
+            deadline = time.monotonic() + 60.0
+            while not client.wait_for_services(0.2):
+                nodes.check_alive()
+                assert time.monotonic() < deadline, 'planner parameter services never appeared'
+            future = client.get_parameters(['L1', 'L2', 'm1', 'm2', 'c1', 'c2', 'tau'])
+            rclpy.spin_until_future_complete(node, future, timeout_sec=10.0)
+            values = {name: v.double_value for name, v in zip(['L1', 'L2', 'm1', 'm2', 'c1', 'c2', 'tau'],
+                                                               future.result().values)}
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    assert values['L1'] == estimates['L1'] and values['L2'] == estimates['L2']
+    assert values['c1'] == estimates['c1'] and values['tau'] == estimates['tau']
+    total = TABLE1.m1 + TABLE1.m2
+    assert values['m2'] / total == pytest.approx(estimates['mass_ratio'], rel=1e-12)
+    assert values['m1'] + values['m2'] == pytest.approx(total, rel=1e-12)

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from crane_msgs_py.params import CraneParams
+from crane_planner.planning import METHODS, SHAPER_METHODS
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.plan import PlanError
-from crane_planner.planning import METHODS, SHAPER_METHODS
 from crane_planner.planning.shapers import design
 
 NS = '/crane_it'
@@ -378,8 +378,8 @@ def test_impaired_stream_shows_delay_and_loss_and_every_node_survives(crane):
         mark = crane.diagnostics.mark()
         after = crane.values('crane_streamer', 'stream', mark)
         sim_after = crane.values('crane_sim', 'sim', mark)
-        received = [_values(s) for s in crane.diagnostics.statuses('crane_sim: sim',
-                                                                    hardware_id=f'{NS}/crane_sim')][-4:]  # the last seconds, all impaired
+        statuses = crane.diagnostics.statuses('crane_sim: sim', hardware_id=f'{NS}/crane_sim')
+        received = [_values(s) for s in statuses][-4:]  # the last seconds, all impaired
     finally:
         crane.driver.set_parameters('streamer', {'network.delay': 0.0, 'network.jitter': 0.0, 'network.loss': 0.0})
     # the streamer's own account: 5 % of the samples lost on the link
@@ -517,9 +517,9 @@ def test_axis_limit_set_on_the_planner_applies_to_the_next_request(crane):
 def test_fastest_services_answer_the_shortest_plan_within_the_limits_and_refuse_without(crane):
     """~/fastest/<method>: the goal stamp is ignored, the last pose carries the end time, equal to the
     planning core's own fastest plan; refused naming the missing limit when none is set."""
+    from crane_msgs_py.params import CraneParams
     from crane_planner.planning import PlanOptions
     from crane_planner.serving import Planner
-    from crane_msgs_py.params import CraneParams
     with pytest.raises(PlanError, match='needs max_velocity or max_acceleration'):
         crane.planner.fastest('zv', 5.0, 5.3)
     crane.driver.set_parameters('planner', {'max_velocity': 0.25, 'max_acceleration': 0.5})

@@ -9,11 +9,10 @@ import numpy as np
 import pytest
 
 from crane_msgs_py.params import CraneParams
+from crane_planner.planning import PlanOptions
 from crane_planner.planning.direct import DirectSolver
 from crane_planner.planning.plan import PlanError
-from crane_planner.planning import PlanOptions
 from crane_planner.planning.problem import Weights
-from crane_planner.planning.variational import VariationalSolver
 from crane_sim.metrics import swing_metrics
 from crane_sim.simulator import simulate
 
@@ -227,12 +226,3 @@ def test_axis_limit_holds_everywhere(limit, value):
 def test_infeasible_limits_are_errors_naming_the_limit(limits, named):
     with pytest.raises(PlanError, match=named):
         DirectSolver('nvf', PlanOptions(**limits)).solve(D, 3.0, IDEAL)
-
-
-def test_key_separates_structures_and_limit_values():
-    k = VariationalSolver.key
-    assert k('nvf', PlanOptions()) == k('nvf', PlanOptions(robust=('L2',)))  # robust set unused by NVF
-    assert k('rvf', PlanOptions()) != k('rvf', PlanOptions(robust=('L2',)))
-    assert k('nvf', PlanOptions(max_velocity=0.2)) != k('nvf', PlanOptions(max_velocity=0.3))
-    assert k('nvf', PlanOptions()) != k('nvf', PlanOptions(solver='indirect'))
-    hash(k('rvf', PlanOptions(robust=('L1', 'tau'), intervals=40)))

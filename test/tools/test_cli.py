@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from identification.recordings import TABLE1, record, run_identify, write_csv
 
 CRANE_PLAN = str(Path(sys.executable).parent / 'crane-plan')
 
@@ -113,3 +114,57 @@ def test_progress_on_a_terminal_is_a_bar_not_lines():
                 progress.step(f'step {k}')
     assert '\r' in term.getvalue() and '%' in term.getvalue() and 'crane-plan: sweep' not in term.getvalue()
     assert log.getvalue().splitlines() == [f'crane-plan: sweep {k + 1}/4 step {k}' for k in range(4)]
+
+
+def test_cli_prints_json_writes_a_params_file_and_a_plot(tmp_path):
+    truth = TABLE1.replace(L1=0.55, L2=0.3, tau=0.02, c1=0.003)
+    write_csv(tmp_path / 'move.csv', record(truth, reference=True))
+    out = run_identify('--csv', str(tmp_path / 'move.csv'), '--json', '--params-out', str(tmp_path / 'crane.yaml'),
+              '--plot', str(tmp_path / 'fit.png'))
+    assert out.returncode == 0, out.stderr
+    data = json.loads(out.stdout)
+    for key in ('L1', 'L2', 'mass_ratio', 'c1', 'c2', 'tau', 'omega1', 'omega2', 'zeta1', 'zeta2'):
+        assert isinstance(data[key], float) and isinstance(data[f'{key}_std'], float) and data[f'{key}_std'] >= 0
+    assert data['L1'] == pytest.approx(0.55, rel=0.01) and data['tau'] == pytest.approx(0.02, rel=0.02)
+    assert 0 < data['rms_residual_rad'] < 2e-3
+    text = (tmp_path / 'crane.yaml').read_text()
+    assert 'ros__parameters:' in text and f'L1: {data["L1"]!r}' in text and 'tau:' in text
+    assert (tmp_path / 'fit.png').stat().st_size > 10_000
+    human = run_identify('--csv', str(tmp_path / 'move.csv'))
+    assert human.returncode == 0 and 'mode 1: omega' in human.stdout and 'L1 (m)' in human.stdout
+
+
+@pytest.mark.parametrize('content, needle', [
+    ('t,cart,theta1\n0,0,0\n', 'lacks column(s) theta2'),
+    ('t,cart,theta1,theta2\n' + ''.join(f'{k * 0.02},0,0,0\n' for k in range(30)) + '0.3,0,x,0\n', 'not a number'),
+    ('t,cart,theta1,theta2\n' + ''.join(f'{k * 0.02},0,0,{k}\n' for k in range(30)) + '0.1,0,0,0\n',
+     't must increase strictly'),
+    ('t,cart,theta1,theta2\n' + ''.join(f'{k * 0.02},0,nan,0\n' for k in range(30)), 'theta1 is not finite'),
+    ('', 'is empty'),
+])
+def test_cli_refuses_bad_recordings_in_one_line(tmp_path, content, needle):
+    path = tmp_path / 'bad.csv'
+    path.write_text(content)
+    out = run_identify('--csv', str(path))
+    assert out.returncode == 2 and needle in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert 'Traceback' not in out.stderr
+
+
+def test_cli_refuses_a_too_short_recording_and_a_missing_file(tmp_path):
+    write_csv(tmp_path / 'short.csv', record(TABLE1, after=1.0))
+    out = run_identify('--csv', str(tmp_path / 'short.csv'))
+    assert out.returncode == 2 and 'less than one period of the slow mode' in out.stderr
+    out = run_identify('--csv', str(tmp_path / 'missing.csv'))
+    assert out.returncode == 2 and 'cannot read' in out.stderr and 'Traceback' not in out.stderr
+
+
+def test_cli_fastest_prints_the_duration_and_refuses_without_limits():
+    out = subprocess.run([CRANE_PLAN, 'plan', '--method', 'zv', '--displacement', '0.3', '--fastest',
+                          '--max-velocity', '0.25', '--max-acceleration', '0.5', '--json'],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    data = json.loads(out.stdout)
+    assert data['duration'] == pytest.approx(2.1427, abs=1e-3) and data['peak']['acceleration'] <= 0.5
+    out = subprocess.run([CRANE_PLAN, 'plan', '--method', 'zv', '--displacement', '0.3', '--fastest'],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and 'needs max_velocity or max_acceleration' in out.stderr

@@ -7,12 +7,12 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from crane_msgs_py.params import CraneParams
+from crane_planner.planning import PlanOptions
 from crane_planner.planning.model import linearized_matrices, modal_frequencies
 from crane_planner.planning.plan import PlanError
-from crane_planner.planning import PlanOptions
-from crane_planner.serving import Planner
 from crane_planner.planning.profiles import quintic
 from crane_planner.planning.shaped import shaped_plan
+from crane_planner.serving import Planner
 
 PAPER_OMEGAS = (3.640, 9.017)  # Table 1, rad/s
 POSITIVE = ('zv', 'zvd', 'ei', 'mzv', 'zvdd')

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ('crane_msgs_py', 'crane_sim', 'crane_planner')
 EXECUTABLES = {'crane_planner': ('planner', 'streamer', 'crane-plan'), 'crane_sim': ('sim',)}
 
@@ -59,7 +59,8 @@ def test_colcon_build_installs_each_packages_parameters_files(colcon_install):
 ANSWERING_SERVICE = {'planner': 'crane_planner/plan/zv', 'streamer': 'crane_streamer/start', 'sim': 'crane_sim/reset'}
 
 
-@pytest.mark.parametrize('pkg, exe', [('crane_planner', 'planner'), ('crane_planner', 'streamer'), ('crane_sim', 'sim')])
+@pytest.mark.parametrize('pkg, exe', [('crane_planner', 'planner'), ('crane_planner', 'streamer'),
+                                      ('crane_sim', 'sim')])
 def test_colcon_installed_node_starts_and_answers(colcon_install, ros_domain, tmp_path, pkg, exe):
     """The colcon-installed lib/<pkg>/<exe> runs the installed code and offers its services."""
     import rclpy

@@ -1,0 +1,212 @@
+"""The streamer's motion rules: which trajectories become motions, and what each tick publishes.
+
+The stream is a clock of ticks: tick k is due at ``epoch + k * period`` (ns
+of ROS time) and publishes one sample (position, velocity, acceleration).
+Between motions it publishes the hold position at rest, so the receiver
+never sees a jump, and a trajectory is accepted as a ``Motion`` only if it
+can be streamed without one:
+
+- the stream must be running (not stopped, and started: ticks have an
+  epoch to align the motion to);
+- one motion at a time: none may be streaming or queued, since a second one
+  could only start where the first ends, and nobody promised that;
+- it must start within ``start_tolerance`` (m) of the hold position;
+- it must not have ended already (a plan that came too late for all of it).
+
+A motion starts at its start stamp plus its first knot's time (a zero stamp:
+at once), from the first tick at or after that moment, and is sampled at
+the tick times. A start the loop has already passed (the trajectory came
+late) is shifted to the next tick the loop cannot have reached yet and
+streamed whole: the receiver gets the planned motion late, never the rest of
+it from the middle, which would be a jump.
+
+A motion is sampled once, on acceptance, at every tick it will occupy
+(quintic Hermite through the knots, ``hermite.QuinticHermite``), so the loop
+calling ``sample`` a thousand times a second only looks samples up: it
+allocates nothing beyond the returned tuple and takes the lock only to take
+a motion over and to end one. The last sample is the first tick at or past
+the motion's end (the end state); after it the stream holds the end position.
+
+Threads: ``accept``, ``stop`` and ``resume`` may run on one thread (the
+node's executor) while ``start`` and ``sample`` run on another (the loop).
+Pure Python, no ROS import.
+"""
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .hermite import QuinticHermite
+
+# The stream's states: stopped (~/stop; waits for resume), starting (resumed or
+# never stopped, waits for the loop's start), running (ticks have an epoch).
+STOPPED, STARTING, RUNNING = 'stopped', 'starting', 'running'
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A trajectory sampled at the ticks it occupies: tick ``first_tick + i`` publishes sample i."""
+
+    first_tick: int
+    position: list      # m
+    velocity: list      # m/s
+    acceleration: list  # m/s^2
+    duration: float     # s
+    late: float         # s the start was shifted: the trajectory came after its start stamp
+
+    @property
+    def end_position(self) -> float:
+        return self.position[-1]
+
+    @property
+    def summary(self) -> str:
+        return (f'{self.position[0]:.6g} -> {self.end_position:.6g} m in {self.duration:.3f} s, '
+                f'{len(self.position)} ticks' + (f', started {self.late:.3f} s late' if self.late else ''))
+
+
+class ReferenceStream:
+    """The samples due at the stream's ticks: hold positions and accepted motions.
+
+    Args:
+        period_ns: tick period (ns), > 0.
+        hold: hold position (m) before the first motion.
+        start_tolerance: largest distance (m) between a trajectory's first
+            position and the hold position; may be changed at any time.
+        stopped: start stopped (refusing trajectories until ``resume``).
+    """
+
+    def __init__(self, period_ns: int, hold: float = 0.0, start_tolerance: float = 1e-6, stopped: bool = False):
+        if not period_ns > 0:
+            raise ValueError(f'the tick period must be > 0 ns, got {period_ns}')
+        self.period_ns = int(period_ns)
+        self.start_tolerance = float(start_tolerance)
+        # The loop (sample) owns _hold and _motion; accept hands a motion over
+        # through _incoming. The lock guards the hand-over and the state.
+        self._lock = threading.Lock()
+        self._hold = float(hold)
+        self._motion: Motion | None = None
+        self._incoming: Motion | None = None
+        self._state = STOPPED if stopped else STARTING
+        self._epoch_ns = 0  # ROS time (ns) of tick 0 while running
+        self._tick: Callable[[], int] | None = None
+
+    @property
+    def hold(self) -> float:
+        """The position (m) published last, or held before the first sample."""
+        return self._hold
+
+    @property
+    def streaming(self) -> bool:
+        """Whether a motion is being streamed (taken over and not yet ended)."""
+        return self._motion is not None
+
+    @property
+    def running(self) -> bool:
+        """Whether ticks have an epoch: started and not stopped since."""
+        return self._state is RUNNING
+
+    # -- the stream's state -----------------------------------------------------
+
+    def start(self, epoch_ns: int, tick: Callable[[], int]) -> bool:
+        """The loop's ticks begin: tick k is due at ``epoch_ns + k * period_ns`` (ROS time).
+
+        ``tick`` returns the tick the loop is at (the one it samples next or
+        is sampling); a motion is never given a first tick before ``tick() + 2``,
+        which the loop cannot have passed. False, and nothing changes, if the
+        stream was stopped meanwhile (a ``stop`` racing the loop's start).
+        """
+        with self._lock:
+            if self._state is STOPPED:
+                return False
+            self._epoch_ns, self._tick, self._state = int(epoch_ns), tick, RUNNING
+            return True
+
+    def stop(self) -> Motion | None:
+        """Stop: refuse trajectories until ``resume``; drop the streaming and the queued motion.
+
+        The hold stays at the last sample published, so the stream resumes
+        there without a jump. Returns the motion that was streaming, if any.
+        """
+        with self._lock:
+            dropped = self._motion
+            self._motion = self._incoming = None
+            self._state, self._tick = STOPPED, None
+            return dropped
+
+    def resume(self) -> None:
+        """Undo ``stop``: trajectories are accepted again once the loop calls ``start``."""
+        with self._lock:
+            if self._state is STOPPED:
+                self._state = STARTING
+
+    # -- trajectories -------------------------------------------------------------
+
+    def accept(self, t, position, velocity, acceleration, start_ns: int, now_ns: int) -> Motion:
+        """Queue a trajectory as the next motion; ValueError says why not.
+
+        Args:
+            t: knot times (s), strictly increasing.
+            position, velocity, acceleration: the knots' states (m, m/s, m/s^2).
+            start_ns: the start stamp (ns of ROS time): knot time t is due at
+                ``start_ns + t``; 0 starts the motion at once.
+            now_ns: the time (ROS, ns) the trajectory arrived.
+        """
+        interp = QuinticHermite(t, position, velocity, acceleration)  # ValueError: no points, not increasing, ...
+        t, p = interp.t, interp.position
+        duration_ns = round((t[-1] - t[0]) * 1e9)
+        start_ns = start_ns + round(t[0] * 1e9) if start_ns else 0
+        if start_ns and start_ns + duration_ns < now_ns:
+            raise ValueError(f'it ended {(now_ns - start_ns - duration_ns) * 1e-9:.3f} s ago')
+        period = self.period_ns
+        with self._lock:
+            if self._state is STOPPED:
+                raise ValueError('the streamer is stopped (call ~/start)')
+            if self._state is not RUNNING:
+                raise ValueError('the stream has not started yet')
+            if self._motion is not None or self._incoming is not None:
+                raise ValueError('a motion is streaming; a new one is accepted only after it ends')
+            if abs(p[0] - self._hold) > self.start_tolerance:
+                raise ValueError(f'it starts at {p[0]:.6g} m, not at the hold position {self._hold:.6g} m '
+                                 f'(a jump of {p[0] - self._hold:.3g} m)')
+            epoch = self._epoch_ns
+            first = self._tick() + 2  # a tick the loop cannot have reached yet
+            offset = late = 0  # offset: time (ns) into the motion at the first tick
+            if start_ns:
+                due = -(-(start_ns - epoch) // period)  # first tick at or after the start
+                if due >= first:
+                    first, offset = due, epoch + due * period - start_ns
+                else:
+                    late = epoch + first * period - start_ns
+            n = max(0, -(-(duration_ns - offset) // period)) + 1  # the last sample at or past the end
+            pos, vel, acc = interp(t[0] + (offset + period * np.arange(n)) * 1e-9)
+            self._incoming = Motion(first, pos.tolist(), vel.tolist(), acc.tolist(), duration_ns * 1e-9, late * 1e-9)
+            return self._incoming
+
+    # -- the loop -------------------------------------------------------------------
+
+    def sample(self, tick: int) -> tuple[float, float, float]:
+        """Position (m), velocity (m/s), acceleration (m/s^2) due at ``tick``.
+
+        Takes the queued motion over at its first tick, ends a motion after
+        its last sample and holds its end position at rest.
+        """
+        motion = self._motion
+        if motion is None:
+            motion = self._incoming
+            if motion is None or tick < motion.first_tick:
+                return self._hold, 0.0, 0.0
+            with self._lock:
+                if self._incoming is not motion:  # dropped by stop() meanwhile
+                    return self._hold, 0.0, 0.0
+                self._motion, self._incoming = motion, None
+        i = tick - motion.first_tick
+        if i < len(motion.position):
+            self._hold = motion.position[i]
+            return motion.position[i], motion.velocity[i], motion.acceleration[i]
+        with self._lock:
+            self._hold = motion.end_position
+            self._motion = None
+        return self._hold, 0.0, 0.0

@@ -1,0 +1,130 @@
+"""The simulator's reference intake: which received samples reach the playout, on which stamps.
+
+Every reference sample received is counted and checked before the playout
+(``playout.ReferencePlayout``) gets it; the playout needs finite samples in
+strictly increasing stamp order. A sample is ignored and counted when
+
+- its position or acceleration is not finite (``nonfinite``): integrated, it
+  would poison the plant for good;
+- it is stamped and older than ``timeout`` on arrival (``stale``): the
+  playout has declared the stream dead by then and would not use it;
+- it is stamped no later than the newest accepted sample (``out_of_order``):
+  a duplicate, or overtaken on the way; its interval has been played or
+  decided already;
+
+and a message that is not one sample is counted ``malformed`` by the caller
+(``count_malformed``). The rest are ``accepted``.
+
+The stream is measured as it arrives, from the second accepted stamped
+sample on (the first has no interval): the latency of each (arrival -
+stamp); the sender's period, taken as the shortest interval seen between
+consecutive stamps (nothing to configure, and a lost sample only lengthens
+an interval); and ``missing`` samples, counted from the longer intervals
+(one of n periods misses n - 1).
+
+With only positions counting (``positions_only``: the playout reconstructs
+the acceleration from positions, as for a Float64MultiArray, which carries
+none) the acceleration is set to 0, so that an absent (NaN) one does not
+make the sample non-finite.
+
+Unstamped samples (a Float64MultiArray, or a zero stamp) are timed by their
+arrival, and arrivals bunch up behind any delay; second differences of
+positions so timed would explode. So each is stamped ``unstamped_period``
+after the previous one, as a controller taking commands at a fixed rate
+does, and the grid is re-anchored at the arrival when the two part by more
+than the playout delay (the sender paused, or runs slower); the playout
+differentiates positions over the plant's steps, so such a gap costs a
+jerk, not the end position. A lost sample shifts the grid by a period: an
+unstamped stream cannot tell. They are never stale or out of order, and
+show no latency or gaps.
+
+Parameters are in seconds; stamps and arrival times are integer
+nanoseconds of ROS time, as in the messages. Pure Python, no ROS import.
+"""
+from __future__ import annotations
+
+import math
+
+#: The intake's counts, in the order the diagnostics list them.
+COUNTS = ('received', 'accepted', 'nonfinite', 'stale', 'out_of_order', 'malformed', 'missing')
+
+
+class ReferenceIntake:
+    """Checks, stamps and counts received reference samples; not thread-safe (one receiving thread).
+
+    Args:
+        timeout: age (s) on arrival beyond which a stamped sample is stale.
+        playout_delay: the playout's delay (s): an unstamped sample arriving
+            more than this after its place on the grid re-anchors the grid.
+        unstamped_period: the grid's period (s) for unstamped samples.
+        positions_only: only positions count (accelerations are set to 0).
+
+    ``counts`` maps each of ``COUNTS`` to its number so far.
+    """
+
+    def __init__(self, timeout: float, playout_delay: float, unstamped_period: float, positions_only: bool = False):
+        self.configure(timeout, playout_delay, unstamped_period, positions_only)
+        self.counts = dict.fromkeys(COUNTS, 0)
+        self._last_stamp = -math.inf  # ns, of the newest accepted sample
+        self._period = math.inf       # ns, the shortest interval seen between stamped samples
+        self._latencies: list[int] = []
+
+    def configure(self, timeout: float, playout_delay: float, unstamped_period: float,
+                  positions_only: bool = False) -> None:
+        """Change the parameters (as in the constructor); the counts and the stream's history stay."""
+        self.positions_only = bool(positions_only)
+        self._timeout_ns = round(timeout * 1e9)
+        self._regrid_ns = playout_delay * 1e9
+        self._unstamped_period_ns = round(unstamped_period * 1e9)
+
+    @property
+    def sender_period_ns(self) -> float:
+        """The sender's period (ns): the shortest interval seen between stamps; inf before two."""
+        return self._period
+
+    def take_latencies(self) -> list[int]:
+        """The latencies (arrival - stamp, ns) of the stamped samples accepted since the last call."""
+        latencies, self._latencies = self._latencies, []
+        return latencies
+
+    def count_malformed(self) -> None:
+        """Count a received message that is not one sample (it is ignored)."""
+        self.counts['received'] += 1
+        self.counts['malformed'] += 1
+
+    def receive(self, now_ns: int, stamp_ns: int | None, position: float,
+                acceleration: float) -> tuple[int, float, float] | None:
+        """The sample for the playout, (stamp ns, position m, acceleration m/s^2), or None if ignored.
+
+        Args:
+            now_ns: arrival time (ns of ROS time).
+            stamp_ns: the sample's stamp (ns); 0 or None if unstamped.
+            position, acceleration: the sample (m, m/s^2).
+        """
+        counts = self.counts
+        counts['received'] += 1
+        stamped = bool(stamp_ns)
+        stamp = stamp_ns if stamped else self._grid_stamp(now_ns)
+        if self.positions_only:
+            acceleration = 0.0
+        if not (math.isfinite(position) and math.isfinite(acceleration)):
+            counts['nonfinite'] += 1
+        elif stamped and now_ns - stamp > self._timeout_ns:
+            counts['stale'] += 1
+        elif stamped and stamp <= self._last_stamp:
+            counts['out_of_order'] += 1
+        else:
+            interval = stamp - self._last_stamp
+            if stamped and interval < math.inf:  # unstamped samples have no latency or gaps to see
+                self._period = min(self._period, interval)
+                counts['missing'] += max(0, round(interval / self._period) - 1)
+                self._latencies.append(now_ns - stamp)
+            self._last_stamp = stamp
+            counts['accepted'] += 1
+            return stamp, position, acceleration
+        return None
+
+    def _grid_stamp(self, now_ns: int) -> int:
+        """An unstamped sample's stamp: a period after the newest, or its arrival if that is too far."""
+        grid = self._last_stamp + self._unstamped_period_ns
+        return grid if now_ns - grid <= self._regrid_ns else now_ns

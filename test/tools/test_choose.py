@@ -1,0 +1,31 @@
+"""crane-plan choose (crane_planner.tools.choose), run as the installed console script: the fastest method
+within the residual tolerance over the L1 band, the others' reasons, the figure, the refusal."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+CRANE_PLAN = str(Path(sys.executable).parent / 'crane-plan')
+
+
+def test_choose_marks_the_fastest_method_within_the_tolerance_and_says_why_not_the_others(tmp_path):
+    out = subprocess.run([CRANE_PLAN, 'choose', '--displacement', '0.3', '--max-velocity', '0.25',
+                          '--max-acceleration', '0.5', '--methods', 'zv,zvd,zvdd', '--points', '5',
+                          '--tolerance-mm', '1', '--json', '--plot', str(tmp_path / 'choose.png')],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    data = json.loads(out.stdout)
+    rows = {m['method']: m for m in data['methods']}
+    assert len(data['plants']) == 5 and min(p['L1'] for p in data['plants']) == pytest.approx(0.47 * 0.8)
+    chosen = rows[data['chosen']]
+    assert chosen['worst_residual_mm'] <= 1.0 and chosen['verdict'].startswith('chosen')
+    for row in rows.values():  # every faster method is beyond the tolerance, and says so
+        if row['duration'] < chosen['duration']:
+            assert row['worst_residual_mm'] > 1.0 and 'exceeds 1 mm' in row['verdict']
+    # the worst residual is the band's: ZV, tuned to the nominal L1, leaves far more at L1 -20 %
+    assert rows['zv']['worst_residual_mm'] > 10 * min(rows['zv']['residual_mm'])
+    assert (tmp_path / 'choose.png').stat().st_size > 10_000
+    bad = subprocess.run([CRANE_PLAN, 'choose', '--displacement', '0.3'], capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and 'needs axis limits' in bad.stderr
