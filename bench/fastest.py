@@ -14,9 +14,9 @@ import time
 
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import PlanOptions
-from crane_planner.serving import Planner
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.shaped import shaped_plan
+from crane_planner.serving import Planner
 from crane_planner.tools.choose import band, choose
 from crane_planner.tools.cli import CHOOSE_SETTLE
 

@@ -35,8 +35,6 @@ def main() -> int:
 
 
 def measure(args, env: dict) -> int:
-    from crane_planner.tools.processes import PLANNER, NodeGroup
-
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
@@ -44,6 +42,7 @@ def measure(args, env: dict) -> int:
     from crane_msgs_py.diagnostics import status_float, status_values
     from crane_msgs_py.runner import spinning
     from crane_planner.planning import METHODS
+    from crane_planner.tools.processes import PLANNER, NodeGroup
 
     rclpy.init()
     node = rclpy.create_node('ros_roundtrip_bench', namespace='/bench')

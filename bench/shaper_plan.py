@@ -10,8 +10,8 @@ import sys
 import time
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning import SHAPER_METHODS
+from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.shaped import shaped_plan
 
 RUNS = 200

@@ -49,8 +49,6 @@ def main() -> int:
 
 
 def measure(args, env: dict) -> int:
-    from crane_planner.tools.processes import SIM, STREAMER, NodeGroup
-
     import rclpy
     from rclpy.experimental import EventsExecutor
     from sensor_msgs.msg import JointState
@@ -61,6 +59,7 @@ def measure(args, env: dict) -> int:
     from crane_msgs_py.names import JOINT_STATES_TOPIC, REFERENCE_TOPIC
     from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS
     from crane_msgs_py.runner import spinning
+    from crane_planner.tools.processes import SIM, STREAMER, NodeGroup
 
     ns = '/bench'
     workdir = Path(tempfile.mkdtemp(prefix='streamer-timing-'))
