@@ -610,26 +610,51 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
 
 def test_markers_draw_the_crane_of_the_published_joint_states(crane):
     """crane_markers at the joint_states rate, in crane_base: the masses where the same joint_states put
-    them (x1 = y - L1 sin th1, x2 = x1 - L2 sin(th1 + th2); z down the cables) within 1e-9 m."""
+    them (x1 = y - L1 sin th1, x2 = x1 - L2 sin(th1 + th2); z down the cables) within 1e-9 m.
+
+    Both streams are read on a node and executor of their own with queues of 10 s, as ``references()``
+    does: this process (its Python threads, the harness's executor among them) has stalled for
+    100-500 ms on a loaded host while DDS received every frame on time, and a reader queue of the
+    markers' own depth (5 frames, 100 ms: RViz's) then dropped frames that looked like a sim
+    publishing markers at 39 Hz.
+    """
+    import rclpy
+    from rclpy.experimental import EventsExecutor
     from sensor_msgs.msg import JointState
     from visualization_msgs.msg import MarkerArray
 
     from crane_msgs_py.conversions import CABLES_MARKER, CART_MARKER, MASS1_MARKER, MASS2_MARKER, stamp_ns
+    from crane_msgs_py.names import JOINT_STATES_TOPIC, MARKERS_TOPIC
     from crane_msgs_py.qos import JOINT_STATES_QOS, MARKERS_QOS
+    from crane_msgs_py.runner import spinning
     L1, L2 = 0.47, 0.391
     states, markers = {}, {}
-    subs = [crane.node.create_subscription(JointState, 'joint_states',
-                                           lambda m: states.setdefault(stamp_ns(m.header.stamp), m), JOINT_STATES_QOS),
-            crane.node.create_subscription(MarkerArray, 'crane_markers',
-                                           lambda m: markers.setdefault(stamp_ns(m.markers[0].header.stamp), m),
-                                           MARKERS_QOS)]
+    deep_states, deep_markers = copy.copy(JOINT_STATES_QOS), copy.copy(MARKERS_QOS)
+    deep_states.depth = deep_markers.depth = 500  # 10 s at 50 Hz; the depth is the reader's own
+    node = rclpy.create_node('crane_it_markers', namespace=NS)
+    newest = {'states': 0, 'markers': 0}  # stamp of the newest message of each stream
+
+    def keep(into: dict, stream: str, stamp: int, msg):
+        into.setdefault(stamp, msg)
+        newest[stream] = max(newest[stream], stamp)
+
+    node.create_subscription(JointState, JOINT_STATES_TOPIC,
+                             lambda m: keep(states, 'states', stamp_ns(m.header.stamp), m), deep_states)
+    node.create_subscription(MarkerArray, MARKERS_TOPIC,
+                             lambda m: keep(markers, 'markers', stamp_ns(m.markers[0].header.stamp), m), deep_markers)
+    executor = EventsExecutor()  # takes no new entities while spinning: everything is added first
+    executor.add_node(node)
     try:
-        start_ns, _, _ = crane.driver.move('zv', crane.hold, crane.next_goal(), 2.0)  # let it swing
-        crane.hold = crane.next_goal()
-        crane.sleep_until(start_ns + 1_500_000_000)
+        with spinning(executor):
+            start_ns, _, _ = crane.driver.move('zv', crane.hold, crane.next_goal(), 2.0)  # let it swing
+            crane.hold = crane.next_goal()
+            crane.sleep_until(start_ns + 1_500_000_000)
+            # what is still queued counts too: both streams up to the newest stamp either has now
+            last = max(newest.values())
+            crane.driver.wait_until(lambda: min(newest.values()) >= last, 5.0,
+                                    'joint_states and crane_markers did not catch up within 5 s')
     finally:
-        for sub in subs:
-            crane.node.destroy_subscription(sub)
+        node.destroy_node()
     common = sorted(set(states) & set(markers))
     assert len(common) >= 50, f'{len(common)} stamps with both joint_states and markers'
     swing = 0.0
