@@ -19,7 +19,6 @@ recorded by header stamps over at least 60 s (the load goes on until then):
     .venv/bin/python bench/service_load.py [--requests 2000] [--threads 8] [--seed 1]
 """
 import argparse
-import copy
 import json
 import math
 import os
@@ -154,7 +153,7 @@ def measure(args, env: dict) -> int:
     from crane_msgs_py.client import PlannerClient
     from crane_msgs_py.conversions import stamp_ns
     from crane_msgs_py.names import JOINT_STATES_TOPIC
-    from crane_msgs_py.qos import JOINT_STATES_QOS
+    from crane_msgs_py.qos import JOINT_STATES_QOS, recording
     from crane_msgs_py.runner import spinning
     from crane_planner.tools.harness import start_crane_nodes
     from crane_planner.tools.processes import NodeGroup
@@ -169,10 +168,8 @@ def measure(args, env: dict) -> int:
     # lag must not look like a gap in the sim's stamps
     recorder = rclpy.create_node('service_load_recorder', namespace=NS)
     stamps: list = []
-    deep = copy.copy(JOINT_STATES_QOS)
-    deep.depth = 5000
     recorder.create_subscription(JointState, JOINT_STATES_TOPIC, lambda m: stamps.append(stamp_ns(m.header.stamp)),
-                                 deep)
+                                 recording(JOINT_STATES_QOS, 100.0, 50.0))
     rec_executor = EventsExecutor()
     rec_executor.add_node(recorder)
     result = {'requests': len(mix), 'threads': args.threads, 'seed': args.seed, 'rate_per_thread_hz': args.rate,

@@ -5,7 +5,6 @@ stopped (SIGINT, then kill) however the tests end. The test process talks to
 the nodes over their ROS surface only: services, topics, parameters and
 /diagnostics (contract: ROS 2 nodes).
 """
-import copy
 import math
 import time
 from contextlib import contextmanager
@@ -115,16 +114,14 @@ class Crane:
 
         from crane_msgs_py.conversions import read_reference
         from crane_msgs_py.names import REFERENCE_TOPIC
-        from crane_msgs_py.qos import REFERENCE_EVERY_SAMPLE_QOS
+        from crane_msgs_py.qos import REFERENCE_EVERY_SAMPLE_QOS, recording
         from crane_msgs_py.runner import spinning
         rows = []
         node = rclpy.create_node('crane_it_recorder', namespace=NS)
         if arrival:
-            deep = copy.copy(REFERENCE_EVERY_SAMPLE_QOS)
-            deep.depth = 10_000
             node.create_subscription(JointTrajectory, REFERENCE_TOPIC,
                                      lambda m, info: rows.append((*read_reference(m), info['received_timestamp'])),
-                                     deep)
+                                     recording(REFERENCE_EVERY_SAMPLE_QOS, 10.0, 1000.0))
         else:
             node.create_subscription(JointTrajectory, REFERENCE_TOPIC, lambda m: rows.append(read_reference(m)),
                                      REFERENCE_EVERY_SAMPLE_QOS)
@@ -625,12 +622,11 @@ def test_markers_draw_the_crane_of_the_published_joint_states(crane):
 
     from crane_msgs_py.conversions import CABLES_MARKER, CART_MARKER, MASS1_MARKER, MASS2_MARKER, stamp_ns
     from crane_msgs_py.names import JOINT_STATES_TOPIC, MARKERS_TOPIC
-    from crane_msgs_py.qos import JOINT_STATES_QOS, MARKERS_QOS
+    from crane_msgs_py.qos import JOINT_STATES_QOS, MARKERS_QOS, recording
     from crane_msgs_py.runner import spinning
     L1, L2 = 0.47, 0.391
     states, markers = {}, {}
-    deep_states, deep_markers = copy.copy(JOINT_STATES_QOS), copy.copy(MARKERS_QOS)
-    deep_states.depth = deep_markers.depth = 500  # 10 s at 50 Hz; the depth is the reader's own
+    deep_states, deep_markers = (recording(qos, 10.0, 50.0) for qos in (JOINT_STATES_QOS, MARKERS_QOS))
     node = rclpy.create_node('crane_it_markers', namespace=NS)
     newest = {'states': 0, 'markers': 0}  # stamp of the newest message of each stream
 

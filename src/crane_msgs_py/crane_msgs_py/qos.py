@@ -5,6 +5,8 @@ them from here rather than spelling them out.
 """
 from __future__ import annotations
 
+import copy
+
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 #: ``trajectory``: the last successful plan is latched, so a streamer that
@@ -55,3 +57,17 @@ MARKERS_QOS = QoSProfile(
 DIAGNOSTICS_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=20,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def recording(profile: QoSProfile, seconds: float, rate_hz: float) -> QoSProfile:
+    """A reader's copy of ``profile`` whose queue holds ``seconds`` of a ``rate_hz`` stream.
+
+    For readers that must not lose a sample of a stream they record (tests,
+    benches, the harness behind ``crane-demo``): a Python process can stall
+    for hundreds of ms on a loaded host while DDS keeps receiving on time,
+    and a queue of the publisher's depth then drops what arrived meanwhile.
+    The depth is the reader's own: the other policies match the publisher's.
+    """
+    deep = copy.copy(profile)
+    deep.depth = max(profile.depth, round(seconds * rate_hz))
+    return deep

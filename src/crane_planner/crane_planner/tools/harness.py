@@ -35,7 +35,7 @@ from crane_msgs_py.names import (
     TRAJECTORY_TOPIC,
     service_of,
 )
-from crane_msgs_py.qos import JOINT_STATES_QOS, TRAJECTORY_QOS
+from crane_msgs_py.qos import JOINT_STATES_QOS, TRAJECTORY_QOS, recording
 from crane_msgs_py.runner import spinning
 
 from .processes import PLANNER, SIM, STREAMER, NodeGroup
@@ -79,8 +79,9 @@ class CraneHarness:
         self._slowest_plan = 0.0
         self._states: list = []  # (stamp ns, theta1, theta2, cart)
         self._trajectories: dict = {}  # start stamp ns -> JointTrajectory
-        self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state, JOINT_STATES_QOS,
-                                      callback_group=group)
+        # every sample counts (the residuals are computed from them): 10 s of queue for this process's stalls
+        self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state,
+                                      recording(JOINT_STATES_QOS, 10.0, 50.0), callback_group=group)
         self.node.create_subscription(JointTrajectory, TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS,
                                       callback_group=group)
         self._trajectory_pub = self.node.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
