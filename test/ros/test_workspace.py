@@ -9,8 +9,15 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ('crane_msgs_py', 'crane_sim', 'crane_planner')
+PYTHON_PACKAGES = ('crane_msgs_py', 'crane_sim', 'crane_planner')
+INTERFACE_PACKAGES = ('crane_interfaces',)
+PACKAGES = PYTHON_PACKAGES + INTERFACE_PACKAGES
 EXECUTABLES = {'crane_planner': ('planner', 'streamer', 'crane-plan'), 'crane_sim': ('sim',)}
+#: What rosidl_generate_interfaces installs into lib/ per package: the C/C++ code and every type support.
+TYPESUPPORT_LIBRARIES = ('rosidl_generator_c', 'rosidl_generator_py', 'rosidl_typesupport_c',
+                         'rosidl_typesupport_cpp', 'rosidl_typesupport_fastrtps_c', 'rosidl_typesupport_fastrtps_cpp',
+                         'rosidl_typesupport_introspection_c', 'rosidl_typesupport_introspection_cpp')
+INTERFACE_FILES = ('msg/Move.msg', 'msg/PlanInfo.msg', 'srv/PlanMove.srv', 'action/ExecuteMove.action')
 
 
 @pytest.mark.parametrize('pkg', PACKAGES)
@@ -18,19 +25,48 @@ def test_package_xml_format_3(pkg):
     root = ET.parse(ROOT / 'src' / pkg / 'package.xml').getroot()
     assert root.get('format') == '3'
     assert root.findtext('name') == pkg
-    assert root.find('export/build_type').text == 'ament_python'
-    assert (ROOT / 'src' / pkg / 'resource' / pkg).exists()
+    if pkg in PYTHON_PACKAGES:
+        assert root.find('export/build_type').text == 'ament_python'
+        assert (ROOT / 'src' / pkg / 'resource' / pkg).exists()
+    else:  # an interface package: ament_cmake + rosidl
+        assert root.find('export/build_type').text == 'ament_cmake'
+        assert {e.text for e in root.findall('buildtool_depend')} >= {'ament_cmake', 'rosidl_default_generators'}
+        assert root.findtext('member_of_group') == 'rosidl_interface_packages'
+        assert (ROOT / 'src' / pkg / 'CMakeLists.txt').exists()
+
+
+def test_interface_package_generates_every_interface_file():
+    """CMakeLists.txt names each .msg/.srv/.action of the package (a forgotten one would not be built)."""
+    for pkg in INTERFACE_PACKAGES:
+        base = ROOT / 'src' / pkg
+        on_disk = {p.relative_to(base).as_posix() for d in ('msg', 'srv', 'action') for p in (base / d).glob('*.*')}
+        cmake = (base / 'CMakeLists.txt').read_text()
+        assert on_disk == set(INTERFACE_FILES) and all(f'"{f}"' in cmake for f in on_disk)
 
 
 @pytest.fixture(scope='module')
 def colcon_install(tmp_path_factory):
     base = tmp_path_factory.mktemp('colcon')
     colcon = Path(sys.executable).parent / 'colcon'
+    # The PyPI wheels' ROS prefix is the venv: ament_cmake packages find their CMake modules and the
+    # rosidl type supports (through the ament index) there (what sourcing a ROS install does).
+    prefix = str(Path(sys.prefix))
+    env = dict(os.environ, AMENT_PREFIX_PATH=prefix, CMAKE_PREFIX_PATH=prefix)
     r = subprocess.run([str(colcon), '--log-base', str(base / 'log'), 'build', '--base-paths', str(ROOT / 'src'),
-                        '--build-base', str(base / 'build'), '--install-base', str(base / 'install')],
-                       cwd=base, capture_output=True, text=True, timeout=300)
+                        '--build-base', str(base / 'build'), '--install-base', str(base / 'install'),
+                        '--cmake-args', f'-DPython3_EXECUTABLE={sys.executable}', '-DBUILD_TESTING=OFF'],
+                       cwd=base, env=env, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
     return base / 'install'
+
+
+def colcon_env(colcon_install, env):
+    """``env`` with the colcon install's Python packages and libraries first (what `source install/setup.bash`
+    does): the generated interface packages need their lib/ on LD_LIBRARY_PATH for their type supports."""
+    site = [str(p) for p in colcon_install.glob('*/lib/python3*/site-packages')]
+    libs = [str(p.parent) for p in colcon_install.glob('*/lib/lib*.so')]
+    return dict(env, PYTHONPATH=os.pathsep.join(site + [env.get('PYTHONPATH', '')]),
+                LD_LIBRARY_PATH=os.pathsep.join(sorted(set(libs)) + [env.get('LD_LIBRARY_PATH', '')]))
 
 
 def test_colcon_build_installs_packages(colcon_install):
@@ -42,6 +78,52 @@ def test_colcon_build_installs_packages(colcon_install):
             path = colcon_install / pkg / 'lib' / pkg / exe
             assert path.exists(), f'{path} missing'
             assert path.stat().st_mode & 0o111
+
+
+def test_colcon_build_installs_interface_packages(colcon_install):
+    """crane_interfaces: its definitions, its Python package and every type support library."""
+    for pkg in INTERFACE_PACKAGES:
+        prefix = colcon_install / pkg
+        assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'rosidl_interfaces' / pkg).exists()
+        for name in INTERFACE_FILES:
+            installed = prefix / 'share' / pkg / name
+            assert installed.read_text() == (ROOT / 'src' / pkg / name).read_text()
+        for lib in TYPESUPPORT_LIBRARIES:
+            assert (prefix / 'lib' / f'lib{pkg}__{lib}.so').exists(), f'lib{pkg}__{lib}.so missing'
+        [site] = prefix.glob('lib/python3*/site-packages')
+        for sub in ('msg', 'srv', 'action'):
+            assert (site / pkg / sub / '__init__.py').exists()
+        for ts in ('rosidl_typesupport_c', 'rosidl_typesupport_fastrtps_c', 'rosidl_typesupport_introspection_c'):
+            assert list((site / pkg).glob(f'{pkg}_s__{ts}*.so')), f'{pkg} Python extension for {ts} missing'
+
+
+#: Run by the venv's Python against the colcon install: the types load, serialize through Fast DDS's
+#: type support, and come from the colcon install (its Python package and its libraries).
+IMPORT_CHECK = """
+import crane_interfaces
+from crane_interfaces.action import ExecuteMove
+from crane_interfaces.msg import Move
+from crane_interfaces.srv import PlanMove
+from rclpy.serialization import deserialize_message, serialize_message
+move = Move(method='zv', joint_names=['cart'], goal=[0.3], duration=3.0)
+assert deserialize_message(serialize_message(move), Move) == move
+for t in (PlanMove.Request, PlanMove.Response, ExecuteMove.Goal, ExecuteMove.Result, ExecuteMove.Feedback):
+    assert deserialize_message(serialize_message(t()), t) == t()
+maps = open('/proc/self/maps').read()
+print(crane_interfaces.__file__)
+print(sorted({line.split()[-1] for line in maps.splitlines() if 'libcrane_interfaces__' in line}))
+"""
+
+
+def test_colcon_installed_interfaces_import_with_type_supports(colcon_install):
+    env = colcon_env(colcon_install, dict(os.environ))
+    r = subprocess.run([sys.executable, '-c', IMPORT_CHECK], env=env, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stdout + r.stderr
+    module_file, libraries = r.stdout.splitlines()[-2:]
+    prefix = str(colcon_install / 'crane_interfaces')
+    assert module_file.startswith(prefix)
+    assert 'rosidl_typesupport_fastrtps_c.so' in libraries and prefix + '/lib/' in libraries
+    assert str(Path(sys.prefix)) not in libraries  # not the venv's own build of crane_interfaces
 
 
 #: The parameters files each package installs into share/<package>/config (ROS packages' layout).
@@ -69,8 +151,7 @@ def test_colcon_installed_node_starts_and_answers(colcon_install, ros_domain, tm
 
     from crane_planner.tools.processes import ros_args
 
-    site = [str(p) for p in colcon_install.glob('*/lib/python3*/site-packages')]
-    env = dict(ros_domain, PYTHONPATH=os.pathsep.join(site + [ros_domain.get('PYTHONPATH', '')]))
+    env = colcon_env(colcon_install, ros_domain)
     namespace = f'/colcon_{exe}'
     log = open(tmp_path / f'{exe}.log', 'w')
     proc = subprocess.Popen([str(colcon_install / pkg / 'lib' / pkg / exe), *ros_args(namespace)],
