@@ -9,12 +9,38 @@ from __future__ import annotations
 
 import ctypes
 import os
+import signal
 import sys
 import time
 
 import numpy as np
 
 _PR_SET_TIMERSLACK = 29  # linux/prctl.h
+_PR_SET_PDEATHSIG = 1
+#: Set (to any value) in a process's environment by whoever starts it as a child that must not
+#: outlive it (the tests' and crane-demo's node groups): see ``die_with_parent``.
+DIE_WITH_PARENT = 'CRANE_DIE_WITH_PARENT'
+
+
+def die_with_parent(sig: int = signal.SIGINT) -> bool:
+    """If ``DIE_WITH_PARENT`` is set: get ``sig`` when the parent dies, even by SIGKILL (Linux).
+
+    Nodes run in sessions of their own (so a terminal's Ctrl-C reaches their
+    starter first), so nothing else would stop them when a test run or a
+    demo is killed: a leftover 1 kHz node loads every later run. A process
+    whose parent is already gone signals itself at once. Whether it is armed.
+    """
+    if not os.environ.get(DIE_WITH_PARENT):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0) != 0:
+            return False
+    except (OSError, AttributeError):
+        return False
+    if os.getppid() == 1:  # the parent died before the call
+        os.kill(os.getpid(), sig)
+    return True
 
 
 def tune_thread(priority: int = 0) -> list[str]:

@@ -22,7 +22,7 @@ from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValu
 from rclpy.signals import SignalHandlerOptions
 
 from .params import ParameterError
-from .realtime import tune_thread
+from .realtime import die_with_parent, tune_thread
 
 
 def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
@@ -34,6 +34,7 @@ def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
+    die_with_parent()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = executor = None
     status = 0

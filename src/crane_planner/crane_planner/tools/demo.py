@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import subprocess
 import sys
 import tempfile
@@ -24,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from crane_msgs_py.params import PARAMETER_NAMES, CraneParams
+from crane_msgs_py.realtime import DIE_WITH_PARENT
 
 from .harness import CraneHarness, HarnessError, start_crane_nodes
 from .processes import NodeDied, NodeGroup, find_executable, isolated_graph
@@ -319,8 +321,8 @@ def start_recorder(args, env: dict, log_dir: Path, nodes: NodeGroup):
         shutil.rmtree(bag)  # the demo's own recording of an earlier run
     log = open(log_dir / 'crane-record.log', 'w')
     proc = subprocess.Popen([find_executable('crane_planner', 'crane-record'), '--namespace', args.namespace,
-                             '--out', str(bag)], env=env, stdout=log, stderr=subprocess.STDOUT,
-                            start_new_session=True)
+                             '--out', str(bag)], env={**env, DIE_WITH_PARENT: '1'}, stdout=log,
+                            stderr=subprocess.STDOUT, start_new_session=True)
     proc.bag, proc.log_path = bag, log_dir / 'crane-record.log'
     deadline = time.monotonic() + 30.0
     while 'recording' not in proc.log_path.read_text():
@@ -363,7 +365,7 @@ def _run(args, env: dict, t_start: float) -> int:
     log_dir = Path(tempfile.mkdtemp(prefix='crane-demo-'))
     timing_log = (out / 'streamer_timing.json').resolve()
     progress(f'ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, namespace {args.namespace}, node logs in {log_dir}')
-    driver = None
+    driver = recorder = None
     try:
         with NodeGroup(env, log_dir) as nodes:
             start_crane_nodes(nodes, args.namespace, streamer_params={'timing_log': str(timing_log)})
@@ -396,7 +398,7 @@ def _run(args, env: dict, t_start: float) -> int:
                                  f'plan {1e3 * run.plan_time_s:.0f} ms')
                 driver.set_parameters('planner', {n: getattr(model, n) for n in PARAMETER_NAMES})
             if recorder is not None:
-                written_bag = stop_recorder(recorder)
+                written_bag, recorder = stop_recorder(recorder), None
             driver.close()
             driver = None
         # The nodes are stopped here, so the streamer has written its timing log.
@@ -430,6 +432,12 @@ def _run(args, env: dict, t_start: float) -> int:
         print(f'{PROG}: interrupted', file=sys.stderr)
         return 130
     finally:
+        if recorder is not None and recorder.poll() is None:  # an error ended the demo: no recorder left behind
+            recorder.send_signal(signal.SIGINT)
+            try:
+                recorder.wait(timeout=10.0)
+            except subprocess.TimeoutExpired:
+                recorder.kill()
         if driver is not None:
             driver.close()
 

@@ -16,6 +16,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from crane_msgs_py.realtime import DIE_WITH_PARENT
+
 #: Fast DDS maps domain ids 0..232 to UDP ports; 0 is everyone's default, so avoid it.
 DOMAIN_ID_RANGE = (1, 232)
 
@@ -133,8 +135,8 @@ class NodeGroup:
         log_path = self.log_dir / f'{name}.log'
         cmd = [find_executable(package, executable), *ros_args(namespace, params, params_file)]
         with open(log_path, 'w') as log:
-            popen = subprocess.Popen(cmd, env=self.env, stdout=log, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, start_new_session=True)
+            popen = subprocess.Popen(cmd, env={**self.env, DIE_WITH_PARENT: '1'}, stdout=log,
+                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
         proc = NodeProcess(name, popen, log_path)
         self.processes.append(proc)
         return proc

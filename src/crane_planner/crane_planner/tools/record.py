@@ -32,6 +32,8 @@ import rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
+from crane_msgs_py.realtime import die_with_parent
+
 PROG = 'crane-record'
 #: What ``crane-demo --record`` records (relative names resolve in the nodes' namespace).
 DEFAULT_TOPICS = ('reference', 'joint_states', 'trajectory', '/diagnostics', 'crane_markers')
@@ -190,6 +192,7 @@ def main(argv=None) -> int:
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
+    die_with_parent()
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     # never spun (see the module doc), so it offers no parameter services that could not answer
     node = rclpy.create_node('crane_record', namespace=args.namespace, start_parameter_services=False)

@@ -1,0 +1,53 @@
+"""crane_msgs_py.realtime.die_with_parent: a child started for a test or a demo does not outlive it."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+CHILD = ('import signal, sys, time\n'
+         'from crane_msgs_py.realtime import die_with_parent\n'
+         'signal.signal(signal.SIGINT, lambda *_: sys.exit(0))\n'
+         'print(die_with_parent(), flush=True)\n'
+         'time.sleep(30)\n')
+PARENT = ('import subprocess, sys, time\n'
+          f'child = subprocess.Popen([sys.executable, "-c", {CHILD!r}], env={{**__import__("os").environ, '
+          '"CRANE_DIE_WITH_PARENT": sys.argv[1]}, stdout=sys.stdout)\n'
+          'print(child.pid, flush=True)\n'
+          'time.sleep(30)\n')
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def run_parent(flag: str):
+    parent = subprocess.Popen([sys.executable, '-c', PARENT, flag], stdout=subprocess.PIPE, text=True)
+    child = int(parent.stdout.readline())
+    armed = parent.stdout.readline().strip()
+    parent.kill()  # SIGKILL: the parent can clean up nothing
+    parent.wait()
+    return child, armed
+
+
+def test_a_child_armed_by_the_environment_ends_when_its_parent_is_killed():
+    child, armed = run_parent('1')
+    assert armed == 'True'
+    deadline = time.monotonic() + 5.0
+    while alive(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not alive(child)
+
+
+def test_without_the_flag_a_child_is_left_alone():
+    child, armed = run_parent('')
+    try:
+        assert armed == 'False'
+        time.sleep(0.3)
+        assert alive(child)
+    finally:
+        os.kill(child, signal.SIGKILL)
