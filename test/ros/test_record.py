@@ -94,3 +94,23 @@ def test_a_topic_without_publisher_is_named_and_exits_1(ros_domain, tmp_path):
                 '--wait', '0.5', '--duration', '1')
     assert r.returncode == 1 and 'no publisher of /nobody_here/reference within 0.5 s' in r.stderr
     assert 'Traceback' not in r.stderr
+
+
+def test_a_topic_seen_only_through_its_subscribers_has_no_publisher_to_record(ros_domain, tmp_path):
+    """A topic in the graph because something subscribes to it is not recorded as if it had a publisher
+    (it was once: subscribed best effort and volatile with nothing to match, the first latched
+    trajectory published later was lost)."""
+    import rclpy
+    from trajectory_msgs.msg import JointTrajectory
+
+    from crane_msgs_py.qos import TRAJECTORY_QOS
+    rclpy.init()
+    node = rclpy.create_node('only_a_subscriber', namespace='/sub_only')
+    node.create_subscription(JointTrajectory, 'trajectory', lambda _: None, TRAJECTORY_QOS)
+    try:
+        r = _record(ros_domain, '--namespace', '/sub_only', '--topics', 'trajectory', '--out', str(tmp_path / 'bag'),
+                    '--wait', '2', '--duration', '1')
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    assert r.returncode == 1 and 'no publisher of /sub_only/trajectory within 2 s' in r.stderr, r.stderr
