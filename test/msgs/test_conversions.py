@@ -4,14 +4,14 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from nav_msgs.msg import Path
+from crane_interfaces.msg import Move, StreamState
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py import conversions as cv
-from crane_msgs_py.names import plan_service, service_of
+from crane_msgs_py.names import EXECUTE_MOVE_ACTION, PLAN_MOVE_SERVICE, service_of
 from crane_msgs_py.params import ParameterError
 
 START_NS = 1_700_000_000 * 10**9 + 999_000_000  # nanoseconds that carry into the seconds
@@ -22,28 +22,22 @@ def samples(n=7, T=0.06):
     return SimpleNamespace(t=t, position=0.1 * t**2, velocity=0.2 * t, acceleration=np.full(n, 0.2))
 
 
-def test_path_knots_carry_start_plus_time_and_start_plus_position():
-    s = samples()
-    path = cv.samples_to_path(s, start_position=1.5, start_ns=START_NS, frame_id='crane_base')
-    path = deserialize_message(serialize_message(path), Path)
-    assert path.header.frame_id == 'crane_base'
-    assert (path.header.stamp.sec, path.header.stamp.nanosec) == (1_700_000_000, 999_000_000)
-    assert len(path.poses) == len(s.t)
-    second = path.poses[1]  # t = 10 ms: the stamp carries into the next second
-    assert (second.header.stamp.sec, second.header.stamp.nanosec) == (1_700_000_001, 9_000_000)
-    assert second.header.frame_id == 'crane_base'
-    assert second.pose.position.x == pytest.approx(1.5 + 0.1 * 0.01**2, abs=1e-15)
-    q = second.pose.orientation
-    assert (q.x, q.y, q.z, q.w) == (0.0, 0.0, 0.0, 1.0)
-    t, x = cv.path_to_arrays(path)
-    assert np.allclose(t, s.t, atol=1e-9) and t[-1] == pytest.approx(0.06, abs=1e-9)
-    assert np.allclose(x, 1.5 + s.position, atol=1e-15)
+def test_a_move_message_carries_the_request_per_joint_and_survives_serialization():
+    msg = deserialize_message(serialize_message(cv.move_message([0.3], 2.5, [0.1], 'zv', ['cart'], START_NS)), Move)
+    assert (msg.method, list(msg.joint_names), list(msg.start), list(msg.goal)) == ('zv', ['cart'], [0.1], [0.3])
+    assert msg.duration == 2.5 and cv.stamp_ns(msg.start_time) == START_NS
+    empty = cv.move_message([0.3], 0.0)
+    assert (empty.method, list(empty.joint_names), list(empty.start), cv.stamp_ns(empty.start_time)) == ('', [], [], 0)
 
 
-def test_relative_plan_has_zero_start_stamp():
-    path = cv.samples_to_path(samples(), start_ns=0)
-    assert path.header.stamp.sec == 0 and path.header.stamp.nanosec == 0
-    assert path.poses[-1].header.stamp.nanosec == 60_000_000
+def test_stream_state_fill_in_place_and_read_back():
+    msg = cv.stream_state_message()
+    cv.fill_stream_state(msg, START_NS, True, 0.25, 0.1, -0.2, START_NS - 10**9, 3.0)
+    back = deserialize_message(serialize_message(msg), StreamState)
+    assert cv.read_stream_state(back) == (START_NS, True, {'cart': 0.25}, START_NS - 10**9, 3.0)
+    assert (back.header.frame_id, list(back.velocity), list(back.acceleration)) == ('crane_base', [0.1], [-0.2])
+    cv.fill_stream_state(msg, START_NS + 1, False, 0.3, 0.0, 0.0, 0, 0.0)
+    assert cv.read_stream_state(msg)[:3] == (START_NS + 1, False, {'cart': 0.3}) and msg.state == 'holding'
 
 
 def test_joint_trajectory_round_trip():
@@ -110,7 +104,7 @@ def test_stamps_in_nanoseconds():
 
 
 def test_service_names():
-    assert plan_service() == '~/plan' and plan_service('zv') == '~/plan/zv'
-    assert service_of('crane_planner', plan_service('rvf')) == 'crane_planner/plan/rvf'
+    assert service_of('crane_planner', PLAN_MOVE_SERVICE) == 'crane_planner/plan_move'
+    assert service_of('crane_planner', EXECUTE_MOVE_ACTION) == 'crane_planner/execute_move'
     with pytest.raises(ValueError):
         service_of('crane_planner', 'plan')

@@ -146,16 +146,20 @@ class Crane:
         return pub
 
     def move(self, method: str, goal: float, duration: float):
-        """Execute hold -> goal starting LEAD s from now; the PathPlan and the stamps the motion starts and ends.
+        """Execute hold -> goal through ~/execute_move starting LEAD s from now, watched for SETTLE s after
+        its end; the served plan (its knots) and the stamps the motion starts and ends.
 
         A trajectory reaching the streamer after its start stamp (a busy
         machine) is streamed whole from the next tick: the stamps follow that.
+        The goal's result is ``self.driver.move_result(start)``.
         """
-        mark = self.diagnostics.mark()
-        start_ns = self.now() + round(LEAD * 1e9)
-        plan = self.planner.execute(method, self.hold, goal, duration, start_ns=start_ns)
-        start_ns = self.driver.streamed_start(start_ns, mark, method)
-        self.hold = float(plan.position[-1])  # the goal up to rounding: what the streamer holds next
+        from crane_msgs_py.conversions import joint_trajectory_to_arrays, stamp_ns
+        start_ns, _, traj = self.driver.move(method, self.hold, goal, duration, self.now() + round(LEAD * 1e9),
+                                             settle=SETTLE)
+        t, p, v, a = joint_trajectory_to_arrays(traj)
+        plan = SimpleNamespace(t=t, position=p, velocity=v, acceleration=a, start_ns=stamp_ns(traj.header.stamp),
+                               trajectory=traj)
+        self.hold = float(p[-1])  # the goal up to rounding: what the streamer holds next
         return plan, start_ns, start_ns + round(duration * 1e9)
 
     def swing_after(self, start_ns: int, duration: float, L1: float):
@@ -181,7 +185,7 @@ def crane(ros_domain, tmp_path_factory):
     try:
         start_crane_nodes(nodes, NS)
         driver = CraneHarness(NS, nodes)
-        driver.wait_until_up(METHODS, 60.0)
+        driver.wait_until_up(60.0)
         crane = Crane(driver, nodes)
         crane.status('crane_planner', 'solvers', timeout=60.0)  # warm: first requests are not slowed down
         yield crane
@@ -209,30 +213,34 @@ def quintic_trajectory(start: float, goal: float, duration: float, stamp_ns: int
 
 @pytest.mark.parametrize('method', METHODS)
 def test_method_is_planned_published_streamed_and_leaves_no_swing(crane, method):
-    from crane_msgs_py.conversions import joint_trajectory_to_arrays, stamp_ns
+    from crane_msgs_py.conversions import joint_trajectory_to_arrays
     T = duration_for(method)
     start, goal = crane.hold, crane.next_goal()
     crane.driver.reset_sim()  # the simulated crane has no damping: start each motion at rest
     with crane.references() as refs:
         plan, start_ns, end_ns = crane.move(method, goal, T)
-        traj = crane.driver.trajectory(stamp_ns(plan.path.header.stamp))
         residual, travel = crane.swing_after(start_ns, T, NOMINAL.L1)
-    # the service's Path: a pose per knot, at least the plan's breakpoints, ending at the goal exactly
-    # at the requested time
-    path = plan.path
-    plan_start = stamp_ns(path.header.stamp)
-    assert path.header.frame_id == 'crane_base' and plan.start_ns == plan_start
+    result = crane.driver.move_result(start_ns)
+    # the served trajectory: a knot per breakpoint and few more, ending at the goal exactly at the
+    # requested time, in crane_base, stamped with the requested start
+    traj = plan.trajectory
+    assert traj.header.frame_id == 'crane_base' and list(traj.joint_names) == ['cart']
     offline = offline_plan(method, goal - start, T)
     assert set(np.round(offline.breakpoints(), 6)) <= set(np.round(plan.t, 6))
-    assert len(path.poses) <= 2 * len(offline.breakpoints()) + 20  # lean: not one per 10 ms (301 at 3 s)
-    assert stamp_ns(path.poses[-1].header.stamp) == plan_start + round(T * 1e9)
+    assert len(traj.points) <= 2 * len(offline.breakpoints()) + 20  # lean: not one per 10 ms (301 at 3 s)
+    assert plan.t[-1] == pytest.approx(T, abs=1e-9)
     assert plan.position[0] == pytest.approx(start, abs=1e-9)
     assert plan.position[-1] == pytest.approx(goal, abs=1e-9)
-    assert path.poses[-1].pose.orientation.w == 1.0
-    # the trajectory topic carries the same plan, with velocities and accelerations
-    t, p, v, a = joint_trajectory_to_arrays(traj)
-    assert np.allclose(t, plan.t, atol=1e-9) and np.array_equal(p, plan.position)
-    assert abs(v[0]) < 1e-6 and abs(v[-1]) < 1e-6
+    assert abs(plan.velocity[0]) < 1e-6 and abs(plan.velocity[-1]) < 1e-6
+    # a preview of the same move (PlanMove) gives the same knots: preview and execution plan alike
+    preview = crane.planner.plan(method, start, goal, T, start_ns=plan.start_ns)
+    t, p, v, a = joint_trajectory_to_arrays(preview.trajectory)
+    assert np.allclose(t, plan.t, atol=1e-9) and np.allclose(p, plan.position, atol=1e-9)
+    assert preview.info.method == method and preview.info.duration == pytest.approx(T, abs=1e-9)
+    assert preview.info.peak_velocity[0] >= np.max(np.abs(v)) * (1 - 1e-6)
+    # the action's result: success, and the residual it measured agrees with this test's own
+    assert result.success and result.info.method == method
+    assert abs(1e3 * result.residual_swing - residual) < 0.1, (result.residual_swing, residual)
     # the stream: the plan itself at every tick of the motion (the planning core's exact evaluation
     # of the same request, made here), the goal held afterwards
     rows = np.array(refs, dtype=object)
@@ -255,9 +263,9 @@ def test_method_is_planned_published_streamed_and_leaves_no_swing(crane, method)
 
 
 def test_plan_calls_move_nothing_and_one_execute_moves_the_cart(crane):
-    """100 ~/plan/<method> calls of every method (and ~/plan) from the hold position, starting soon,
-    while the sim runs: the cart stays put and no trajectory is sent; one ~/execute then moves it."""
-    from crane_msgs_py.conversions import stamp_ns
+    """100 ~/plan_move calls of every method (and of the default method) from the hold position,
+    starting soon, while the sim runs: the cart stays put and no trajectory is sent; one ~/execute_move
+    then moves it."""
     hold, goal = crane.hold, crane.next_goal()
     rng = np.random.default_rng(9)
     crane.driver.reset_sim()  # at rest where it is (the last motion may have left it swinging)
@@ -278,10 +286,90 @@ def test_plan_calls_move_nothing_and_one_execute_moves_the_cart(crane):
     assert set(crane.driver.sent_trajectories()) == sent_before, 'a preview was sent to the streamer'
     # the explicit path moves it
     plan, start_ns, end_ns = crane.move('zv', goal, 3.0)
-    assert stamp_ns(plan.path.header.stamp) in crane.driver.sent_trajectories()
+    assert plan.start_ns in crane.driver.sent_trajectories()
     crane.sleep_until(end_ns + 500_000_000)
     states = crane.driver.states_between(end_ns + 300_000_000, end_ns + 500_000_000)
     assert states[:, 3] == pytest.approx(goal, abs=1e-4)
+
+
+# --------------------------------------------------------------------------- the action
+
+
+def test_an_independent_client_previews_and_executes_a_move_with_feedback_and_the_measured_residual(
+        crane, ros_domain):
+    """examples/execute_move.py (the README's client: rclpy and crane_interfaces only) previews with
+    PlanMove and executes with ExecuteMove: feedback at >= 10 Hz whose progress rises monotonically
+    to 1, and a result whose residual agrees within 0.1 mm with the swing this test computes from
+    joint_states over the same window."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from crane_sim.metrics import residual_load_mm
+    example = Path(__file__).resolve().parents[2] / 'examples' / 'execute_move.py'
+    T, settle = 3.0, 2.0
+    crane.driver.reset_sim()
+    mark = crane.diagnostics.mark()
+    before = set(crane.driver.sent_trajectories())
+    goal = crane.next_goal()
+    out = subprocess.run([sys.executable, str(example), '--goal', str(goal), '--duration', str(T), '--method', 'rvf',
+                          '--settle', str(settle), '--delay', str(LEAD), '--json', '--ros-args', '-r', f'__ns:={NS}'],
+                         env=ros_domain, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stdout + out.stderr
+    lines = [json.loads(line) for line in out.stdout.splitlines()]
+    preview = lines[0]['preview']
+    feedback = [line['feedback'] for line in lines if 'feedback' in line]
+    result = lines[-1]['result']
+    assert preview['method'] == 'rvf' and preview['duration'] == pytest.approx(T, abs=1e-9)
+    assert result['success'] and result['duration'] == pytest.approx(T, abs=1e-9), result
+    progress = [f['progress'] for f in feedback]
+    assert np.all(np.diff(progress) >= 0.0) and progress[-1] == 1.0 and progress[0] == 0.0
+    assert len(feedback) >= 10 * (LEAD + T + settle) * 0.8, len(feedback)  # >= 10 Hz (20 Hz sent)
+    [stamp] = set(crane.driver.sent_trajectories()) - before
+    assert stamp == preview['start_time']
+    start_ns = crane.driver.streamed_start(stamp, mark, 'the example')
+    rec = crane.driver.states_between(start_ns, start_ns + round((T + settle + 0.05) * 1e9), timeout=10.0)
+    t = (rec[:, 0] - start_ns) * 1e-9
+    measured = residual_load_mm(t, rec[:, 1], rec[:, 2], NOMINAL.L1, NOMINAL.L2, after=T, until=T + settle)
+    assert abs(1e3 * result['residual_swing'] - measured) < 0.1, (result, measured)
+    crane.hold = goal
+
+
+def test_a_goal_canceled_before_its_start_streams_nothing_and_ends_canceled(crane):
+    from action_msgs.msg import GoalStatus
+    crane.driver.reset_sim()
+    crane.driver.sleep(0.3)
+    hold, sent = crane.hold, set(crane.driver.sent_trajectories())
+    begin = crane.now()
+    start_ns = begin + 3_000_000_000  # far enough: the planner holds it until publish_lead before
+    handle = crane.planner.send_execute('rvf', hold, crane.next_goal(), 3.0, start_ns)
+    crane.driver.sleep(0.5)
+    cancel = handle.cancel_goal_async()
+    crane.driver.wait_until(cancel.done, 5.0, 'no answer to the cancel')
+    assert len(cancel.result().goals_canceling) == 1  # accepted
+    response = handle.get_result_async()
+    crane.driver.wait_until(response.done, 10.0, 'the canceled goal never ended')
+    assert response.result().status == GoalStatus.STATUS_CANCELED
+    assert 'nothing was streamed' in response.result().result.message
+    crane.sleep_until(start_ns + 3_500_000_000)  # past where the motion would have ended
+    states = crane.driver.states_between(begin, start_ns + 3_300_000_000, timeout=5.0)
+    assert set(crane.driver.sent_trajectories()) == sent
+    assert np.ptp(states[:, 3]) < 1e-9 and states[0, 3] == pytest.approx(hold, abs=1e-4), 'the cart moved'
+
+
+def test_a_goal_during_a_motion_and_a_cancel_of_a_streaming_motion_are_refused_saying_why(crane):
+    crane.driver.reset_sim()
+    plan, start_ns, end_ns = crane.move('zv', crane.next_goal(), 3.0)
+    crane.sleep_until(start_ns + 500_000_000)  # streaming
+    with pytest.raises(PlanError, match='a motion is executing'):
+        crane.planner.execute('nvf', None, crane.hold + 0.1, 3.0)
+    handle = crane.driver.goal(start_ns)
+    cancel = handle.cancel_goal_async()
+    crane.driver.wait_until(cancel.done, 5.0, 'no answer to the cancel')
+    assert len(cancel.result().goals_canceling) == 0  # refused: the motion goes on
+    result = crane.driver.move_result(start_ns)  # raises PlanError unless it succeeded
+    assert result.success and crane.driver.now_ns() > end_ns + round(SETTLE * 1e9)
 
 
 # --------------------------------------------------------------------------- answer time
@@ -306,8 +394,8 @@ def test_a_request_exhausting_max_solve_time_delays_no_other(crane):
 
     def ask(key, method, start, goal, T):
         t0 = time.monotonic()
-        path = crane.planner.call(method, start, goal, T, timeout=10.0)
-        answers[key] = (time.monotonic() - t0, len(path.poses), path)
+        response = crane.planner.call(method, start, goal, T, timeout=10.0)
+        answers[key] = (time.monotonic() - t0, len(response.trajectory.points), response)
 
     mark = crane.diagnostics.mark()
     slow = threading.Thread(target=ask, args=('slow', 'rvf', 5.0, 15.0, 0.5))
@@ -327,10 +415,12 @@ def test_a_request_exhausting_max_solve_time_delays_no_other(crane):
                 if status_float(s, 'goal') != 15.0]
     assert not refusals, refusals
     for k, request in enumerate(typical):
-        elapsed, poses, path = answers[k]
-        assert poses > 1 and path.poses[-1].pose.position.x == pytest.approx(request[2], abs=1e-9), request
-    elapsed, poses, _ = answers['slow']
-    assert poses == 0 and budget - 0.1 < elapsed < budget + 0.5
+        elapsed, points, response = answers[k]
+        assert response.success and points > 1, request
+        assert response.trajectory.points[-1].positions[0] == pytest.approx(request[2], abs=1e-9), request
+    elapsed, points, response = answers['slow']
+    assert not response.success and points == 0 and budget - 0.1 < elapsed < budget + 0.5
+    assert 'max_solve_time 1 s' in response.message, response.message
     status = crane.status('crane_planner', 'plan', mark, level=ERROR,
                           predicate=lambda s: status_float(s, 'goal') == 15.0)
     assert 'max_solve_time 1 s' in status.message, status.message
@@ -446,33 +536,51 @@ def test_streamer_refuses_a_jump_and_a_trajectory_arriving_mid_stream(crane):
 # --------------------------------------------------------------------------- bad requests
 
 
-BAD_REQUESTS = [  # method, start, goal, duration, words of the reason
-    ('zv', 0.0, 0.3, 0.0, 'duration must be > 0'),
-    ('rvf', 0.0, 0.3, -1.0, 'duration must be > 0'),
-    ('nvf', math.nan, 0.3, 3.0, 'must be finite'),
-    ('zv', 0.0, math.nan, 3.0, 'must be finite'),
-    ('zv', 0.0, 0.3, 100.0, 'max_duration'),
-    ('rvf', 0.0, 25.0, 3.0, 'max_displacement'),
-    ('zvd', 0.0, 0.3, 2.0, 'longer than its shaper'),
+BAD_REQUESTS = [  # (method, joint_names, start, goal, duration), the field and words of the reason
+    (('zv', [], [0.0], [0.3], -1.0), 'duration', 'got -1.0'),
+    (('rvf', [], [0.0], [0.3], math.nan), 'duration', 'must be finite'),
+    (('rvf', [], [0.0], [0.3], math.inf), 'duration', 'must be finite'),
+    (('xyz', [], [0.0], [0.3], 3.0), 'method', "unknown method 'xyz'"),
+    (('zv', ['hoist'], [0.0], [0.3], 3.0), 'joint_names', "unknown joint 'hoist'"),
+    (('zv', [], [0.0, 0.1], [0.3], 3.0), 'start', '2 value(s) for 1 joint(s)'),
+    (('zv', [], [0.0], [0.3, 0.2], 3.0), 'goal', '2 value(s) for 1 joint(s)'),
+    (('nvf', [], [math.nan], [0.3], 3.0), 'start', 'must be finite'),
+    (('zv', [], [0.0], [math.nan], 3.0), 'goal', 'must be finite'),
+    (('zv', [], [0.0], [0.3], 100.0), 'duration', 'exceeds max_duration 60 s'),
+    (('rvf', [], [0.0], [25.0], 3.0), 'goal', 'exceeds max_displacement 10 m'),
+    (('zvd', [], [0.0], [0.3], 2.0), 'duration', 'longer than its shaper'),
+    (('zv', [], [0.0], [0.3], 0.0), 'duration', 'needs max_velocity or max_acceleration'),  # 0: fastest
 ]
 
 
-@pytest.mark.parametrize('method, start, goal, duration, reason', BAD_REQUESTS)
-def test_bad_request_gives_an_empty_plan_and_an_error_status_then_a_good_one_succeeds(
-        crane, method, start, goal, duration, reason):
+@pytest.mark.parametrize('request_, field, reason', BAD_REQUESTS)
+def test_bad_request_is_refused_naming_the_field_moves_nothing_and_a_good_one_succeeds(
+        crane, request_, field, reason):
+    """Each bad PlanMove is success: false with a message naming the field, also on /diagnostics; the
+    same move as an ExecuteMove goal is aborted with the same reason and streams nothing."""
+    from crane_msgs_py.conversions import move_message
     from crane_msgs_py.diagnostics import ERROR, status_values
+    method, joints, start, goal, duration = request_
+    move = move_message(goal, duration, start, method, joints)
     mark = crane.diagnostics.mark()
     t0 = time.monotonic()
-    path = crane.planner.call(method, start, goal, duration)
+    response = crane.planner.call(None, None, 0.0, 0.0, move=move)
     elapsed = time.monotonic() - t0
-    assert len(path.poses) == 0 and elapsed < 1.0
+    assert not response.success and len(response.trajectory.points) == 0 and elapsed < 1.0
+    assert response.message.startswith(f'move.{field}') and reason in response.message, response.message
     status = crane.status('crane_planner', 'plan', mark, level=ERROR)
-    assert reason in status.message and status_values(status)['method'] == method
-    assert status_values(status)['error'] == status.message
-    with pytest.raises(PlanError, match=reason):  # the client reads the same reason back
-        crane.planner.plan(method, start, goal, duration)
+    assert status.message == response.message and status_values(status)['error'] == status.message
+    # executed: aborted with the same reason, nothing sent to the streamer
+    sent = len(crane.driver.sent_trajectories())
+    handle = crane.planner.send_execute(None, None, 0.0, 0.0, move=move)
+    with pytest.raises(PlanError) as refused:
+        crane.planner.result(handle, timeout=10.0)
+    assert str(refused.value) == response.message
+    crane.nodes.check_alive()
+    assert len(crane.driver.sent_trajectories()) == sent
     # a good request right after
-    assert crane.planner.plan(method, 5.0, 5.3, 3.0).position[-1] == pytest.approx(5.3, abs=1e-9)
+    assert crane.planner.plan(method if method != 'xyz' else 'zv', 5.0, 5.3, 3.0).position[-1] == \
+        pytest.approx(5.3, abs=1e-9)
 
 
 @pytest.mark.parametrize('name, value, words', [('L1', -1.0, 'L1'), ('method', 'zz', 'method'),

@@ -150,7 +150,6 @@ def wait_until(node, done, proc, log_path, what, timeout=15.0):
 
 def make_move():
     from builtin_interfaces.msg import Time
-
     from crane_interfaces.msg import Move
     return Move(method='zvd', joint_names=['cart', 'hoist'], start=[0.0, 0.42], goal=[0.3, 0.5], duration=3.25,
                 start_time=Time(sec=1_700_000_000, nanosec=123_456_789))
@@ -169,10 +168,9 @@ def check_info(info, move):
 
 def test_plan_move_and_execute_move_over_dds(server, client_node):
     from action_msgs.msg import GoalStatus
-    from rclpy.action import ActionClient
-
     from crane_interfaces.action import ExecuteMove
     from crane_interfaces.srv import PlanMove
+    from rclpy.action import ActionClient
 
     proc, log_path = server
     node = client_node

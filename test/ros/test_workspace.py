@@ -17,7 +17,8 @@ EXECUTABLES = {'crane_planner': ('planner', 'streamer', 'crane-plan'), 'crane_si
 TYPESUPPORT_LIBRARIES = ('rosidl_generator_c', 'rosidl_generator_py', 'rosidl_typesupport_c',
                          'rosidl_typesupport_cpp', 'rosidl_typesupport_fastrtps_c', 'rosidl_typesupport_fastrtps_cpp',
                          'rosidl_typesupport_introspection_c', 'rosidl_typesupport_introspection_cpp')
-INTERFACE_FILES = ('msg/Move.msg', 'msg/PlanInfo.msg', 'srv/PlanMove.srv', 'action/ExecuteMove.action')
+INTERFACE_FILES = ('msg/Move.msg', 'msg/PlanInfo.msg', 'msg/StreamState.msg', 'srv/PlanMove.srv',
+                   'action/ExecuteMove.action')
 
 
 @pytest.mark.parametrize('pkg', PACKAGES)
@@ -138,7 +139,7 @@ def test_colcon_build_installs_each_packages_parameters_files(colcon_install):
             assert installed.read_text() == (ROOT / 'src' / pkg / 'config' / name).read_text()
 
 
-ANSWERING_SERVICE = {'planner': 'crane_planner/plan/zv', 'streamer': 'crane_streamer/start', 'sim': 'crane_sim/reset'}
+ANSWERING_SERVICE = {'planner': 'crane_planner/plan_move', 'streamer': 'crane_streamer/start', 'sim': 'crane_sim/reset'}
 
 
 @pytest.mark.parametrize('pkg, exe', [('crane_planner', 'planner'), ('crane_planner', 'streamer'),
@@ -146,9 +147,10 @@ ANSWERING_SERVICE = {'planner': 'crane_planner/plan/zv', 'streamer': 'crane_stre
 def test_colcon_installed_node_starts_and_answers(colcon_install, ros_domain, tmp_path, pkg, exe):
     """The colcon-installed lib/<pkg>/<exe> runs the installed code and offers its services."""
     import rclpy
-    from nav_msgs.srv import GetPlan
+    from crane_interfaces.srv import PlanMove
     from std_srvs.srv import Trigger
 
+    from crane_msgs_py.conversions import move_message
     from crane_planner.tools.processes import ros_args
 
     env = colcon_env(colcon_install, ros_domain)
@@ -159,12 +161,13 @@ def test_colcon_installed_node_starts_and_answers(colcon_install, ros_domain, tm
     rclpy.init()
     node = rclpy.create_node('colcon_probe', namespace=namespace)
     try:
-        srv_type = GetPlan if exe == 'planner' else Trigger
+        srv_type = PlanMove if exe == 'planner' else Trigger
         client = node.create_client(srv_type, ANSWERING_SERVICE[exe])
         assert client.wait_for_service(timeout_sec=30.0), (tmp_path / f'{exe}.log').read_text()
-        if exe == 'sim':  # a real answer, not just an advertisement
-            future = client.call_async(Trigger.Request())
-            rclpy.spin_until_future_complete(node, future, timeout_sec=10.0)
+        if exe in ('sim', 'planner'):  # a real answer, not just an advertisement
+            preview = PlanMove.Request(move=move_message([0.3], 3.0, [0.0], 'zv'))
+            future = client.call_async(Trigger.Request() if exe == 'sim' else preview)
+            rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
             assert future.done() and future.result().success
         assert proc.poll() is None
     finally:

@@ -234,3 +234,20 @@ def test_stop_drops_a_queued_motion_before_its_first_tick(stream):
 def test_a_period_must_be_positive():
     with pytest.raises(ValueError, match='> 0'):
         ReferenceStream(0)
+
+
+def test_the_last_motion_is_reported_from_its_first_tick_until_the_next_one_starts(stream):
+    """What the streamer's stream_state says: the streaming (else last) motion, started at its first tick."""
+    loop = Loop(stream)
+    assert stream.last_motion is None
+    first = stream.accept(*quintic_knots(), EPOCH + 100 * MS + 300_000, EPOCH)
+    loop.run_to(first.first_tick)
+    assert stream.last_motion is None  # queued, not started
+    loop.run(1)
+    assert stream.last_motion is first and stream.streaming
+    assert first.start_ns == EPOCH + first.first_tick * PERIOD == EPOCH + 101 * MS  # the tick at or after it
+    loop.run_to(first.first_tick + len(first.position) + 5)
+    assert stream.last_motion is first and not stream.streaming  # ended: still the last one
+    second = stream.accept(*quintic_knots(first.end_position, HOLD, 0.5, (0.0, 0.5)), 0, EPOCH)
+    loop.run_to(second.first_tick + 1)
+    assert stream.last_motion is second and second.start_ns == EPOCH + second.first_tick * PERIOD

@@ -1,102 +1,79 @@
-"""A client of the planner node's ``nav_msgs/srv/GetPlan`` services for other Python nodes.
+"""A client of the planner node's ``~/plan_move`` service and ``~/execute_move`` action for Python nodes.
 
     client = PlannerClient(node)             # planner 'crane_planner' in node's namespace
-    plan = client.plan('rvf', start=0.0, goal=0.3, duration=3.0)     # a preview: moves nothing
-    plan.t, plan.position                    # knot times (s, from the start), positions (m)
-    client.execute('rvf', start=0.0, goal=0.3, duration=3.0)         # plans and sends it to the streamer
+    plan = client.plan('rvf', None, 0.3, 3.0)      # a preview from where the streamer holds the cart (None)
+    plan.t, plan.position, plan.info         # knot times (s, from the start), positions (m), PlanInfo
+    result = client.execute('rvf', None, 0.3, 3.0)  # plan, stream, watch: the action's result
+    result.residual_swing                    # m, measured from joint_states over the settle window
 
-A refused request raises ``PlanError`` with the planner's reason, read from
-its ``/diagnostics`` status for that request. The node must be spun by an
+A refused request raises ``PlanError`` with the planner's reason (the
+response's or the result's ``message``). The node must be spun by an
 executor in another thread (or by none: the client then spins it while it
-waits); do not call ``plan`` from a callback of a single-threaded executor
+waits); do not call these from a callback of a single-threaded executor
 spinning the same node.
 """
 from __future__ import annotations
 
-import math
 import threading
 from dataclasses import dataclass
 
 import numpy as np
 import rclpy
-from nav_msgs.msg import Path
-from nav_msgs.srv import GetPlan
+from crane_interfaces.action import ExecuteMove
+from crane_interfaces.msg import PlanInfo
+from crane_interfaces.srv import PlanMove
+from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
+from trajectory_msgs.msg import JointTrajectory
 
-from .conversions import path_to_arrays, set_stamp
-from .diagnostics import ERROR, DiagnosticsReader, status_float, status_values
+from .conversions import joint_trajectory_to_arrays, move_message, stamp_ns
+from .diagnostics import DiagnosticsReader
 from .errors import PlanError
-from .names import PLANNER_NODE, planner_service, service_of
-
-#: The planner's per-request diagnostic task (status ``<planner>: plan``).
-PLAN_TASK = 'plan'
+from .names import EXECUTE_MOVE_ACTION, PLAN_MOVE_SERVICE, PLANNER_NODE, service_of
+from .qos import PLAN_MOVE_QOS
 
 
 @dataclass(frozen=True)
-class PathPlan:
-    """A plan as returned by the planner service.
+class MovePlan:
+    """A plan as ``~/plan_move`` returns it.
 
     Attributes:
         t: knot times (s) from the start stamp, the last one exactly at the duration.
-        position: cart reference position (m) at each knot.
-        start_ns: start stamp (ns; 0 = relative plan starting at time 0).
-        path: the message itself.
+        position, velocity, acceleration: the cart reference at each knot (m, m/s, m/s^2).
+        start_ns: start stamp (ns; 0 = as soon as possible).
+        info: the planner's ``PlanInfo`` (method, duration, solve time, peaks per joint).
+        trajectory: the knots as the message itself.
     """
 
     t: np.ndarray
     position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
     start_ns: int
-    path: Path
-
-
-def plan_request(start: float, goal: float, duration: float, start_ns: int = 0) -> GetPlan.Request:
-    """GetPlan request of the contract: positions in pose.position.x, duration in the stamps."""
-    request = GetPlan.Request()
-    request.start.pose.position.x = float(start)
-    request.goal.pose.position.x = float(goal)
-    set_stamp(request.start.header.stamp, start_ns)
-    set_stamp(request.goal.header.stamp, start_ns + round(float(duration) * 1e9))
-    return request
+    info: PlanInfo
+    trajectory: JointTrajectory
 
 
 class PlannerClient:
-    """Calls ``<planner>/plan[/<method>]``, ``<planner>/execute[/<method>]``, ``.../fastest/<method>``
-    and ``.../execute_fastest/<method>`` of the planner node in the caller's namespace."""
+    """Calls ``<planner>/plan_move`` and ``<planner>/execute_move`` of the planner node in the caller's namespace.
+
+    ``diagnostics`` reads ``/diagnostics`` (the planner's and the streamer's statuses).
+    """
 
     def __init__(self, node, planner: str = PLANNER_NODE, callback_group=None):
         self._node = node
-        self._planner = planner
         self._group = callback_group or ReentrantCallbackGroup()
-        self._clients: dict = {}
-        self._lock = threading.Lock()
+        self._plan = node.create_client(PlanMove, service_of(planner, PLAN_MOVE_SERVICE), qos_profile=PLAN_MOVE_QOS,
+                                        callback_group=self._group)
+        self._execute = ActionClient(node, ExecuteMove, service_of(planner, EXECUTE_MOVE_ACTION),
+                                     callback_group=self._group)
         self.diagnostics = DiagnosticsReader(node, callback_group=self._group)
-        self._status_name = f'{planner.rsplit("/", 1)[-1]}: {PLAN_TASK}'
 
-    def _client(self, method: str | None, kind: str = 'plan'):
-        with self._lock:
-            client = self._clients.get((method, kind))
-            if client is None:
-                name = service_of(self._planner, planner_service(kind, method))
-                client = self._clients[method, kind] = self._node.create_client(
-                    GetPlan, name, callback_group=self._group)
-            return client
+    def wait_for_service(self, timeout: float = 10.0) -> bool:
+        """Whether ``~/plan_move`` and ``~/execute_move`` are both up within ``timeout`` s."""
+        return self._plan.wait_for_service(timeout_sec=timeout) and self._execute.wait_for_server(timeout_sec=timeout)
 
-    def wait_for_service(self, method: str | None = None, timeout: float = 10.0, execute: bool = False,
-                         kind: str | None = None) -> bool:
-        return self._client(method, kind or ('execute' if execute else 'plan')).wait_for_service(timeout_sec=timeout)
-
-    def call(self, method: str | None, start: float, goal: float, duration: float,
-             start_ns: int = 0, timeout: float = 60.0, execute: bool = False, kind: str | None = None) -> Path:
-        """The raw response path (empty on failure); TimeoutError if no answer in ``timeout`` s.
-
-        ``method`` None calls ``~/plan`` (the planner's ``method`` parameter);
-        ``execute`` calls ``~/execute[/<method>]`` instead, ``kind`` any of
-        ``names.PLANNER_SERVICES`` (for ``fastest`` kinds ``duration`` is ignored).
-        """
-        client = self._client(method, kind or ('execute' if execute else 'plan'))
-        if not client.wait_for_service(timeout_sec=timeout):
-            raise TimeoutError(f'planner service {client.srv_name} not available')
-        future = client.call_async(plan_request(start, goal, duration, start_ns))
+    def _wait(self, future, timeout: float, what: str):
         if self._node.executor is None:
             rclpy.spin_until_future_complete(self._node, future, timeout_sec=timeout)
         else:
@@ -104,67 +81,71 @@ class PlannerClient:
             future.add_done_callback(lambda _: done.set())
             done.wait(timeout)
         if not future.done():
-            client.remove_pending_request(future)
-            raise TimeoutError(f'no answer from {client.srv_name} within {timeout} s')
-        return future.result().plan
+            raise TimeoutError(f'no answer from {what} within {timeout:g} s')
+        return future.result()
 
-    def plan(self, method: str | None, start: float, goal: float, duration: float,
-             start_ns: int = 0, timeout: float = 60.0, reason_timeout: float = 2.0) -> PathPlan:
-        """Plan from ``start`` to ``goal`` (m) in ``duration`` (s) starting at ``start_ns``; moves nothing.
+    def call(self, method: str | None, start: float | None, goal: float, duration: float, start_ns: int = 0,
+             timeout: float = 60.0, move=None) -> PlanMove.Response:
+        """The raw ``PlanMove`` response (or to ``move``, a ``crane_interfaces/Move`` given whole);
+        TimeoutError if none within ``timeout`` s."""
+        if move is None:
+            move = move_message([goal], duration, [] if start is None else [start], method or '', start_ns=start_ns)
+        if not self._plan.wait_for_service(timeout_sec=timeout):
+            raise TimeoutError(f'planner service {self._plan.srv_name} not available')
+        future = self._plan.call_async(PlanMove.Request(move=move))
+        try:
+            return self._wait(future, timeout, self._plan.srv_name)
+        except TimeoutError:
+            self._plan.remove_pending_request(future)
+            raise
 
-        Raises PlanError with the planner's reason (its ERROR status for this
-        request), or saying none arrived within ``reason_timeout`` s.
+    def plan(self, method: str | None, start: float | None, goal: float, duration: float, start_ns: int = 0,
+             timeout: float = 60.0) -> MovePlan:
+        """Plan a move of the cart from ``start`` (m; None: where the streamer holds it) to ``goal`` in
+        ``duration`` (s; 0 = the fastest within the planner's limits) starting at ``start_ns``; moves nothing.
+
+        ``method`` None: the planner's ``method`` parameter. Raises PlanError with the planner's reason.
         """
-        return self._request('plan', method, start, goal, duration, start_ns, timeout, reason_timeout)
+        response = self.call(method, start, goal, duration, start_ns, timeout)
+        if not response.success:
+            raise PlanError(response.message)
+        t, p, v, a = joint_trajectory_to_arrays(response.trajectory)
+        return MovePlan(t, p, v, a, stamp_ns(response.trajectory.header.stamp), response.info, response.trajectory)
 
-    def fastest(self, method: str, start: float, goal: float, start_ns: int = 0, timeout: float = 60.0,
-                reason_timeout: float = 2.0) -> PathPlan:
-        """The shortest plan from ``start`` to ``goal`` within the planner's axis limits; moves nothing.
+    def fastest(self, method: str | None, start: float | None, goal: float, start_ns: int = 0,
+                timeout: float = 60.0) -> MovePlan:
+        """The shortest plan to ``goal`` within the planner's axis limits (``duration`` 0); moves nothing."""
+        return self.plan(method, start, goal, 0.0, start_ns, timeout)
 
-        Its duration is the last knot's time (``PathPlan.t[-1]``).
+    def send_execute(self, method: str | None, start: float | None, goal: float, duration: float,
+                     start_ns: int = 0, settle: float = 0.0, feedback=None, timeout: float = 10.0, move=None):
+        """Send an ``ExecuteMove`` goal (or one of ``move``, a ``crane_interfaces/Move`` given whole) and
+        wait until it is accepted: its goal handle.
+
+        ``feedback`` is called with each ``ExecuteMove.Feedback``; the result
+        comes from ``result(handle)``; ``handle.cancel_goal_async()`` cancels.
         """
-        return self._request('fastest', method, start, goal, 0.0, start_ns, timeout, reason_timeout)
+        if not self._execute.wait_for_server(timeout_sec=timeout):
+            raise TimeoutError(f'planner action {EXECUTE_MOVE_ACTION} not available')
+        if move is None:
+            move = move_message([goal], duration, [] if start is None else [start], method or '', start_ns=start_ns)
+        goal_msg = ExecuteMove.Goal(move=move, settle=float(settle))
+        callback = None if feedback is None else (lambda msg: feedback(msg.feedback))
+        handle = self._wait(self._execute.send_goal_async(goal_msg, feedback_callback=callback), timeout,
+                            'the execute_move action server')
+        if not handle.accepted:  # the planner accepts every goal; a refused plan is aborted with its reason
+            raise PlanError('the planner rejected the goal')
+        return handle
 
-    def execute_fastest(self, method: str, start: float, goal: float, start_ns: int = 0, timeout: float = 60.0,
-                        reason_timeout: float = 2.0) -> PathPlan:
-        """Like ``fastest``, and the planner sends the plan to the streamer: the crane moves."""
-        return self._request('execute_fastest', method, start, goal, 0.0, start_ns, timeout, reason_timeout)
+    def result(self, handle, timeout: float = 120.0) -> ExecuteMove.Result:
+        """The result of a goal from ``send_execute``; PlanError with its message unless it succeeded."""
+        response = self._wait(handle.get_result_async(), timeout, 'the execute_move result')
+        if not response.result.success:
+            raise PlanError(response.result.message)
+        return response.result
 
-    def execute(self, method: str | None, start: float, goal: float, duration: float,
-                start_ns: int = 0, timeout: float = 60.0, reason_timeout: float = 2.0) -> PathPlan:
-        """Like ``plan``, and the planner sends the plan to the streamer: the crane moves.
-
-        The streamer still refuses a plan that does not start at its hold
-        position or arrives while it streams another (see its diagnostics).
-        """
-        return self._request('execute', method, start, goal, duration, start_ns, timeout, reason_timeout)
-
-    def _request(self, service, method, start, goal, duration, start_ns, timeout, reason_timeout) -> PathPlan:
-        mark = self.diagnostics.mark()
-        path = self.call(method, start, goal, duration, start_ns, timeout, kind=service)
-        if path.poses:
-            t, x = path_to_arrays(path)
-            return PathPlan(t, x, start_ns, path)
-
-        def same_request(status):
-            values = status_values(status)
-            return ((method is None or values.get('method') == method)
-                    and values.get('service', service) == service
-                    and _same(status_float(status, 'start'), start)
-                    and _same(status_float(status, 'goal'), goal)
-                    and (service in ('fastest', 'execute_fastest')
-                         or _same(status_float(status, 'duration'), duration)))
-
-        status = self.diagnostics.wait_for(same_request, reason_timeout, after=mark,
-                                           name=self._status_name, level=ERROR)
-        if status is None:
-            raise PlanError(f'the planner returned an empty plan and no reason within {reason_timeout} s')
-        raise PlanError(status.message)
-
-
-def _same(reported: float, requested: float) -> bool:
-    """Key values carry 9 significant digits; NaN matches NaN."""
-    requested = float(requested)
-    if math.isnan(reported) or math.isnan(requested):
-        return math.isnan(reported) and math.isnan(requested)
-    return math.isclose(reported, requested, rel_tol=1e-8, abs_tol=1e-9)
+    def execute(self, method: str | None, start: float | None, goal: float, duration: float, start_ns: int = 0,
+                settle: float = 0.0, feedback=None, timeout: float = 120.0) -> ExecuteMove.Result:
+        """Plan, stream and watch a move (``send_execute``, then ``result``): the action's result once the
+        settle window after the motion has passed. PlanError with the planner's reason if it was refused."""
+        return self.result(self.send_execute(method, start, goal, duration, start_ns, settle, feedback), timeout)

@@ -2,11 +2,11 @@
 
 - A plan's samples (any object with arrays ``t``, ``position``, ``velocity``,
   ``acceleration``, like ``crane_planner.planning.plan.Samples``; plans are relative,
-  from 0 at t = 0) become a ``nav_msgs/Path`` (one ``PoseStamped`` per knot,
-  stamp = start + t_k, ``position.x`` = start position + reference position,
-  identity orientation) or a ``trajectory_msgs/JointTrajectory`` (joint
+  from 0 at t = 0) become a ``trajectory_msgs/JointTrajectory`` (joint
   ``cart``, positions/velocities/accelerations, ``time_from_start`` = t_k,
   header stamp = start stamp).
+- A ``crane_interfaces/Move`` is built from plain values (``move_message``).
+- The streamer's ``crane_interfaces/StreamState`` is filled in place and read back.
 - The streamer's one-sample ``reference`` (a one-point JointTrajectory or a
   ``Float64MultiArray`` [position]) is filled in place and read back here.
 - ``sensor_msgs/JointState`` <-> arrays in a given joint order.
@@ -24,8 +24,8 @@ import math
 
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
-from geometry_msgs.msg import Point, PoseStamped
-from nav_msgs.msg import Path
+from crane_interfaces.msg import Move, StreamState
+from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -61,40 +61,6 @@ def duration_msg(ns: int) -> Duration:
 def _offsets_ns(t) -> np.ndarray:
     """Sample times (s) as integer nanosecond offsets, rounded."""
     return np.rint(np.asarray(t, dtype=float) * NS).astype(np.int64)
-
-
-def samples_to_path(samples, start_position: float = 0.0, start_ns: int = 0,
-                    frame_id: str = DEFAULT_FRAME_ID) -> Path:
-    """Path of a relative plan started at ``start_position`` (m) at ``start_ns``."""
-    stamps = start_ns + _offsets_ns(samples.t)
-    secs, nsecs = np.divmod(stamps, NS)
-    secs, nsecs = secs.tolist(), nsecs.tolist()
-    xs = (start_position + np.asarray(samples.position, dtype=float)).tolist()
-    poses = [None] * len(xs)
-    for k, x in enumerate(xs):
-        pose = PoseStamped()
-        header = pose.header
-        header.frame_id = frame_id
-        header.stamp.sec = secs[k]
-        header.stamp.nanosec = nsecs[k]
-        pose.pose.position.x = x  # orientation defaults to identity (w = 1)
-        poses[k] = pose
-    path = Path()
-    path.header.frame_id = frame_id
-    set_stamp(path.header.stamp, start_ns)
-    path.poses = poses
-    return path
-
-
-def path_to_arrays(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(t, x): knot times (s) relative to the path's header stamp, positions (m)."""
-    n = len(path.poses)
-    stamps = np.empty(n, dtype=np.int64)
-    x = np.empty(n)
-    for k, pose in enumerate(path.poses):
-        stamps[k] = stamp_ns(pose.header.stamp)
-        x[k] = pose.pose.position.x
-    return (stamps - stamp_ns(path.header.stamp)) * 1e-9, x
 
 
 def samples_to_joint_trajectory(samples, start_position: float = 0.0, start_ns: int = 0,
@@ -280,3 +246,49 @@ def fill_crane_markers(msg: MarkerArray, stamp: int, cart: float, x1: float, z1:
     a.x, a.z, b.x, b.z, c.x, c.z = cart, 0.0, x1, z1, x2, z2
     for m, x, z in ((markers[MASS1_MARKER], x1, z1), (markers[MASS2_MARKER], x2, z2)):
         m.pose.position.x, m.pose.position.z = x, z
+
+
+def move_message(goal, duration: float, start=(), method: str = '', joint_names=(), start_ns: int = 0) -> Move:
+    """A ``crane_interfaces/Move``: positions (m) per joint of ``joint_names`` (empty: the planner's
+    joints), ``duration`` (s; 0 = the fastest within the planner's limits), ``start`` empty = where the
+    streamer holds the axes, ``start_ns`` 0 = as soon as possible."""
+    msg = Move()
+    msg.method = method or ''
+    msg.joint_names = list(joint_names)
+    msg.start = [float(x) for x in start]
+    msg.goal = [float(x) for x in goal]
+    msg.duration = float(duration)
+    set_stamp(msg.start_time, int(start_ns))
+    return msg
+
+
+def stream_state_message(joints=(CART_JOINT,), frame_id: str = DEFAULT_FRAME_ID) -> StreamState:
+    """A reusable ``StreamState`` for ``joints`` (filled in place by ``fill_stream_state``)."""
+    msg = StreamState()
+    msg.header.frame_id = frame_id
+    msg.joint_names = list(joints)
+    msg.position = array.array('d', [0.0] * len(joints))
+    msg.velocity = array.array('d', [0.0] * len(joints))
+    msg.acceleration = array.array('d', [0.0] * len(joints))
+    return msg
+
+
+STREAMING, HOLDING = 'streaming', 'holding'
+
+
+def fill_stream_state(msg: StreamState, stamp: int, streaming: bool, position: float, velocity: float,
+                      acceleration: float, motion_start_ns: int, motion_duration: float):
+    """One tick's state of a one-joint stream into a message from ``stream_state_message``, in place."""
+    s = msg.header.stamp
+    s.sec, s.nanosec = divmod(stamp, NS)
+    msg.state = STREAMING if streaming else HOLDING
+    msg.position[0], msg.velocity[0], msg.acceleration[0] = position, velocity, acceleration
+    m = msg.motion_start
+    m.sec, m.nanosec = divmod(motion_start_ns, NS)
+    msg.motion_duration = motion_duration
+
+
+def read_stream_state(msg: StreamState) -> tuple[int, bool, dict, int, float]:
+    """(stamp ns, streaming, {joint: position}, motion start ns, motion duration s) of a ``StreamState``."""
+    return (stamp_ns(msg.header.stamp), msg.state == STREAMING, dict(zip(msg.joint_names, msg.position)),
+            stamp_ns(msg.motion_start), msg.motion_duration)

@@ -36,6 +36,12 @@ REFERENCE_EVERY_SAMPLE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1000,
     reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
 
+#: ``stream_state``: the streamer's state at 50 Hz, a status in the sensor data style (best
+#: effort, volatile): the next one supersedes a lost one within 20 ms.
+STREAM_STATE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10,
+    reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
+
 #: ``joint_states``: measurements in the sensor data style (REP 2003: best
 #: effort, volatile) with a queue of 25 (0.5 s at 50 Hz) instead of 5, so a
 #: reader that stalls briefly still gets every sample of a 50 Hz stream.
@@ -47,6 +53,13 @@ JOINT_STATES_QOS = QoSProfile(
 #: publisher would not match it), volatile, a short queue: a late frame is worth nothing.
 MARKERS_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=5,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+
+#: ``~/plan_move`` (the service and its clients): the services' default policies with a queue of
+#: 100 instead of 10. Requests run side by side, but each waits in the service's queue until the
+#: executor takes it: 20 sent at once overflowed the default queue, and half were never answered.
+PLAN_MOVE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=100,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 
 #: ``/diagnostics``: reliable, and transient local with a short history so a

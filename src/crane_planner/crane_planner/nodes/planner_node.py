@@ -1,15 +1,21 @@
-"""Planner node: ``nav_msgs/srv/GetPlan`` services for every method (contract: ROS 2 nodes, planner).
+"""Planner node: ``~/plan_move`` (a preview) and ``~/execute_move`` (an action) for every method
+(contract: ROS 2 nodes, planner; interfaces in ``crane_interfaces``).
 
-``~/plan`` (the ``method`` parameter) and ``~/plan/<method>`` compute and
-answer with a ``nav_msgs/Path``; they move nothing. ``~/execute`` and
-``~/execute/<method>`` plan the same way and also latch the plan on
-``trajectory`` for the streamer. ``~/fastest[/<method>]`` and
-``~/execute_fastest[/<method>]`` do the same for the shortest duration within
-the axis limits (the goal stamp is ignored; the last pose carries the end time). Every request gets one status on
-``/diagnostics``. Requests run concurrently (MultiThreadedExecutor, one
-reentrant group); NVF/RVF solves run in the planning facade's worker
-processes (``solver_processes``), each bounded by ``max_solve_time``, so
-none waits behind another.
+``~/plan_move`` (``crane_interfaces/srv/PlanMove``) computes and answers: the
+plan's knots as a ``JointTrajectory`` and its ``PlanInfo``; it moves nothing.
+A refusal is ``success: false`` with the reason, naming the field and the
+bound (``serving.moves``). ``~/execute_move``
+(``crane_interfaces/action/ExecuteMove``) accepts every goal, plans it (a
+refused plan aborts the goal with the reason), holds the trajectory until
+``publish_lead`` before its start (so a goal canceled before then streams
+nothing), sends it to the streamer on ``trajectory``, and follows it
+(``serving.execution``): feedback at 20 Hz with the progress by the
+streamer's clock (``stream_state``) and the swing from ``joint_states``, the
+result once the settle window after the end has been observed. Every request
+gets one status on ``/diagnostics``. Requests run concurrently
+(MultiThreadedExecutor, one reentrant group); NVF/RVF solves run in the
+serving facade's worker processes (``solver_processes``), each bounded by
+``max_solve_time``, so none waits behind another.
 """
 from __future__ import annotations
 
@@ -18,16 +24,35 @@ import threading
 import time
 from dataclasses import dataclass
 
-from nav_msgs.srv import GetPlan
+import rclpy
+from crane_interfaces.action import ExecuteMove
+from crane_interfaces.msg import PlanInfo, StreamState
+from crane_interfaces.srv import PlanMove
+from rclpy.action import ActionServer, CancelResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
+from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from crane_msgs_py.client import PLAN_TASK
-from crane_msgs_py.conversions import samples_to_joint_trajectory, samples_to_path, stamp_ns
+from crane_msgs_py.conversions import (
+    joint_state_to_arrays,
+    read_stream_state,
+    samples_to_joint_trajectory,
+    stamp_ns,
+)
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from crane_msgs_py.names import DEFAULT_FRAME_ID, PLANNER_NODE, PLANNER_SERVICES, TRAJECTORY_TOPIC, planner_service
+from crane_msgs_py.names import (
+    DEFAULT_FRAME_ID,
+    EXECUTE_MOVE_ACTION,
+    JOINT_STATES_TOPIC,
+    PLAN_MOVE_SERVICE,
+    PLANNER_NODE,
+    SIM_JOINTS,
+    STREAM_STATE_TOPIC,
+    TRAJECTORY_TOPIC,
+)
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import (
     PARAMETER_DESCRIPTIONS,
@@ -38,22 +63,36 @@ from crane_msgs_py.params import (
     check_nonnegative,
     check_positive,
 )
-from crane_msgs_py.qos import TRAJECTORY_QOS
+from crane_msgs_py.qos import JOINT_STATES_QOS, PLAN_MOVE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import fix_mmap_threshold
-from crane_msgs_py.runner import run
-from crane_planner.planning import (
-    METHODS,
-    ROBUST_PARAMETERS,
-    VARIATIONAL_METHODS,
-    PlanError,
-    PlanOptions,
-    check_request,
-)
+from crane_msgs_py.runner import run, spinning
+from crane_planner.planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOptions
 from crane_planner.planning.dispatch import VariationalRequest
 from crane_planner.planning.plan import time_grid
 from crane_planner.planning.profiles import BASES
 from crane_planner.serving import Planner
+from crane_planner.serving.execution import DONE, FAILED, MOVING, WAITING, Execution
+from crane_planner.serving.moves import (
+    JOINTS,
+    CheckedMove,
+    Move,
+    MoveBounds,
+    MoveError,
+    check_move,
+    plan_move,
+    summarize,
+)
 from crane_planner.streaming.knots import knot_times
+
+#: The planner's per-request diagnostic task (status ``<planner>: plan``), and the executions'.
+PLAN_TASK = 'plan'
+EXECUTE_TASK = 'execute'
+#: Settle window (s) of a goal that gives none (``settle`` 0).
+DEFAULT_SETTLE = 2.0
+#: How fresh (s) the last ``stream_state`` must be for the streamer to count as heard.
+STREAM_FRESH = 1.0
+#: Feedback period (s): 20 Hz, above the contract's 10 Hz.
+FEEDBACK_PERIOD = 0.05
 
 #: name -> (default, description, range descriptor fields). Ranges are the
 #: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by the
@@ -67,7 +106,7 @@ PARAMETERS = {
     'tau': (CraneParams.tau, PARAMETER_DESCRIPTIONS['tau'], float_range(0.0, 10.0)),
     'c1': (CraneParams.c1, PARAMETER_DESCRIPTIONS['c1'], float_range(0.0, 1e3)),
     'c2': (CraneParams.c2, PARAMETER_DESCRIPTIONS['c2'], float_range(0.0, 1e3)),
-    'method': ('rvf', f'method of ~/plan: one of {", ".join(METHODS)}',
+    'method': ('rvf', f'method of a move that names none: one of {", ".join(METHODS)}',
                {'additional_constraints': f'one of {", ".join(METHODS)}'}),
     'robust_parameters': (['L1'], f'parameters RVF is made insensitive to, among {", ".join(ROBUST_PARAMETERS)}',
                           {'additional_constraints': f'distinct names among {", ".join(ROBUST_PARAMETERS)}'}),
@@ -82,7 +121,13 @@ PARAMETERS = {
                            '(its breakpoints, and as few more as keep the streamer\'s quintic Hermite '
                            'interpolation within 1 um); the last knot is exactly at the end',
                       float_range(0.0, 1.0)),
-    'frame_id': (DEFAULT_FRAME_ID, 'frame of returned paths and trajectories', {}),
+    'frame_id': (DEFAULT_FRAME_ID, 'frame of returned trajectories', {}),
+    'joints': (list(JOINTS), f'the actuated joints this planner serves, among {", ".join(JOINTS)} (every array '
+                             'of a Move is per joint in this order); fixed at start-up',
+               {'additional_constraints': f'distinct names among {", ".join(JOINTS)}', 'read_only': True}),
+    'publish_lead': (0.3, 'an executed trajectory is sent to the streamer this long (s) before its start '
+                          'time, so that a goal canceled before then streams nothing (one starting as '
+                          'soon as possible is sent at once)', float_range(0.0, 10.0)),
     'max_duration': (60.0, 'longest motion served (s), > 0', float_range(0.0, 3600.0)),
     'max_displacement': (10.0, 'largest |goal - start| served (m), > 0',
                          float_range(0.0, 1e4)),
@@ -122,6 +167,12 @@ class Config:
     max_displacement: float
     solver_pool_size: int
     solver_processes: int
+    joints: tuple
+    publish_lead: float
+
+    @property
+    def bounds(self) -> MoveBounds:
+        return MoveBounds(self.joints, self.method, self.max_displacement, self.max_duration)
 
     @classmethod
     def from_values(cls, v: dict) -> 'Config':
@@ -138,10 +189,14 @@ class Config:
             max_solve_time=check_positive('max_solve_time', v['max_solve_time']))
         if not v['frame_id']:
             raise ParameterError('frame_id must not be empty')
+        joints = tuple(v['joints'])
+        if not joints or len(set(joints)) != len(joints) or any(j not in JOINTS for j in joints):
+            raise ParameterError(f'joints must be distinct names among {", ".join(JOINTS)} (the hoist joint is '
+                                 f'not served yet), got {list(joints)}')
         return cls(params, options, v['method'], check_nonnegative('sample_period', v['sample_period']),
                    v['frame_id'], check_positive('max_duration', v['max_duration']),
                    check_positive('max_displacement', v['max_displacement']), int(v['solver_pool_size']),
-                   int(v['solver_processes']))
+                   int(v['solver_processes']), joints, check_nonnegative('publish_lead', v['publish_lead']))
 
     def warmups(self) -> list[VariationalRequest]:
         """Requests that build the NVF/RVF solvers of this configuration.
@@ -181,17 +236,27 @@ class PlannerNode(Node):
             else:
                 self.get_logger().error('no solver process started within 60 s; NVF/RVF requests will be refused')
         self._trajectory = self.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
+        # what the streamer holds and streams, and the measured swing: read on a group of their own
+        self._lock = threading.Lock()
+        self._stream: tuple | None = None  # (ROS time received ns, read_stream_state(...))
+        self._goals: list[_Goal] = []  # goals being executed: planned, streaming or settling
+        # The two 50 Hz inputs go to a node of their own on an EventsExecutor thread: through the
+        # services' MultiThreadedExecutor their 100 messages a second kept the node at a whole core.
+        self._inputs = rclpy.create_node(f'{self.get_name()}_inputs', namespace=self.get_namespace(),
+                                         start_parameter_services=False)
+        self._inputs.create_subscription(StreamState, STREAM_STATE_TOPIC, self._on_stream_state, STREAM_STATE_QOS)
+        self._inputs.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_joint_state, JOINT_STATES_QOS)
+        inputs_executor = EventsExecutor()  # takes no new entities while spinning: everything is added first
+        inputs_executor.add_node(self._inputs)
+        self._inputs_spinning = spinning(inputs_executor)
+        self._inputs_spinning.__enter__()
         group = ReentrantCallbackGroup()
-        for kind in PLANNER_SERVICES:
-            self.create_service(GetPlan, planner_service(kind), lambda req, res, k=kind: self._serve(None, req, res, k),
-                                callback_group=group)
-            for method in METHODS:
-                self.create_service(GetPlan, planner_service(kind, method),
-                                    lambda req, res, m=method, k=kind: self._serve(m, req, res, k),
-                                    callback_group=group)
-        self.get_logger().info(f'serving {", ".join(METHODS)} on {self.get_fully_qualified_name()}/plan/<method> '
-                               '(preview), .../execute/<method> (plan and send to the streamer), and '
-                               '.../fastest/<method>, .../execute_fastest/<method> (shortest within the limits)')
+        self.create_service(PlanMove, PLAN_MOVE_SERVICE, self._on_plan_move, qos_profile=PLAN_MOVE_QOS,
+                            callback_group=group)
+        self._action = ActionServer(self, ExecuteMove, EXECUTE_MOVE_ACTION, self._execute,
+                                    cancel_callback=self._on_cancel, callback_group=group)
+        self.get_logger().info(f'serving {", ".join(METHODS)} on {self.get_fully_qualified_name()}/plan_move '
+                               '(PlanMove: a preview) and .../execute_move (ExecuteMove: plan, stream, settle)')
         self._warmup = threading.Thread(target=self._build_solvers, name='solver-warmup', daemon=True)
         self._warmup.start()
 
@@ -201,9 +266,11 @@ class PlannerNode(Node):
         self._config = config  # applies to the next request
 
     def executor_threads(self) -> int:
-        """Enough executor threads for every solver busy at once, plus the shapers' and parameter requests."""
+        """Enough executor threads for every solver busy at once, plus the shapers' and parameter requests,
+        the goals being executed (each holds a thread until its result: one moving, one settling) and
+        the stream_state / joint_states callbacks."""
         config = self._config
-        return config.solver_processes + config.solver_pool_size * len(VARIATIONAL_METHODS) + 4
+        return config.solver_processes + config.solver_pool_size * len(VARIATIONAL_METHODS) + 4 + 2 + 1
 
     # -- requests ---------------------------------------------------------
 
@@ -243,73 +310,237 @@ class PlannerNode(Node):
                                  **{f'{m}_s': v for m, v in times.items()},
                                  **{f'{m}_error': e for m, e in failed.items()})
 
-    def _serve(self, method, request, response, kind: str):
-        config = self._config
-        method = method or config.method
-        execute, fastest = kind.startswith('execute'), kind.endswith('fastest')
-        t0 = time.perf_counter()
-        start = request.start.pose.position.x
-        goal = request.goal.pose.position.x
-        start_ns = stamp_ns(request.start.header.stamp)
-        duration = (stamp_ns(request.goal.header.stamp) - start_ns) * 1e-9
-        values = {'method': method, 'service': kind, 'start': start, 'goal': goal,
-                  'displacement': goal - start, 'duration': duration}
-        try:
-            samples, plan = self._plan(config, method, start, goal, None if fastest else duration)
-        except ValueError as exc:  # PlanError, ParameterError: the request cannot be served
-            return self._refuse(response, str(exc), values, t0)
-        except Exception as exc:  # a solver bug must not kill the node or leave the caller waiting
-            self.get_logger().error(f'{method}: unexpected {type(exc).__name__} while planning')
-            return self._refuse(response, f'internal error: {type(exc).__name__}: {exc}', values, t0)
-        solved = time.perf_counter()
-        response.plan = samples_to_path(samples, start, start_ns, config.frame_id)
-        if execute:
-            self._trajectory.publish(samples_to_joint_trajectory(samples, start, start_ns, config.frame_id))
-        done = time.perf_counter()
-        info = plan.info
-        if fastest:
-            values['duration'] = plan.duration
-        self._diagnostics.report(
-            PLAN_TASK, OK, f'{method}: {len(samples.t)} knots' + (f' in {plan.duration:.4f} s' if fastest else '')
-            + (', sent for execution' if execute else ''), **values, solve_time=info.get('solve_time_s', solved - t0),
-            build_time=info.get('build_time_s', 0.0),
-            iterations=info.get('iterations', 0), plan_time=solved - t0, message_time=done - solved,
-            knots=len(samples.t), error='')
-        # per request at debug level: /diagnostics has them, and an info line costs 0.4 ms
-        self.get_logger().debug(f'{values["service"]} {method}: {start:g} -> {goal:g} m in {duration:g} s, '
-                                f'{len(samples.t)} knots, planned in {solved - t0:.3f} s')
-        return response
+    # -- what the streamer and the crane say (their own callback group) -----------------
 
-    def _plan(self, config: Config, method: str, start: float, goal: float, duration: float | None):
-        """(knot samples, plan); ``duration`` None: the fastest within the axis limits."""
-        if not (math.isfinite(start) and math.isfinite(goal)):
-            raise PlanError(f'start and goal positions must be finite, got start={start}, goal={goal}')
-        displacement, _ = check_request(method, goal - start, duration or 1.0)
-        if abs(displacement) > config.max_displacement:
-            raise PlanError(f'displacement {displacement:g} m exceeds max_displacement '
-                            f'{config.max_displacement:g} m')
-        if duration is None:
-            plan = self._planner.fastest(method, displacement, config.params, config.options)
-            duration = plan.duration
-            if duration > config.max_duration:
-                raise PlanError(f'the fastest {method} plan lasts {duration:g} s, beyond max_duration '
-                                f'{config.max_duration:g} s')
-        else:
-            duration = check_request(method, displacement, duration)[1]
-            if duration > config.max_duration:
-                raise PlanError(f'duration {duration:g} s exceeds max_duration {config.max_duration:g} s')
-            plan = self._planner.plan(method, displacement, duration, config.params, config.options)
-        times = knot_times(plan) if config.sample_period == 0.0 else time_grid(duration, config.sample_period)
-        return plan.evaluate(times), plan
+    def _on_stream_state(self, msg: StreamState):
+        state = read_stream_state(msg)
+        with self._lock:
+            self._stream = (self.get_clock().now().nanoseconds, state)
+            executions = [g.execution for g in self._goals if g.execution is not None]
+        stamp, _, _, motion_start, motion_duration = state
+        for execution in executions:
+            execution.on_stream_state(stamp, motion_start, motion_duration)
+
+    def _on_joint_state(self, msg: JointState):
+        with self._lock:
+            executions = [g.execution for g in self._goals if g.execution is not None]
+        if not executions:
+            return
+        try:
+            position, _ = joint_state_to_arrays(msg, SIM_JOINTS)
+        except ValueError:  # not the crane's joints: nothing to measure the swing with
+            return
+        for execution in executions:
+            execution.on_joint_state(stamp_ns(msg.header.stamp), position[1], position[2])
+
+    def _hold(self) -> dict | None:
+        """Where the streamer holds each joint (m), if it was heard within ``STREAM_FRESH`` s."""
+        with self._lock:
+            stream = self._stream
+        if stream is None or self.get_clock().now().nanoseconds - stream[0] > STREAM_FRESH * 1e9:
+            return None
+        return stream[1][2]
+
+    # -- planning (PlanMove, and each ExecuteMove goal) --------------------------------
+
+    def _plan(self, move_msg, service: str, execute: bool = False):
+        """(checked move, plan, knot samples, status values); MoveError/ValueError says why not."""
+        config = self._config
+        move = Move(move_msg.method, tuple(move_msg.joint_names), tuple(move_msg.start), tuple(move_msg.goal),
+                    move_msg.duration, stamp_ns(move_msg.start_time))
+        values = {'service': service, 'method': move.method or config.method,
+                  'start': move.start[0] if move.start else math.nan,
+                  'goal': move.goal[0] if move.goal else math.nan, 'duration': move.duration}
+        hold = self._hold()
+        try:
+            checked = check_move(move, config.bounds, hold)
+            values.update(method=checked.method, start=checked.start, goal=checked.goal,
+                          displacement=checked.displacement)
+            plan = plan_move(self._planner, checked, config.bounds, config.params, config.options)
+            if execute:  # after planning: a preview and a goal of the same bad move give the same reason
+                self._check_executable(checked, hold)
+        except ValueError as exc:
+            exc.values = values
+            raise
+        times = knot_times(plan) if config.sample_period == 0.0 else time_grid(plan.duration, config.sample_period)
+        values['duration'] = plan.duration
+        return checked, plan, plan.evaluate(times), values
+
+    @staticmethod
+    def _check_executable(move: CheckedMove, hold: dict | None):
+        """What the streamer would refuse, refused before anything is sent."""
+        if hold is None:
+            raise MoveError('goal', f'no streamer heard on {STREAM_STATE_TOPIC} within {STREAM_FRESH:g} s: nothing '
+                                    'would stream the motion (is crane_streamer running and started?)')
+        if abs(move.start - hold['cart']) > 1e-6:
+            raise MoveError('start', f'{move.start:.6g} m is not where the streamer holds the cart '
+                                     f'({hold["cart"]:.6g} m); leave start empty to start there')
+
+    def _info(self, plan, checked: CheckedMove, planning_time: float) -> PlanInfo:
+        summary = summarize(plan, checked.joint_names, plan.info.get('solve_time_s', planning_time))
+        info = PlanInfo()
+        info.method, info.duration, info.solve_time = summary.method, summary.duration, summary.solve_time
+        info.iterations, info.joint_names = summary.iterations, list(summary.joint_names)
+        info.peak_velocity, info.peak_acceleration = list(summary.peak_velocity), list(summary.peak_acceleration)
+        info.peak_jerk, info.predicted_residual = list(summary.peak_jerk), summary.predicted_residual
+        return info
+
+    def _trajectory_of(self, checked: CheckedMove, samples) -> JointTrajectory:
+        return samples_to_joint_trajectory(samples, checked.start, checked.start_ns, self._config.frame_id)
+
+    def _report_plan(self, values: dict, plan, samples, t0: float, solved: float, error: str = ''):
+        """One /diagnostics status per request: the plan's facts, or the reason it was refused."""
+        now = time.perf_counter()
+        if error:
+            self.get_logger().error(f'{values["service"]} {values["method"]} refused: {error}')
+            self._diagnostics.report(PLAN_TASK, ERROR, error, **values, solve_time=0.0, plan_time=now - t0,
+                                     iterations=0, knots=0, error=error)
+            return
+        info = plan.info
+        self._diagnostics.report(
+            PLAN_TASK, OK, f'{values["method"]}: {len(samples.t)} knots in {plan.duration:.4f} s', **values,
+            solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
+            iterations=info.get('iterations', 0), plan_time=solved - t0, message_time=now - solved,
+            knots=len(samples.t), error='')
+
+    def _on_plan_move(self, request, response):
+        t0 = time.perf_counter()
+        try:
+            checked, plan, samples, values = self._plan(request.move, 'plan_move')
+        except ValueError as exc:  # MoveError, PlanError, ParameterError: the request cannot be served
+            return self._refuse(response, str(exc), getattr(exc, 'values', {}), t0)
+        except Exception as exc:  # a solver bug must not kill the node or leave the caller waiting
+            return self._refuse(response, f'internal error: {type(exc).__name__}: {exc}', {}, t0)
+        solved = time.perf_counter()
+        response.success, response.message = True, ''
+        response.trajectory = self._trajectory_of(checked, samples)
+        response.info = self._info(plan, checked, solved - t0)
+        self._report_plan(values, plan, samples, t0, solved)
+        return response
 
     def _refuse(self, response, reason: str, values: dict, t0: float):
-        response.plan.header.frame_id = self._config.frame_id
-        self.get_logger().error(f'{values["service"]} {values["method"]} request refused: {reason}')
-        self._diagnostics.report(PLAN_TASK, ERROR, reason, **values, solve_time=0.0,
-                                 plan_time=time.perf_counter() - t0, iterations=0, knots=0, error=reason)
+        response.success, response.message = False, reason
+        response.trajectory.header.frame_id = self._config.frame_id
+        values = {'service': 'plan_move', 'method': '', **values}
+        self._report_plan(values, None, None, t0, t0, error=reason)
         return response
 
+    # -- execution (ExecuteMove) ----------------------------------------------------------
+
+    def _on_cancel(self, goal_handle) -> CancelResponse:
+        """A cancel is accepted until the goal's trajectory is sent; after that its motion is the
+        streamer's and stopping it mid-move is not supported yet: refused, saying so."""
+        with self._lock:
+            goal = next((g for g in self._goals if g.goal_handle is goal_handle), None)
+            sent = goal is not None and goal.sent
+            if goal is not None and not sent:
+                goal.cancel = True  # seen by _run under this lock before it sends anything
+        if sent:
+            reason = ('cancel refused: the motion is already sent to the streamer; stopping a motion once '
+                      'sent is not supported yet')
+            self.get_logger().warn(reason)
+            self._diagnostics.report(EXECUTE_TASK, WARN, reason, error=reason)
+            return CancelResponse.REJECT
+        return CancelResponse.ACCEPT
+
+    def _execute(self, goal_handle):
+        request = goal_handle.request
+        result = ExecuteMove.Result()
+        result.residual_swing = math.nan
+        goal = _Goal(goal_handle)
+        with self._lock:
+            # one motion at a time; goals whose motion has ended may still be settling (observing)
+            busy = [g for g in self._goals if g.phase in ('', WAITING, MOVING)]
+            if not busy:
+                self._goals.append(goal)
+        if busy:
+            return self._end(goal_handle, result, 'abort', 'a motion is executing (planned, streaming or '
+                             'waiting for its start); a new goal is accepted once it has ended, and '
+                             'preempting a motion is not supported yet')
+        try:
+            return self._run(goal, request, result)
+        except Exception as exc:  # a bug must not leave the caller waiting forever
+            self.get_logger().error(f'execute_move: unexpected {type(exc).__name__}: {exc}')
+            if not goal_handle.is_active:  # it already ended: the caller has its status
+                return result
+            return self._end(goal_handle, result, 'abort', f'internal error: {type(exc).__name__}: {exc}')
+        finally:
+            with self._lock:
+                self._goals.remove(goal)
+
+    def _run(self, goal: '_Goal', request, result):
+        goal_handle, config = goal.goal_handle, self._config
+        t0 = time.perf_counter()
+        if not (math.isfinite(request.settle) and request.settle >= 0.0):
+            return self._end(goal_handle, result, 'abort', f'settle: must be finite and >= 0 s (0 = '
+                             f'{DEFAULT_SETTLE:g} s), got {request.settle}')
+        settle = request.settle or DEFAULT_SETTLE
+        try:
+            checked, plan, samples, values = self._plan(request.move, 'execute_move', execute=True)
+        except ValueError as exc:
+            self._report_plan({'service': 'execute_move', 'method': '', **getattr(exc, 'values', {})},
+                              None, None, t0, t0, error=str(exc))
+            return self._end(goal_handle, result, 'abort', str(exc))
+        solved = time.perf_counter()
+        self._report_plan(values, plan, samples, t0, solved)
+        result.info = self._info(plan, checked, solved - t0)
+        feedback = ExecuteMove.Feedback(progress=0.0, time_remaining=plan.duration, swing=math.nan)
+        goal_handle.publish_feedback(feedback)  # planned: the caller knows at once
+        # hold the trajectory until publish_lead before its start: a cancel before then streams nothing
+        send_at = checked.start_ns - round(config.publish_lead * 1e9) if checked.start_ns else 0
+        while self.get_clock().now().nanoseconds < send_at and not (goal.cancel or goal_handle.is_cancel_requested):
+            time.sleep(min(FEEDBACK_PERIOD, max(0.0, (send_at - self.get_clock().now().nanoseconds) * 1e-9)))
+        with self._lock:
+            if goal.cancel or goal_handle.is_cancel_requested:
+                return self._end(goal_handle, result, 'cancel', 'canceled before its motion started: nothing '
+                                 'was streamed')
+            goal.sent = True
+            sent_ns = self.get_clock().now().nanoseconds
+            for other in self._goals:  # settling goals observe until this motion starts at the latest
+                if other is not goal and other.execution is not None:
+                    other.execution.cut(checked.start_ns or sent_ns)
+        goal.execution = Execution(plan.duration, settle, checked.start_ns or sent_ns, config.params.L1,
+                                   config.params.L2)
+        self._trajectory.publish(self._trajectory_of(checked, samples))
+        execution = goal.execution
+        while True:
+            phase = execution.phase(self.get_clock().now().nanoseconds)
+            feedback.progress, feedback.time_remaining = execution.progress, execution.time_remaining
+            feedback.swing = execution.swing
+            goal_handle.publish_feedback(feedback)
+            if phase in (DONE, FAILED):
+                break
+            time.sleep(FEEDBACK_PERIOD)
+        if phase == FAILED:
+            return self._end(goal_handle, result, 'abort', execution.failure)
+        result.residual_swing = execution.residual
+        residual = ('no joint_states: residual not measured' if math.isnan(execution.residual)
+                    else f'residual swing {1e3 * execution.residual:.3f} mm')
+        cut = ('' if execution.window_end_ns == execution.end_ns + round(settle * 1e9) else
+               f' (observed {(execution.window_end_ns - execution.end_ns) * 1e-9:.3g} s: the next motion started)')
+        return self._end(goal_handle, result, 'succeed', f'{checked.method}: {checked.start:g} -> {checked.goal:g} m '
+                         f'in {plan.duration:.4g} s; {residual}{cut}', success=True)
+
+    def _end(self, goal_handle, result, how: str, message: str, success: bool = False):
+        """End a goal (``succeed``, ``abort`` or ``cancel``) with ``message``, also on /diagnostics."""
+        result.success, result.message = success, message
+        if how == 'cancel':  # the server marks the goal canceling just after our cancel callback returned
+            deadline = time.monotonic() + 1.0
+            while not goal_handle.is_cancel_requested and time.monotonic() < deadline:
+                time.sleep(0.001)
+        getattr(goal_handle, {'succeed': 'succeed', 'abort': 'abort', 'cancel': 'canceled'}[how])()
+        level = OK if success else WARN if how == 'cancel' else ERROR
+        if level == OK:  # (one call site per severity: rclpy refuses a site whose severity changes)
+            self.get_logger().info(f'execute_move: {message}')
+        else:
+            self.get_logger().warn(f'execute_move: {message}')
+        self._diagnostics.report(EXECUTE_TASK, level, message, outcome=how, residual_swing=result.residual_swing,
+                                 error='' if success else message)
+        return result
+
     def destroy_node(self):
+        self._inputs_spinning.__exit__(None, None, None)
+        self._inputs.destroy_node()
         # CasADi must not be building in the warm-up thread while the interpreter exits
         if self._warmup.is_alive():
             self.get_logger().info('waiting for the solver warm-up to finish')
@@ -320,3 +551,18 @@ class PlannerNode(Node):
 
 def main(args=None):
     return run(PlannerNode, MultiThreadedExecutor, args, num_threads=PlannerNode.executor_threads)
+
+
+class _Goal:
+    """An ExecuteMove goal the node is executing: whether its trajectory is sent, how it is followed."""
+
+    def __init__(self, goal_handle):
+        self.goal_handle = goal_handle
+        self.sent = False  # the trajectory went to the streamer: no cancel any more
+        self.cancel = False  # a cancel was accepted before it was sent
+        self.execution: Execution | None = None
+
+    @property
+    def phase(self) -> str:
+        """The execution's phase; '' while planning or holding the trajectory."""
+        return self.execution.phase(0) if self.execution is not None else ''

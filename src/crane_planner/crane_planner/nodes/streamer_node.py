@@ -9,7 +9,10 @@ The loop runs on its own thread at absolute deadlines of the monotonic
 clock, never waits on the executor, asks the core for each tick's sample,
 fills one pre-allocated message per tick and, with network impairment on,
 holds samples in a ``impairment.DelayLine`` and publishes them itself when
-they are due.
+they are due. Every ``rate / state_rate`` ticks it also publishes the stream's
+state (``crane_interfaces/StreamState`` on ``stream_state``, not impaired: a
+status, like ros2_controllers' controller_state), from which the planner
+follows an executed move by this clock and learns where the axes are held.
 """
 from __future__ import annotations
 
@@ -18,12 +21,20 @@ import math
 import threading
 import time
 
+from crane_interfaces.msg import StreamState
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from crane_msgs_py.conversions import fill_reference, joint_trajectory_to_arrays, reference_message, stamp_ns
+from crane_msgs_py.conversions import (
+    fill_reference,
+    fill_stream_state,
+    joint_trajectory_to_arrays,
+    reference_message,
+    stamp_ns,
+    stream_state_message,
+)
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (
     OUTPUT_JOINT_TRAJECTORY,
@@ -31,11 +42,12 @@ from crane_msgs_py.names import (
     REFERENCE_TOPIC,
     START_SERVICE,
     STOP_SERVICE,
+    STREAM_STATE_TOPIC,
     STREAMER_NODE,
     TRAJECTORY_TOPIC,
 )
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
-from crane_msgs_py.qos import REFERENCE_QOS, TRAJECTORY_QOS
+from crane_msgs_py.qos import REFERENCE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
 from crane_planner.streaming.impairment import DISTRIBUTIONS, DelayLine, Impairment
@@ -51,6 +63,8 @@ PARAMETERS = {
     'output': (OUTPUT_JOINT_TRAJECTORY, 'reference type: joint_trajectory (one point: position, velocity, '
                'acceleration) or float64_array (Float64MultiArray [position]); fixed at start-up',
                {'additional_constraints': f'one of {", ".join(OUTPUTS)}', 'read_only': True}),
+    'state_rate': (50.0, 'publishing rate of stream_state (Hz), at most rate; fixed at start-up',
+                   {**float_range(1.0, 1000.0), 'read_only': True}),
     'auto_start': (True, 'start streaming at start-up (else wait for ~/start)', {'read_only': True}),
     'initial_position': (0.0, 'hold position (m) before the first motion', {'read_only': True}),
     'start_tolerance': (1e-6, 'largest distance (m) between a trajectory\'s first position and the hold '
@@ -90,6 +104,9 @@ class StreamerNode(Node):
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._impairment_of, self._apply, self._diagnostics)
         self._publisher = self.create_publisher(type(self._msg), REFERENCE_TOPIC, REFERENCE_QOS)
+        self._state_msg = stream_state_message()
+        self._state_pub = self.create_publisher(StreamState, STREAM_STATE_TOPIC, STREAM_STATE_QOS)
+        self._state_every = max(1, round(p['rate'] / p['state_rate']))
 
         # Shared with the loop thread (the core is thread-safe); the loop owns the ticker.
         # _running wakes the loop; the core's state decides what trajectories it takes.
@@ -211,6 +228,8 @@ class StreamerNode(Node):
             self.ticks += 1
             position, velocity, acceleration = sample(k)
             stamp = epoch_ros + k * ticker.period
+            if k % self._state_every == 0:
+                self._publish_state(stamp, position, velocity, acceleration)
             if line is None:
                 fill_reference(msg, stamp, position, velocity, acceleration)
                 if not self._publish(msg, publisher):
@@ -221,6 +240,16 @@ class StreamerNode(Node):
             self.skipped += ticker.advance(now)
         if line is not None:
             self._deliver(line, math.inf)
+
+    def _publish_state(self, stamp: int, position: float, velocity: float, acceleration: float):
+        stream = self._stream
+        motion = stream.last_motion
+        fill_stream_state(self._state_msg, stamp, stream.streaming, position, velocity, acceleration,
+                          motion.start_ns if motion else 0, motion.duration if motion else 0.0)
+        try:
+            self._state_pub.publish(self._state_msg)
+        except Exception:  # the context is shut down (SIGINT): the reference's publish ends the loop
+            pass
 
     def _wait(self, deadline: int, line: DelayLine | None) -> int:
         """Sleep until the tick's deadline, delivering delayed messages that fall due meanwhile."""

@@ -83,3 +83,12 @@ class Plan(ABC):
     def sample(self, period: float) -> Samples:
         """Samples every ``period`` seconds, the last exactly at ``duration``."""
         return self.evaluate(time_grid(self.duration, period))
+
+    def peaks(self, per_piece: int = 24) -> tuple[float, float, float]:
+        """Peak |velocity|, |acceleration|, |jerk| over [0, T], sampled at ``per_piece`` + 1 evenly spaced
+        times of every piece between breakpoints (low-degree polynomials: a few 1e-4 relative low at
+        most; a plan type that knows its peaks exactly overrides this)."""
+        b = self.breakpoints()
+        t = (b[:-1, None] + np.diff(b)[:, None] * np.linspace(0.0, 1.0, per_piece + 1)).ravel()
+        s = self.evaluate(t)
+        return float(np.abs(s.velocity).max()), float(np.abs(s.acceleration).max()), float(np.abs(s.jerk).max())

@@ -56,6 +56,7 @@ class Motion:
     acceleration: list  # m/s^2
     duration: float     # s
     late: float         # s the start was shifted: the trajectory came after its start stamp
+    start_ns: int = 0   # ROS time (ns) of the first tick
 
     @property
     def end_position(self) -> float:
@@ -89,6 +90,7 @@ class ReferenceStream:
         self._hold = float(hold)
         self._motion: Motion | None = None
         self._incoming: Motion | None = None
+        self._last: Motion | None = None  # the streaming or the last streamed motion (the loop's)
         self._state = STOPPED if stopped else STARTING
         self._epoch_ns = 0  # ROS time (ns) of tick 0 while running
         self._tick: Callable[[], int] | None = None
@@ -102,6 +104,11 @@ class ReferenceStream:
     def streaming(self) -> bool:
         """Whether a motion is being streamed (taken over and not yet ended)."""
         return self._motion is not None
+
+    @property
+    def last_motion(self) -> Motion | None:
+        """The motion streaming now, else the last one streamed (None before the first)."""
+        return self._last
 
     @property
     def running(self) -> bool:
@@ -182,7 +189,8 @@ class ReferenceStream:
                     late = epoch + first * period - start_ns
             n = max(0, -(-(duration_ns - offset) // period)) + 1  # the last sample at or past the end
             pos, vel, acc = interp(t[0] + (offset + period * np.arange(n)) * 1e-9)
-            self._incoming = Motion(first, pos.tolist(), vel.tolist(), acc.tolist(), duration_ns * 1e-9, late * 1e-9)
+            self._incoming = Motion(first, pos.tolist(), vel.tolist(), acc.tolist(), duration_ns * 1e-9, late * 1e-9,
+                                    epoch + first * period)
             return self._incoming
 
     # -- the loop -------------------------------------------------------------------
@@ -201,7 +209,7 @@ class ReferenceStream:
             with self._lock:
                 if self._incoming is not motion:  # dropped by stop() meanwhile
                     return self._hold, 0.0, 0.0
-                self._motion, self._incoming = motion, None
+                self._motion, self._incoming, self._last = motion, None, motion
         i = tick - motion.first_tick
         if i < len(motion.position):
             self._hold = motion.position[i]

@@ -53,8 +53,8 @@ def start_crane_nodes(nodes: NodeGroup, namespace: str, streamer_params: dict | 
 
 
 class CraneHarness:
-    """An rclpy node beside running crane nodes: plans and executes over the planner
-    service, sets parameters, resets the sim, reads the streamer's word and records
+    """An rclpy node beside running crane nodes: plans and executes over the planner's
+    PlanMove service and ExecuteMove action, sets parameters, resets the sim, reads the streamer's word and records
     joint_states. Spins in a thread of its own from construction to ``close()``.
 
     Every wait also watches the node processes: a node that dies ends the wait
@@ -79,6 +79,7 @@ class CraneHarness:
         self._slowest_plan = 0.0
         self._states: list = []  # (stamp ns, theta1, theta2, cart)
         self._trajectories: dict = {}  # start stamp ns -> JointTrajectory
+        self._goals: dict = {}  # start stamp ns -> ExecuteMove goal handle, until its result is read
         # every sample counts (the residuals are computed from them): 10 s of queue for this process's stalls
         self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state,
                                       recording(JOINT_STATES_QOS, 10.0, 50.0), callback_group=group)
@@ -124,10 +125,10 @@ class CraneHarness:
             self._nodes.check_alive()
             time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
 
-    def wait_until_up(self, methods, timeout: float):
+    def wait_until_up(self, timeout: float):
         """Wait until every service, parameter client and joint_states is up and the planner has warmed up."""
         deadline = time.monotonic() + timeout
-        waits = [(f'planner service plan/{m}', lambda m=m: self.planner.wait_for_service(m, 0.1)) for m in methods]
+        waits = [('planner plan_move and execute_move', lambda: self.planner.wait_for_service(0.1))]
         waits += [(f'{target} parameters', lambda c=client: c.wait_for_services(0.1))
                   for target, client in self._params.items()]
         waits += [('sim reset service', lambda: self._reset.wait_for_service(0.1)),
@@ -159,28 +160,54 @@ class CraneHarness:
         recording at 1 kHz, has taken 0.4 s)."""
         return max(0.5, 3.0 * self._slowest_plan)
 
-    def move(self, method: str, start: float, goal: float, duration: float, start_ns: int | None = None):
-        """Execute a move starting at ``start_ns`` (default :meth:`lead` from now) through the
-        planner's ``~/execute/<method>``; (the stamp the motion starts, round-trip s, served trajectory)."""
+    def move(self, method: str, start: float, goal: float, duration: float, start_ns: int | None = None,
+             settle: float = 0.0):
+        """Execute a move starting at ``start_ns`` (default :meth:`lead` from now) through the planner's
+        ``~/execute_move``; (the stamp the motion starts, plan round trip s, served trajectory).
+
+        The round trip lasts until the goal's first feedback (sent once it is
+        planned); a refused plan raises PlanError with the planner's reason.
+        The action's result (after ``settle`` s of observation, 0 = the
+        planner's default) is :meth:`move_result`.
+        """
         if start_ns is None:
             start_ns = self.now_ns() + round(self.lead() * 1e9)
         mark = self.planner.diagnostics.mark()
+        planned = threading.Event()
         t0 = time.perf_counter()
-        # The client raises PlanError with the planner's reason on a refused plan.
-        self.planner.execute(method, start, goal, duration, start_ns=start_ns, timeout=30.0)
+        handle = self.planner.send_execute(method, start, goal, duration, start_ns, settle,
+                                           feedback=lambda _: planned.set(), timeout=30.0)
+        outcome = handle.get_result_async()
+        self.wait_until(lambda: planned.is_set() or outcome.done(), 30.0, f'the {method} goal was never planned')
         plan_time = time.perf_counter() - t0
+        if not planned.is_set():  # ended before any feedback: refused
+            self.planner.result(handle, timeout=5.0)  # raises PlanError with the planner's reason
         self._slowest_plan = max(self._slowest_plan, plan_time)
         if self.now_ns() > start_ns:
             # the streamer streams a late trajectory whole from its next tick (never a jump) and says
             # so: streamed_start returns the start it really got, and every window follows it
             self._log(f'planning {method} took {plan_time:.2f} s, past the motion start: the motion starts late')
         traj = self.trajectory(start_ns, f'the {method}')
-        return self.streamed_start(start_ns, mark, method), plan_time, traj
+        streamed = self.streamed_start(start_ns, mark, method)
+        with self._lock:
+            self._goals[streamed] = handle
+        return streamed, plan_time, traj
+
+    def goal(self, start_ns: int):
+        """The ExecuteMove goal handle of the move that started at ``start_ns`` (to cancel it, say)."""
+        with self._lock:
+            return self._goals[start_ns]
+
+    def move_result(self, start_ns: int, timeout: float = 30.0):
+        """The ExecuteMove result of the move that started at ``start_ns`` (as :meth:`move` returned it)."""
+        with self._lock:
+            handle = self._goals.pop(start_ns)
+        return self.planner.result(handle, timeout)
 
     def send(self, samples, start: float, what: str = 'the test') -> int:
         """Stream a trajectory of one's own (``plan.Samples``, relative) from ``start`` m, :meth:`lead` from now.
 
-        Published on ``trajectory`` as the planner's ``~/execute`` does: for a
+        Published on ``trajectory`` as the planner's ``~/execute_move`` does: for a
         test move no method plans, such as a commissioning excitation. The
         stamp the motion starts at.
         """

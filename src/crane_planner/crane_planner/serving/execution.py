@@ -1,0 +1,140 @@
+"""Following one executed move: progress by the streamer's clock, swing from the measured angles.
+
+An ``ExecuteMove`` goal's plan goes to the streamer, whose ``stream_state``
+(a ``crane_interfaces/StreamState`` at 50 Hz) says which motion it streams
+and at which tick; ``joint_states`` (50 Hz, stamped with the plant's time,
+which lines up with the reference's stamps) give the swing angles.
+``Execution`` takes both as plain numbers and tells the feedback (progress
+0..1 of the plan's duration, time remaining, load excursion now) and, once
+the settle window after the end has been observed, the residual swing: the
+peak load excursion from ``joint_states`` stamped in
+[end, end + settle]. Without ``joint_states`` the swing and the residual
+are NaN and the window is timed by the streamer's clock. Pure Python, no
+ROS import.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from crane_sim.dynamics import load_excursion
+
+#: ``Execution.phase`` values.
+WAITING, MOVING, SETTLING, DONE, FAILED = 'waiting', 'moving', 'settling', 'done', 'failed'
+
+
+@dataclass
+class Execution:
+    """One executed plan, followed; fed from the node's callbacks (one thread at a time).
+
+    Args:
+        duration: the plan's duration (s).
+        settle: seconds observed after the end for the residual, > 0.
+        start_ns: the motion's start stamp (ns of ROS time) as sent, or the
+            time it was sent when it starts as soon as possible.
+        L1, L2: cable lengths (m) of the model, for the load excursion.
+        start_timeout: how long (s, stream clock) past ``start_ns`` the
+            streamer may take to start the motion before it counts as refused.
+        late_joint_states: how long (s) past the window's end the node waits
+            for the ``joint_states`` that close it (the sim stamps plant time,
+            which runs its playout delay behind the clock).
+    """
+
+    duration: float
+    settle: float
+    start_ns: int
+    L1: float
+    L2: float
+    start_timeout: float = 1.0
+    late_joint_states: float = 1.0
+
+    def __post_init__(self):
+        self.motion_start_ns: int | None = None  # the streamer's first tick of this motion
+        self.stream_ns: int | None = None  # the newest stream_state stamp
+        self.swing = math.nan  # m, the newest load excursion
+        self._state_ns: int | None = None  # the newest joint_states stamp
+        self._residual = math.nan
+        self._failure = ''
+        self.cut_ns: int | None = None  # a next motion's start: the settle window ends there at the latest
+
+    # -- inputs -------------------------------------------------------------------
+
+    def on_stream_state(self, stamp_ns: int, motion_start_ns: int, motion_duration: float) -> None:
+        """A ``stream_state``: its tick's stamp and the current (or last) motion's start and duration."""
+        self.stream_ns = stamp_ns
+        if (self.motion_start_ns is None and motion_start_ns >= self.start_ns - 1_000_000
+                and abs(motion_duration - self.duration) < 1e-6):
+            self.motion_start_ns = motion_start_ns  # ours: started at or after its start, as long as planned
+
+    def on_joint_state(self, stamp_ns: int, theta1: float, theta2: float) -> None:
+        """A ``joint_states`` sample (plant time): the swing now, and the residual once past the end."""
+        self.swing = float(load_excursion(theta1, theta2, self.L1, self.L2))
+        self._state_ns = stamp_ns
+        end = self.end_ns
+        if end is not None and end <= stamp_ns <= self.window_end_ns:
+            magnitude = abs(self.swing)
+            self._residual = magnitude if math.isnan(self._residual) else max(self._residual, magnitude)
+
+    # -- what the goal reports -------------------------------------------------------
+
+    @property
+    def end_ns(self) -> int | None:
+        """The motion's end on the streamer's clock, once it has started."""
+        if self.motion_start_ns is None:
+            return None
+        return self.motion_start_ns + round(self.duration * 1e9)
+
+    @property
+    def window_end_ns(self) -> int | None:
+        """The settle window's end: ``settle`` after the motion's end, or a next motion's start if earlier."""
+        end = self.end_ns
+        if end is None:
+            return None
+        window_end = end + round(self.settle * 1e9)
+        return window_end if self.cut_ns is None else max(end, min(window_end, self.cut_ns))
+
+    def cut(self, next_start_ns: int) -> None:
+        """A next motion starts at ``next_start_ns``: the settle window ends there at the latest."""
+        self.cut_ns = next_start_ns if self.cut_ns is None else min(self.cut_ns, next_start_ns)
+
+    @property
+    def progress(self) -> float:
+        """0..1 of the plan's duration, by the streamer's clock."""
+        if self.motion_start_ns is None or self.stream_ns is None:
+            return 0.0
+        return min(max((self.stream_ns - self.motion_start_ns) * 1e-9 / self.duration, 0.0), 1.0)
+
+    @property
+    def time_remaining(self) -> float:
+        """Seconds of the motion still to stream (the settle window not counted)."""
+        return (1.0 - self.progress) * self.duration
+
+    @property
+    def residual(self) -> float:
+        """Peak |load excursion| (m) over the settle window so far; NaN without joint_states in it."""
+        return self._residual
+
+    @property
+    def failure(self) -> str:
+        return self._failure
+
+    def phase(self, now_ns: int) -> str:
+        """Where the execution is, at ROS time ``now_ns`` (for the timeouts)."""
+        if self._failure:
+            return FAILED
+        clock = max(now_ns, self.stream_ns or 0)
+        if self.motion_start_ns is None:
+            if clock > self.start_ns + round(self.start_timeout * 1e9):
+                self._failure = ('the streamer did not stream the motion within '
+                                 f'{self.start_timeout:g} s of its start'
+                                 + (' (no stream_state: is the streamer running?)' if self.stream_ns is None else
+                                    ' (refused: see its /diagnostics, e.g. not at the hold position or busy)'))
+                return FAILED
+            return WAITING
+        if self.progress < 1.0:
+            return MOVING
+        window_end = self.window_end_ns
+        if self._state_ns is not None and self._state_ns >= window_end:
+            return DONE
+        timeout = window_end + (round(self.late_joint_states * 1e9) if self._state_ns is not None else 0)
+        return DONE if clock >= timeout else SETTLING

@@ -1,0 +1,171 @@
+"""A ``crane_interfaces/Move`` as the planner serves it: checked field by field, planned, described.
+
+The planner node translates the message into a ``Move`` (plain values) and
+back; everything it decides about a request lives here, so the rules are
+tested without ROS: which joints a move names (``joint_names`` among the
+node's ``joints``; empty = all), where it starts (``start``; empty = where
+the streamer holds the axes), its duration (> 0; 0 = the fastest within the
+axis limits) and the node's bounds (``max_displacement``, ``max_duration``).
+A refusal is a ``MoveError`` whose message names the field and the bound,
+e.g. ``move.duration: 90 s exceeds max_duration 60 s``. Pure Python, no ROS
+import.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from crane_msgs_py.params import CraneParams
+
+from ..planning.dispatch import PlanOptions, check_request
+from ..planning.methods import METHODS
+from ..planning.plan import Plan, PlanError
+
+#: The actuated joints a planner may serve, in their order in every array.
+JOINTS = ('cart',)
+
+
+class MoveError(PlanError):
+    """A move refused; the message starts with the field it concerns (``move.<field>: ...``)."""
+
+    def __init__(self, field_name: str, reason: str):
+        super().__init__(f'move.{field_name}: {reason}')
+        self.field = field_name
+
+
+@dataclass(frozen=True)
+class Move:
+    """A rest-to-rest move of the actuated joints, as the ``Move`` message gives it (SI units).
+
+    Attributes:
+        method: '' = the node's ``method`` parameter.
+        joint_names: joints of ``start`` and ``goal``; empty = all of the node's joints.
+        start: start positions (m); empty = where the streamer holds the axes.
+        goal: goal positions (m).
+        duration: s, > 0; 0 = the fastest within the node's axis limits.
+        start_ns: start time (ns of ROS time); 0 = as soon as possible.
+    """
+
+    method: str = ''
+    joint_names: tuple = ()
+    start: tuple = ()
+    goal: tuple = ()
+    duration: float = 0.0
+    start_ns: int = 0
+
+
+@dataclass(frozen=True)
+class MoveBounds:
+    """What a planner node serves: its joints, default method and the bounds of its parameters."""
+
+    joints: tuple = JOINTS
+    method: str = 'rvf'
+    max_displacement: float = 10.0
+    max_duration: float = 60.0
+
+
+@dataclass(frozen=True)
+class CheckedMove:
+    """A move that may be planned: the method, the cart's start and goal (m), the duration (None: fastest)."""
+
+    method: str
+    joint_names: tuple
+    start: float
+    goal: float
+    duration: float | None
+    start_ns: int
+
+    @property
+    def displacement(self) -> float:
+        return self.goal - self.start
+
+
+def check_move(move: Move, bounds: MoveBounds, hold: dict | None) -> CheckedMove:
+    """The move checked field by field (MoveError names the first bad one).
+
+    ``hold``: where the streamer holds each joint now (m), None if no
+    streamer is heard; an empty ``start`` starts there, or (a preview with no
+    streamer) at 0 for the cart.
+    """
+    method = move.method or bounds.method
+    if method not in METHODS:
+        raise MoveError('method', f'unknown method {method!r}; choose from {", ".join(METHODS)}')
+    names = tuple(move.joint_names) or tuple(bounds.joints)
+    unknown = [n for n in names if n not in bounds.joints]
+    if unknown:
+        raise MoveError('joint_names', f'unknown joint {unknown[0]!r}; this planner\'s joints are '
+                                       f'{", ".join(bounds.joints)}')
+    if len(set(names)) != len(names):
+        raise MoveError('joint_names', f'a joint is named twice: {", ".join(names)}')
+    if len(move.goal) != len(names):
+        raise MoveError('goal', f'{len(move.goal)} value(s) for {len(names)} joint(s) ({", ".join(names)})')
+    if move.start and len(move.start) != len(names):
+        raise MoveError('start', f'{len(move.start)} value(s) for {len(names)} joint(s) ({", ".join(names)}); '
+                                 'empty = where the streamer holds them')
+    goal = dict(zip(names, (float(x) for x in move.goal)))
+    start = dict(zip(names, (float(x) for x in move.start))) if move.start else {
+        n: (hold or {}).get(n, 0.0) for n in names}
+    for label, values in (('start', start), ('goal', goal)):
+        for name, value in values.items():
+            if not math.isfinite(value):
+                raise MoveError(label, f'{name} must be finite, got {value}')
+    duration = float(move.duration)
+    if not math.isfinite(duration) or duration < 0.0:
+        raise MoveError('duration', f'must be finite and > 0 s (0 = the fastest within the axis limits), '
+                                    f'got {duration}')
+    displacement = goal['cart'] - start['cart']
+    if abs(displacement) > bounds.max_displacement:
+        raise MoveError('goal', f'displacement {displacement:g} m from the start exceeds max_displacement '
+                                f'{bounds.max_displacement:g} m')
+    if duration > bounds.max_duration:
+        raise MoveError('duration', f'{duration:g} s exceeds max_duration {bounds.max_duration:g} s')
+    if duration > 0.0:
+        check_request(method, displacement, duration)
+    return CheckedMove(method, names, start['cart'], goal['cart'], duration or None, int(move.start_ns))
+
+
+def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParams, options: PlanOptions) -> Plan:
+    """The plan of a checked move (``planner``: a ``serving.Planner``), or MoveError naming the field.
+
+    A refusal of the planning core concerns the duration (too short for the
+    shaper, a limit the plan would break, no solution in time) unless it is
+    about the displacement; the fastest plan must also fit ``max_duration``.
+    """
+    try:
+        if move.duration is None:
+            plan = planner.fastest(move.method, move.displacement, params, options)
+        else:
+            plan = planner.plan(move.method, move.displacement, move.duration, params, options)
+    except MoveError:
+        raise
+    except PlanError as exc:  # ParameterError too: a bad request, named by the field it concerns
+        raise MoveError('duration' if move.duration is not None else 'duration (fastest)', str(exc)) from None
+    if move.duration is None and plan.duration > bounds.max_duration:
+        raise MoveError('duration', f'the fastest {move.method} plan lasts {plan.duration:g} s, beyond '
+                                    f'max_duration {bounds.max_duration:g} s')
+    return plan
+
+
+@dataclass(frozen=True)
+class PlanSummary:
+    """What ``PlanInfo`` says of a plan: per joint peaks of the reference, solve facts."""
+
+    method: str
+    duration: float
+    solve_time: float
+    iterations: int
+    joint_names: tuple
+    peak_velocity: tuple
+    peak_acceleration: tuple
+    peak_jerk: tuple
+    predicted_residual: float = math.nan
+    extra: dict = field(default_factory=dict)
+
+
+def summarize(plan: Plan, joint_names=JOINTS, solve_time: float | None = None) -> PlanSummary:
+    """The ``PlanInfo`` of a plan; ``solve_time`` defaults to the solver's own figure (0 for shapers)."""
+    v, a, j = plan.peaks()
+    info = plan.info
+    return PlanSummary(plan.method, float(plan.duration),
+                       float(info.get('solve_time_s', 0.0) if solve_time is None else solve_time),
+                       int(info.get('iterations', 0)), tuple(joint_names), (v,), (a,), (j,))

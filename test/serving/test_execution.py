@@ -1,0 +1,87 @@
+"""serving.execution: an executed move followed by the streamer's clock and the measured angles.
+
+The swing is checked against the load excursion computed here from Fig. 1
+(x_cart - x_m2 = L1 sin th1 + L2 sin(th1 + th2)), not against the module's own helper.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from crane_planner.serving.execution import DONE, FAILED, MOVING, SETTLING, WAITING, Execution
+
+L1, L2 = 0.47, 0.391
+S = 1_000_000_000  # ns per s
+START = 100 * S
+
+
+def excursion(th1, th2):
+    return L1 * math.sin(th1) + L2 * math.sin(th1 + th2)
+
+
+def execution(**kw):
+    return Execution(duration=3.0, settle=2.0, start_ns=START, L1=L1, L2=L2, **kw)
+
+
+def test_progress_follows_the_streamers_clock_from_the_motions_first_tick():
+    ex = execution()
+    assert ex.phase(START) == WAITING and ex.progress == 0.0
+    late = START + 2_000_000  # the streamer shifted the start by 2 ms (it came late)
+    for k in range(0, 3001, 20):
+        ex.on_stream_state(late + k * 1_000_000, late, 3.0)
+        assert ex.progress == pytest.approx(k / 3000, abs=1e-12)
+        assert ex.time_remaining == pytest.approx(3.0 - k * 1e-3, abs=1e-9)
+    assert ex.motion_start_ns == late and ex.end_ns == late + 3 * S
+    assert ex.phase(0) == SETTLING
+
+
+def test_another_motion_on_the_stream_is_not_taken_for_this_one():
+    ex = execution()
+    ex.on_stream_state(START - S, START - 5 * S, 3.0)  # an earlier motion, still the last one
+    ex.on_stream_state(START + S, START + 10_000_000, 2.5)  # someone else's, of another duration
+    assert ex.motion_start_ns is None and ex.phase(START) == WAITING
+
+
+def test_the_residual_is_the_peak_excursion_stamped_within_the_settle_window():
+    ex = execution()
+    ex.on_stream_state(START + 3 * S, START, 3.0)  # the motion has ended
+    rng = np.random.default_rng(1)
+    window = []
+    for k in range(0, 301):  # joint_states every 20 ms from t = 0 to 6 s
+        t = k * 0.02
+        th1, th2 = rng.normal(0.0, 0.01, 2)
+        ex.on_joint_state(START + round(t * S), th1, th2)
+        assert ex.swing == pytest.approx(excursion(th1, th2), abs=1e-15)
+        if 3.0 <= t <= 5.0 + 1e-9:
+            window.append(abs(excursion(th1, th2)))
+        if t < 5.0 - 1e-9:
+            assert ex.phase(START + round(t * S)) in (MOVING, SETTLING)
+    assert ex.phase(0) == DONE
+    assert ex.residual == pytest.approx(max(window), abs=1e-15) and len(window) == 101
+
+
+def test_without_joint_states_swing_and_residual_are_nan_and_the_stream_clock_closes_the_window():
+    ex = execution()
+    ex.on_stream_state(START + 4 * S, START, 3.0)
+    assert ex.phase(START + 4 * S) == SETTLING and math.isnan(ex.swing)
+    ex.on_stream_state(START + 5 * S, START, 3.0)
+    assert ex.phase(START + 5 * S) == DONE and math.isnan(ex.residual)
+
+
+def test_a_motion_the_streamer_never_streams_fails_naming_the_likely_cause():
+    ex = execution()
+    assert ex.phase(START + S // 2) == WAITING
+    assert ex.phase(START + 2 * S) == FAILED and 'no stream_state' in ex.failure
+    heard = execution()
+    heard.on_stream_state(START + 2 * S, START - 5 * S, 1.0)  # heard, but not streaming ours
+    assert heard.phase(START + 2 * S) == FAILED and 'refused' in heard.failure
+
+
+def test_a_next_motion_ends_the_settle_window_at_its_start():
+    ex = execution()
+    ex.on_stream_state(START + 3 * S, START, 3.0)
+    ex.cut(START + 4 * S)  # the next motion starts 1 s after this one's end
+    ex.on_joint_state(START + 3 * S + S // 2, 0.0, 0.01)
+    ex.on_joint_state(START + 4 * S + S // 2, 0.2, 0.0)  # after the cut: the next motion's swing
+    assert ex.window_end_ns == START + 4 * S and ex.phase(0) == DONE
+    assert ex.residual == pytest.approx(excursion(0.0, 0.01), abs=1e-15)
