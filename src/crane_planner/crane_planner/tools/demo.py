@@ -146,6 +146,14 @@ def progress(text: str):
     print(f'[{PROG}] {text}', file=sys.stderr, flush=True)
 
 
+def request_back(driver: CraneHarness, motion_end_ns: int, back_start_ns: int):
+    """Sleep until the move back (to start at ``back_start_ns``) is due: :meth:`CraneHarness.lead` before
+    its start, but never before the motion ending at ``motion_end_ns`` has ended (a long lead, after a
+    slow plan, would ask for it mid-motion, which the planner refuses: one motion at a time)."""
+    due_ns = max(back_start_ns - round(driver.lead() * 1e9), motion_end_ns + 50_000_000)
+    driver.sleep((due_ns - driver.now_ns()) * 1e-9)
+
+
 def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: str | None = None) -> Run:
     from crane_msgs_py.conversions import joint_trajectory_to_arrays
     from crane_sim.dynamics import load_excursion
@@ -158,7 +166,7 @@ def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: s
     # The move back is requested during the observation and starts as it ends: the streamer
     # holds the goal until then, and the sim, playing the stream out by its stamps, shows the
     # window untouched.
-    driver.sleep((end_ns - driver.now_ns()) * 1e-9 - driver.lead())
+    request_back(driver, start_ns + round(T * 1e9), end_ns)
     back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns)
     rec = driver.states_between(start_ns, end_ns)
     action_residual = driver.move_result(start_ns).residual_swing  # what the caller of the action is told
@@ -204,7 +212,7 @@ def commission(driver: CraneHarness, args, model: CraneParams):
     driver.set_parameters('sim', {'noise': COMMISSION_NOISE})
     start_ns = driver.send(samples, 0.0, 'the excitation')
     end_ns = start_ns + round((T + EXCITATION_RECORD) * 1e9)
-    driver.sleep((end_ns - driver.now_ns()) * 1e-9 - driver.lead())
+    request_back(driver, start_ns + round(T * 1e9), end_ns)
     back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns)
     rec = driver.states_between(start_ns, end_ns)
     driver.set_parameters('sim', {'noise': 0.0})
