@@ -13,7 +13,7 @@ import.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from crane_msgs_py.params import CraneParams
 
@@ -159,7 +159,6 @@ class PlanSummary:
     peak_acceleration: tuple
     peak_jerk: tuple
     predicted_residual: float = math.nan
-    extra: dict = field(default_factory=dict)
 
 
 def summarize(plan: Plan, joint_names=JOINTS, solve_time: float | None = None) -> PlanSummary:
