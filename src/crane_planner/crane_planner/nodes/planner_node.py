@@ -30,8 +30,7 @@ from crane_interfaces.msg import PlanInfo, StreamState
 from crane_interfaces.srv import PlanMove
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
-from rclpy.experimental import EventsExecutor
+from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
@@ -240,13 +239,15 @@ class PlannerNode(Node):
         self._lock = threading.Lock()
         self._stream: tuple | None = None  # (ROS time received ns, read_stream_state(...))
         self._goals: list[_Goal] = []  # goals being executed: planned, streaming or settling
-        # The two 50 Hz inputs go to a node of their own on an EventsExecutor thread: through the
-        # services' MultiThreadedExecutor their 100 messages a second kept the node at a whole core.
+        # The two 50 Hz inputs go to a node of their own on a SingleThreadedExecutor thread: through the
+        # services' MultiThreadedExecutor their 100 messages a second kept the node at a whole core (4 %
+        # this way). Not the EventsExecutor: after 900 previews it ran the inputs about once a second
+        # (1 run in 4), and goals then found no stream_state.
         self._inputs = rclpy.create_node(f'{self.get_name()}_inputs', namespace=self.get_namespace(),
                                          start_parameter_services=False)
         self._inputs.create_subscription(StreamState, STREAM_STATE_TOPIC, self._on_stream_state, STREAM_STATE_QOS)
         self._inputs.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_joint_state, JOINT_STATES_QOS)
-        inputs_executor = EventsExecutor()  # takes no new entities while spinning: everything is added first
+        inputs_executor = SingleThreadedExecutor()
         inputs_executor.add_node(self._inputs)
         self._inputs_spinning = spinning(inputs_executor)
         self._inputs_spinning.__enter__()
@@ -491,14 +492,16 @@ class PlannerNode(Node):
         while self.get_clock().now().nanoseconds < send_at and not (goal.cancel or goal_handle.is_cancel_requested):
             time.sleep(min(FEEDBACK_PERIOD, max(0.0, (send_at - self.get_clock().now().nanoseconds) * 1e-9)))
         with self._lock:
-            if goal.cancel or goal_handle.is_cancel_requested:
-                return self._end(goal_handle, result, 'cancel', 'canceled before its motion started: nothing '
-                                 'was streamed')
-            goal.sent = True
-            sent_ns = self.get_clock().now().nanoseconds
-            for other in self._goals:  # settling goals observe until this motion starts at the latest
-                if other is not goal and other.execution is not None:
-                    other.execution.cut(checked.start_ns or sent_ns)
+            canceled = goal.cancel or goal_handle.is_cancel_requested
+            if not canceled:
+                goal.sent = True
+                sent_ns = self.get_clock().now().nanoseconds
+                for other in self._goals:  # settling goals observe until this motion starts at the latest
+                    if other is not goal and other.execution is not None:
+                        other.execution.cut(checked.start_ns or sent_ns)
+        if canceled:  # (ended outside the lock: _end may wait for the server's canceling state)
+            return self._end(goal_handle, result, 'cancel', 'canceled before its motion started: nothing '
+                             'was streamed')
         goal.execution = Execution(plan.duration, settle, checked.start_ns or sent_ns, config.params.L1,
                                    config.params.L2)
         self._trajectory.publish(self._trajectory_of(checked, samples))
