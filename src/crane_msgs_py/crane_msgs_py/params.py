@@ -10,9 +10,9 @@ import math
 from dataclasses import asdict, dataclass, fields, replace
 
 #: Names of the model parameters, in the contract's order.
-PARAMETER_NAMES = ('L1', 'L2', 'm1', 'm2', 'g', 'tau', 'c1', 'c2')
+PARAMETER_NAMES = ('L1', 'L2', 'm1', 'm2', 'g', 'tau', 'c1', 'c2', 'tau_hoist')
 #: Those that may be 0 (the others must be > 0).
-NONNEGATIVE_PARAMETERS = ('tau', 'c1', 'c2')
+NONNEGATIVE_PARAMETERS = ('tau', 'c1', 'c2', 'tau_hoist')
 
 #: Human descriptions (units included), reused for CLI help and ROS parameter descriptors.
 PARAMETER_DESCRIPTIONS = {
@@ -24,6 +24,7 @@ PARAMETER_DESCRIPTIONS = {
     'tau': 'axis servo time constant tau (s) of Eq. 6, >= 0 (0 = ideal tracking)',
     'c1': 'viscous damping c1 of the upper pendulum joint (N m s/rad), >= 0 (0 = the paper\'s model)',
     'c2': 'viscous damping c2 of the lower pendulum joint (N m s/rad), >= 0 (0 = the paper\'s model)',
+    'tau_hoist': 'hoist servo time constant (s), the hoist\'s Eq. 6, >= 0 (0 = ideal tracking); used with a hoist',
 }
 
 
@@ -92,6 +93,9 @@ class CraneParams:
             (torque -c2 theta2' between the cables); 0 is the paper's
             undamped model. The swing depends on them through c1/(m1+m2)
             and c2/m2.
+        tau_hoist: the hoist axis's first-order servo time constant (s),
+            Eq. 6 for the rope length; only used when hoisting (then L1 is
+            the rope length at the start).
     """
 
     L1: float = 0.470
@@ -102,6 +106,7 @@ class CraneParams:
     tau: float = 0.01
     c1: float = 0.0
     c2: float = 0.0
+    tau_hoist: float = 0.01
 
     def __post_init__(self):
         for f in fields(self):

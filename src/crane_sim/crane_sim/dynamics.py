@@ -75,6 +75,45 @@ class SwingModel:
         return numer / (self.m1 + self.m2 * (s2 * s2))
 
 
+def hoisting_accelerations(angles, rates, a_cart, L1, dL1, ddL1, L2, m1, m2, g, c1=0.0, c2=0.0):
+    """[theta1'', phi''] (stacked like ``SwingModel.accelerations``) with the upper cable's length L1(t) moving.
+
+    Derived here by Newton's law projected across the cables, not from the
+    Lagrangian (the planner's CasADi model is; the two cross-check). With
+    u(q) = (-sin q, -cos q) and u'(q) = (-cos q, sin q), the masses sit at
+    p1 = (y, 0) + L1 u(theta1) and p2 = p1 + L2 u(phi), so
+
+        p1'' = y'' e_x + L1'' u1 + (2 L1' theta1' + L1 theta1'') u1' - L1 theta1'^2 u1,
+        p2'' = p1'' + L2 phi'' u_phi' - L2 phi'^2 u_phi.
+
+    Across the lower cable m2 feels only gravity: p2'' . u_phi' = -g sin phi.
+    Across the upper cable the two masses together feel only gravity (the
+    lower cable's tension is internal): (m1 p1'' + m2 p2'') . u1' = -(m1+m2) g sin theta1.
+    With u1 . u_phi' = -sin th2, u1' . u_phi' = cos th2, u_phi . u1' = sin th2
+    these are the rows of ``SwingModel`` with the hoist's terms added:
+
+        R0 = (m1+m2)(a cos th1 - g sin th1 - 2 L1' theta1') + m2 L2 sin th2 phi'^2
+        R1 = a cos phi - g sin phi + L1'' sin th2 - 2 L1' theta1' cos th2 - L1 sin th2 theta1'^2
+
+    and the same joint damping. All arguments broadcast; L1, dL1, ddL1 are
+    the length (m) and its rate and acceleration at this instant.
+    """
+    L1, dL1, ddL1, L2, m1, m2, g, c1, c2 = (np.asarray(v, dtype=float) for v in (L1, dL1, ddL1, L2, m1, m2, g,
+                                                                                  c1, c2))
+    theta1, phi = angles[0], angles[1]
+    d1, dphi = rates[0], rates[1]
+    th2, d2 = phi - theta1, dphi - d1
+    s2, k2 = np.sin(th2), np.cos(th2)
+    mt = m1 + m2
+    hoist = 2.0 * dL1 * d1
+    r0 = mt * (a_cart * np.cos(theta1) - g * np.sin(theta1) - hoist) + m2 * L2 * s2 * dphi ** 2
+    r1 = a_cart * np.cos(phi) - g * np.sin(phi) + ddL1 * s2 - hoist * k2 - L1 * s2 * d1 ** 2
+    r0 = r0 + (c2 * d2 - c1 * d1) / L1
+    r1 = r1 - c2 * d2 / (m2 * L2)
+    det = m1 + m2 * s2 ** 2
+    return np.stack(((r0 - m2 * k2 * r1) / (L1 * det), (mt * r1 - k2 * r0) / (L2 * det)))
+
+
 def swing_accelerations(theta1, theta2, dtheta1, dtheta2, a_cart, L1, L2, m1, m2, g, c1=0.0, c2=0.0):
     """Angular accelerations (theta1'', theta2'') of Eqs. 18-19 (plus joint damping) under cart acceleration a_cart.
 

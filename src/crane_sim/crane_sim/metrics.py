@@ -56,12 +56,15 @@ def residual_load_mm(t, theta1, theta2, L1, L2, after: float, until: float | Non
     """Peak |load excursion| (mm) of a sampled swing record over [after, until].
 
     ``t``, ``theta1``, ``theta2`` are a measurement (e.g. joint_states at
-    50 Hz) or a simulation; ``until`` defaults to the last sample. A sampled
+    50 Hz) or a simulation; ``L1`` a length or one per sample (a hoist);
+    ``until`` defaults to the last sample. A sampled
     record sees the excursion only at its samples, as a measurement does.
     """
     t = np.asarray(t, dtype=float)
     until = float(t[-1]) if until is None else until
     mask = window(t, after, until)
+    if np.ndim(L1) and np.shape(L1)[-1] == t.size:  # a length per sample (hoisting)
+        L1 = np.asarray(L1)[..., mask]
     x = load_excursion(np.asarray(theta1, dtype=float)[..., mask],
                        np.asarray(theta2, dtype=float)[..., mask], L1, L2)
     return 1e3 * peak(x)
@@ -72,7 +75,8 @@ def swing_metrics(result: SimResult, plants, duration: float, settle: float) -> 
 
     Args:
         result: a simulation covering [0, duration + settle].
-        plants: the simulated plants (for L1, L2); None means ``result.plants``.
+        plants: the simulated plants (for L1, L2); None means ``result.plants``. With a hoist the
+            result's own L1(t) counts.
         duration: T (s), the end of the motion.
         settle: S (s), how long the residual swing is observed after T.
 
@@ -94,7 +98,8 @@ def swing_metrics(result: SimResult, plants, duration: float, settle: float) -> 
         'rms': (rms(th1[:, motion], t[motion]), rms(th2[:, motion], t[motion])),
         'residual': (peak(th1[:, after]), peak(th2[:, after])),
     }
-    load_mm = residual_load_mm(t, th1, th2, p.L1[:, None], p.L2[:, None], duration, duration + settle)
+    L1 = p.L1[:, None] if result.L1 is None else result.L1  # with a hoist, the length at each instant
+    load_mm = residual_load_mm(t, th1, th2, L1, p.L2[:, None], duration, duration + settle)
     return [{
         'peak': {'theta1': float(figures['peak'][0][i]), 'theta2': float(figures['peak'][1][i])},
         'rms': {'theta1': float(figures['rms'][0][i]), 'theta2': float(figures['rms'][1][i])},

@@ -31,6 +31,7 @@ import numpy as np
 
 from crane_msgs_py.params import (
     PARAMETER_NAMES,
+    CraneParams,
     ParameterError,
     check_choice,
     check_count,
@@ -38,14 +39,23 @@ from crane_msgs_py.params import (
     check_positive,
 )
 
-from .dynamics import SwingModel, load_excursion
+from .dynamics import SwingModel, hoisting_accelerations, load_excursion
 
 #: Names of the state rows, in order.
 STATE_NAMES = ('y', 'v', 'a', 'theta1', 'theta2', 'dtheta1', 'dtheta2')
+#: Names of the hoist's state rows, after ``STATE_NAMES`` when hoisting: the upper cable's length,
+#: its rate and acceleration.
+HOIST_STATE_NAMES = ('L1', 'dL1', 'ddL1')
 #: Joint names the ROS node publishes (positions y, theta1, theta2).
 JOINT_NAMES = ('cart', 'theta1', 'theta2')
+#: ... and with a hoist (its position: the upper cable's length L1).
+HOIST_JOINT_NAMES = ('cart', 'hoist', 'theta1', 'theta2')
 INTERPOLATIONS = ('zoh', 'linear')
 SOURCES = ('acceleration', 'position')
+
+
+#: Plant parameters a plant may leave out (those of the hoist), with their defaults.
+_OPTIONAL = {'tau_hoist': CraneParams.tau_hoist}
 
 
 class SimulationError(ValueError):
@@ -66,13 +76,14 @@ class PlantBatch:
     tau: np.ndarray
     c1: np.ndarray
     c2: np.ndarray
+    tau_hoist: np.ndarray
 
     @classmethod
     def of(cls, plants) -> 'PlantBatch':
         """From one params object / mapping, or a sequence of them (validated).
 
         Anything with attributes (or keys) ``L1 L2 m1 m2 g tau c1 c2`` is accepted,
-        e.g. ``crane_msgs_py.params.CraneParams``.
+        e.g. ``crane_msgs_py.params.CraneParams``; ``tau_hoist`` defaults to CraneParams'.
         """
         if isinstance(plants, PlantBatch):
             return plants
@@ -86,7 +97,9 @@ class PlantBatch:
                 try:
                     value = p[name] if isinstance(p, Mapping) else getattr(p, name)
                 except (KeyError, AttributeError):
-                    raise ParameterError(f'plant {i} has no parameter {name}') from None
+                    if name not in _OPTIONAL:
+                        raise ParameterError(f'plant {i} has no parameter {name}') from None
+                    value = _OPTIONAL[name]
                 columns[name].append(check_parameter(name, value))
         return cls(**{name: np.array(v) for name, v in columns.items()})
 
@@ -199,29 +212,57 @@ class _Stepper:
     stages' rates, so only f is evaluated.
     """
 
-    def __init__(self, plants: PlantBatch, h: float):
+    def __init__(self, plants: PlantBatch, h: float, hoist: bool = False):
         self.W = servo_weights(plants.tau, h)
         self.model = plants.swing_model()
         # 0-d arrays: numpy multiplies by them about twice as fast as by Python floats,
         # which matters at a few dozen plants where every numpy call is pure overhead
         self._h, self._h2, self._h6 = np.array(h), np.array(0.5 * h), np.array(h / 6.0)
+        self.hoist = hoist
+        if hoist:
+            # the hoist's servo over the step and over its first half (the RK4 midpoint needs L1 there)
+            self.W_hoist, self.W_half = servo_weights(plants.tau_hoist, h), servo_weights(plants.tau_hoist, 0.5 * h)
+            self._constants = (plants.L2, plants.m1, plants.m2, plants.g, plants.c1, plants.c2)
 
-    def step(self, x, r0, r1):
-        """Internal states ``x`` (7, n) one step later, the reference going linearly from r0 to r1."""
-        W, f, h, h2, h6 = self.W, self.model.accelerations, self._h, self._h2, self._h6
+    def _hoist_stages(self, x, r0, r1):
+        """The swing's right-hand side at the RK4 stage times 0, h/2, h with the hoist's exact motion,
+        and the hoist rows (L1, L1', L1'') at the step's end."""
+        W, Wh, h, h2 = self.W_hoist, self.W_half, self._h, self._h2
+        c = W[0] * x[9] + W[1] * r0 + W[2] * r1
+        half = Wh[0] * x[9] + Wh[1] * r0 + Wh[2] * (0.5 * (r0 + r1))
+        L = (x[7], x[7] + h2 * x[8] + half[4], x[7] + h * x[8] + c[4])
+        dL = (x[8], x[8] + half[3], x[8] + c[3])
+        constants = self._constants
+
+        def at(stage):
+            k = stage
+            return lambda q, v, a: hoisting_accelerations(q, v, a, L[k], dL[k], c[k], *constants)
+
+        return (at(0), at(1), at(2)), (L[2], dL[2], c[2])
+
+    def step(self, x, r0, r1, hoist0=None, hoist1=None):
+        """Internal states ``x`` one step later, the reference going linearly from r0 to r1 (and the
+        hoist's reference acceleration from hoist0 to hoist1, rows 7-9 of ``x``, when hoisting)."""
+        W, h, h2, h6 = self.W, self._h, self._h2, self._h6
         c = W[0] * x[2] + W[1] * r0 + W[2] * r1  # a(0+), a(h/2), a(h), v and y increments
+        if self.hoist:
+            (f0, fm, f1_), hoist_end = self._hoist_stages(x, hoist0, hoist1)
+        else:
+            f0 = fm = f1_ = self.model.accelerations
         q, v = x[3:5], x[5:7]
-        f1 = f(q, v, c[0])
+        f1 = f0(q, v, c[0])
         v2 = v + h2 * f1
-        f2 = f(q + h2 * v, v2, c[1])
+        f2 = fm(q + h2 * v, v2, c[1])
         v3 = v + h2 * f2
-        f3 = f(q + h2 * v2, v3, c[1])
+        f3 = fm(q + h2 * v2, v3, c[1])
         v4 = v + h * f3
-        f4 = f(q + h * v3, v4, c[2])
+        f4 = f1_(q + h * v3, v4, c[2])
         out = np.empty_like(x)
         out[0] = x[0] + h * x[1] + c[4]
         out[1] = x[1] + c[3]
         out[2] = c[2]
+        if self.hoist:
+            out[7], out[8], out[9] = hoist_end
         v2 += v3  # v + h/6 (f1 + 2 f2 + 2 f3 + f4), and q likewise with the stage rates
         v2 += v2
         v2 += v + v4
@@ -303,11 +344,16 @@ class SimResult:
     dtheta1: np.ndarray
     dtheta2: np.ndarray
     plants: PlantBatch
+    #: the upper cable's length (m), its rate and acceleration, (n_batch, n): hoisting only, else None
+    L1: np.ndarray | None = None
+    dL1: np.ndarray | None = None
+    ddL1: np.ndarray | None = None
 
     @property
     def load_excursion(self) -> np.ndarray:
         """Horizontal offset (m) of the load from its rest position below the cart, (n_batch, n)."""
-        return load_excursion(self.theta1, self.theta2, self.plants.L1[:, None], self.plants.L2[:, None])
+        L1 = self.plants.L1[:, None] if self.L1 is None else self.L1
+        return load_excursion(self.theta1, self.theta2, L1, self.plants.L2[:, None])
 
     def __len__(self) -> int:
         return len(self.plants)
@@ -336,7 +382,7 @@ def _check_reference(t_ref, reference, n_plants):
 
 def simulate(t_ref, reference, plants, *, dt: float = 1e-3, t_end: float | None = None,
              interpolation: str = 'linear', source: str = 'acceleration', record_every: int = 1,
-             initial_state=None, rest_dt: float | None = None) -> SimResult:
+             initial_state=None, rest_dt: float | None = None, hoist_reference=None) -> SimResult:
     """Simulate a batch of plants driven by a sampled cart reference.
 
     Args:
@@ -362,14 +408,29 @@ def simulate(t_ref, reference, plants, *, dt: float = 1e-3, t_end: float | None 
             RK4 as accurate on the free swing (its error grows as (omega h)^5,
             ~1e-9 of the swing per 5 ms step at 9 rad/s) for a fraction of
             the steps; the grid then continues in steps of ``rest_dt``.
+        hoist_reference: with a hoist, its reference acceleration (m/s^2) at
+            ``t_ref``, shape (m,) or (n_batch, m), followed through the servo
+            ``tau_hoist``; the upper cable's length starts at each plant's L1
+            (plus what ``initial_state`` says) and moves with it. The state
+            then has the rows ``HOIST_STATE_NAMES`` too, and the result
+            ``L1``, ``dL1``, ``ddL1``.
     """
     check_choice('interpolation', interpolation, INTERPOLATIONS, SimulationError)
     check_choice('source', source, SOURCES, SimulationError)
     p = PlantBatch.of(plants)
     t_ref, ref = _check_reference(t_ref, reference, len(p))
+    hoisting = hoist_reference is not None
+    if hoisting:
+        _, hoist = _check_reference(t_ref, hoist_reference, len(p))
+        if ref.shape[0] != hoist.shape[0]:
+            if ref.shape[0] != 1 and hoist.shape[0] != 1:
+                raise SimulationError(f'hoist_reference has {hoist.shape[0]} rows, reference {ref.shape[0]}')
+            rows = max(ref.shape[0], hoist.shape[0])
+            ref, hoist = np.broadcast_to(ref, (rows, t_ref.size)), np.broadcast_to(hoist, (rows, t_ref.size))
     if len(p) == 1 and ref.shape[0] > 1:
         p = p.repeat(ref.shape[0])
     n = len(p)
+    nrows = len(STATE_NAMES) + (len(HOIST_STATE_NAMES) if hoisting else 0)
     dt = check_positive('dt', dt)
     t0 = float(t_ref[0])
     t_end = float(t_ref[-1]) if t_end is None else float(t_end)
@@ -384,6 +445,10 @@ def simulate(t_ref, reference, plants, *, dt: float = 1e-3, t_end: float | None 
     else:
         y0 = np.zeros(n)
         t_acc, acc = t_ref, ref
+    if hoisting:  # rows: the cart's n, then the hoist's n, so the stepping below serves both
+        if source != 'acceleration':
+            raise SimulationError("hoist_reference needs source='acceleration'")
+        acc = np.concatenate([acc, hoist])
 
     rest_dt = dt if rest_dt is None else check_positive('rest_dt', rest_dt)
     n_steps = max(0, math.ceil((t_end - t0) / dt - 1e-9))
@@ -404,33 +469,40 @@ def simulate(t_ref, reference, plants, *, dt: float = 1e-3, t_end: float | None 
         r_begin = r_end = np.ascontiguousarray(interpolate(t_acc, acc, t_moving[:-1] + 0.5 * dt, 'zoh').T)
     r_rest = np.ascontiguousarray(acc[:, -1])
 
+    a0 = interpolate(t_acc, acc, t0, interpolation)
     if initial_state is None:
-        x = np.zeros((7, n))
+        x = np.zeros((nrows, n))
         x[0] = y0
-        x[2] = interpolate(t_acc, acc, t0, interpolation)
+        x[2] = a0[:n]
+        if hoisting:
+            x[7], x[9] = p.L1, a0[n:]
     else:
         s = np.asarray(initial_state, dtype=float)
-        if s.shape not in ((7,), (n, 7)) or not np.all(np.isfinite(s)):
-            raise SimulationError(f'initial_state must be finite with shape (7,) or ({n}, 7), got {s.shape}')
-        x = np.array(np.broadcast_to(s, (n, 7)).T)
+        if s.shape not in ((nrows,), (n, nrows)) or not np.all(np.isfinite(s)):
+            raise SimulationError(f'initial_state must be finite with shape ({nrows},) or ({n}, {nrows}), '
+                                  f'got {s.shape}')
+        x = np.array(np.broadcast_to(s, (n, nrows)).T)
     x = _to_internal(x)
 
     keep = [k % record_every == 0 or k == n_steps for k in range(n_steps + 1)]
-    out = np.empty((sum(keep), 7, n))
+    out = np.empty((sum(keep), nrows, n))
     out[0] = x
     j = 1
-    stepper = _Stepper(p, dt)
-    rest = _Stepper(p, rest_dt) if n_steps > n_fine else None
+    stepper = _Stepper(p, dt, hoisting)
+    rest = _Stepper(p, rest_dt, hoisting) if n_steps > n_fine else None
     for k in range(n_steps):
         if k < n_fine:
-            x = stepper.step(x, r_begin[k], r_end[k])
+            r0, r1 = r_begin[k], r_end[k]
+            x = stepper.step(x, r0[:n], r1[:n], r0[n:], r1[n:]) if hoisting else stepper.step(x, r0, r1)
+        elif hoisting:
+            x = rest.step(x, r_rest[:n], r_rest[:n], r_rest[n:], r_rest[n:])
         else:
             x = rest.step(x, r_rest, r_rest)
         if keep[k + 1]:
             out[j] = x
             j += 1
-    rows = _to_public(out.transpose(1, 2, 0))
-    return SimResult(t[np.array(keep)], *(np.ascontiguousarray(r) for r in rows), plants=p)
+    rows = [np.ascontiguousarray(r) for r in _to_public(out.transpose(1, 2, 0))]
+    return SimResult(t[np.array(keep)], *rows[:7], plants=p, **dict(zip(('L1', 'dL1', 'ddL1'), rows[7:])))
 
 
 # --------------------------------------------------------------------------- streaming

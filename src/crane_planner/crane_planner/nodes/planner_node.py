@@ -105,6 +105,7 @@ PARAMETERS = {
     'tau': (CraneParams.tau, PARAMETER_DESCRIPTIONS['tau'], float_range(0.0, 10.0)),
     'c1': (CraneParams.c1, PARAMETER_DESCRIPTIONS['c1'], float_range(0.0, 1e3)),
     'c2': (CraneParams.c2, PARAMETER_DESCRIPTIONS['c2'], float_range(0.0, 1e3)),
+    'tau_hoist': (CraneParams.tau_hoist, PARAMETER_DESCRIPTIONS['tau_hoist'], float_range(0.0, 10.0)),
     'method': ('rvf', f'method of a move that names none: one of {", ".join(METHODS)}',
                {'additional_constraints': f'one of {", ".join(METHODS)}'}),
     'robust_parameters': (['L1'], f'parameters RVF is made insensitive to, among {", ".join(ROBUST_PARAMETERS)}',

@@ -105,18 +105,18 @@ class Transcription:
     def __init__(self, problem: Problem, intervals: int, limits: bool, free_time: bool = False):
         t0 = time.perf_counter()
         self.problem, self.intervals, self.limits, self.free_time = problem, intervals, limits, free_time
-        nx, N, d = problem.nx, intervals, self.degree
+        nx, nu, N, d = problem.nx, problem.nu, intervals, self.degree
         self.tau_nodes, C, self.B, self.basis = radau_coefficients(d)
         npar = len(PROBLEM_PARAMETERS)
         P = ca.SX.sym('P', npar + N)
         Pp, frac = P[:npar], P[npar:]
-        w = ca.SX.sym('w', nx + N * d * (nx + 1) + (1 if free_time else 0))
+        w = ca.SX.sym('w', nx + N * d * (nx + nu) + (1 if free_time else 0))
         # free final time: T = sigma T_0 with sigma the last variable and T_0 the parameter T, which
         # keeps scaling the states; every interval length is then sigma frac[k] of T_0
         sigma = w[-1] if free_time else 1
         frac = frac * sigma
-        body = ca.reshape(w[nx:nx + N * d * (nx + 1)], nx + 1, N * d)
-        Xc, Uc = body[:nx, :], body[nx, :]
+        body = ca.reshape(w[nx:nx + N * d * (nx + nu)], nx + nu, N * d)
+        Xc, Uc = body[:nx, :], body[nx:, :]
         Pm = ca.repmat(Pp, 1, N * d)
         Fc, Gc = problem.F.map(N * d)(Xc, Uc, Pm), problem.G.map(N * d)(Xc, Uc, Pm)
         res, J, xs = [], 0, [w[:nx]]
@@ -133,21 +133,24 @@ class Transcription:
             # coefficients (a polynomial lies in their hull), not just at the
             # nodes: near-bang-bang solutions overshoot between nodes. Jerk is
             # dA/ds / frac in units of P/T^3 (A the acceleration in P/T^2).
+            # One block of velocity, acceleration, jerk bounds per axis, in problem.axes' order.
             nodes = ca.horzcat(w[:nx], Xc)
             v, a = problem.reference_va.map(N * d + 1)(nodes, ca.repmat(Pp, 1, N * d + 1))
             to_bv, to_ba, to_bj = bernstein_matrix(d + 1), bernstein_matrix(d), bernstein_matrix(d - 1)
-            bv, ba, bj = [], [], []
-            for k in range(N):
-                coef = ca.mtimes(self.basis.T, a[0, k * d:k * d + d + 1].T)  # acceleration, monomials in s
-                vel = ca.vertcat(v[0, k * d], frac[k] * coef / np.arange(1, d + 2))
-                bv.append(ca.mtimes(to_bv, vel))
-                ba.append(ca.mtimes(to_ba, coef))
-                bj.append(ca.mtimes(to_bj, coef[1:] * np.arange(1, d + 1)) / frac[k])
-            g += [ca.vertcat(*bv), ca.vertcat(*ba), ca.vertcat(*bj)]
+            for axis in range(nu):
+                bv, ba, bj = [], [], []
+                for k in range(N):
+                    coef = ca.mtimes(self.basis.T, a[axis, k * d:k * d + d + 1].T)  # acceleration, powers of s
+                    vel = ca.vertcat(v[axis, k * d], frac[k] * coef / np.arange(1, d + 2))
+                    bv.append(ca.mtimes(to_bv, vel))
+                    ba.append(ca.mtimes(to_ba, coef))
+                    bj.append(ca.mtimes(to_bj, coef[1:] * np.arange(1, d + 1)) / frac[k])
+                g += [ca.vertcat(*bv), ca.vertcat(*ba), ca.vertcat(*bj)]
         objective = sigma + self.free_time_cost_weight * J if free_time else J
         self.nlp = {'x': w, 'p': P, 'f': objective, 'g': ca.vertcat(*g)}
         self.ng = self.nlp['g'].shape[0]
         self.nres = nx * N * d
+        self.nu = nu
         self.nw = w.shape[0]
         self._derivatives = None
         self._lock = threading.Lock()
@@ -178,8 +181,8 @@ class Transcription:
     # views of the variable vector
     def states(self, w: np.ndarray) -> np.ndarray:
         """Scaled states at s = 0 and at every collocation point, shape (nx, N*d + 1)."""
-        nx, N, d = self.problem.nx, self.intervals, self.degree
-        body = w[nx:nx + N * d * (nx + 1)].reshape(N * d, nx + 1).T
+        nx, nu, N, d = self.problem.nx, self.problem.nu, self.intervals, self.degree
+        body = w[nx:nx + N * d * (nx + nu)].reshape(N * d, nx + nu).T
         return np.hstack([w[:nx, None], body[:nx]])
 
     def interval_nodes(self, w: np.ndarray) -> np.ndarray:
@@ -210,5 +213,5 @@ class Transcription:
     def guess(self, displacement: float, frac: np.ndarray) -> np.ndarray:
         s = self.node_times(frac)
         X, U = self.problem.initial_guess(displacement, s)
-        body = np.vstack([X[:, 1:], U[None, 1:]])
+        body = np.vstack([X[:, 1:], U[:, 1:]])
         return np.concatenate([X[:, 0], body.T.ravel()])

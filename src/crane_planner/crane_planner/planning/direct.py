@@ -20,8 +20,8 @@ from crane_msgs_py.params import CraneParams
 from .collocation import CollocationPlan, Transcription
 from .free_time import FreeTimeSearch
 from .ipopt import Instance, IterationCallback
-from .plan import PlanError
-from .problem import PROBLEM_PARAMETERS, breakpoints
+from .plan import AxesPlan, PlanError
+from .problem import PROBLEM_PARAMETERS, Form, breakpoints, displacements
 from .variational import VariationalSolver
 
 
@@ -56,9 +56,9 @@ class DirectSolver(VariationalSolver):
 
     def __init__(self, method: str, options, **overrides):
         super().__init__(method, options, **overrides)
-        self._transcriptions = {}  # servo -> Transcription, shared with spawned solvers
+        self._transcriptions = {}  # Form -> Transcription, shared with spawned solvers
         self._transcriptions_lock = threading.Lock()
-        self._instances = {}  # servo -> Instance, this solver's own
+        self._instances = {}  # Form -> Instance, this solver's own
         self._warm_source = None  # the solver this one was spawned from: its first warm start
         #: while a fastest request runs: when its budget ends (perf_counter s)
         self.deadline = None
@@ -80,26 +80,28 @@ class DirectSolver(VariationalSolver):
             other._warm_source = self  # a cold start takes 10x the iterations of a warm one
         return other
 
-    def transcription(self, servo: bool, free_time: bool = False) -> Transcription:
-        """The NLP of one model form (of fixed or free final time), built on first use, shared with spawned
-        solvers."""
-        key = ('free', servo) if free_time else servo
+    def transcription(self, form, free_time: bool = False) -> Transcription:
+        """The NLP of one model form (``problem.Form``, or ``servo`` without a hoist; of fixed or free final
+        time), built on first use, shared with spawned solvers."""
+        form = form if isinstance(form, Form) else Form(bool(form))
+        key = ('free', form) if free_time else form
         with self._transcriptions_lock:
             tr = self._transcriptions.get(key)
             if tr is None:
-                tr = self._transcriptions[key] = Transcription(self.problem(servo), self.intervals,
+                tr = self._transcriptions[key] = Transcription(self.problem(form), self.intervals,
                                                                free_time or self.has_limits, free_time=free_time)
         return tr
 
-    def _instance(self, servo: bool) -> Instance:
-        inst = self._instances.get(servo)
+    def _instance(self, form) -> Instance:
+        form = form if isinstance(form, Form) else Form(bool(form))
+        inst = self._instances.get(form)
         if inst is None:
-            tr = self.transcription(servo)
-            source = self._warm_source._instances.get(servo) if self._warm_source is not None else None
+            tr = self.transcription(form)
+            source = self._warm_source._instances.get(form) if self._warm_source is not None else None
             callback = self.iteration_callback(tr.nw, tr.ng, tr.nlp['p'].shape[0])
-            inst = self._instances[servo] = Instance(tr, tr.nlpsol(dict(self.ipopt_options(),
-                                                                         iteration_callback=callback)),
-                                                      callback, source.warm if source is not None else None)
+            inst = self._instances[form] = Instance(tr, tr.nlpsol(dict(self.ipopt_options(),
+                                                                        iteration_callback=callback)),
+                                                     callback, source.warm if source is not None else None)
         return inst
 
     def ipopt_options(self) -> dict:
@@ -126,9 +128,9 @@ class DirectSolver(VariationalSolver):
                 self._free_time = FreeTimeSearch(self)
             return self._free_time.fastest(displacement, params)
 
-    def last_solution(self, servo: bool) -> dict:
-        """x0 / lam_x0 / lam_g0 of this solver's last fixed-duration solution of the model form ``servo``."""
-        return self._instances[servo].warm[1]
+    def last_solution(self, form) -> dict:
+        """x0 / lam_x0 / lam_g0 of this solver's last fixed-duration solution of the model form ``form``."""
+        return self._instances[form if isinstance(form, Form) else Form(bool(form))].warm[1]
 
     def costates(self, displacement: float, duration: float, params: CraneParams, frac: np.ndarray):
         """Solve on the mesh ``frac`` and return the costate estimate (``Transcription.costate_estimate``).
@@ -144,7 +146,8 @@ class DirectSolver(VariationalSolver):
         """Whether a further attempt may start, the first having started at ``t0`` (see ``retry_window``)."""
         return self.max_solve_time is None or time.perf_counter() - t0 <= self.retry_window
 
-    def bounds(self, tr: Transcription, displacement: float, duration: float, sx: np.ndarray, limits) -> dict:
+    def bounds(self, tr: Transcription, displacement, duration: float, sx: np.ndarray, limits) -> dict:
+        """IPOPT's bounds: rest at both ends, and ``limits`` (v, a, j), or one such triple per axis."""
         pb = tr.problem
         x0, xT = pb.boundary(displacement)
         lbx = np.full(tr.nw, -np.inf)
@@ -155,27 +158,32 @@ class DirectSolver(VariationalSolver):
         lbg[tr.nres:end] = ubg[tr.nres:end] = xT
         if tr.limits:
             d = tr.degree
-            vmax, amax, jmax = limits
-            sa = sx[pb.states.index('a')]
-            vmax = np.inf if vmax is None else vmax / sx[pb.states.index('v')]
-            amax = np.inf if amax is None else amax / sa
-            jmax = np.inf if jmax is None else jmax / (sa / duration)
-            # less IPOPT's bound relaxation (1e-8 relative), so the limit itself holds
-            bound = np.repeat([vmax, amax, jmax], tr.intervals * np.array([d + 2, d + 1, d])) * (1 - 2e-8)
+            per_axis = [limits] if limits and not isinstance(limits[0], tuple) else list(limits)
+            per_axis += [(None, None, None)] * (len(pb.axes) - len(per_axis))
+            bounds = []
+            for (vmax, amax, jmax), (v_state, a_state) in zip(per_axis, (('v', 'a'), ('hv', 'ha'))):
+                sa = sx[pb.states.index(a_state)]
+                vmax = np.inf if vmax is None else vmax / sx[pb.states.index(v_state)]
+                amax = np.inf if amax is None else amax / sa
+                jmax = np.inf if jmax is None else jmax / (sa / duration)
+                # less IPOPT's bound relaxation (1e-8 relative), so the limit itself holds
+                bounds.append(np.repeat([vmax, amax, jmax], tr.intervals * np.array([d + 2, d + 1, d])) * (1 - 2e-8))
+            bound = np.concatenate(bounds)
             lbg[end:], ubg[end:] = -bound, bound
         return dict(lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
 
     def _solve(self, displacement, duration, params, frac):
-        servo = params.tau > 0.0
-        t_build, built = time.perf_counter(), servo not in self._instances
-        inst = self._instance(servo)
+        hoisting = displacements(displacement)[1] is not None
+        form = Form.of(params, hoisting)
+        t_build, built = time.perf_counter(), form not in self._instances
+        inst = self._instance(form)
         build_time = time.perf_counter() - t_build if built else 0.0
         tr, solver = inst.transcription, inst.solver
         pb = tr.problem
         pvec = np.concatenate([pb.parameters(displacement, duration, params, self.weights), frac])
         sx, su = pb.scales(pvec[:len(PROBLEM_PARAMETERS)])
-        sx, su = np.array(sx, dtype=float).ravel(), float(su)
-        args = dict(p=pvec, **self.bounds(tr, displacement, duration, sx, self.limits))
+        sx, su = np.array(sx, dtype=float).ravel(), np.array(su, dtype=float).ravel()
+        args = dict(p=pvec, **self.bounds(tr, displacement, duration, sx, self.axis_limits(hoisting)))
         t0 = time.perf_counter()
 
         def cold():  # the initial guess; only computed when needed
@@ -193,24 +201,40 @@ class DirectSolver(VariationalSolver):
         solve_time = time.perf_counter() - t0
         if not stats['success']:
             raise PlanError(self._failure_message(stats, inst, displacement, duration, pvec, sx, cold(), t0))
-        inst.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
+        inst.warm = (self.sign(displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
         info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),
                 'solve_time_s': solve_time, 'build_time_s': build_time,
-                'objective': float(sol['f']) * duration * su ** 2, 'intervals': tr.intervals,
-                'robust': list(self.robust), 'sensitivities': list(pb.robust), 'servo_model': servo}
+                'objective': float(sol['f']) * duration * su[0] ** 2, 'intervals': tr.intervals,
+                'robust': list(self.robust), 'sensitivities': list(pb.robust), 'servo_model': form.servo}
+        if hoisting:
+            info['hoist_servo_model'] = form.hoist_servo
         return self.plan_of(tr, np.array(sol['x']).ravel(), sx, displacement, duration, frac, params, info)
 
-    def plan_of(self, tr, w, sx, displacement, duration, frac, params, info) -> CollocationPlan:
-        """The CollocationPlan of the solution ``w`` (states scaled by ``sx``) lasting ``duration`` s."""
+    def plan_of(self, tr, w, sx, displacement, duration, frac, params, info) -> CollocationPlan | AxesPlan:
+        """The CollocationPlan of the solution ``w`` (states scaled by ``sx``) lasting ``duration`` s; with a
+        hoist an AxesPlan of the cart's and the hoist's."""
         pb = tr.problem
         nodes = tr.interval_nodes(w) * sx  # (N, d+1, nx), SI units
-        pos, vel, acc = pb.reference({n: nodes[:, :, i] for i, n in enumerate(pb.states)}, params.tau)
-        return CollocationPlan(self.method, float(displacement), float(duration), info,
-                               mesh=duration * breakpoints(frac), coef=acc @ tr.basis,
-                               start=np.stack([pos[:, 0], vel[:, 0]], axis=1))
+        x = {n: nodes[:, :, i] for i, n in enumerate(pb.states)}
+        plans = {}
+        for axis, D in zip(pb.axes, displacements(displacement)):
+            pos, vel, acc = pb.reference(x, params.tau, axis, params.tau_hoist)
+            plans[axis] = CollocationPlan(self.method, float(D), float(duration), info,
+                                          mesh=duration * breakpoints(frac), coef=acc @ tr.basis,
+                                          start=np.stack([pos[:, 0], vel[:, 0]], axis=1))
+        if len(plans) == 1:
+            return plans['cart']
+        return AxesPlan(method=self.method, displacement=plans['cart'].displacement, duration=float(duration),
+                        info=info, axes=plans, starts={'cart': 0.0, 'hoist': params.L1})
 
     @staticmethod
-    def warm_start(warm: tuple, displacement: float) -> dict:
+    def sign(displacement) -> float:
+        """The sign a warm start is kept with: the cart's; 0 with a hoist (a solution is never mirrored)."""
+        D, Dh = displacements(displacement)
+        return 0.0 if Dh is not None else math.copysign(1.0, D)
+
+    @staticmethod
+    def warm_start(warm: tuple, displacement) -> dict:
         """The last solution, mirrored if D changed sign.
 
         The crane is odd-symmetric (f(-x, -u) = -f(x, u), the cost is even),
@@ -219,13 +243,14 @@ class DirectSolver(VariationalSolver):
         of the same sign.
         """
         sign, start = warm
-        if sign == math.copysign(1.0, displacement):
+        if sign == DirectSolver.sign(displacement) or sign == 0.0:  # the hoist breaks the symmetry: as it is
             return start
         return {k: -v for k, v in start.items()}
 
     def _failure_message(self, stats, inst: Instance, displacement, duration, pvec, sx, cold, t0) -> str:
         tr, solver = inst.transcription, inst.solver
-        where = f'D={displacement:g} m, T={duration:g} s'
+        D, Dh = displacements(displacement)
+        where = f'D={D:g} m, ' + (f'hoist {Dh:+g} m, ' if Dh is not None else '') + f'T={duration:g} s'
         status = stats['return_status']
         if status == 'Maximum_WallTime_Exceeded':
             cap = (f'max_solve_time {self.max_solve_time:g} s' if self.max_solve_time is not None
@@ -239,7 +264,10 @@ class DirectSolver(VariationalSolver):
         names = ('max_velocity', 'max_acceleration', 'max_jerk')
         present = [n for n in names if getattr(self, n) is not None]
         failing = []
-        if len(present) > 1:
+        if Dh is not None:  # not probed one by one: every limit of both axes is named
+            present += [f'max_hoist_{q}' for q, v in zip(('velocity', 'acceleration', 'jerk'), self.hoist_limits)
+                        if v is not None]
+        elif len(present) > 1:
             for name in present:
                 if not self._may_retry(t0):
                     break
@@ -249,6 +277,8 @@ class DirectSolver(VariationalSolver):
                 if not solver.stats()['success']:
                     failing.append(name)
         culprits = failing or present
-        named = ' and '.join(f'{n} {getattr(self, n):g}' for n in culprits)
+        values = dict(zip(names, self.limits), **{f'max_hoist_{q}': v for q, v in zip(('velocity', 'acceleration',
+                                                                                         'jerk'), self.hoist_limits)})
+        named = ' and '.join(f'{n} {values[n]:g}' for n in culprits)
         return (f'{self.method}: no plan for {where} within {named} (IPOPT status {status}); '
                 f'the limit{"s are" if len(culprits) > 1 else " is"} infeasible or too tight to solve')

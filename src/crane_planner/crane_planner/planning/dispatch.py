@@ -10,13 +10,15 @@ exactly the same requests with the same messages. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Callable
 
 from crane_msgs_py.params import CraneParams, ParameterError, check_choice, check_nonnegative, check_positive
 
-from .limits import check_fastest_request
+from .hoisting import HOIST_SHAPER_DESIGNS, check_hoist, shaped_hoisting_plan
+from .limits import axis_limit_error, check_fastest_request
 from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
 from .model import modal_properties
 from .plan import Plan, PlanError
@@ -48,6 +50,14 @@ class PlanOptions:
             a fastest plan's attempts together, not solved within it is refused
             (direct route only; building a solver is not counted, except by
             the caller's wait on a worker process); None = the route's own cap.
+        max_hoist_velocity, max_hoist_acceleration, max_hoist_jerk: the hoist
+            axis's limits on its reference (m/s, m/s^2, m/s^3), None = no limit.
+        hoist_robust: the parameters RVF is made insensitive to while
+            hoisting (it replaces ``robust`` then): the payload's cable ``L2``
+            by default, since the upper cable's length is what the hoist sets.
+        hoist_shaper: how a shaper follows the rope length while hoisting
+            (``hoisting.HOIST_SHAPER_DESIGNS``): ``adaptive`` (default) or
+            designed at the ``start``, ``middle`` or ``end`` length.
     """
 
     omega: tuple[float, ...] | None = None
@@ -60,6 +70,11 @@ class PlanOptions:
     max_jerk: float | None = None
     base: str = 'quintic'
     max_solve_time: float | None = None
+    max_hoist_velocity: float | None = None
+    max_hoist_acceleration: float | None = None
+    max_hoist_jerk: float | None = None
+    hoist_robust: tuple[str, ...] = ('L2',)
+    hoist_shaper: str = 'adaptive'
 
     def __post_init__(self):
         if self.omega is not None:
@@ -72,14 +87,15 @@ class PlanOptions:
             if damping >= 1.0:
                 raise ParameterError(f'damping must be < 1, got {damping}')
             object.__setattr__(self, 'damping', damping)
-        robust = tuple(self.robust)
-        bad = [r for r in robust if r not in ROBUST_PARAMETERS]
-        if bad:
-            raise ParameterError(
-                f'robust parameter(s) {", ".join(bad)} not among {", ".join(ROBUST_PARAMETERS)}')
-        if len(set(robust)) != len(robust) or not robust:
-            raise ParameterError('robust needs one or more distinct parameters')
-        object.__setattr__(self, 'robust', robust)
+        for name in ('robust', 'hoist_robust'):
+            robust = tuple(getattr(self, name))
+            bad = [r for r in robust if r not in ROBUST_PARAMETERS]
+            if bad:
+                raise ParameterError(
+                    f'{name} parameter(s) {", ".join(bad)} not among {", ".join(ROBUST_PARAMETERS)}')
+            if len(set(robust)) != len(robust) or not robust:
+                raise ParameterError(f'{name} needs one or more distinct parameters')
+            object.__setattr__(self, name, robust)
         if self.intervals is not None:
             if int(self.intervals) != self.intervals or not 4 <= int(self.intervals) <= 2000:
                 raise ParameterError(f'intervals must be an integer in [4, 2000], got {self.intervals}')
@@ -89,7 +105,9 @@ class PlanOptions:
         check_choice('base', self.base, BASES)
         if self.base == 'limits' and self.max_velocity is None and self.max_acceleration is None:
             raise ParameterError('the limits base needs max_velocity or max_acceleration (or both)')
-        for name in ('max_velocity', 'max_acceleration', 'max_jerk', 'max_solve_time'):
+        check_choice('hoist_shaper', self.hoist_shaper, HOIST_SHAPER_DESIGNS)
+        for name in ('max_velocity', 'max_acceleration', 'max_jerk', 'max_solve_time', 'max_hoist_velocity',
+                     'max_hoist_acceleration', 'max_hoist_jerk'):
             v = getattr(self, name)
             if v is not None:
                 object.__setattr__(self, name, check_positive(name, v))
@@ -121,16 +139,25 @@ def limits_of(options: PlanOptions) -> tuple:
     return options.max_velocity, options.max_acceleration, options.max_jerk
 
 
-def check_axis_limits(plan, options: PlanOptions) -> None:
-    """PlanError naming the limit if the shaped plan's |v|, |a_ref| or |jerk| peak exceeds it.
+def hoist_limits_of(options: PlanOptions) -> tuple:
+    """(max_hoist_velocity, max_hoist_acceleration, max_hoist_jerk) of ``options``, None for none."""
+    return options.max_hoist_velocity, options.max_hoist_acceleration, options.max_hoist_jerk
+
+
+def check_axis_limits(plan, options: PlanOptions, axis: str = '') -> None:
+    """PlanError naming the limit if the shaped plan's |v|, |a_ref| or |jerk| peak exceeds it
+    (``axis`` 'hoist': the hoist's limits, named so).
 
     A shaper cannot trade time for peaks: the shaped profile is fixed by the
     method and the duration, so an exceeded limit is an error, not a constraint.
     """
-    if all(limit is None for limit in limits_of(options)):
+    limits = hoist_limits_of(options) if axis == 'hoist' else limits_of(options)
+    if all(limit is None for limit in limits):
         return
-    for (name, unit), limit, peak in zip(LIMITS, limits_of(options), plan.peaks()):
+    for (name, unit), limit, peak in zip(LIMITS, limits, plan.peaks()):
         if limit is not None and peak > limit * (1.0 + 1e-6):
+            if axis:
+                name = name.replace('max_', f'max_{axis}_')
             raise PlanError(f'{plan.method} plan exceeds {name} {limit:g} {unit} (peak {peak:.4g}); '
                             'lengthen the duration or raise the limit')
 
@@ -162,16 +189,36 @@ Variational = Callable[[VariationalRequest], Plan]
 
 
 def plan(method: str, displacement: float, duration: float, params: CraneParams | None = None,
-         options: PlanOptions | None = None, variational: Variational | None = None) -> Plan:
+         options: PlanOptions | None = None, variational: Variational | None = None,
+         hoist: tuple[float, float] | None = None) -> Plan:
     """A rest-to-rest plan from 0 to ``displacement`` (m) in ``duration`` (s).
 
-    Shapers are planned here; NVF/RVF by ``variational`` (default: a new
-    solver, see the module docstring). Raises PlanError (or its
-    ParameterError sibling, both ValueError) with a message naming the problem.
+    With ``hoist`` = (L1_start, L1_goal) (m) the rope length moves too: an
+    ``AxesPlan`` of the cart and the hoist, planned on the model with L1 =
+    L1_start (contract "Joints and hoisting"). Shapers are planned here;
+    NVF/RVF by ``variational`` (default: a new solver, see the module
+    docstring). Raises PlanError (or its ParameterError sibling, both
+    ValueError) with a message naming the problem.
     """
     params = params or CraneParams()
     options = options or PlanOptions()
     displacement, duration = check_request(method, displacement, duration)
+    if hoist is not None:
+        params, hoist_displacement = hoisting_request(params, options, hoist)
+        if method in SHAPER_METHODS:
+            if options.base != 'quintic':
+                raise PlanError('while hoisting the shapers shape the quintic base only (base quintic)')
+            err = axis_limit_error(hoist_displacement, duration, *hoist_limits_of(options), axis='hoist')
+            if err is not None:
+                raise err
+            zeta = options.damping
+            both = shaped_hoisting_plan(method, displacement, hoist_displacement, duration, params, zeta,
+                                        options.hoist_shaper)
+            check_axis_limits(both.axes['cart'], options)
+            check_axis_limits(both.axes['hoist'], options, 'hoist')
+            return both
+        return (variational or _new_solver)(VariationalRequest('plan', method, (displacement, hoist_displacement),
+                                                               duration, params, hoisting_options(options)))
     if method in SHAPER_METHODS:
         omegas, zetas = shaper_design(params, options)
         shaped = shaped_plan(method, displacement, duration, omegas, zetas, options.base, limits_of(options))
@@ -182,7 +229,8 @@ def plan(method: str, displacement: float, duration: float, params: CraneParams 
 
 
 def fastest(method: str, displacement: float, params: CraneParams | None = None,
-            options: PlanOptions | None = None, variational: Variational | None = None) -> Plan:
+            options: PlanOptions | None = None, variational: Variational | None = None,
+            hoist: tuple[float, float] | None = None) -> Plan:
     """The shortest rest-to-rest plan of ``displacement`` (m) within the options' axis limits.
 
     Needs max_velocity or max_acceleration (a motion without either could
@@ -192,6 +240,15 @@ def fastest(method: str, displacement: float, params: CraneParams | None = None,
     params = params or CraneParams()
     options = options or PlanOptions()
     check_request(method, displacement, 1.0)
+    if hoist is not None:
+        params, hoist_displacement = hoisting_request(params, options, hoist)
+        if method in SHAPER_METHODS:
+            raise PlanError('the fastest shaped plan with a hoist is not offered: give a duration, or use nvf/rvf')
+        if options.solver != 'direct':
+            raise PlanError('the fastest NVF/RVF plan needs the direct solver (free final time)')
+        return (variational or _new_solver)(VariationalRequest('fastest', method, (float(displacement),
+                                                                                    hoist_displacement),
+                                                               None, params, hoisting_options(options)))
     limits = limits_of(options)
     displacement = check_fastest_request(displacement, limits)  # before a solver is asked
     if method in SHAPER_METHODS:
@@ -199,6 +256,26 @@ def fastest(method: str, displacement: float, params: CraneParams | None = None,
     if options.solver != 'direct':
         raise PlanError('the fastest NVF/RVF plan needs the direct solver (free final time)')
     return (variational or _new_solver)(VariationalRequest('fastest', method, displacement, None, params, options))
+
+
+def hoisting_request(params: CraneParams, options: PlanOptions, hoist) -> tuple[CraneParams, float]:
+    """The model at the start length and the hoist's displacement (m) of ``hoist`` = (L1_start, L1_goal)."""
+    try:
+        start, goal = (float(x) for x in hoist)
+    except (TypeError, ValueError):
+        raise PlanError(f'hoist needs the start and goal rope lengths (m), got {hoist!r}') from None
+    if not (math.isfinite(start) and start > 0.0):
+        raise PlanError(f'hoist start length must be finite and > 0 m, got {start}')
+    check_hoist(start, goal - start)
+    if options.omega is not None:
+        raise PlanError('shaper frequencies (omega) cannot be given with a hoist: they change with the rope '
+                        'length, which the model gives')
+    return params.replace(L1=start), goal - start
+
+
+def hoisting_options(options: PlanOptions) -> PlanOptions:
+    """``options`` as a hoisting request is solved with: RVF robust to ``hoist_robust``."""
+    return dataclasses.replace(options, robust=options.hoist_robust)
 
 
 def _new_solver(request: VariationalRequest) -> Plan:

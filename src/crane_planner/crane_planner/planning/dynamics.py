@@ -16,6 +16,7 @@ planner chooses:
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import casadi as ca
@@ -27,6 +28,8 @@ PARAMETERS = PARAMETER_NAMES
 SWING_STATES = ('theta1', 'theta2', 'dtheta1', 'dtheta2')
 IDEAL_STATES = ('y', 'v', 'a') + SWING_STATES
 SERVO_STATES = ('y', 'v', 'a', 'a_ref') + SWING_STATES
+#: The hoist's states (its displacement from the start length L1, rate, acceleration, reference acceleration).
+HOIST_STATES = ('h', 'hv', 'ha', 'ha_ref')
 
 
 def swing_accelerations(theta1, theta2, dtheta1, dtheta2, a, L1, L2, m1, m2, g, c1=0.0, c2=0.0):
@@ -56,6 +59,56 @@ def swing_accelerations(theta1, theta2, dtheta1, dtheta2, a, L1, L2, m1, m2, g, 
     return (m22 * r1 - m12 * r2) / det, (m11 * r2 - m21 * r1) / det
 
 
+@functools.lru_cache(maxsize=1)
+def hoisting_swing() -> ca.Function:
+    """(theta1'', theta2'') of the crane whose upper cable's length L1(t) is prescribed, from its Lagrangian.
+
+    Not written out by hand: CasADi differentiates the kinematics of the
+    same two masses as Eqs. 18-19 with the cart position y(t) and L1(t) as
+    given functions of time. With p1 = (y - L1 sin th1, -L1 cos th1),
+    p2 = p1 - L2 (sin(th1+th2), cos(th1+th2)), the Lagrangian
+    L = sum m_i |p_i'|^2 / 2 - g sum m_i z_i and q = (th1, th2), Lagrange's
+    equations d/dt dL/dq' - dL/dq = Q read, with J_i = dp_i/dq,
+
+        sum_i m_i J_i^T (p_i'' + (0, g)) = Q,   p_i'' = J_i q'' + (the rest of p_i'', by the chain rule),
+
+    i.e. M q'' = Q - sum_i m_i J_i^T (rest_i + (0, g)), M = sum_i m_i J_i^T J_i
+    (the identity d/dt dT/dq' - dT/dq = sum m_i J_i^T p_i'' of T = sum m_i
+    |p_i'|^2 / 2 keeps the expressions a quarter the size of differentiating
+    L twice). Q = (-c1 th1', -c2 th2') are the joint damping torques. The
+    chain rule brings the hoist's terms in L1' and L1'' (Coriolis and the
+    like); with L1 constant this is Eqs. 18-19 (``swing_accelerations``,
+    tested), and crane_sim's Newton-projected form agrees (tested). Inputs
+    theta1, theta2, dtheta1, dtheta2, a (= y''), L1, dL1, ddL1, L2, m1, m2,
+    g, c1, c2; outputs ddtheta1, ddtheta2.
+    """
+    q, dq = ca.SX.sym('q', 2), ca.SX.sym('dq', 2)
+    r, dr, ddr = ca.SX.sym('r', 2), ca.SX.sym('dr', 2), ca.SX.sym('ddr', 2)
+    L2, m1, m2, g, c1, c2 = (ca.SX.sym(n) for n in ('L2', 'm1', 'm2', 'g', 'c1', 'c2'))
+    (th1, th2), (y, L1) = ca.vertsplit(q), ca.vertsplit(r)
+    p1 = ca.vertcat(y - L1 * ca.sin(th1), -L1 * ca.cos(th1))
+    p2 = p1 - L2 * ca.vertcat(ca.sin(th1 + th2), ca.cos(th1 + th2))
+    coords, rates = ca.vertcat(q, r), ca.vertcat(dq, dr)
+    M, bias = 0, 0
+    for m, pos in ((m1, p1), (m2, p2)):
+        J = ca.jacobian(pos, q)
+        velocity = ca.jtimes(pos, coords, rates)
+        # the acceleration of the mass without its q'' part: J q'' is added by M q'' below
+        rest = ca.jtimes(velocity, ca.vertcat(coords, dr), ca.vertcat(rates, ddr))
+        M += m * J.T @ J
+        bias += m * J.T @ (rest + ca.vertcat(0, g))  # gravity: dV/dq = m J^T (0, g)
+    rest = bias - ca.vertcat(-c1 * dq[0], -c2 * dq[1])
+    det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+    dd1 = -(M[1, 1] * rest[0] - M[0, 1] * rest[1]) / det
+    dd2 = -(M[0, 0] * rest[1] - M[1, 0] * rest[0]) / det
+    # the cart's velocity cancels (a uniformly moving cart is a Galilean frame) but not symbolically;
+    # common subexpressions shared (fewer operations for every derivative the NLP takes)
+    dd1, dd2 = ca.vertsplit(ca.cse(ca.substitute(ca.vertcat(dd1, dd2), dr[0], 0.0)))
+    return ca.Function('hoisting_swing', [th1, th2, dq[0], dq[1], ddr[0], L1, dr[1], ddr[1], L2, m1, m2, g, c1, c2],
+                       [dd1, dd2], ['theta1', 'theta2', 'dtheta1', 'dtheta2', 'a', 'L1', 'dL1', 'ddL1', 'L2', 'm1',
+                                    'm2', 'g', 'c1', 'c2'], ['ddtheta1', 'ddtheta2'])
+
+
 @dataclass(frozen=True)
 class CraneOde:
     """x' = f(x, u, p) as CasADi SX expressions.
@@ -67,6 +120,7 @@ class CraneOde:
         f: the right-hand side.
         servo: True for the tau > 0 form (Eq. 6 included).
         robust: parameters whose sensitivities are in the state.
+        hoist, hoist_servo: the hoist is an axis (``crane_ode``), with its servo.
     """
 
     states: tuple
@@ -76,6 +130,8 @@ class CraneOde:
     f: ca.SX
     servo: bool
     robust: tuple = ()
+    hoist: bool = False
+    hoist_servo: bool = False
 
     def index(self, name: str) -> int:
         return self.states.index(name)
@@ -84,26 +140,46 @@ class CraneOde:
         return ca.Function('f', [self.x, self.u, self.p], [self.f], ['x', 'u', 'p'], ['xdot'])
 
 
-def crane_ode(servo: bool) -> CraneOde:
+def crane_ode(servo: bool, hoist: bool = False, hoist_servo: bool = False) -> CraneOde:
     """The crane of Eqs. 18-19 driven by the cart acceleration, in the form of Eqs. 7-8.
 
     With ``servo`` the cart acceleration obeys Eq. 6, tau a' = a_ref - a, and
     the input is the reference jerk; otherwise the input is the cart jerk.
+
+    With ``hoist`` the upper cable's length is a second actuated axis: L1 + h
+    with h the hoist's displacement from the start length (the parameter
+    ``L1``, so a sensitivity to L1 is one to an offset of the rope length),
+    the swing from ``hoisting_swing`` (the Lagrangian with L1(t)), and a
+    second input, the hoist's jerk, or with ``hoist_servo`` its reference
+    jerk, the hoist's acceleration following Eq. 6 with tau_hoist. States:
+    the cart's, then ``HOIST_STATES`` (``ha_ref`` only with ``hoist_servo``),
+    then the swing.
     """
-    names = SERVO_STATES if servo else IDEAL_STATES
+    cart_names = ('y', 'v', 'a', 'a_ref') if servo else ('y', 'v', 'a')
+    hoist_names = (HOIST_STATES if hoist_servo else HOIST_STATES[:3]) if hoist else ()
+    names = cart_names + hoist_names + SWING_STATES
     x = ca.SX.sym('x', len(names))
-    u = ca.SX.sym('u')
+    u = ca.SX.sym('u', 2 if hoist else 1)
     p = ca.SX.sym('p', len(PARAMETERS))
     s = dict(zip(names, ca.vertsplit(x)))
-    L1, L2, m1, m2, g, tau, c1, c2 = ca.vertsplit(p)
-    dd1, dd2 = swing_accelerations(s['theta1'], s['theta2'], s['dtheta1'], s['dtheta2'], s['a'],
-                                   L1, L2, m1, m2, g, c1, c2)
-    if servo:
-        cart = [s['v'], s['a'], (s['a_ref'] - s['a']) / tau, u]
+    par = dict(zip(PARAMETERS, ca.vertsplit(p)))
+    L1, L2, m1, m2, g, c1, c2 = (par[k] for k in ('L1', 'L2', 'm1', 'm2', 'g', 'c1', 'c2'))
+    if hoist:
+        dd1, dd2 = hoisting_swing()(s['theta1'], s['theta2'], s['dtheta1'], s['dtheta2'], s['a'], L1 + s['h'],
+                                    s['hv'], s['ha'], L2, m1, m2, g, c1, c2)
     else:
-        cart = [s['v'], s['a'], u]
-    f = ca.vertcat(*cart, s['dtheta1'], s['dtheta2'], dd1, dd2)
-    return CraneOde(names, x, u, p, f, servo)
+        dd1, dd2 = swing_accelerations(s['theta1'], s['theta2'], s['dtheta1'], s['dtheta2'], s['a'],
+                                       L1, L2, m1, m2, g, c1, c2)
+    if servo:
+        rows = [s['v'], s['a'], (s['a_ref'] - s['a']) / par['tau'], u[0]]
+    else:
+        rows = [s['v'], s['a'], u[0]]
+    if hoist and hoist_servo:
+        rows += [s['hv'], s['ha'], (s['ha_ref'] - s['ha']) / par['tau_hoist'], u[1]]
+    elif hoist:
+        rows += [s['hv'], s['ha'], u[1]]
+    f = ca.vertcat(*rows, s['dtheta1'], s['dtheta2'], dd1, dd2)
+    return CraneOde(names, x, u, p, f, servo, hoist=hoist, hoist_servo=hoist_servo)
 
 
 def _closure(seed: set, edges: dict) -> set:
@@ -134,7 +210,8 @@ def sensitivity_states(ode: CraneOde, parameter: str) -> tuple:
     gives (1 + tau lambda) int S_a exp(-lambda t) dt = -tau S_a(T) exp(-lambda T).
     So the swing sensitivities vanish at T exactly when S_a(T) does (about
     rest): their end conditions would repeat S_a(T) = 0 four times and make
-    the problem degenerate.
+    the problem degenerate. That argument needs constant modes: with a hoist
+    the swing's sensitivities to tau are carried as well.
     """
     k = PARAMETERS.index(parameter)
     n = len(ode.states)
@@ -146,7 +223,7 @@ def sensitivity_states(ode: CraneOde, parameter: str) -> tuple:
     dependent = _closure(direct, used_by)
     swing = {ode.index(name) for name in SWING_STATES}
     relevant = _closure(swing, uses)
-    if parameter == 'tau':
+    if parameter == 'tau' and not ode.hoist:
         relevant -= swing
     return tuple(ode.states[i] for i in range(n) if i in dependent and i in relevant)
 
@@ -155,7 +232,7 @@ def sensitivity_states(ode: CraneOde, parameter: str) -> tuple:
 PENDULUM_PARAMETERS = ('L1', 'L2', 'm1', 'm2')
 
 
-def carried_parameters(robust) -> tuple:
+def carried_parameters(robust, hoist: bool = False) -> tuple:
     """The parameters whose sensitivities make a plan insensitive to all of ``robust``.
 
     About rest, the crane's swing is two modes; a rest-to-rest motion leaves
@@ -168,9 +245,13 @@ def carried_parameters(robust) -> tuple:
     are the same for each of them: the first of them in ``robust`` stands for
     all (to first order in the swing amplitude); carrying more would repeat
     the same four end conditions and make the NLP degenerate. tau is
-    independent of them (see ``sensitivity_states``).
+    independent of them (see ``sensitivity_states``). With a ``hoist`` the
+    modes change along the motion and that argument fails: every parameter
+    of ``robust`` is carried.
     """
     robust = tuple(robust)
+    if hoist:
+        return robust
     pendulum = [q for q in robust if q in PENDULUM_PARAMETERS][:1]
     return tuple(q for q in robust if q in pendulum or q not in PENDULUM_PARAMETERS)
 
@@ -184,7 +265,7 @@ def augment(ode: CraneOde, robust) -> CraneOde:
     sensitivities of ``carried_parameters(robust)`` are added (the others
     follow from them).
     """
-    robust = carried_parameters(robust)
+    robust = carried_parameters(robust, ode.hoist)
     if 'tau' in robust and not ode.servo:
         raise ValueError('sensitivity to tau needs the servo model (tau > 0)')
     blocks, names, sdot = [], list(ode.states), []
@@ -200,4 +281,4 @@ def augment(ode: CraneOde, robust) -> CraneOde:
         names += [f'd{ode.states[i]}/d{q}' for i in sel]
     x = ca.vertcat(ode.x, *blocks)
     f = ca.vertcat(ode.f, *sdot)
-    return CraneOde(tuple(names), x, ode.u, ode.p, f, ode.servo, robust)
+    return CraneOde(tuple(names), x, ode.u, ode.p, f, ode.servo, robust, ode.hoist, ode.hoist_servo)

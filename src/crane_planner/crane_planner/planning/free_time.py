@@ -8,7 +8,6 @@ and plans) and keeps its own IPOPT instances and warm starts.
 """
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
@@ -19,7 +18,7 @@ from .collocation import CollocationPlan
 from .ipopt import Instance
 from .limits import check_fastest_request, shortest_duration_bound
 from .plan import PlanError
-from .problem import PROBLEM_PARAMETERS
+from .problem import PROBLEM_PARAMETERS, Form, displacements
 from .profiles import quintic_duration
 
 
@@ -33,10 +32,11 @@ class FreeTimeSearch:
 
     def __init__(self, solver):
         self.solver = solver
-        self._instances = {}  # servo -> Instance of the free-time NLP
+        self._instances = {}  # Form -> Instance of the free-time NLP
 
-    def fastest(self, displacement: float, params: CraneParams) -> CollocationPlan:
-        """The shortest plan of ``displacement`` (m) within the solver's axis limits.
+    def fastest(self, displacement, params: CraneParams) -> CollocationPlan:
+        """The shortest plan of ``displacement`` (m; with a hoist the pair of the cart's and the hoist's)
+        within the solver's axis limits (each axis's own).
 
         It starts from its own last solution; the first time (or if that
         fails) from the quintic guess at T_0 = 1.3 times the shortest quintic
@@ -46,20 +46,31 @@ class FreeTimeSearch:
         stop at that budget: a PlanError names it.
         """
         solver = self.solver
-        displacement = check_fastest_request(displacement, solver.limits)
-        servo = params.tau > 0.0
-        bound = shortest_duration_bound(displacement, solver.limits)
+        D, Dh = displacements(displacement)
+        hoisting = Dh is not None
+        if hoisting:
+            if solver.hoist_limits[0] is None and solver.hoist_limits[1] is None:
+                raise PlanError('the fastest plan with a hoist needs max_hoist_velocity or max_hoist_acceleration '
+                                '(or both)')
+            if D == 0.0 and Dh == 0.0:
+                raise PlanError('the fastest plan needs a nonzero displacement')
+            displacement = (D, Dh)
+        else:
+            displacement = check_fastest_request(D, solver.limits)
+        form = Form.of(params, hoisting)
+        bound = max(shortest_duration_bound(d, limits)
+                    for d, limits in zip(displacements(displacement), solver.axis_limits(hoisting)))
         t_build = time.perf_counter()
-        inst = self._instance(servo)
+        inst = self._instance(form)
         build_time = time.perf_counter() - t_build
         t0 = time.perf_counter()
         solver.deadline = None if solver.max_solve_time is None else t0 + solver.max_solve_time
         try:
-            return self._search(inst, displacement, params, servo, bound, build_time, t0)
+            return self._search(inst, displacement, params, form, bound, build_time, t0)
         finally:
             solver.deadline = None
 
-    def _search(self, inst, displacement, params, servo, bound, build_time, t0) -> CollocationPlan:
+    def _search(self, inst, displacement, params, form, bound, build_time, t0) -> CollocationPlan:
         """``fastest``'s attempts, under the solver's ``deadline`` (see there)."""
         solver = self.solver
         tr, nlp, pb = inst.transcription, inst.solver, inst.transcription.problem
@@ -70,19 +81,21 @@ class FreeTimeSearch:
                 T0 = inst.T0
                 start = solver.warm_start(inst.warm, displacement)
             else:
-                T0 = max(self.quintic_margin * quintic_duration(displacement, *solver.limits), 1.5 * bound)
+                quintic = max(quintic_duration(d, *limits) if any(x is not None for x in limits[:2]) else 0.0
+                              for d, limits in zip(displacements(displacement), solver.axis_limits(form.hoist)))
+                T0 = max(self.quintic_margin * quintic, 1.5 * bound)
                 if attempt == 0:  # first: from the quintic's guess, no fixed NLP needed
-                    start = {'x0': np.append(tr.guess(displacement, solver.mesh(T0, params)), 1.0)}
+                    start = {'x0': np.append(tr.guess(displacement, solver.mesh(T0, params, form.hoist)), 1.0)}
                 else:  # else a fixed-duration solution: durations until one solves
                     T0, solves = self._fixed_solution(displacement, T0, params, attempt)
                     fixed_solves += solves
-                    start = {'x0': np.append(np.array(solver.last_solution(servo)['x0']).ravel(), 1.0)}
+                    start = {'x0': np.append(np.array(solver.last_solution(form)['x0']).ravel(), 1.0)}
                 inst.T0 = T0
-            frac = solver.mesh(T0, params)
+            frac = solver.mesh(T0, params, form.hoist)
             pvec = np.concatenate([pb.parameters(displacement, T0, params, solver.weights), frac])
             sx, _ = pb.scales(pvec[:len(PROBLEM_PARAMETERS)])
             sx = np.array(sx, dtype=float).ravel()
-            args = solver.bounds(tr, displacement, T0, sx, solver.limits)
+            args = solver.bounds(tr, displacement, T0, sx, solver.axis_limits(form.hoist))
             args['lbx'][-1] = bound / T0 * (1.0 - 1e-9)  # sigma: no motion beats the bound
             with inst.callback.solving(solver.deadline):
                 sol = nlp(p=pvec, **args, **start)
@@ -92,15 +105,16 @@ class FreeTimeSearch:
             if stats['return_status'] == 'User_Requested_Stop':  # the deadline: the warm start stays good
                 self._check_deadline(displacement, attempt + 1)
             if attempt == self.attempts - 1:
-                raise PlanError(f'{solver.method}: the fastest plan of {displacement:g} m did not solve '
+                D = displacements(displacement)[0]
+                raise PlanError(f'{solver.method}: the fastest plan of {D:g} m did not solve '
                                 f'(IPOPT status {stats["return_status"]})')
             inst.warm = None  # not from here: from a fixed-duration solution
         w = np.array(sol['x']).ravel()
-        inst.warm = (math.copysign(1.0, displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
+        inst.warm = (solver.sign(displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
         info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),
                 'solve_time_s': time.perf_counter() - t0, 'build_time_s': build_time,
                 'intervals': tr.intervals, 'robust': list(solver.robust), 'sensitivities': list(pb.robust),
-                'servo_model': servo, 'fastest': {'scale_duration_s': T0, 'fixed_solves': fixed_solves,
+                'servo_model': form.servo, 'fastest': {'scale_duration_s': T0, 'fixed_solves': fixed_solves,
                                                   'lower_bound_s': bound}}
         return solver.plan_of(tr, w, sx, displacement, float(w[-1]) * T0, frac, params, info)
 
@@ -109,30 +123,33 @@ class FreeTimeSearch:
         for solves in range(1, 31):
             self._check_deadline(displacement, attempt)
             try:
-                self.solver._solve(displacement, T0, params, self.solver.mesh(T0, params))  # under its lock
+                hoisting = displacements(displacement)[1] is not None
+                self.solver._solve(displacement, T0, params, self.solver.mesh(T0, params, hoisting))  # under its lock
                 return T0, solves
             except PlanError:
                 T0 *= 1.5
-        raise PlanError(f'{self.solver.method}: no plan of {displacement:g} m within the limits found')
+        D = displacements(displacement)[0]
+        raise PlanError(f'{self.solver.method}: no plan of {D:g} m within the limits found')
 
     def _check_deadline(self, displacement: float, attempts: int) -> None:
         """A PlanError naming ``max_solve_time`` once a fastest request's budget is spent."""
         solver = self.solver
         if solver.deadline is not None and time.perf_counter() > solver.deadline:
-            raise PlanError(f'{solver.method}: no fastest plan of {displacement:g} m within max_solve_time '
+            D = displacements(displacement)[0]
+            raise PlanError(f'{solver.method}: no fastest plan of {D:g} m within max_solve_time '
                             f'{solver.max_solve_time:g} s ({attempts} attempt{"s" if attempts != 1 else ""} '
                             'of the free-time NLP did not finish); raise max_solve_time')
 
-    def _instance(self, servo: bool) -> Instance:
-        inst = self._instances.get(servo)
+    def _instance(self, form: Form) -> Instance:
+        inst = self._instances.get(form)
         if inst is None:
             solver = self.solver
-            tr = solver.transcription(servo, free_time=True)
+            tr = solver.transcription(form, free_time=True)
             callback = solver.iteration_callback(tr.nw, tr.ng, tr.nlp['p'].shape[0])
             # a warm start sits at its optimum: a small barrier parameter keeps IPOPT there, and the
             # adaptive barrier update leaves it in fewer iterations than the monotone one (the same
             # request 15 -> 8 NVF, 9 -> 4 RVF; a new D of 0.5 m after 0.3 m 197 -> 88)
             options = dict(solver.ipopt_options(), iteration_callback=callback,
                            **{'ipopt.mu_init': 1e-6, 'ipopt.mu_strategy': 'adaptive'})
-            inst = self._instances[servo] = Instance(tr, tr.nlpsol(options), callback)
+            inst = self._instances[form] = Instance(tr, tr.nlpsol(options), callback)
         return inst

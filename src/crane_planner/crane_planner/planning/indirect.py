@@ -121,6 +121,7 @@ class IndirectSolver(VariationalSolver):
     route = 'indirect'
     handles_limits = False
     handles_time_budget = False  # scipy's solve_bvp has no time limit
+    handles_hoist = False
     #: solve_bvp's relative residual tolerance; 1e-4 already agrees with a fine direct
     #: solution to 1e-8 m in position, 1e-5 leaves a margin.
     tol = 1e-5

@@ -45,8 +45,11 @@ def shortest_duration_bound(displacement: float, limits) -> float:
     return max(bounds)
 
 
-def axis_limit_error(displacement: float, duration: float, max_velocity, max_acceleration, max_jerk=None):
+def axis_limit_error(displacement: float, duration: float, max_velocity, max_acceleration, max_jerk=None,
+                     axis: str = ''):
     """A PlanError if no rest-to-rest motion of D in T can respect the limits, else None.
+
+    The message names the limits ``max_velocity``... or, for ``axis`` 'hoist', ``max_hoist_velocity``...
 
     Necessary conditions (exact bounds of the bang-bang motion; a smooth
     reference needs strictly more): peak velocity > |D|/T, peak acceleration
@@ -54,19 +57,20 @@ def axis_limit_error(displacement: float, duration: float, max_velocity, max_acc
     limits, T > |D|/v_max + v_max/a_max when the velocity limit is reached.
     """
     D, T = abs(displacement), duration
+    axis = f'{axis}_' if axis else ''
     D_ = D * (1 + 1e-12)  # 0.1 m/s * 3 s is 0.30000000000000004 m
     if max_velocity is not None and max_velocity * T <= D_:
-        return PlanError(f'infeasible: max_velocity {max_velocity:g} m/s is too low to move {D:g} m in '
+        return PlanError(f'infeasible: max_{axis}velocity {max_velocity:g} m/s is too low to move {D:g} m in '
                          f'{T:g} s (needs more than {D / T:g} m/s)')
     if max_acceleration is not None and max_acceleration * T ** 2 <= 4 * D_:
-        return PlanError(f'infeasible: max_acceleration {max_acceleration:g} m/s^2 is too low to move {D:g} m '
+        return PlanError(f'infeasible: max_{axis}acceleration {max_acceleration:g} m/s^2 is too low to move {D:g} m '
                          f'in {T:g} s (needs more than {4 * D / T ** 2:g} m/s^2)')
     if max_jerk is not None and max_jerk * T ** 3 <= 32 * D_:
-        return PlanError(f'infeasible: max_jerk {max_jerk:g} m/s^3 is too low to move {D:g} m in {T:g} s '
+        return PlanError(f'infeasible: max_{axis}jerk {max_jerk:g} m/s^3 is too low to move {D:g} m in {T:g} s '
                          f'(needs more than {32 * D / T ** 3:g} m/s^3)')
     if max_velocity is not None and max_acceleration is not None and max_velocity ** 2 < D * max_acceleration:
         t_min = D / max_velocity + max_velocity / max_acceleration
         if T <= t_min:
-            return PlanError(f'infeasible: max_velocity {max_velocity:g} m/s and max_acceleration '
+            return PlanError(f'infeasible: max_{axis}velocity {max_velocity:g} m/s and max_{axis}acceleration '
                              f'{max_acceleration:g} m/s^2 together need more than {t_min:g} s to move {D:g} m')
     return None

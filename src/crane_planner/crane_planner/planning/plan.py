@@ -92,3 +92,41 @@ class Plan(ABC):
         t = (b[:-1, None] + np.diff(b)[:, None] * np.linspace(0.0, 1.0, per_piece + 1)).ravel()
         s = self.evaluate(t)
         return float(np.abs(s.velocity).max()), float(np.abs(s.acceleration).max()), float(np.abs(s.jerk).max())
+
+
+@dataclass(kw_only=True)
+class AxesPlan(Plan):
+    """A plan of several actuated axes moving together (the cart and the hoist, contract "Joints and hoisting").
+
+    As a ``Plan`` it is the cart's reference (so everything that reads a
+    cart plan reads this one); ``axes`` holds every axis's own plan by joint
+    name, ``cart`` first. The hoist's plan is relative like the cart's: its
+    displacement is L1_goal - L1_start, and ``starts['hoist']`` is L1_start
+    (m), where the ROS layer and the CSV put it.
+    """
+
+    axes: dict
+    starts: dict = field(default_factory=dict)
+
+    @property
+    def joint_names(self) -> tuple:
+        return tuple(self.axes)
+
+    def _evaluate(self, t):
+        s = self.axes['cart'].evaluate(t)
+        return s.position, s.velocity, s.acceleration, s.jerk
+
+    def breakpoints(self) -> np.ndarray:
+        return np.unique(np.concatenate([p.breakpoints() for p in self.axes.values()]))
+
+    def peaks(self, *args) -> tuple[float, float, float]:
+        return self.axes['cart'].peaks(*args)
+
+    def axis(self, name: str) -> Plan:
+        return self.axes[name]
+
+    def evaluate_axis(self, name: str, t) -> Samples:
+        """``name``'s samples at ``t``, its start added (the hoist's: the rope length in m)."""
+        s = self.axes[name].evaluate(t)
+        start = self.starts.get(name, 0.0)
+        return Samples(s.t, s.position + start, s.velocity, s.acceleration, s.jerk)

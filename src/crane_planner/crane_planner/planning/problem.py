@@ -34,7 +34,7 @@ P_MIN = 1e-3
 
 #: Entries of the NLP parameter vector of ``Problem`` (the mesh fractions follow in a transcription).
 PROBLEM_PARAMETERS = ('T', 'P', *PARAMETERS, 'acceleration_weight', 'sensitivity_weight',
-                      'reference_jerk_weight')
+                      'reference_jerk_weight', 'P_hoist', 'hoist_weight')
 
 
 @dataclass(frozen=True)
@@ -61,6 +61,9 @@ class Weights:
     acceleration: float = 0.0
     sensitivity: float = 0.0
     reference_jerk: float = 1.0
+    #: w_h: the hoist's jerk (and reference jerk) counts w_h times the cart's in the cost,
+    #: w_h jerk_h^2/2: 1 weighs a metre of hoisting like a metre of travel.
+    hoist: float = 1.0
 
 
 def _state_scale(name: str, T, P, g, params: dict):
@@ -68,9 +71,30 @@ def _state_scale(name: str, T, P, g, params: dict):
     if '/' in name:  # 'd<state>/d<q>'
         state, q = name[1:].split('/d')
         return _state_scale(state, T, P, g, params) / (T if q == 'tau' else params[q])
+    H = params.get('P_hoist', P)
     return {'y': P, 'v': P / T, 'a': P / T ** 2, 'a_ref': P / T ** 2,
+            'h': H, 'hv': H / T, 'ha': H / T ** 2, 'ha_ref': H / T ** 2,
             'theta1': P / (g * T ** 2), 'theta2': P / (g * T ** 2),
             'dtheta1': P / (g * T ** 3), 'dtheta2': P / (g * T ** 3)}[name]
+
+
+def displacements(displacement) -> tuple[float, float | None]:
+    """(cart D, hoist D or None) of a request's ``displacement``: a number (the cart alone) or a pair."""
+    d = np.atleast_1d(np.asarray(displacement, dtype=float))
+    return float(d[0]), (float(d[1]) if d.size > 1 else None)
+
+
+@dataclass(frozen=True)
+class Form:
+    """Which model a problem is built on: the cart's servo (tau > 0), a hoist axis, the hoist's servo."""
+
+    servo: bool
+    hoist: bool = False
+    hoist_servo: bool = False
+
+    @classmethod
+    def of(cls, params: CraneParams, hoist: bool) -> 'Form':
+        return cls(params.tau > 0.0, hoist, hoist and params.tau_hoist > 0.0)
 
 
 class Problem:
@@ -80,86 +104,120 @@ class Problem:
     s.t. x' = f^r(x, u)  (Eqs. 6-8, 18-19, 14),  x(0) = 0,  x(T) = [D, 0, ...]
 
     with u_j the cart jerk (the input u itself when tau = 0, (a_ref - a)/tau
-    with the servo, where u is the reference jerk).
+    with the servo, where u is the reference jerk). With a hoist (``form``)
+    its jerk and reference jerk enter the same way, weighted by w_h
+    (``Weights.hoist``), and it also goes from rest to rest: x(T) has its
+    displacement D_h.
 
     Attributes:
         ode: the (augmented) crane model.
-        states: state names; ``nx`` of them, one input.
+        states: state names; ``nx`` of them, ``nu`` inputs (one per axis).
+        axes: ``('cart',)`` or ``('cart', 'hoist')``.
         P: symbolic parameter vector, entries ``PROBLEM_PARAMETERS``.
         F: dX/ds = F(X, U, P) in scaled variables.
         G: the cost integrand in scaled units; J = T (P/T^3)^2 int_0^1 G ds.
     """
 
-    def __init__(self, robust: tuple, servo: bool):
-        ode = crane_ode(servo)
+    def __init__(self, robust: tuple, servo, hoist: bool = False, hoist_servo: bool = False):
+        form = servo if isinstance(servo, Form) else Form(bool(servo), hoist, hoist_servo)
+        ode = crane_ode(form.servo, form.hoist, form.hoist_servo)
         self.ode = augment(ode, robust) if robust else ode
-        self.servo = servo
+        self.form, self.servo = form, form.servo
+        self.axes = ('cart', 'hoist') if form.hoist else ('cart',)
         self.robust = self.ode.robust
         self.states = self.ode.states
-        self.nx = len(self.states)
+        self.nx, self.nu = len(self.states), len(self.axes)
         X = ca.SX.sym('X', self.nx)
-        U = ca.SX.sym('U')
+        U = ca.SX.sym('U', self.nu)
         P = ca.SX.sym('P', len(PROBLEM_PARAMETERS))
         par = dict(zip(PROBLEM_PARAMETERS, ca.vertsplit(P)))
         T, Ps, g = par['T'], par['P'], par['g']
         sx = ca.vertcat(*[_state_scale(s, T, Ps, g, par) for s in self.states])
-        su = Ps / T ** 3
+        su = ca.vertcat(Ps, par['P_hoist'])[:self.nu] / T ** 3
         x, u = sx * X, su * U
         p = ca.vertcat(*[par[q] for q in PARAMETERS])
         f = ca.substitute(ca.substitute(self.ode.f, self.ode.x, x), ca.vertcat(self.ode.u, self.ode.p),
                           ca.vertcat(u, p))
         s = dict(zip(self.states, ca.vertsplit(x)))
-        jerk = (s['a_ref'] - s['a']) / par['tau'] if servo else u
+        jerk = (s['a_ref'] - s['a']) / par['tau'] if form.servo else u[0]
         sens = ca.vertcat(*[s[n] for n in self.states if '/' in n])
         gcost = (jerk ** 2 + par['acceleration_weight'] * s['a'] ** 2
                  + par['sensitivity_weight'] * ca.sumsqr(sens)) / 2
-        if servo:
-            gcost += par['reference_jerk_weight'] * u ** 2 / 2
+        if form.servo:
+            gcost += par['reference_jerk_weight'] * u[0] ** 2 / 2
+        if form.hoist:
+            hoist_jerk = (s['ha_ref'] - s['ha']) / par['tau_hoist'] if form.hoist_servo else u[1]
+            gcost += par['hoist_weight'] * hoist_jerk ** 2 / 2
+            if form.hoist_servo:
+                gcost += par['hoist_weight'] * par['reference_jerk_weight'] * u[1] ** 2 / 2
         self.X, self.U, self.P = X, U, P
         self.F = ca.Function('F', [X, U, P], [T * f / sx])
-        self.G = ca.Function('G', [X, U, P], [gcost / su ** 2])
+        self.G = ca.Function('G', [X, U, P], [gcost / su[0] ** 2])
         self.scales = ca.Function('scales', [P], [sx, su])
-        # reference velocity and acceleration (for the axis limits), scaled by P/T and P/T^2
-        if servo:
-            ref_v, ref_a = s['v'] + par['tau'] * s['a'], s['a_ref']
-        else:
-            ref_v, ref_a = s['v'], s['a']
-        self.reference_va = ca.Function('reference_va', [X, P], [ref_v / (Ps / T), ref_a / (Ps / T ** 2)])
+        # reference velocity and acceleration of each axis (for the axis limits), scaled by P/T and P/T^2
+        ref_v, ref_a = [], []
+        for axis, (y, v, a, a_ref, servo_on, tc, scale) in zip(self.axes, (
+                ('y', 'v', 'a', 'a_ref', form.servo, par['tau'], Ps),
+                ('h', 'hv', 'ha', 'ha_ref', form.hoist_servo, par['tau_hoist'], par['P_hoist']))):
+            if servo_on:
+                ref_v.append((s[v] + tc * s[a]) / (scale / T))
+                ref_a.append(s[a_ref] / (scale / T ** 2))
+            else:
+                ref_v.append(s[v] / (scale / T))
+                ref_a.append(s[a] / (scale / T ** 2))
+        self.reference_va = ca.Function('reference_va', [X, P], [ca.vertcat(*ref_v), ca.vertcat(*ref_a)])
 
-    def parameters(self, displacement: float, duration: float, params: CraneParams,
+    def parameters(self, displacement, duration: float, params: CraneParams,
                    weights: Weights) -> np.ndarray:
-        values = dict(params.as_dict(), T=duration, P=max(abs(displacement), P_MIN),
+        D, Dh = displacements(displacement)
+        values = dict(params.as_dict(), T=duration, P=max(abs(D), P_MIN),
                       acceleration_weight=weights.acceleration, sensitivity_weight=weights.sensitivity,
-                      reference_jerk_weight=weights.reference_jerk)
+                      reference_jerk_weight=weights.reference_jerk, P_hoist=max(abs(Dh or 0.0), P_MIN),
+                      hoist_weight=weights.hoist)
         return np.array([values[k] for k in PROBLEM_PARAMETERS], dtype=float)
 
-    def reference(self, x: dict, tau: float) -> tuple:
-        """Reference position, velocity, acceleration from states in SI units (``x`` by name).
+    def reference(self, x: dict, tau: float, axis: str = 'cart', tau_hoist: float = 0.0) -> tuple:
+        """Reference position, velocity, acceleration of ``axis`` from states in SI units (``x`` by name).
 
         With the servo, tau a' + a = a_ref from rest gives y_ref = y + tau v and
-        v_ref = v + tau a exactly; with tau = 0 the cart is the reference.
+        v_ref = v + tau a exactly; with tau = 0 the axis is the reference. The
+        hoist's position is its displacement from the start length.
         """
+        if axis == 'hoist':
+            if self.form.hoist_servo:
+                return x['h'] + tau_hoist * x['hv'], x['hv'] + tau_hoist * x['ha'], x['ha_ref']
+            return x['h'], x['hv'], x['ha']
         if self.servo:
             return x['y'] + tau * x['v'], x['v'] + tau * x['a'], x['a_ref']
         return x['y'], x['v'], x['a']
 
-    def boundary(self, displacement: float) -> tuple[np.ndarray, np.ndarray]:
-        """Scaled states at s = 0 and s = 1: rest at 0 and at D."""
+    def boundary(self, displacement) -> tuple[np.ndarray, np.ndarray]:
+        """Scaled states at s = 0 and s = 1: rest at 0 and at D (and the hoist at D_h)."""
+        D, Dh = displacements(displacement)
         x0 = np.zeros(self.nx)
         xT = np.zeros(self.nx)
-        xT[self.states.index('y')] = displacement / max(abs(displacement), P_MIN)
+        xT[self.states.index('y')] = D / max(abs(D), P_MIN)
+        if self.form.hoist:
+            xT[self.states.index('h')] = (Dh or 0.0) / max(abs(Dh or 0.0), P_MIN)
         return x0, xT
 
-    def initial_guess(self, displacement: float, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Scaled states (nx, len(s)) and input of the rest-to-rest quintic with quasi-static swing.
+    def initial_guess(self, displacement, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Scaled states (nx, len(s)) and inputs (nu, len(s)) of the rest-to-rest quintic with quasi-static swing.
 
         theta1 ~ a/g and dtheta1 ~ jerk/g, which in scaled units are A and U.
         """
-        k = displacement / max(abs(displacement), P_MIN)
+        D, Dh = displacements(displacement)
+        k = D / max(abs(D), P_MIN)
         q = [k * poly.polyval(s, QUINTIC[i]) for i in range(4)]
         guess = {'y': q[0], 'v': q[1], 'a': q[2], 'a_ref': q[2], 'theta1': q[2], 'dtheta1': q[3]}
+        U = [q[3]]
+        if self.form.hoist:
+            kh = (Dh or 0.0) / max(abs(Dh or 0.0), P_MIN)
+            qh = [kh * poly.polyval(s, QUINTIC[i]) for i in range(4)]
+            guess.update({'h': qh[0], 'hv': qh[1], 'ha': qh[2], 'ha_ref': qh[2]})
+            U.append(qh[3])
         X = np.array([guess.get(n, 0.0 * s) for n in self.states])
-        return X, q[3]
+        return X, np.array(U)
 
 
 def uniform_mesh(intervals: int) -> np.ndarray:

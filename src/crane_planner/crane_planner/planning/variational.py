@@ -15,7 +15,7 @@ from crane_msgs_py.params import CraneParams
 from .limits import axis_limit_error
 from .methods import VARIATIONAL_METHODS
 from .plan import Plan, PlanError
-from .problem import Problem, Weights, graded_mesh, servo_layer, uniform_mesh
+from .problem import Form, Problem, Weights, displacements, graded_mesh, servo_layer, uniform_mesh
 
 
 class VariationalSolver:
@@ -32,6 +32,8 @@ class VariationalSolver:
     handles_limits = True
     #: Whether the route can stop a solve at ``max_solve_time``.
     handles_time_budget = True
+    #: Whether the route plans a hoist axis beside the cart.
+    handles_hoist = True
     #: Collocation intervals when PlanOptions.intervals is None.
     default_intervals = 30
     weights = Weights()
@@ -51,6 +53,7 @@ class VariationalSolver:
         self.max_velocity = options.max_velocity
         self.max_acceleration = options.max_acceleration
         self.max_jerk = options.max_jerk
+        self.hoist_limits = hoist_limits_of(options)
         #: the budget (s) of one solve, None = the route's own cap
         self.max_solve_time = options.max_solve_time
         self._problems = {}
@@ -60,7 +63,7 @@ class VariationalSolver:
     def key(method: str, options) -> tuple:
         """Everything that makes two solvers differ: the NLP structure, the limit values and the time budget."""
         return (*VariationalSolver.structure_of(method, options), options.max_velocity, options.max_acceleration,
-                options.max_jerk,
+                options.max_jerk, hoist_limits_of(options),
                 options.max_solve_time)
 
     @staticmethod
@@ -68,7 +71,8 @@ class VariationalSolver:
         """What a solver builds depends on: the route, the method, intervals, robust set, whether limits are set."""
         return (options.solver, method, options.intervals or VariationalSolver.default_intervals,
                 tuple(options.robust) if method == 'rvf' else (),
-                any(x is not None for x in (options.max_velocity, options.max_acceleration, options.max_jerk)))
+                any(x is not None for x in (options.max_velocity, options.max_acceleration, options.max_jerk,
+                                            *hoist_limits_of(options))))
 
     @property
     def structure(self) -> tuple:
@@ -83,19 +87,25 @@ class VariationalSolver:
 
     @property
     def has_limits(self) -> bool:
-        return any(x is not None for x in self.limits)
+        return any(x is not None for x in (*self.limits, *self.hoist_limits))
 
     @property
     def limits(self) -> tuple:
         """(max_velocity, max_acceleration, max_jerk) of the reference, None for none."""
         return self.max_velocity, self.max_acceleration, self.max_jerk
 
-    def problem(self, servo: bool) -> Problem:
-        if servo not in self._problems:
-            self._problems[servo] = Problem(self.robust, servo)
-        return self._problems[servo]
+    def axis_limits(self, hoisting: bool) -> list:
+        """The (max_velocity, max_acceleration, max_jerk) of each axis, the cart's first."""
+        return [self.limits, self.hoist_limits] if hoisting else [self.limits]
 
-    def mesh(self, duration: float, params: CraneParams) -> np.ndarray:
+    def problem(self, form) -> Problem:
+        """The ``Problem`` of a ``problem.Form`` (or of ``servo``, a bool, without a hoist)."""
+        form = form if isinstance(form, Form) else Form(bool(form))
+        if form not in self._problems:
+            self._problems[form] = Problem(self.robust, form)
+        return self._problems[form]
+
+    def mesh(self, duration: float, params: CraneParams, hoisting: bool = False) -> np.ndarray:
         """Interval fractions of T.
 
         With the servo the optimum has boundary layers of width
@@ -104,17 +114,28 @@ class VariationalSolver:
         made ``layer_resolution`` layers wide, growing geometrically into the
         uniform interior.
         """
-        if params.tau == 0.0:
+        taus = [t for t in (params.tau, params.tau_hoist if hoisting else 0.0) if t > 0.0]
+        if not taus:
             return uniform_mesh(self.intervals)
-        layer = servo_layer(params.tau, self.weights) * self.layer_resolution
+        layer = servo_layer(min(taus), self.weights) * self.layer_resolution
         return graded_mesh(self.intervals, layer / duration)
 
-    def solve(self, displacement: float, duration: float, params: CraneParams) -> Plan:
+    def solve(self, displacement, duration: float, params: CraneParams) -> Plan:
         """The plan from 0 to ``displacement`` (m) in ``duration`` (s) for the model ``params``.
 
-        Raises PlanError naming the solver status if the solver does not
-        converge, or the axis limit that makes the request infeasible.
+        ``displacement`` is the cart's (a number), or the cart's and the
+        hoist's (a pair: the hoist from the model's L1 to L1 + the second,
+        an ``AxesPlan``). Raises PlanError naming the solver status if the
+        solver does not converge, or the axis limit that makes the request
+        infeasible.
         """
+        D, Dh = displacements(displacement)
+        if Dh is not None and not self.handles_hoist:
+            raise PlanError(f'the {self.route} solver does not plan a hoist; use the direct solver')
+        if Dh is not None:
+            err = axis_limit_error(Dh, duration, *self.hoist_limits, axis='hoist')
+            if err is not None:
+                raise err
         if 'tau' in self.robust and params.tau == 0.0:
             raise PlanError('robust parameter tau needs a model with tau > 0 (the servo of Eq. 6); '
                             'with tau = 0 the model has no servo dynamics to be insensitive to')
@@ -124,13 +145,18 @@ class VariationalSolver:
         if self.max_solve_time is not None and not self.handles_time_budget:
             raise PlanError(f'the {self.route} solver cannot bound its solve time (max_solve_time); '
                             'use the direct solver')
-        err = axis_limit_error(displacement, duration, *self.limits)
+        err = axis_limit_error(D, duration, *self.limits)
         if err is not None:
             raise err
-        frac = self.mesh(duration, params)
+        frac = self.mesh(duration, params, Dh is not None)
         with self._lock:
             return self._solve(displacement, duration, params, frac)
 
-    def _solve(self, displacement: float, duration: float, params: CraneParams, frac: np.ndarray) -> Plan:
+    def _solve(self, displacement, duration: float, params: CraneParams, frac: np.ndarray) -> Plan:
         """Solve one checked request on the mesh ``frac``; called under the solver's lock."""
         raise NotImplementedError
+
+
+def hoist_limits_of(options) -> tuple:
+    """(max_hoist_velocity, max_hoist_acceleration, max_hoist_jerk) of ``options``, None for none."""
+    return tuple(getattr(options, f'max_hoist_{q}', None) for q in ('velocity', 'acceleration', 'jerk'))

@@ -3,7 +3,8 @@
 The plan's own peaks (velocity, acceleration, jerk) are of the reference; the
 swing figures come from ``crane_sim`` integrating Eqs. 18-19 plus the servo,
 driven by the plan's acceleration as an axis controller would see it
-(linear interpolation between 1 ms samples).
+(linear interpolation between 1 ms samples), and with a hoist (an
+``AxesPlan``) by the hoist's too: each plant's L1 is then the start length.
 """
 from __future__ import annotations
 
@@ -13,9 +14,9 @@ import numpy as np
 
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import Plan, Samples
-from crane_planner.planning.plan import time_grid
+from crane_planner.planning.plan import AxesPlan, time_grid
 from crane_sim.metrics import peak, rms, swing_metrics
-from crane_sim.simulator import STATE_NAMES, PlantBatch, SimResult, simulate
+from crane_sim.simulator import HOIST_STATE_NAMES, STATE_NAMES, PlantBatch, SimResult, simulate
 
 #: Simulation step and reference sample period used to evaluate plans (s).
 EVAL_STEP = 1e-3
@@ -61,12 +62,17 @@ def simulate_plans(plans, plants, settle: float = DEFAULT_SETTLE, rest_step: flo
     t = time_grid(longest, EVAL_STEP)
     n = len(plants)
     reference = np.repeat(np.stack([p.evaluate(t).acceleration for p in plans]), n, axis=0)
+    hoist = None
+    if any(isinstance(p, AxesPlan) and 'hoist' in p.axes for p in plans):  # each plant's L1 is where it starts
+        hoist = np.repeat(np.stack([p.axes['hoist'].evaluate(t).acceleration if isinstance(p, AxesPlan)
+                                    and 'hoist' in p.axes else 0.0 * t for p in plans]), n, axis=0)
     sim = simulate(t, reference, plants * len(plans), dt=EVAL_STEP, t_end=longest + settle,
-                   interpolation='linear', rest_dt=rest_step)
+                   interpolation='linear', rest_dt=rest_step, hoist_reference=hoist)
     evaluations, batch = [], PlantBatch.of(plants)
     for k, plan in enumerate(plans):
         rows = slice(k * n, (k + 1) * n)
-        part = SimResult(sim.t, *(getattr(sim, f)[rows] for f in STATE_NAMES), plants=batch)
+        lengths = {} if sim.L1 is None else {f: getattr(sim, f)[rows] for f in HOIST_STATE_NAMES}
+        part = SimResult(sim.t, *(getattr(sim, f)[rows] for f in STATE_NAMES), plants=batch, **lengths)
         evaluations.append(Evaluation(plan, plan.sample(EVAL_STEP), part,
                                       swing_metrics(part, None, plan.duration, settle)))
     return evaluations

@@ -75,7 +75,7 @@ _TYPE_NAMES = {'trajectory_msgs/msg/JointTrajectory': OUTPUT_JOINT_TRAJECTORY,
 
 PARAMETERS = {
     **{name: (getattr(CraneParams, name), f'true plant: {PARAMETER_DESCRIPTIONS[name]}; may change while running',
-              float_range(0.0, 10.0 if name == 'tau' else 1e4)) for name in PARAMETER_NAMES},
+              float_range(0.0, 10.0 if name.startswith('tau') else 1e4)) for name in PARAMETER_NAMES},
     'step': (1e-3, 'integration step (s), also the real-time loop period; fixed at start-up',
              {**float_range(1e-4, 0.1), 'read_only': True}),
     'publish_rate': (50.0, 'joint_states rate (Hz) in simulated time; fixed at start-up',
