@@ -37,6 +37,15 @@ TASK = ['--displacement', '0.3', '--duration', '3']
     (['plan', '--method', 'zv', *TASK, '--settle', '-1'], '--settle'),
     (['plan', '--method', 'zv', *TASK, '--max-velocity', '0.1'], 'exceeds max_velocity 0.1'),
     (['plan', '--method', 'nzv', *TASK, '--max-acceleration', '0.2'], 'exceeds max_acceleration 0.2'),
+    (['plan', '--method', 'zv', *TASK, '--hoist', '0.47', '-0.1'], 'rope length must stay > 0'),
+    (['plan', '--method', 'zv', *TASK, '--hoist', '0', '0.3'], 'L1_START must be > 0'),
+    (['plan', '--method', 'zv', *TASK, '--hoist', '0.47'], '--hoist'),
+    (['plan', '--method', 'zv', *TASK, '--hoist', '0.47', '0.27', '--max-hoist-velocity', '0.05'],
+     'max_hoist_velocity 0.05'),
+    (['plan', '--method', 'zv', *TASK, '--hoist', '0.47', '0.27', '--omega', '3', '9'], 'omega'),
+    (['plan', '--method', 'zv', *TASK, '--hoist', '0.47', '0.27', '--hoist-shaper', 'late'], '--hoist-shaper'),
+    (['plan', '--method', 'zv', '--displacement', '0.3', '--fastest', '--max-velocity', '1', '--hoist', '0.47',
+      '0.27'], 'fastest shaped plan with a hoist'),
 ])
 def test_bad_input_is_one_line_exit_2(args, needle):
     r = run(*args)
@@ -70,6 +79,28 @@ def test_plan_json_csv_plot(tmp_path):
     header = csv_path.read_text().splitlines()[0]
     assert header == 'time,position,velocity,acceleration,jerk,theta1,theta2'
     assert png_path.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_plan_with_a_hoist_writes_the_hoists_columns_and_figures(tmp_path):
+    """--hoist 0.47 0.27: the CSV's hoist columns go from 0.47 to 0.27 m at rest at both ends, the JSON
+    names the hoist's peaks, and the adaptive ZV leaves no swing on its own plant (tau 0)."""
+    csv_path = tmp_path / 'h.csv'
+    r = run('plan', '--method', 'zv', *TASK, '--hoist', '0.47', '0.27', '--tau', '0', '--tau_hoist', '0',
+            '--json', '--csv', str(csv_path))
+    assert r.returncode == 0, r.stderr
+    report = json.loads(r.stdout)
+    assert report['hoist']['start'] == 0.47 and report['hoist']['goal'] == pytest.approx(0.27)
+    assert report['hoist']['shaper_design'] == 'adaptive'
+    # the hoist's quintic: peak velocity 15/8 |D|/T
+    assert report['hoist']['peak']['velocity'] == pytest.approx(15 / 8 * 0.2 / 3.0, rel=1e-6)
+    assert report['residual']['load_mm'] < 0.05
+    lines = csv_path.read_text().splitlines()
+    assert lines[0] == ('time,position,velocity,acceleration,jerk,theta1,theta2,hoist_position,hoist_velocity,'
+                        'hoist_acceleration')
+    rows = [[float(x) for x in line.split(',')] for line in lines[1:]]
+    first, end = rows[0], next(row for row in rows if row[0] >= 3.0)
+    assert first[7] == 0.47 and end[7] == pytest.approx(0.27, abs=1e-12)
+    assert first[8] == end[8] == 0.0
 
 
 def test_compare_and_sweep_json(tmp_path):

@@ -69,14 +69,16 @@ def _peaks(plan) -> tuple[float, float, float]:
 
 
 def choose(displacement: float, model: CraneParams, options: PlanOptions, methods, plants,
-           tolerance_mm: float, settle: float, planner: Planner | None = None, progress=None) -> Choice:
-    """Evaluate every method's fastest plan over ``plants``; pick the fastest within ``tolerance_mm``."""
+           tolerance_mm: float, settle: float, planner: Planner | None = None, progress=None,
+           hoist=None) -> Choice:
+    """Evaluate every method's fastest plan over ``plants``; pick the fastest within ``tolerance_mm``
+    (``hoist`` = (L1_start, L1_goal): hoisting while travelling, the plants' L1 their start lengths)."""
     planner = planner or Planner()
     candidates, plans = [], []
     # Every method's search at once: CasADi lets go of the GIL while it builds and solves, so
     # NVF's and RVF's first free-time NLPs (most of the time) share the cores (2.97 -> 2.46 s here).
     with ThreadPoolExecutor(max_workers=max(1, len(methods))) as pool:
-        searches = [pool.submit(planner.fastest, method, displacement, model, options) for method in methods]
+        searches = [pool.submit(planner.fastest, method, displacement, model, options, hoist) for method in methods]
     for method, search in zip(methods, searches):
         c = Candidate(method)
         try:

@@ -16,6 +16,8 @@ import numpy as np
 
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, PlanOptions
+from crane_planner.planning.hoisting import HOIST_SHAPER_DESIGNS
+from crane_planner.planning.plan import AxesPlan
 from crane_planner.planning.profiles import BASES
 from crane_planner.serving import Planner
 
@@ -89,8 +91,9 @@ def _add_model_options(p: argparse.ArgumentParser):
     g.add_argument('--damping', type=_finite, metavar='Z',
                    help="shaper design damping ratio (default: the model's modal damping ratios, "
                         '0 without --c1/--c2; 0 with --omega)')
-    g.add_argument('--robust', type=_robust_list, default=('L1',), metavar='P[,P...]',
-                   help=f'parameters RVF is made insensitive to, from {",".join(ROBUST_PARAMETERS)} (default L1)')
+    g.add_argument('--robust', type=_robust_list, metavar='P[,P...]',
+                   help=f'parameters RVF is made insensitive to, from {",".join(ROBUST_PARAMETERS)} (default L1; '
+                        'L2 with --hoist)')
     g.add_argument('--intervals', type=_positive_int, metavar='N',
                    help='collocation intervals for nvf/rvf (default: solver default)')
     g.add_argument('--solver', choices=('direct', 'indirect'), default='direct',
@@ -102,6 +105,15 @@ def _add_model_options(p: argparse.ArgumentParser):
     g.add_argument('--base', choices=BASES, default='quintic',
                    help="shapers' base motion: the paper's quintic, or the jerk-limited time-optimal profile under "
                         'the limits (default quintic)')
+    h = p.add_argument_group('hoisting (with --hoist: the rope length moves during the move)')
+    h.add_argument('--hoist', type=_finite, nargs=2, metavar=('L1_START', 'L1_GOAL'),
+                   help='the upper cable goes from L1_START to L1_GOAL (m) during the move (it sets the model\'s '
+                        'L1 to L1_START); the hoist follows its own servo --tau_hoist')
+    for name, unit in (('velocity', 'm/s'), ('acceleration', 'm/s^2'), ('jerk', 'm/s^3')):
+        h.add_argument(f'--max-hoist-{name}', type=_finite, metavar='X', help=f'hoist axis limit on {name} ({unit})')
+    h.add_argument('--hoist-shaper', choices=HOIST_SHAPER_DESIGNS, default='adaptive',
+                   help='how a shaper follows the rope length: adaptive (fitted to the hoisting crane, the '
+                        'default) or designed at the start, middle or end length')
 
 
 #: Plant parameters the evaluation may change (``--plant-X``) and ``sweep`` may vary (g stays).
@@ -141,7 +153,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_plant_options(p)
     p.add_argument('--json', action='store_true', help='print the contract JSON object')
     p.add_argument('--csv', metavar='FILE',
-                   help='write time, position, velocity, acceleration, jerk, theta1, theta2 (1 ms)')
+                   help='write time, position, velocity, acceleration, jerk, theta1, theta2 (1 ms); with --hoist '
+                        'also hoist_position (the rope length L1), hoist_velocity, hoist_acceleration')
     p.add_argument('--plot', metavar='FILE', help='write a PNG of the plan profiles and the swing')
 
     p = sub.add_parser('compare', help='make and evaluate plans of several methods')
@@ -207,10 +220,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _model_and_options(args) -> tuple[CraneParams, PlanOptions]:
     model = CraneParams(**{n: getattr(args, n) for n in PARAMETER_NAMES})
+    if args.hoist is not None:
+        if not args.hoist[0] > 0.0:
+            raise UsageError(f'argument --hoist: L1_START must be > 0, got {args.hoist[0]:g}')
+        model = model.replace(L1=args.hoist[0])  # the plant starts there too
     options = PlanOptions(omega=tuple(args.omega) if args.omega else None, damping=args.damping,
-                          robust=args.robust, intervals=args.intervals, solver=args.solver,
+                          robust=args.robust or ('L1',), hoist_robust=args.robust or ('L2',),
+                          intervals=args.intervals, solver=args.solver,
                           max_velocity=args.max_velocity, max_acceleration=args.max_acceleration,
-                          max_jerk=args.max_jerk, base=args.base)
+                          max_jerk=args.max_jerk, base=args.base, max_hoist_velocity=args.max_hoist_velocity,
+                          max_hoist_acceleration=args.max_hoist_acceleration, max_hoist_jerk=args.max_hoist_jerk,
+                          hoist_shaper=args.hoist_shaper)
     return model, options
 
 
@@ -223,9 +243,9 @@ def _plant(args, model: CraneParams) -> CraneParams:
 def _timed_plan(planner: Planner, method, args, model, options) -> tuple[Plan, float]:
     t0 = time.perf_counter()
     if getattr(args, 'fastest', False):
-        plan = planner.fastest(method, args.displacement, model, options)
+        plan = planner.fastest(method, args.displacement, model, options, hoist=args.hoist)
     else:
-        plan = planner.plan(method, args.displacement, args.duration, model, options)
+        plan = planner.plan(method, args.displacement, args.duration, model, options, hoist=args.hoist)
     return plan, time.perf_counter() - t0
 
 
@@ -275,12 +295,17 @@ def _say(args, text: str):
 
 def _write_plan_csv(path: str, ev):
     plan_s = ev.plan.evaluate(ev.sim.t)
+    header = ['time', 'position', 'velocity', 'acceleration', 'jerk', 'theta1', 'theta2']
+    cols = [ev.sim.t, plan_s.position, plan_s.velocity, plan_s.acceleration, plan_s.jerk, ev.sim.theta1[0],
+            ev.sim.theta2[0]]
+    if isinstance(ev.plan, AxesPlan) and 'hoist' in ev.plan.axes:
+        hoist = ev.plan.evaluate_axis('hoist', ev.sim.t)
+        header += ['hoist_position', 'hoist_velocity', 'hoist_acceleration']
+        cols += [hoist.position, hoist.velocity, hoist.acceleration]
     with open(path, 'w', newline='') as f:
         w = csv.writer(f)
-        w.writerow(['time', 'position', 'velocity', 'acceleration', 'jerk', 'theta1', 'theta2'])
-        cols = np.column_stack([ev.sim.t, plan_s.position, plan_s.velocity, plan_s.acceleration,
-                                plan_s.jerk, ev.sim.theta1[0], ev.sim.theta2[0]])
-        w.writerows(cols.tolist())
+        w.writerow(header)
+        w.writerows(np.column_stack(cols).tolist())
 
 
 def _plans(args, model, options, progress=None) -> tuple[list[Plan], list[float]]:
@@ -315,7 +340,9 @@ def cmd_compare(args) -> int:
     if args.json:
         print(json.dumps(reports))
     else:
-        print(f'{args.displacement:g} m in {args.duration:g} s; model {_describe(model)}; plant {_describe(plant)}')
+        hoisting = f' while L1 goes {args.hoist[0]:g} -> {args.hoist[1]:g} m' if args.hoist else ''
+        print(f'{args.displacement:g} m in {args.duration:g} s{hoisting}; model {_describe(model)}; '
+              f'plant {_describe(plant)}')
         _print_table(reports)
     if args.plot:
         from .figures import plot_compare
@@ -430,7 +457,7 @@ def cmd_choose(args) -> int:
     plants = band(model, args.span, args.points, args.span_L2)
     with Progress(len(args.methods) + 1, 'choose', PROG) as progress:
         result = choose(args.displacement, model, options, args.methods, plants, args.tolerance_mm, args.settle,
-                        progress=progress.step)
+                        progress=progress.step, hoist=args.hoist)
     if args.json:
         print(json.dumps(result.as_json()))
     else:

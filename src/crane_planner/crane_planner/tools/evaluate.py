@@ -95,7 +95,20 @@ def plan_report(ev: Evaluation, plan_time_s: float, index: int = 0) -> dict:
         'rms': {'velocity': rms(s.velocity), 'acceleration': rms(s.acceleration), **m['rms']},
         'residual': dict(m['residual']),
         'plan_time_s': plan_time_s,
+        **hoist_report(ev.plan),
     }
+
+
+def hoist_report(plan: Plan) -> dict:
+    """``{'hoist': {start, goal (m), peak velocity, acceleration, jerk of its reference}}`` of a plan with a
+    hoist (``AxesPlan``); empty for one without."""
+    if not (isinstance(plan, AxesPlan) and 'hoist' in plan.axes):
+        return {}
+    v, a, j = plan.axes['hoist'].peaks()
+    start = plan.starts['hoist']
+    return {'hoist': {'start': start, 'goal': start + plan.axes['hoist'].displacement,
+                      'peak': {'velocity': v, 'acceleration': a, 'jerk': j},
+                      'shaper_design': plan.info.get('shaper_design')}}
 
 
 def vary_parameter(model: CraneParams, param: str, span: float, points: int):
