@@ -108,3 +108,21 @@ def test_service_names():
     assert service_of('crane_planner', EXECUTE_MOVE_ACTION) == 'crane_planner/execute_move'
     with pytest.raises(ValueError):
         service_of('crane_planner', 'plan')
+
+
+@pytest.mark.parametrize('output', ['joint_trajectory', 'float64_array'])
+def test_a_reference_of_the_cart_and_the_hoist_carries_a_column_each_and_reads_back_by_name(output):
+    from crane_msgs_py.conversions import fill_reference, read_reference, reference_message
+    msg = reference_message(output, joint=['cart', 'hoist'])
+    fill_reference(msg, 5_000_000_123, (0.25, 0.4), (0.1, -0.05), (0.2, -0.3))
+    wire = deserialize_message(serialize_message(msg), type(msg))
+    stamp, p, v, a = read_reference(wire, ('cart', 'hoist'))
+    assert list(p) == [0.25, 0.4]
+    if output == 'float64_array':  # [cart, hoist] positions, as a forward command controller takes them
+        assert list(wire.data) == [0.25, 0.4] and stamp is None and np.all(np.isnan(v))
+    else:
+        assert list(wire.joint_names) == ['cart', 'hoist'] and stamp == 5_000_000_123
+        assert list(v) == [0.1, -0.05] and list(a) == [0.2, -0.3]
+        assert list(read_reference(wire, ('hoist', 'cart'))[1]) == [0.4, 0.25]  # by name, not position
+    with pytest.raises(ValueError, match='2 joint'):
+        read_reference(reference_message(output), ('cart', 'hoist'))

@@ -70,3 +70,39 @@ def test_the_summary_gives_the_peaks_of_the_reference_per_joint():
     assert summary.peak_velocity[0] == pytest.approx(abs(dense.velocity).max(), rel=1e-6)
     assert summary.peak_acceleration[0] == pytest.approx(abs(dense.acceleration).max(), rel=1e-4)
     assert math.isnan(summary.predicted_residual) and summary.solve_time == 0.001
+
+
+HOIST_BOUNDS = MoveBounds(('cart', 'hoist'), 'zv', max_displacement=2.0, max_duration=20.0)
+
+
+def test_a_move_with_a_hoist_starts_at_the_model_length_without_a_streamer_and_holds_what_it_leaves_out():
+    lift = check_move(Move(goal=(0.3, 0.27), duration=3.0), HOIST_BOUNDS, None, L1=0.47)
+    assert (lift.start, lift.goal, lift.hoist_start, lift.hoist_goal) == (0.0, 0.3, 0.47, 0.27)
+    assert lift.joints == ('cart', 'hoist') and lift.starts == (0.0, 0.47)
+    held = check_move(Move(joint_names=('cart',), goal=(0.3,), duration=3.0), HOIST_BOUNDS,
+                      {'cart': 0.1, 'hoist': 0.4})
+    assert (held.start, held.hoist_start, held.hoist_goal) == (0.1, 0.4, 0.4)
+    for move, field in ((Move(goal=(0.3, -0.1), duration=3.0), 'goal'),
+                        (Move(start=(0.0, 0.0), goal=(0.3, 0.3), duration=3.0), 'start')):
+        with pytest.raises(MoveError, match=f'move.{field}: hoist .* the rope length'):
+            check_move(move, HOIST_BOUNDS, None)
+    with pytest.raises(MoveError, match='hoist displacement 2.53 m from the start exceeds max_displacement 2 m'):
+        check_move(Move(goal=(0.3, 3.0), duration=3.0), HOIST_BOUNDS, None)
+
+
+def test_a_hoisting_move_plans_both_axes_and_a_held_hoist_is_planned_at_its_length():
+    params = CraneParams(tau=0.0)
+    lift = plan_move(Planner(), check_move(Move(goal=(0.3, 0.27), duration=3.0), HOIST_BOUNDS, None, L1=0.47),
+                     HOIST_BOUNDS, params, PlanOptions())
+    assert lift.joint_names == ('cart', 'hoist') and lift.starts['hoist'] == 0.47
+    assert lift.evaluate_axis('hoist', 3.0).position[0] == pytest.approx(0.27, abs=1e-12)
+    summary = summarize(lift, ('cart', 'hoist'))
+    assert summary.peak_velocity[1] == pytest.approx(15 / 8 * 0.2 / 3.0, rel=1e-6)  # the hoist's quintic
+    # the hoist still: the cart's plan on the model at the rope's length now (0.3 m, not the parameter's 0.47)
+    held = plan_move(Planner(), check_move(Move(goal=(0.3, 0.3), duration=3.0), HOIST_BOUNDS, {'cart': 0.0,
+                                                                                                'hoist': 0.3}),
+                     HOIST_BOUNDS, params, PlanOptions())
+    from crane_planner.planning.dispatch import plan
+    at_length = plan('zv', 0.3, 3.0, params.replace(L1=0.3))
+    assert held.axes['cart'].info['impulse_times'] == at_length.info['impulse_times']
+    assert summarize(held, ('cart', 'hoist')).peak_velocity[1] == 0.0

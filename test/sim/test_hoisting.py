@@ -108,3 +108,21 @@ def test_a_hoist_reference_needs_acceleration_samples_of_the_same_times():
         simulate(t, np.zeros(11), CraneParams(), hoist_reference=np.zeros(5))
     with pytest.raises(SimulationError, match="source='acceleration'"):
         simulate(t, np.zeros(11), CraneParams(), source='position', hoist_reference=np.zeros(11))
+
+
+def test_the_real_time_simulator_steps_the_hoist_as_the_batch_simulation_does():
+    from crane_sim.simulator import HOIST_JOINT_NAMES, CraneSimulator
+    p = CraneParams(tau=0.01, tau_hoist=0.02)
+    t = np.arange(0.0, 3.0 + 1e-9, 1e-3)
+    a, h = quintic_acceleration(t, 0.3, T), quintic_acceleration(t, -0.2, T)
+    batch = simulate(t, a, p, dt=1e-3, hoist_reference=h)
+    sim = CraneSimulator(p, dt=1e-3, hoist=True)
+    for k in range(t.size - 1):
+        sim.step(a[k], a[k + 1], h[k], h[k + 1])
+    assert sim.joint_names == HOIST_JOINT_NAMES
+    positions, velocities = sim.joint_state()
+    assert positions == pytest.approx([batch.y[0, -1], batch.L1[0, -1], batch.theta1[0, -1], batch.theta2[0, -1]],
+                                      abs=1e-12)
+    assert velocities[1] == pytest.approx(batch.dL1[0, -1], abs=1e-12)
+    sim.reset()  # at rest where the rope is
+    assert sim.L1 == pytest.approx(batch.L1[0, -1], abs=1e-12) and sim.hoist_state[1:] == (0.0, 0.0)

@@ -251,3 +251,28 @@ def test_the_last_motion_is_reported_from_its_first_tick_until_the_next_one_star
     second = stream.accept(*quintic_knots(first.end_position, HOLD, 0.5, (0.0, 0.5)), 0, EPOCH)
     loop.run_to(second.first_tick + 1)
     assert stream.last_motion is second and second.start_ns == EPOCH + second.first_tick * PERIOD
+
+
+def test_two_joints_stream_together_each_from_its_own_hold():
+    """The cart and the hoist: one motion, a column each, aligned on the same ticks; a hold per joint; a jump
+    of either refused naming both positions."""
+    stream = ReferenceStream(PERIOD, (HOLD, 0.47))
+    loop = Loop(stream)
+    assert loop.stream.sample(0) == ((HOLD, 0.47), (0.0, 0.0), (0.0, 0.0))
+    t = np.linspace(0.0, 2.0, 41)
+    cart, hoist = quintic(HOLD, HOLD + 0.3, 2.0, t), quintic(0.47, 0.27, 2.0, t)
+    knots = [np.column_stack([c, h]) for c, h in zip(cart, hoist)]
+    motion = stream.accept(t, *knots, start_ns=EPOCH + 100 * MS, now_ns=EPOCH)
+    assert motion.first_tick == 100 and len(motion.position) == 2001
+    rows = [stream.sample(tick) for tick in range(0, 2102)][100:2101]  # tuples: not Loop.run
+    loop.tick = 2102
+    positions = np.array([r[0] for r in rows])
+    exact = np.column_stack([quintic(HOLD, HOLD + 0.3, 2.0, np.arange(2001) * 1e-3)[0],
+                             quintic(0.47, 0.27, 2.0, np.arange(2001) * 1e-3)[0]])
+    assert np.max(np.abs(positions - exact)) < 1e-6  # quintic Hermite through the knots
+    assert stream.hold == pytest.approx((HOLD + 0.3, 0.27), abs=1e-12)
+    with pytest.raises(ValueError, match=r'not at the hold position \(0.5, 0.27\)'):
+        stream.accept(t, *[np.column_stack([c, c]) for c in quintic(HOLD + 0.3, HOLD, 2.0, t)], start_ns=0,
+                      now_ns=EPOCH + 3000 * MS)
+    with pytest.raises(ValueError, match='every knot needs 2 positions'):
+        stream.accept(t, *quintic(HOLD + 0.3, HOLD, 2.0, t), start_ns=0, now_ns=EPOCH + 3000 * MS)

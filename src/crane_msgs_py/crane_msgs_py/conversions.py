@@ -66,26 +66,33 @@ def _offsets_ns(t) -> np.ndarray:
 def samples_to_joint_trajectory(samples, start_position: float = 0.0, start_ns: int = 0,
                                 frame_id: str = DEFAULT_FRAME_ID,
                                 joint: str = CART_JOINT) -> JointTrajectory:
-    """One-joint trajectory of a relative plan started at ``start_position`` at ``start_ns``."""
-    offsets = _offsets_ns(samples.t)
+    """One-joint trajectory of a relative plan started at ``start_position`` at ``start_ns``.
+
+    Several joints: ``samples``, ``start_position`` and ``joint`` are sequences
+    of the same length (the samples at the same times).
+    """
+    several = isinstance(joint, (list, tuple))
+    samples_list = list(samples) if several else [samples]
+    starts = list(start_position) if several else [start_position]
+    offsets = _offsets_ns(samples_list[0].t)
     secs, nsecs = np.divmod(offsets, NS)
     secs, nsecs = secs.tolist(), nsecs.tolist()
-    p = (start_position + np.asarray(samples.position, dtype=float)).tolist()
-    v = np.asarray(samples.velocity, dtype=float).tolist()
-    a = np.asarray(samples.acceleration, dtype=float).tolist()
+    p = np.column_stack([s0 + np.asarray(s.position, dtype=float) for s, s0 in zip(samples_list, starts)]).tolist()
+    v = np.column_stack([np.asarray(s.velocity, dtype=float) for s in samples_list]).tolist()
+    a = np.column_stack([np.asarray(s.acceleration, dtype=float) for s in samples_list]).tolist()
     points = [None] * len(p)
     for k in range(len(p)):
         point = JointTrajectoryPoint()
-        point.positions = array.array('d', (p[k],))
-        point.velocities = array.array('d', (v[k],))
-        point.accelerations = array.array('d', (a[k],))
+        point.positions = array.array('d', p[k])
+        point.velocities = array.array('d', v[k])
+        point.accelerations = array.array('d', a[k])
         point.time_from_start.sec = secs[k]
         point.time_from_start.nanosec = nsecs[k]
         points[k] = point
     msg = JointTrajectory()
     msg.header.frame_id = frame_id
     set_stamp(msg.header.stamp, start_ns)
-    msg.joint_names = [joint]
+    msg.joint_names = list(joint) if several else [joint]
     msg.points = points
     return msg
 
@@ -117,61 +124,85 @@ def joint_trajectory_to_arrays(msg: JointTrajectory, joint: str = CART_JOINT):
 
 
 def reference_message(output: str = OUTPUT_JOINT_TRAJECTORY, frame_id: str = DEFAULT_FRAME_ID,
-                      joint: str = CART_JOINT):
-    """A reusable one-sample reference message of the streamer's ``output`` type.
+                      joint=CART_JOINT):
+    """A reusable one-sample reference message of the streamer's ``output`` type, for ``joint`` (a name, or a
+    sequence of them: one column each, e.g. [cart, hoist]).
 
     Raises ParameterError naming ``output`` if it is not one of ``OUTPUTS``.
     """
+    joints = list(joint) if isinstance(joint, (list, tuple)) else [joint]
+    zeros = (0.0,) * len(joints)
     if check_choice('output', output, OUTPUTS) == OUTPUT_FLOAT64_ARRAY:
         msg = Float64MultiArray()
-        msg.data = array.array('d', (0.0,))
+        msg.data = array.array('d', zeros)
         return msg
     msg = JointTrajectory()
     msg.header.frame_id = frame_id
-    msg.joint_names = [joint]
+    msg.joint_names = joints
     point = JointTrajectoryPoint()
-    point.positions = array.array('d', (0.0,))
-    point.velocities = array.array('d', (0.0,))
-    point.accelerations = array.array('d', (0.0,))
+    point.positions = array.array('d', zeros)
+    point.velocities = array.array('d', zeros)
+    point.accelerations = array.array('d', zeros)
     msg.points = [point]
     return msg
 
 
-def fill_reference(msg, stamp: int, position: float, velocity: float, acceleration: float):
+def fill_reference(msg, stamp: int, position, velocity, acceleration):
     """Write one sample into a message from ``reference_message`` in place (no allocation).
 
-    A Float64MultiArray carries the position only (a forward command controller's input).
+    Floats for one joint, tuples (one value per joint) for several. A
+    Float64MultiArray carries the positions only (a forward command
+    controller's input).
     """
     if type(msg) is JointTrajectory:
         s = msg.header.stamp
         s.sec, s.nanosec = divmod(stamp, NS)
         point = msg.points[0]
-        point.positions[0] = position
-        point.velocities[0] = velocity
-        point.accelerations[0] = acceleration
+        if type(position) is tuple:
+            point.positions[:] = array.array('d', position)
+            point.velocities[:] = array.array('d', velocity)
+            point.accelerations[:] = array.array('d', acceleration)
+        else:
+            point.positions[0] = position
+            point.velocities[0] = velocity
+            point.accelerations[0] = acceleration
+    elif type(position) is tuple:
+        msg.data[:] = array.array('d', position)
     else:
         msg.data[0] = position
 
 
-def read_reference(msg) -> tuple[int | None, float, float, float]:
+def read_reference(msg, joints=None) -> tuple:
     """(stamp ns or None, position, velocity, acceleration) of a reference message.
 
+    With ``joints`` None: one joint, floats. With ``joints`` (names, e.g.
+    [cart, hoist]): arrays in that order; a JointTrajectory is matched by its
+    joint names, a Float64MultiArray must hold one position per joint.
     A Float64MultiArray has no stamp, velocity or acceleration: None, NaN, NaN.
-    A message that is not one sample of one joint raises ValueError.
+    A message that is not one sample of these joints raises ValueError.
     """
+    width = 1 if joints is None else len(joints)
     if type(msg) is JointTrajectory:
-        if len(msg.points) != 1 or len(msg.joint_names) != 1:
-            raise ValueError(f'reference must be one point of one joint, got {len(msg.points)} '
+        if len(msg.points) != 1 or len(msg.joint_names) != width:
+            raise ValueError(f'reference must be one point of {width} joint(s), got {len(msg.points)} '
                              f'point(s) of {len(msg.joint_names)} joint(s)')
         point = msg.points[0]
-        if len(point.positions) != 1:
-            raise ValueError('reference point has no position')
-        v = point.velocities[0] if len(point.velocities) == 1 else math.nan
-        a = point.accelerations[0] if len(point.accelerations) == 1 else math.nan
-        return stamp_ns(msg.header.stamp), point.positions[0], v, a
-    if len(msg.data) != 1:
-        raise ValueError(f'reference array must hold one position, got {len(msg.data)} values')
-    return None, msg.data[0], math.nan, math.nan
+        if len(point.positions) != width:
+            raise ValueError('reference point has no position per joint')
+        v = point.velocities if len(point.velocities) == width else [math.nan] * width
+        a = point.accelerations if len(point.accelerations) == width else [math.nan] * width
+        if joints is None:
+            return stamp_ns(msg.header.stamp), point.positions[0], v[0], a[0]
+        names = list(msg.joint_names)
+        if sorted(names) != sorted(joints):
+            raise ValueError(f'reference joints {names} are not {list(joints)}')
+        order = [names.index(j) for j in joints]
+        return (stamp_ns(msg.header.stamp), *(np.asarray(x, dtype=float)[order] for x in (point.positions, v, a)))
+    if len(msg.data) != width:
+        raise ValueError(f'reference array must hold {width} position(s), got {len(msg.data)} values')
+    if joints is None:
+        return None, msg.data[0], math.nan, math.nan
+    return None, np.asarray(msg.data, dtype=float), np.full(width, math.nan), np.full(width, math.nan)
 
 
 def joint_state_message(names=None) -> JointState:
@@ -276,13 +307,19 @@ def stream_state_message(joints=(CART_JOINT,), frame_id: str = DEFAULT_FRAME_ID)
 STREAMING, HOLDING = 'streaming', 'holding'
 
 
-def fill_stream_state(msg: StreamState, stamp: int, streaming: bool, position: float, velocity: float,
-                      acceleration: float, motion_start_ns: int, motion_duration: float):
-    """One tick's state of a one-joint stream into a message from ``stream_state_message``, in place."""
+def fill_stream_state(msg: StreamState, stamp: int, streaming: bool, position, velocity,
+                      acceleration, motion_start_ns: int, motion_duration: float):
+    """One tick's state of a stream into a message from ``stream_state_message``, in place (floats for one
+    joint, tuples for several)."""
     s = msg.header.stamp
     s.sec, s.nanosec = divmod(stamp, NS)
     msg.state = STREAMING if streaming else HOLDING
-    msg.position[0], msg.velocity[0], msg.acceleration[0] = position, velocity, acceleration
+    if type(position) is tuple:
+        msg.position[:] = array.array('d', position)
+        msg.velocity[:] = array.array('d', velocity)
+        msg.acceleration[:] = array.array('d', acceleration)
+    else:
+        msg.position[0], msg.velocity[0], msg.acceleration[0] = position, velocity, acceleration
     m = msg.motion_start
     m.sec, m.nanosec = divmod(motion_start_ns, NS)
     msg.motion_duration = motion_duration

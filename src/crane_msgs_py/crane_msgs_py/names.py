@@ -32,6 +32,22 @@ RESET_SERVICE = '~/reset'
 #: The cart's joint in trajectories and joint states; the swing angles follow it.
 CART_JOINT = 'cart'
 SIM_JOINTS = (CART_JOINT, 'theta1', 'theta2')
+#: The hoist's joint: its position is the upper cable's length L1 (m; larger = load lower).
+HOIST_JOINT = 'hoist'
+#: The actuated joints a setup may have, in their order in every array (contract "Joints and hoisting").
+ACTUATED_JOINTS = (CART_JOINT, HOIST_JOINT)
+#: joint_states of a crane with a hoist.
+HOIST_SIM_JOINTS = (CART_JOINT, HOIST_JOINT, 'theta1', 'theta2')
+
+
+def check_joints(joints, name: str = 'joints') -> tuple:
+    """``joints`` as a tuple if it is the cart, optionally with the hoist, in ``ACTUATED_JOINTS`` order;
+    else ParameterError naming ``name``."""
+    from .params import ParameterError
+    joints = tuple(joints)
+    if joints not in ((CART_JOINT,), ACTUATED_JOINTS):
+        raise ParameterError(f'{name} must be [cart] or [cart, hoist], got {list(joints)}')
+    return joints
 
 #: Frame of returned trajectories and markers.
 DEFAULT_FRAME_ID = 'crane_base'

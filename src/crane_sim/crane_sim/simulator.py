@@ -530,11 +530,16 @@ class CraneSimulator:
         params: plant parameters (attributes or keys L1 L2 m1 m2 g tau c1 c2).
         dt: integration step (s).
         state: initial :class:`CraneState` (default at rest at y = 0).
+        hoist: the upper cable's length is an axis too, driven through the
+            servo ``tau_hoist``; it starts at the plant's L1 (later changes of
+            L1 do not move it; ``reset`` keeps it where it is).
     """
 
-    def __init__(self, params, dt: float = 1e-3, state: CraneState | None = None):
+    def __init__(self, params, dt: float = 1e-3, state: CraneState | None = None, hoist: bool = False):
         self.dt = check_positive('dt', dt)
+        self.hoist = bool(hoist)
         self.set_params(params)
+        self._x = None
         self.reset(state)
 
     def set_params(self, params):
@@ -543,7 +548,7 @@ class CraneSimulator:
         if len(plants) != 1:
             raise ParameterError(f'CraneSimulator simulates one plant, got {len(plants)}')
         self._plants = plants
-        self._stepper = _Stepper(plants, self.dt)
+        self._stepper = _Stepper(plants, self.dt, self.hoist)
 
     @property
     def params(self) -> dict:
@@ -551,11 +556,14 @@ class CraneSimulator:
         return self._plants.member(0)
 
     def reset(self, state: CraneState | None = None, t: float = 0.0):
-        """Back to ``state`` (default at rest at y = 0) at time ``t``."""
+        """Back to ``state`` (default at rest at y = 0) at time ``t``; a hoist at rest where it is."""
         s = (state or CraneState()).as_array()
         if not np.all(np.isfinite(s)):
             raise SimulationError(f'state must be finite, got {state}')
-        self._x = _to_internal(s.reshape(7, 1))
+        if self.hoist:
+            length = self._plants.L1[0] if self._x is None else self._x[7, 0]
+            s = np.concatenate([s, [length, 0.0, 0.0]])
+        self._x = _to_internal(s.reshape(-1, 1))
         self._t0, self._steps = float(t), 0
 
     @property
@@ -563,30 +571,56 @@ class CraneSimulator:
         """Simulated time (s): the reset time plus the steps taken times dt."""
         return self._t0 + self._steps * self.dt
 
-    def step(self, a_ref_begin: float, a_ref_end: float | None = None) -> None:
+    def step(self, a_ref_begin: float, a_ref_end: float | None = None, hoist_begin: float = 0.0,
+             hoist_end: float | None = None) -> None:
         """Advance one ``dt``; the reference acceleration goes linearly from
-        ``a_ref_begin`` to ``a_ref_end`` (held at ``a_ref_begin`` if None).
+        ``a_ref_begin`` to ``a_ref_end`` (held at ``a_ref_begin`` if None), and
+        with a hoist its reference acceleration from ``hoist_begin`` to ``hoist_end``.
 
         Returns nothing: building :attr:`state` costs a sixth of a step, and
         the real-time loop reads it only every 20th step."""
         r0 = float(a_ref_begin)
         r1 = r0 if a_ref_end is None else float(a_ref_end)
-        if not (math.isfinite(r0) and math.isfinite(r1)):
-            raise SimulationError(f'reference acceleration must be finite, got {r0}, {r1}')
-        self._x = self._stepper.step(self._x, np.array([r0]), np.array([r1]))
+        h0 = float(hoist_begin)
+        h1 = h0 if hoist_end is None else float(hoist_end)
+        if not (math.isfinite(r0) and math.isfinite(r1) and math.isfinite(h0) and math.isfinite(h1)):
+            raise SimulationError(f'reference acceleration must be finite, got {r0}, {r1} (hoist {h0}, {h1})')
+        if self.hoist:
+            self._x = self._stepper.step(self._x, np.array([r0]), np.array([r1]), np.array([h0]), np.array([h1]))
+        else:
+            self._x = self._stepper.step(self._x, np.array([r0]), np.array([r1]))
         self._steps += 1
 
     @property
     def state(self) -> CraneState:
-        return CraneState(*(float(v) for v in _to_public(self._x)[:, 0]))
+        return CraneState(*(float(v) for v in _to_public(self._x)[:7, 0]))
+
+    @property
+    def L1(self) -> float:
+        """The upper cable's length (m) now: the hoist's, or the plant's."""
+        return float(self._x[7, 0]) if self.hoist else float(self._plants.L1[0])
+
+    @property
+    def hoist_state(self) -> tuple[float, float, float]:
+        """The hoist's length (m), rate (m/s) and acceleration (m/s^2); (L1, 0, 0) without a hoist."""
+        return (float(self._x[7, 0]), float(self._x[8, 0]), float(self._x[9, 0])) if self.hoist else (self.L1, 0.0,
+                                                                                                        0.0)
+
+    @property
+    def joint_names(self) -> tuple:
+        """The joints of ``joint_state``: ``JOINT_NAMES``, with a hoist ``HOIST_JOINT_NAMES``."""
+        return HOIST_JOINT_NAMES if self.hoist else JOINT_NAMES
 
     @property
     def load_excursion(self) -> float:
         """Horizontal offset (m) of the load from its rest position below the cart."""
         s = self.state
-        return float(load_excursion(s.theta1, s.theta2, self._plants.L1[0], self._plants.L2[0]))
+        return float(load_excursion(s.theta1, s.theta2, self.L1, self._plants.L2[0]))
 
     def joint_state(self) -> tuple[list[float], list[float]]:
-        """Positions and velocities of ``JOINT_NAMES`` (cart, theta1, theta2), for sensor_msgs/JointState."""
+        """Positions and velocities of ``joint_names`` (cart, [hoist,] theta1, theta2), for sensor_msgs/JointState."""
         s = self.state
+        if self.hoist:
+            length, rate, _ = self.hoist_state
+            return [s.y, length, s.theta1, s.theta2], [s.v, rate, s.dtheta1, s.dtheta2]
         return [s.y, s.theta1, s.theta2], [s.v, s.dtheta1, s.dtheta2]

@@ -45,12 +45,14 @@ from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (
     DEFAULT_FRAME_ID,
     EXECUTE_MOVE_ACTION,
+    HOIST_JOINT,
     JOINT_STATES_TOPIC,
     PLAN_MOVE_SERVICE,
     PLANNER_NODE,
     SIM_JOINTS,
     STREAM_STATE_TOPIC,
     TRAJECTORY_TOPIC,
+    check_joints,
 )
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import (
@@ -66,17 +68,18 @@ from crane_msgs_py.qos import JOINT_STATES_QOS, PLAN_MOVE_QOS, STREAM_STATE_QOS,
 from crane_msgs_py.realtime import fix_mmap_threshold
 from crane_msgs_py.runner import run, spinning
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOptions
-from crane_planner.planning.dispatch import VariationalRequest
+from crane_planner.planning.dispatch import VariationalRequest, hoisting_options
+from crane_planner.planning.hoisting import HOIST_SHAPER_DESIGNS
 from crane_planner.planning.plan import time_grid
 from crane_planner.planning.profiles import BASES
 from crane_planner.serving import Planner
 from crane_planner.serving.execution import DONE, FAILED, MOVING, WAITING, Execution
 from crane_planner.serving.moves import (
-    JOINTS,
     CheckedMove,
     Move,
     MoveBounds,
     MoveError,
+    axis_samples,
     check_move,
     plan_move,
     summarize,
@@ -122,9 +125,10 @@ PARAMETERS = {
                            'interpolation within 1 um); the last knot is exactly at the end',
                       float_range(0.0, 1.0)),
     'frame_id': (DEFAULT_FRAME_ID, 'frame of returned trajectories', {}),
-    'joints': (list(JOINTS), f'the actuated joints this planner serves, among {", ".join(JOINTS)} (every array '
-                             'of a Move is per joint in this order); fixed at start-up',
-               {'additional_constraints': f'distinct names among {", ".join(JOINTS)}', 'read_only': True}),
+    'joints': (['cart'], "the actuated joints this planner serves: [cart], or [cart, hoist] (the hoist's "
+                         "position is the upper cable's length L1; every array of a Move is per joint in this "
+                         'order); fixed at start-up',
+               {'additional_constraints': '[cart] or [cart, hoist]', 'read_only': True}),
     'publish_lead': (0.3, 'an executed trajectory is sent to the streamer this long (s) before its start '
                           'time, so that a goal canceled before then streams nothing (one starting as '
                           'soon as possible is sent at once)', float_range(0.0, 10.0)),
@@ -137,6 +141,17 @@ PARAMETERS = {
                          float_range(0.0, 1e4)),
     'max_jerk': (0.0, 'axis limit on the jerk of the reference (m/s^3); 0 = no limit',
                  float_range(0.0, 1e6)),
+    'max_hoist_velocity': (0.0, 'hoist axis limit |v| of its reference (m/s); 0 = no limit', float_range(0.0, 1e3)),
+    'max_hoist_acceleration': (0.0, 'hoist axis limit |a| of its reference (m/s^2); 0 = no limit',
+                               float_range(0.0, 1e4)),
+    'max_hoist_jerk': (0.0, 'hoist axis limit on the jerk of its reference (m/s^3); 0 = no limit',
+                       float_range(0.0, 1e6)),
+    'hoist_robust_parameters': (['L2'], 'parameters RVF is made insensitive to in a move that hoists (the '
+                                        f'payload\'s cable by default), among {", ".join(ROBUST_PARAMETERS)}',
+                                {'additional_constraints': f'distinct names among {", ".join(ROBUST_PARAMETERS)}'}),
+    'hoist_shaper': ('adaptive', 'how a shaper follows the rope length in a move that hoists: adaptive (fitted '
+                                 'to the hoisting crane) or designed at the start, middle or end length',
+                     {'additional_constraints': f'one of {", ".join(HOIST_SHAPER_DESIGNS)}'}),
     'shaper_base': ('quintic', "the motion shapers shape: 'quintic' (the paper's) or 'limits' (the jerk-limited "
                                'time-optimal profile under the axis limits; needs max_velocity or max_acceleration)',
                     {'additional_constraints': f'one of {", ".join(BASES)}'}),
@@ -186,13 +201,14 @@ class Config:
             robust=tuple(v['robust_parameters']), intervals=intervals or None,
             max_velocity=v['max_velocity'] or None, max_acceleration=v['max_acceleration'] or None,
             max_jerk=v['max_jerk'] or None, base=v['shaper_base'],
-            max_solve_time=check_positive('max_solve_time', v['max_solve_time']))
+            max_solve_time=check_positive('max_solve_time', v['max_solve_time']),
+            max_hoist_velocity=v['max_hoist_velocity'] or None,
+            max_hoist_acceleration=v['max_hoist_acceleration'] or None,
+            max_hoist_jerk=v['max_hoist_jerk'] or None, hoist_robust=tuple(v['hoist_robust_parameters']),
+            hoist_shaper=v['hoist_shaper'])
         if not v['frame_id']:
             raise ParameterError('frame_id must not be empty')
-        joints = tuple(v['joints'])
-        if not joints or len(set(joints)) != len(joints) or any(j not in JOINTS for j in joints):
-            raise ParameterError(f'joints must be distinct names among {", ".join(JOINTS)} (the hoist joint is '
-                                 f'not served yet), got {list(joints)}')
+        joints = check_joints(v['joints'])
         return cls(params, options, v['method'], check_nonnegative('sample_period', v['sample_period']),
                    v['frame_id'], check_positive('max_duration', v['max_duration']),
                    check_positive('max_displacement', v['max_displacement']), int(v['solver_pool_size']),
@@ -210,6 +226,10 @@ class Config:
         if self.options.max_velocity is not None or self.options.max_acceleration is not None:
             requests += [VariationalRequest('fastest', method, D, None, self.params, self.options)
                          for method in VARIATIONAL_METHODS]
+        if HOIST_JOINT in self.joints:  # and a move that hoists by a tenth of the rope (another NLP)
+            hoisting = hoisting_options(self.options)
+            requests += [VariationalRequest('plan', method, (D, -0.1 * self.params.L1), duration, self.params,
+                                            hoisting) for method in VARIATIONAL_METHODS]
         return requests
 
 
@@ -332,8 +352,11 @@ class PlannerNode(Node):
             position, _ = joint_state_to_arrays(msg, SIM_JOINTS)
         except ValueError:  # not the crane's joints: nothing to measure the swing with
             return
+        length = None  # with a hoist, the rope length measured with the angles
+        if HOIST_JOINT in msg.name:
+            length = float(msg.position[list(msg.name).index(HOIST_JOINT)])
         for execution in executions:
-            execution.on_joint_state(stamp_ns(msg.header.stamp), position[1], position[2])
+            execution.on_joint_state(stamp_ns(msg.header.stamp), position[1], position[2], length)
 
     def _hold(self) -> dict | None:
         """Where the streamer holds each joint (m), if it was heard within ``STREAM_FRESH`` s."""
@@ -355,9 +378,11 @@ class PlannerNode(Node):
                   'goal': move.goal[0] if move.goal else math.nan, 'duration': move.duration}
         hold = self._hold()
         try:
-            checked = check_move(move, config.bounds, hold)
+            checked = check_move(move, config.bounds, hold, config.params.L1)
             values.update(method=checked.method, start=checked.start, goal=checked.goal,
                           displacement=checked.displacement)
+            if checked.hoist_start is not None:
+                values.update(hoist_start=checked.hoist_start, hoist_goal=checked.hoist_goal)
             plan = plan_move(self._planner, checked, config.bounds, config.params, config.options)
             if execute:  # after planning: a preview and a goal of the same bad move give the same reason
                 self._check_executable(checked, hold)
@@ -366,7 +391,7 @@ class PlannerNode(Node):
             raise
         times = knot_times(plan) if config.sample_period == 0.0 else time_grid(plan.duration, config.sample_period)
         values['duration'] = plan.duration
-        return checked, plan, plan.evaluate(times), values
+        return checked, plan, axis_samples(plan, times), values
 
     @staticmethod
     def _check_executable(move: CheckedMove, hold: dict | None):
@@ -374,12 +399,16 @@ class PlannerNode(Node):
         if hold is None:
             raise MoveError('goal', f'no streamer heard on {STREAM_STATE_TOPIC} within {STREAM_FRESH:g} s: nothing '
                                     'would stream the motion (is crane_streamer running and started?)')
-        if abs(move.start - hold['cart']) > 1e-6:
-            raise MoveError('start', f'{move.start:.6g} m is not where the streamer holds the cart '
-                                     f'({hold["cart"]:.6g} m); leave start empty to start there')
+        for joint, start in zip(move.joints, move.starts):
+            if joint not in hold:
+                raise MoveError('joint_names', f'the streamer does not stream {joint} (it streams '
+                                               f'{", ".join(hold)}): start it with joints {list(move.joints)}')
+            if abs(start - hold[joint]) > 1e-6:
+                raise MoveError('start', f'{start:.6g} m is not where the streamer holds the {joint} '
+                                         f'({hold[joint]:.6g} m); leave start empty to start there')
 
     def _info(self, plan, checked: CheckedMove, planning_time: float) -> PlanInfo:
-        summary = summarize(plan, checked.joint_names, plan.info.get('solve_time_s', planning_time))
+        summary = summarize(plan, checked.joints, plan.info.get('solve_time_s', planning_time))
         info = PlanInfo()
         info.method, info.duration, info.solve_time = summary.method, summary.duration, summary.solve_time
         info.iterations, info.joint_names = summary.iterations, list(summary.joint_names)
@@ -387,8 +416,12 @@ class PlannerNode(Node):
         info.peak_jerk, info.predicted_residual = list(summary.peak_jerk), summary.predicted_residual
         return info
 
-    def _trajectory_of(self, checked: CheckedMove, samples) -> JointTrajectory:
-        return samples_to_joint_trajectory(samples, checked.start, checked.start_ns, self._config.frame_id)
+    def _trajectory_of(self, checked: CheckedMove, samples: list) -> JointTrajectory:
+        """The trajectory of every joint the plan moves or holds (``axis_samples``: one Samples per joint)."""
+        if len(samples) == 1:
+            return samples_to_joint_trajectory(samples[0], checked.start, checked.start_ns, self._config.frame_id)
+        return samples_to_joint_trajectory(samples, checked.starts, checked.start_ns, self._config.frame_id,
+                                           joint=list(checked.joints))
 
     def _report_plan(self, values: dict, plan, samples, t0: float, solved: float, error: str = ''):
         """One /diagnostics status per request: the plan's facts, or the reason it was refused."""
@@ -400,10 +433,10 @@ class PlannerNode(Node):
             return
         info = plan.info
         self._diagnostics.report(
-            PLAN_TASK, OK, f'{values["method"]}: {len(samples.t)} knots in {plan.duration:.4f} s', **values,
+            PLAN_TASK, OK, f'{values["method"]}: {len(samples[0].t)} knots in {plan.duration:.4f} s', **values,
             solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
             iterations=info.get('iterations', 0), plan_time=solved - t0, message_time=now - solved,
-            knots=len(samples.t), error='')
+            knots=len(samples[0].t), error='')
 
     def _on_plan_move(self, request, response):
         t0 = time.perf_counter()

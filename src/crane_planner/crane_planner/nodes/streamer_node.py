@@ -21,6 +21,7 @@ import math
 import threading
 import time
 
+import numpy as np
 from crane_interfaces.msg import StreamState
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -45,8 +46,10 @@ from crane_msgs_py.names import (
     STREAM_STATE_TOPIC,
     STREAMER_NODE,
     TRAJECTORY_TOPIC,
+    check_joints,
 )
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
+from crane_msgs_py.params import CraneParams
 from crane_msgs_py.qos import REFERENCE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
@@ -67,6 +70,11 @@ PARAMETERS = {
                    {**float_range(1.0, 1000.0), 'read_only': True}),
     'auto_start': (True, 'start streaming at start-up (else wait for ~/start)', {'read_only': True}),
     'initial_position': (0.0, 'hold position (m) before the first motion', {'read_only': True}),
+    'joints': (['cart'], 'the streamed joints: [cart] or [cart, hoist] (the reference then carries a column '
+                         'per joint, float64_array [cart, hoist]); fixed at start-up',
+               {'additional_constraints': '[cart] or [cart, hoist]', 'read_only': True}),
+    'initial_hoist_position': (CraneParams.L1, 'with a hoist: its hold position (m, the upper cable\'s length) '
+                                               'before the first motion', {'read_only': True}),
     'start_tolerance': (1e-6, 'largest distance (m) between a trajectory\'s first position and the hold '
                         'position; farther is a jump and the trajectory is refused', float_range(0.0, 1.0)),
     'busy_wait': (1e-4, 'the last part (s) of each tick period spent spinning instead of sleeping, for '
@@ -95,7 +103,8 @@ class StreamerNode(Node):
     def __init__(self, **kwargs):
         super().__init__(STREAMER_NODE, **kwargs)
         p = declare(self, PARAMETERS)
-        self._msg = reference_message(p['output'])  # ParameterError on an unknown output
+        self._joints = check_joints(p['joints'])  # ValueError: see main()
+        self._msg = reference_message(p['output'], joint=list(self._joints))  # ParameterError: unknown output
         self._impairment = self._impairment_of(p)  # ParameterError on a bad override
         self._ticker = Ticker(round(1e9 / p['rate']))
         self._period_ns = self._ticker.period
@@ -104,14 +113,15 @@ class StreamerNode(Node):
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._impairment_of, self._apply, self._diagnostics)
         self._publisher = self.create_publisher(type(self._msg), REFERENCE_TOPIC, REFERENCE_QOS)
-        self._state_msg = stream_state_message()
+        self._state_msg = stream_state_message(self._joints)
         self._state_pub = self.create_publisher(StreamState, STREAM_STATE_TOPIC, STREAM_STATE_QOS)
         self._state_every = max(1, round(p['rate'] / p['state_rate']))
 
         # Shared with the loop thread (the core is thread-safe); the loop owns the ticker.
         # _running wakes the loop; the core's state decides what trajectories it takes.
-        self._stream = ReferenceStream(self._period_ns, p['initial_position'], p['start_tolerance'],
-                                       stopped=not p['auto_start'])
+        hold = p['initial_position'] if len(self._joints) == 1 else (p['initial_position'],
+                                                                     p['initial_hoist_position'])
+        self._stream = ReferenceStream(self._period_ns, hold, p['start_tolerance'], stopped=not p['auto_start'])
         self._running = threading.Event()
         self._created_ns = self.get_clock().now().nanoseconds
         self._lateness = Lateness(keep_all=bool(self._timing_log))
@@ -130,7 +140,7 @@ class StreamerNode(Node):
             self._running.set()
         self._loop_thread = LoopThread(self, self._loop, 'reference-loop', p['sched_priority'])
         self.get_logger().info(f'streaming {p["output"]} on {self.resolve_topic_name(REFERENCE_TOPIC)} at '
-                               f'{p["rate"]:g} Hz, hold {self._stream.hold:g} m'
+                               f'{p["rate"]:g} Hz, {", ".join(self._joints)} held at {self._hold_text()} m'
                                + ('' if p['auto_start'] else ' (waiting for ~/start)'))
 
     # -- parameters -------------------------------------------------------
@@ -156,19 +166,37 @@ class StreamerNode(Node):
         try:
             if info.get('source_timestamp', now_ns) < self._created_ns:
                 raise ValueError('published before this streamer started (a latched old plan is not replayed)')
-            motion = self._stream.accept(*joint_trajectory_to_arrays(msg), start_ns, now_ns)
+            motion = self._stream.accept(*self._arrays(msg), start_ns, now_ns)
         except ValueError as exc:
             self.refused += 1
             self.get_logger().error(f'trajectory refused: {exc}')
             self._diagnostics.report(TRAJECTORY_TASK, ERROR, f'trajectory refused: {exc}', error=str(exc),
-                                     hold_position=self._stream.hold, points=len(msg.points),
+                                     hold_position=self._hold_text(), points=len(msg.points),
                                      start_stamp=start_ns)
             return
         self.accepted += 1
         self.get_logger().info(f'trajectory accepted: {motion.summary}')
         self._diagnostics.report(TRAJECTORY_TASK, OK, f'trajectory accepted: {motion.summary}',
-                                 hold_position=self._stream.hold, points=len(msg.points),
+                                 hold_position=self._hold_text(), points=len(msg.points),
                                  start_stamp=start_ns, late_start=motion.late, error='')
+
+    def _arrays(self, msg: JointTrajectory) -> tuple:
+        """(t, position, velocity, acceleration) of the streamed joints, a column each with several; a joint
+        the trajectory leaves out (the hoist of a cart-only plan) holds where it is."""
+        t, p, v, a = joint_trajectory_to_arrays(msg, self._joints[0])
+        if len(self._joints) == 1:
+            return t, p, v, a
+        columns = [(p, v, a)]
+        for joint, hold in zip(self._joints[1:], self._stream.hold[1:]):
+            if joint in msg.joint_names:
+                columns.append(joint_trajectory_to_arrays(msg, joint)[1:])
+            else:
+                columns.append((np.full(t.size, hold), np.zeros(t.size), np.zeros(t.size)))
+        return (t, *(np.column_stack(c) for c in zip(*columns)))
+
+    def _hold_text(self) -> str:
+        hold = self._stream.hold
+        return ', '.join(f'{x:g}' for x in hold) if isinstance(hold, tuple) else f'{hold:g}'
 
     # -- services ------------------------------------------------------------
 
@@ -179,7 +207,7 @@ class StreamerNode(Node):
         else:
             self._stream.resume()
             self._running.set()
-            response.message = f'streaming, hold {self._stream.hold:g} m'
+            response.message = f'streaming, hold {self._hold_text()} m'
         self.get_logger().info(response.message)
         return response
 
@@ -190,7 +218,7 @@ class StreamerNode(Node):
         else:
             self._running.clear()
             if self._stream.stop() is not None:  # dropped where it was
-                self.get_logger().warn(f'stopped during a motion; holding {self._stream.hold:g} m')
+                self.get_logger().warn(f'stopped during a motion; holding {self._hold_text()} m')
             response.message = 'stopped'
         self.get_logger().info(response.message)
         return response
@@ -293,7 +321,7 @@ class StreamerNode(Node):
         self._diagnostics.report(
             STREAM_TASK, level, message, state=state, rate_hz=rate,
             target_rate_hz=1e9 / self._period_ns, **summary, ticks=self.ticks, sent=self.sent, dropped=self.dropped,
-            reordered=self.reordered, skipped=self.skipped, hold_position=self._stream.hold,
+            reordered=self.reordered, skipped=self.skipped, hold_position=self._hold_text(),
             trajectories_accepted=self.accepted, trajectories_refused=self.refused,
             network_delay=imp.delay, network_jitter=imp.jitter, network_distribution=imp.distribution,
             network_loss=imp.loss, network_reorder=imp.reorder)

@@ -189,7 +189,8 @@ class DirectSolver(VariationalSolver):
         def cold():  # the initial guess; only computed when needed
             return dict(x0=tr.guess(displacement, frac))
 
-        starts = ([lambda: self.warm_start(inst.warm, displacement)] if inst.warm is not None else []) + [cold]
+        warm = self.warm_start(inst.warm, displacement) if inst.warm is not None else None
+        starts = ([lambda: warm] if warm is not None else []) + [cold]
         for k, start in enumerate(starts):
             if k and not self._may_retry(t0):
                 break
@@ -228,23 +229,30 @@ class DirectSolver(VariationalSolver):
                         info=info, axes=plans, starts={'cart': 0.0, 'hoist': params.L1})
 
     @staticmethod
-    def sign(displacement) -> float:
-        """The sign a warm start is kept with: the cart's; 0 with a hoist (a solution is never mirrored)."""
+    def sign(displacement):
+        """What a warm start is kept with: the cart's sign; with a hoist the signs of both axes."""
         D, Dh = displacements(displacement)
-        return 0.0 if Dh is not None else math.copysign(1.0, D)
+        if Dh is not None:
+            return math.copysign(1.0, D), math.copysign(1.0, Dh)
+        return math.copysign(1.0, D)
 
     @staticmethod
-    def warm_start(warm: tuple, displacement) -> dict:
-        """The last solution, mirrored if D changed sign.
+    def warm_start(warm: tuple, displacement) -> dict | None:
+        """The last solution, mirrored if D changed sign; None if it would not help.
 
         The crane is odd-symmetric (f(-x, -u) = -f(x, u), the cost is even),
         so the solution for -D is minus that for D, multipliers included; in
         scaled variables a request of the other sign is then as warm as one
-        of the same sign.
+        of the same sign. A hoist breaks the symmetry: a solution whose axes
+        moved in other directions is no start (RVF took 330 iterations from
+        one, 5 from the quintic guess), so None then.
         """
         sign, start = warm
-        if sign == DirectSolver.sign(displacement) or sign == 0.0:  # the hoist breaks the symmetry: as it is
+        now = DirectSolver.sign(displacement)
+        if sign == now:
             return start
+        if isinstance(now, tuple):
+            return None
         return {k: -v for k, v in start.items()}
 
     def _failure_message(self, stats, inst: Instance, displacement, duration, pvec, sx, cold, t0) -> str:

@@ -77,9 +77,10 @@ class FreeTimeSearch:
         fixed_solves = 0
         for attempt in range(self.attempts):
             self._check_deadline(displacement, attempt)
-            if inst.warm is not None:
+            warm = solver.warm_start(inst.warm, displacement) if inst.warm is not None else None
+            if warm is not None:
                 T0 = inst.T0
-                start = solver.warm_start(inst.warm, displacement)
+                start = warm
             else:
                 quintic = max(quintic_duration(d, *limits) if any(x is not None for x in limits[:2]) else 0.0
                               for d, limits in zip(displacements(displacement), solver.axis_limits(form.hoist)))

@@ -66,9 +66,10 @@ class Execution:
                 and abs(motion_duration - self.duration) < 1e-6):
             self.motion_start_ns = motion_start_ns  # ours: started at or after its start, as long as planned
 
-    def on_joint_state(self, stamp_ns: int, theta1: float, theta2: float) -> None:
-        """A ``joint_states`` sample (plant time): the swing now, and the residual once past the end."""
-        self.swing = float(load_excursion(theta1, theta2, self.L1, self.L2))
+    def on_joint_state(self, stamp_ns: int, theta1: float, theta2: float, L1: float | None = None) -> None:
+        """A ``joint_states`` sample (plant time): the swing now, and the residual once past the end
+        (``L1``: the rope length measured with it, with a hoist; else the model's)."""
+        self.swing = float(load_excursion(theta1, theta2, self.L1 if L1 is None else L1, self.L2))
         self._state_ns = stamp_ns
         end = self.end_ns
         if end is not None and end <= stamp_ns <= self.window_end_ns:

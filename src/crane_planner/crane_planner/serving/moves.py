@@ -15,14 +15,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from crane_msgs_py.names import ACTUATED_JOINTS, CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 
 from ..planning.dispatch import PlanOptions, check_request
+from ..planning.hoisting import QuinticPlan
 from ..planning.methods import METHODS
-from ..planning.plan import Plan, PlanError
+from ..planning.plan import AxesPlan, Plan, PlanError
 
 #: The actuated joints a planner may serve, in their order in every array.
-JOINTS = ('cart',)
+JOINTS = ACTUATED_JOINTS
 
 
 class MoveError(PlanError):
@@ -58,7 +60,7 @@ class Move:
 class MoveBounds:
     """What a planner node serves: its joints, default method and the bounds of its parameters."""
 
-    joints: tuple = JOINTS
+    joints: tuple = (CART_JOINT,)
     method: str = 'rvf'
     max_displacement: float = 10.0
     max_duration: float = 60.0
@@ -66,7 +68,8 @@ class MoveBounds:
 
 @dataclass(frozen=True)
 class CheckedMove:
-    """A move that may be planned: the method, the cart's start and goal (m), the duration (None: fastest)."""
+    """A move that may be planned: the method, the cart's start and goal (m), the duration (None: fastest),
+    and the hoist's start and goal (the rope length, m) when the planner has a hoist (else None)."""
 
     method: str
     joint_names: tuple
@@ -74,18 +77,31 @@ class CheckedMove:
     goal: float
     duration: float | None
     start_ns: int
+    hoist_start: float | None = None
+    hoist_goal: float | None = None
 
     @property
     def displacement(self) -> float:
         return self.goal - self.start
 
+    @property
+    def joints(self) -> tuple:
+        """Every joint the plan moves or holds: the cart, and the hoist if the planner has one."""
+        return ACTUATED_JOINTS if self.hoist_start is not None else (CART_JOINT,)
 
-def check_move(move: Move, bounds: MoveBounds, hold: dict | None) -> CheckedMove:
+    @property
+    def starts(self) -> tuple:
+        """The start position of each of ``joints`` (m)."""
+        return (self.start,) if self.hoist_start is None else (self.start, self.hoist_start)
+
+
+def check_move(move: Move, bounds: MoveBounds, hold: dict | None, L1: float = CraneParams.L1) -> CheckedMove:
     """The move checked field by field (MoveError names the first bad one).
 
     ``hold``: where the streamer holds each joint now (m), None if no
     streamer is heard; an empty ``start`` starts there, or (a preview with no
-    streamer) at 0 for the cart.
+    streamer) at 0 for the cart and the model's ``L1`` for the hoist. A joint
+    of the planner the move leaves out stays where it starts.
     """
     method = move.method or bounds.method
     if method not in METHODS:
@@ -102,9 +118,14 @@ def check_move(move: Move, bounds: MoveBounds, hold: dict | None) -> CheckedMove
     if move.start and len(move.start) != len(names):
         raise MoveError('start', f'{len(move.start)} value(s) for {len(names)} joint(s) ({", ".join(names)}); '
                                  'empty = where the streamer holds them')
+    rest = {CART_JOINT: 0.0, HOIST_JOINT: L1}
     goal = dict(zip(names, (float(x) for x in move.goal)))
     start = dict(zip(names, (float(x) for x in move.start))) if move.start else {
-        n: (hold or {}).get(n, 0.0) for n in names}
+        n: (hold or {}).get(n, rest[n]) for n in names}
+    for name in bounds.joints:  # the planner's joints the move leaves out: where they are held
+        if name not in start:
+            start[name] = (hold or {}).get(name, rest[name])
+            goal[name] = start[name]
     for label, values in (('start', start), ('goal', goal)):
         for name, value in values.items():
             if not math.isfinite(value):
@@ -113,15 +134,22 @@ def check_move(move: Move, bounds: MoveBounds, hold: dict | None) -> CheckedMove
     if not math.isfinite(duration) or duration < 0.0:
         raise MoveError('duration', f'must be finite and > 0 s (0 = the fastest within the axis limits), '
                                     f'got {duration}')
+    for name in bounds.joints:
+        displacement = goal[name] - start[name]
+        if abs(displacement) > bounds.max_displacement:
+            raise MoveError('goal', f'{name} displacement {displacement:g} m from the start exceeds max_displacement '
+                                    f'{bounds.max_displacement:g} m')
+    if HOIST_JOINT in goal:
+        for label, values in (('start', start), ('goal', goal)):
+            if not values[HOIST_JOINT] > 0.0:
+                raise MoveError(label, f'hoist {values[HOIST_JOINT]:g} m: the rope length (L1) must be > 0')
     displacement = goal['cart'] - start['cart']
-    if abs(displacement) > bounds.max_displacement:
-        raise MoveError('goal', f'displacement {displacement:g} m from the start exceeds max_displacement '
-                                f'{bounds.max_displacement:g} m')
     if duration > bounds.max_duration:
         raise MoveError('duration', f'{duration:g} s exceeds max_duration {bounds.max_duration:g} s')
     if duration > 0.0:
         check_request(method, displacement, duration)
-    return CheckedMove(method, names, start['cart'], goal['cart'], duration or None, int(move.start_ns))
+    return CheckedMove(method, names, start['cart'], goal['cart'], duration or None, int(move.start_ns),
+                       start.get(HOIST_JOINT), goal.get(HOIST_JOINT))
 
 
 def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParams, options: PlanOptions) -> Plan:
@@ -131,11 +159,16 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
     shaper, a limit the plan would break, no solution in time) unless it is
     about the displacement; the fastest plan must also fit ``max_duration``.
     """
+    hoist = None
+    if move.hoist_start is not None:
+        params = params.replace(L1=move.hoist_start)  # the rope as it is now
+        if move.hoist_goal != move.hoist_start:
+            hoist = (move.hoist_start, move.hoist_goal)
     try:
         if move.duration is None:
-            plan = planner.fastest(move.method, move.displacement, params, options)
+            plan = planner.fastest(move.method, move.displacement, params, options, hoist=hoist)
         else:
-            plan = planner.plan(move.method, move.displacement, move.duration, params, options)
+            plan = planner.plan(move.method, move.displacement, move.duration, params, options, hoist=hoist)
     except MoveError:
         raise
     except PlanError as exc:  # ParameterError too: a bad request, named by the field it concerns
@@ -143,7 +176,19 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
     if move.duration is None and plan.duration > bounds.max_duration:
         raise MoveError('duration', f'the fastest {move.method} plan lasts {plan.duration:g} s, beyond '
                                     f'max_duration {bounds.max_duration:g} s')
+    if move.hoist_start is not None and not isinstance(plan, AxesPlan):  # the hoist held where it is
+        held = QuinticPlan(method='hold', displacement=0.0, duration=plan.duration)
+        plan = AxesPlan(method=plan.method, displacement=plan.displacement, duration=plan.duration, info=plan.info,
+                        axes={CART_JOINT: plan, HOIST_JOINT: held},
+                        starts={CART_JOINT: 0.0, HOIST_JOINT: move.hoist_start})
     return plan
+
+
+def axis_samples(plan: Plan, times) -> list:
+    """The plan's samples at ``times`` per joint (relative positions), the cart's first."""
+    if isinstance(plan, AxesPlan):
+        return [axis.evaluate(times) for axis in plan.axes.values()]
+    return [plan.evaluate(times)]
 
 
 @dataclass(frozen=True)
@@ -161,10 +206,15 @@ class PlanSummary:
     predicted_residual: float = math.nan
 
 
-def summarize(plan: Plan, joint_names=JOINTS, solve_time: float | None = None) -> PlanSummary:
-    """The ``PlanInfo`` of a plan; ``solve_time`` defaults to the solver's own figure (0 for shapers)."""
-    v, a, j = plan.peaks()
+def summarize(plan: Plan, joint_names=(CART_JOINT,), solve_time: float | None = None) -> PlanSummary:
+    """The ``PlanInfo`` of a plan; ``solve_time`` defaults to the solver's own figure (0 for shapers).
+
+    Peaks per joint of ``joint_names`` (an ``AxesPlan``'s axes by name).
+    """
+    axes = plan.axes if isinstance(plan, AxesPlan) else {CART_JOINT: plan}
+    peaks = [axes[name].peaks() for name in joint_names]
     info = plan.info
     return PlanSummary(plan.method, float(plan.duration),
                        float(info.get('solve_time_s', 0.0) if solve_time is None else solve_time),
-                       int(info.get('iterations', 0)), tuple(joint_names), (v,), (a,), (j,))
+                       int(info.get('iterations', 0)), tuple(joint_names), *(tuple(p[k] for p in peaks)
+                                                                            for k in range(3)))

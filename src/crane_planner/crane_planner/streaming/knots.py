@@ -42,11 +42,17 @@ def knot_times(plan, position_tol: float = POSITION_TOL, acceleration_tol: float
                min_spacing: float = MIN_SPACING, resolution: float = RESOLUTION) -> np.ndarray:
     """Knot times (s) of ``plan``, 0 and its duration included, increasing, multiples of ``resolution``.
 
+    A plan of several joints (``AxesPlan``) gets the union of its joints' knots.
     Starts from the plan's breakpoints and halves every segment on which the
     quintic Hermite interpolant of the plan's own samples at the knots
     strays from ``plan.evaluate`` by more than the tolerances (checked at
     ``_CHECKS`` interior points per segment, with margin ``_MARGIN``).
     """
+    axes = getattr(plan, 'axes', None)
+    if axes:  # several joints: every knot any of them needs (more knots only bring each closer)
+        return np.unique(np.concatenate([knot_times(axis, position_tol, acceleration_tol, min_spacing, resolution)
+                                         for axis in axes.values()]))
+
     def grid(x):
         return np.rint(np.asarray(x, dtype=float) / resolution) * resolution
 

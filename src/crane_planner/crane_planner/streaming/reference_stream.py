@@ -27,6 +27,10 @@ allocates nothing beyond the returned tuple and takes the lock only to take
 a motion over and to end one. The last sample is the first tick at or past
 the motion's end (the end state); after it the stream holds the end position.
 
+Several joints (the cart and the hoist) stream in one motion: with a hold
+of n positions every position, velocity and acceleration is a tuple of n,
+in the hold's order; with one joint, a float.
+
 Threads: ``accept``, ``stop`` and ``resume`` may run on one thread (the
 node's executor) while ``start`` and ``sample`` run on another (the loop).
 Pure Python, no ROS import.
@@ -51,7 +55,7 @@ class Motion:
     """A trajectory sampled at the ticks it occupies: tick ``first_tick + i`` publishes sample i."""
 
     first_tick: int
-    position: list      # m
+    position: list      # m (per tick: a float, or a tuple per joint)
     velocity: list      # m/s
     acceleration: list  # m/s^2
     duration: float     # s
@@ -64,8 +68,15 @@ class Motion:
 
     @property
     def summary(self) -> str:
-        return (f'{self.position[0]:.6g} -> {self.end_position:.6g} m in {self.duration:.3f} s, '
+        return (f'{_text(self.position[0])} -> {_text(self.end_position)} m in {self.duration:.3f} s, '
                 f'{len(self.position)} ticks' + (f', started {self.late:.3f} s late' if self.late else ''))
+
+
+def _text(position) -> str:
+    """A position (m) of one joint or of several, for messages."""
+    if isinstance(position, tuple):
+        return '(' + ', '.join(f'{x:.6g}' for x in position) + ')'
+    return f'{position:.6g}'
 
 
 class ReferenceStream:
@@ -73,7 +84,8 @@ class ReferenceStream:
 
     Args:
         period_ns: tick period (ns), > 0.
-        hold: hold position (m) before the first motion.
+        hold: hold position (m) before the first motion; a sequence of
+            them streams as many joints.
         start_tolerance: largest distance (m) between a trajectory's first
             position and the hold position; may be changed at any time.
         stopped: start stopped (refusing trajectories until ``resume``).
@@ -84,10 +96,13 @@ class ReferenceStream:
             raise ValueError(f'the tick period must be > 0 ns, got {period_ns}')
         self.period_ns = int(period_ns)
         self.start_tolerance = float(start_tolerance)
+        self.joints = 1 if np.ndim(hold) == 0 else len(hold)
+        hold = float(hold) if np.ndim(hold) == 0 else tuple(float(x) for x in hold)
+        self._rest = 0.0 if self.joints == 1 and not isinstance(hold, tuple) else (0.0,) * self.joints
         # The loop (sample) owns _hold and _motion; accept hands a motion over
         # through _incoming. The lock guards the hand-over and the state.
         self._lock = threading.Lock()
-        self._hold = float(hold)
+        self._hold = hold
         self._motion: Motion | None = None
         self._incoming: Motion | None = None
         self._last: Motion | None = None  # the streaming or the last streamed motion (the loop's)
@@ -96,8 +111,8 @@ class ReferenceStream:
         self._tick: Callable[[], int] | None = None
 
     @property
-    def hold(self) -> float:
-        """The position (m) published last, or held before the first sample."""
+    def hold(self):
+        """The position (m) published last, or held before the first sample (a tuple per joint with several)."""
         return self._hold
 
     @property
@@ -156,13 +171,22 @@ class ReferenceStream:
 
         Args:
             t: knot times (s), strictly increasing.
-            position, velocity, acceleration: the knots' states (m, m/s, m/s^2).
+            position, velocity, acceleration: the knots' states (m, m/s, m/s^2),
+                one column per joint with several, shape (len(t), joints).
             start_ns: the start stamp (ns of ROS time): knot time t is due at
                 ``start_ns + t``; 0 starts the motion at once.
             now_ns: the time (ROS, ns) the trajectory arrived.
         """
-        interp = QuinticHermite(t, position, velocity, acceleration)  # ValueError: no points, not increasing, ...
-        t, p = interp.t, interp.position
+        columns = [np.asarray(x, dtype=float) for x in (position, velocity, acceleration)]
+        several = isinstance(self._hold, tuple)
+        if several and any(c.ndim != 2 or c.shape[1] != self.joints for c in columns):
+            raise ValueError(f'every knot needs {self.joints} positions, velocities and accelerations')
+        if several:  # one interpolant per joint; ValueError: no points, not increasing, ...
+            interps = [QuinticHermite(t, *(c[:, j] for c in columns)) for j in range(self.joints)]
+        else:
+            interps = [QuinticHermite(t, *columns)]
+        t = interps[0].t
+        p = np.array([i.position[0] for i in interps])
         duration_ns = round((t[-1] - t[0]) * 1e9)
         start_ns = start_ns + round(t[0] * 1e9) if start_ns else 0
         if start_ns and start_ns + duration_ns < now_ns:
@@ -175,9 +199,11 @@ class ReferenceStream:
                 raise ValueError('the stream has not started yet')
             if self._motion is not None or self._incoming is not None:
                 raise ValueError('a motion is streaming; a new one is accepted only after it ends')
-            if abs(p[0] - self._hold) > self.start_tolerance:
-                raise ValueError(f'it starts at {p[0]:.6g} m, not at the hold position {self._hold:.6g} m '
-                                 f'(a jump of {p[0] - self._hold:.3g} m)')
+            hold = np.atleast_1d(self._hold)
+            if np.max(np.abs(p - hold)) > self.start_tolerance:
+                jump = p - hold
+                raise ValueError(f'it starts at {_text(tuple(p) if several else p[0])} m, not at the hold position '
+                                 f'{_text(self._hold)} m (a jump of {_text(tuple(jump) if several else jump[0])} m)')
             epoch = self._epoch_ns
             first = self._tick() + 2  # a tick the loop cannot have reached yet
             offset = late = 0  # offset: time (ns) into the motion at the first tick
@@ -188,15 +214,18 @@ class ReferenceStream:
                 else:
                     late = epoch + first * period - start_ns
             n = max(0, -(-(duration_ns - offset) // period)) + 1  # the last sample at or past the end
-            pos, vel, acc = interp(t[0] + (offset + period * np.arange(n)) * 1e-9)
-            self._incoming = Motion(first, pos.tolist(), vel.tolist(), acc.tolist(), duration_ns * 1e-9, late * 1e-9,
-                                    epoch + first * period)
+            times = t[0] + (offset + period * np.arange(n)) * 1e-9
+            if several:  # per tick a tuple per joint
+                pos, vel, acc = (list(zip(*(x.tolist() for x in col))) for col in zip(*(i(times) for i in interps)))
+            else:
+                pos, vel, acc = (x.tolist() for x in interps[0](times))
+            self._incoming = Motion(first, pos, vel, acc, duration_ns * 1e-9, late * 1e-9, epoch + first * period)
             return self._incoming
 
     # -- the loop -------------------------------------------------------------------
 
-    def sample(self, tick: int) -> tuple[float, float, float]:
-        """Position (m), velocity (m/s), acceleration (m/s^2) due at ``tick``.
+    def sample(self, tick: int) -> tuple:
+        """Position (m), velocity (m/s), acceleration (m/s^2) due at ``tick`` (tuples per joint with several).
 
         Takes the queued motion over at its first tick, ends a motion after
         its last sample and holds its end position at rest.
@@ -205,10 +234,10 @@ class ReferenceStream:
         if motion is None:
             motion = self._incoming
             if motion is None or tick < motion.first_tick:
-                return self._hold, 0.0, 0.0
+                return self._hold, self._rest, self._rest
             with self._lock:
                 if self._incoming is not motion:  # dropped by stop() meanwhile
-                    return self._hold, 0.0, 0.0
+                    return self._hold, self._rest, self._rest
                 self._motion, self._incoming, self._last = motion, None, motion
         i = tick - motion.first_tick
         if i < len(motion.position):
@@ -217,4 +246,4 @@ class ReferenceStream:
         with self._lock:
             self._hold = motion.end_position
             self._motion = None
-        return self._hold, 0.0, 0.0
+        return self._hold, self._rest, self._rest

@@ -8,6 +8,7 @@ that may import ROS (with ``demo``).
 """
 from __future__ import annotations
 
+import math
 import threading
 import time
 from typing import Callable
@@ -23,9 +24,10 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.client import PlannerClient
-from crane_msgs_py.conversions import joint_state_to_arrays, samples_to_joint_trajectory, stamp_ns
+from crane_msgs_py.conversions import joint_state_to_arrays, move_message, samples_to_joint_trajectory, stamp_ns
 from crane_msgs_py.diagnostics import OK, level_of, status_values
 from crane_msgs_py.names import (
+    HOIST_JOINT,
     JOINT_STATES_TOPIC,
     PLANNER_NODE,
     RESET_SERVICE,
@@ -45,11 +47,14 @@ class HarnessError(RuntimeError):
     """The harness cannot go on (a timeout, a refusal); the message says why."""
 
 
-def start_crane_nodes(nodes: NodeGroup, namespace: str, streamer_params: dict | None = None):
-    """Start the planner, streamer and sim executables in ``namespace``."""
-    nodes.start(*PLANNER, namespace=namespace)
-    nodes.start(*STREAMER, namespace=namespace, params=streamer_params)
-    nodes.start(*SIM, namespace=namespace)
+def start_crane_nodes(nodes: NodeGroup, namespace: str, streamer_params: dict | None = None,
+                      hoist: bool = False):
+    """Start the planner, streamer and sim executables in ``namespace`` (``hoist``: all three with the joints
+    [cart, hoist])."""
+    joints = {'joints': ['cart', 'hoist']} if hoist else {}
+    nodes.start(*PLANNER, namespace=namespace, params=joints or None)
+    nodes.start(*STREAMER, namespace=namespace, params={**joints, **(streamer_params or {})} or None)
+    nodes.start(*SIM, namespace=namespace, params=joints or None)
 
 
 class CraneHarness:
@@ -77,7 +82,7 @@ class CraneHarness:
         self._reset = self.node.create_client(Trigger, service_of(SIM_NODE, RESET_SERVICE), callback_group=group)
         self._lock = threading.Lock()
         self._slowest_plan = 0.0
-        self._states: list = []  # (stamp ns, theta1, theta2, cart)
+        self._states: list = []  # (stamp ns, theta1, theta2, cart, hoist: the rope length, NaN without one)
         self._trajectories: dict = {}  # start stamp ns -> JointTrajectory
         self._goals: dict = {}  # start stamp ns -> ExecuteMove goal handle, until its result is read
         # every sample counts (the residuals are computed from them): 10 s of queue for this process's stalls
@@ -94,8 +99,9 @@ class CraneHarness:
     # -- callbacks
     def _on_state(self, msg):
         pos, _ = joint_state_to_arrays(msg, SIM_JOINTS)
+        hoist = msg.position[list(msg.name).index(HOIST_JOINT)] if HOIST_JOINT in msg.name else math.nan
         with self._lock:
-            self._states.append((stamp_ns(msg.header.stamp), pos[1], pos[2], pos[0]))
+            self._states.append((stamp_ns(msg.header.stamp), pos[1], pos[2], pos[0], hoist))
 
     def _on_trajectory(self, msg):
         with self._lock:
@@ -161,9 +167,10 @@ class CraneHarness:
         return max(0.5, 3.0 * self._slowest_plan)
 
     def move(self, method: str, start: float, goal: float, duration: float, start_ns: int | None = None,
-             settle: float = 0.0):
+             settle: float = 0.0, hoist: tuple[float, float] | None = None):
         """Execute a move starting at ``start_ns`` (default :meth:`lead` from now) through the planner's
         ``~/execute_move``; (the stamp the motion starts, plan round trip s, served trajectory).
+        ``hoist`` = (start, goal) of the rope length (m) moves the hoist too (a planner with joints [cart, hoist]).
 
         The round trip lasts until the goal's first feedback (sent once it is
         planned); a refused plan raises PlanError with the planner's reason.
@@ -175,8 +182,10 @@ class CraneHarness:
         mark = self.planner.diagnostics.mark()
         planned = threading.Event()
         t0 = time.perf_counter()
+        move = None if hoist is None else move_message([goal, hoist[1]], duration, [start, hoist[0]], method,
+                                                       ['cart', HOIST_JOINT], start_ns)
         handle = self.planner.send_execute(method, start, goal, duration, start_ns, settle,
-                                           feedback=lambda _: planned.set(), timeout=30.0)
+                                           feedback=lambda _: planned.set(), timeout=30.0, move=move)
         outcome = handle.get_result_async()
         self.wait_until(lambda: planned.is_set() or outcome.done(), 30.0, f'the {method} goal was never planned')
         plan_time = time.perf_counter() - t0
@@ -260,12 +269,13 @@ class CraneHarness:
         self.wait_until(arrived, timeout, f'no joint_states stamped past the motion within {timeout:g} s', 0.02)
 
     def states_between(self, begin_ns: int, end_ns: int, timeout: float = 3.0) -> np.ndarray:
-        """joint_states stamped in [begin, end] (dropping everything older than ``end_ns``)."""
+        """joint_states stamped in [begin, end] (dropping everything older than ``end_ns``): rows of
+        (stamp ns, theta1, theta2, cart, hoist or NaN)."""
         self.wait_for_state_after(end_ns, timeout)
         with self._lock:
             rows = [r for r in self._states if begin_ns <= r[0] <= end_ns]
             self._states = [r for r in self._states if r[0] > end_ns]
-        return np.array(rows).reshape(-1, 4)
+        return np.array(rows).reshape(-1, 5)
 
     def close(self):
         self._spinning.__exit__(None, None, None)  # the spin thread out of rcl, then the executor shut down

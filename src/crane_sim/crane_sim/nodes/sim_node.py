@@ -40,6 +40,7 @@ from crane_msgs_py.conversions import (
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (
     DEFAULT_FRAME_ID,
+    HOIST_JOINT,
     JOINT_STATES_TOPIC,
     MARKERS_TOPIC,
     OUTPUT_FLOAT64_ARRAY,
@@ -47,6 +48,7 @@ from crane_msgs_py.names import (
     REFERENCE_TOPIC,
     RESET_SERVICE,
     SIM_NODE,
+    check_joints,
 )
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
 from crane_msgs_py.params import (
@@ -64,7 +66,7 @@ from crane_sim.dynamics import mass_positions
 from crane_sim.measurement import AngleNoise
 from crane_sim.playout import ReferencePlayout
 from crane_sim.reference_intake import ReferenceIntake
-from crane_sim.simulator import INTERPOLATIONS, JOINT_NAMES, SOURCES, CraneSimulator, CraneState, SimulationError
+from crane_sim.simulator import INTERPOLATIONS, SOURCES, CraneSimulator, CraneState, SimulationError
 
 SIM_TASK = 'sim'
 #: ``reference_type`` values: the streamer's two outputs, or whatever the topic's publisher sends.
@@ -76,6 +78,10 @@ _TYPE_NAMES = {'trajectory_msgs/msg/JointTrajectory': OUTPUT_JOINT_TRAJECTORY,
 PARAMETERS = {
     **{name: (getattr(CraneParams, name), f'true plant: {PARAMETER_DESCRIPTIONS[name]}; may change while running',
               float_range(0.0, 10.0 if name.startswith('tau') else 1e4)) for name in PARAMETER_NAMES},
+    'joints': (['cart'], "the actuated joints: [cart], or [cart, hoist] (the upper cable's length follows the "
+                         "reference's hoist column through tau_hoist, from L1 at start-up; joint_states then carry "
+                         'cart, hoist, theta1, theta2); fixed at start-up',
+               {'additional_constraints': '[cart] or [cart, hoist]', 'read_only': True}),
     'step': (1e-3, 'integration step (s), also the real-time loop period; fixed at start-up',
              {**float_range(1e-4, 0.1), 'read_only': True}),
     'publish_rate': (50.0, 'joint_states rate (Hz) in simulated time; fixed at start-up',
@@ -117,10 +123,13 @@ class SimNode(Node):
         super().__init__(SIM_NODE, **kwargs)
         p = declare(self, PARAMETERS)
         self._check(p)  # ParameterError on a bad override, see main()
+        self._joints = check_joints(p['joints'])
+        hoist = HOIST_JOINT in self._joints
         # Late steps are caught up, never skipped (a skipped step would drop its references);
         # the playout delay keeps them in time up to a point, the lateness diagnostics show it.
         self._ticker = Ticker(round(p['step'] * 1e9), max_backlog=10**9)
-        self._sim = CraneSimulator(CraneParams(**{n: p[n] for n in PARAMETER_NAMES}), dt=self._ticker.period * 1e-9)
+        self._sim = CraneSimulator(CraneParams(**{n: p[n] for n in PARAMETER_NAMES}), dt=self._ticker.period * 1e-9,
+                                   hoist=hoist)
         self._publish_every = max(1, round(1.0 / (p['publish_rate'] * p['step'])))
         self._source, self._interpolation = p['reference_source'], p['interpolation']
         self._diagnostics = DiagnosticsPublisher(self)
@@ -128,11 +137,11 @@ class SimNode(Node):
         self._noise = AngleNoise(p['noise'], p['seed'])
         self._markers = crane_markers_message(p['frame_id'])
         self._markers_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, MARKERS_QOS)
-        self._joint_state = joint_state_message(JOINT_NAMES)
+        self._joint_state = joint_state_message(self._sim.joint_names)
         self._joint_states = self.create_publisher(JointState, JOINT_STATES_TOPIC, JOINT_STATES_QOS)
 
         # Handed from the executor to the loop; deque append/popleft are atomic.
-        self._inbox: deque = deque(maxlen=1000)   # (stamp ns, position, acceleration), checked
+        self._inbox: deque = deque(maxlen=1000)   # (stamp ns, position, acceleration[, hoist's two]), checked
         self._pending_params: CraneParams | None = None
         self._reset_requested = threading.Event()
         # The loop's counts (out_of_order: a sample a swapped playout could not take); the
@@ -212,11 +221,17 @@ class SimNode(Node):
     def _on_reference(self, msg):
         now = self.get_clock().now().nanoseconds
         try:
-            stamp, position, _, acceleration = read_reference(msg)
+            if self._sim.hoist:
+                stamp, position, _, acceleration = read_reference(msg, self._joints)
+                hoist = (position[1], acceleration[1])
+                position, acceleration = position[0], acceleration[0]
+            else:
+                stamp, position, _, acceleration = read_reference(msg)
+                hoist = None
         except ValueError:
             self._intake.count_malformed()
             return
-        sample = self._intake.receive(now, stamp, position, acceleration)
+        sample = self._intake.receive(now, stamp, position, acceleration, hoist)
         if sample is not None:
             self._inbox.append(sample)
 
@@ -234,8 +249,9 @@ class SimNode(Node):
         ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
         epoch_ros = ros_now + (epoch - time.monotonic_ns())  # ROS time of step 0
         dt_ns, dt = ticker.period, ticker.period * 1e-9
-        playout_args, playout, timeouts = None, None, 0
-        lengths = (sim.params['L1'], sim.params['L2'])  # of the markers: the live plant's
+        playout_args, playout, hoist_playout, timeouts = None, None, None, 0
+        L2 = sim.params['L2']  # of the markers: the live plant's
+        angles = slice(2, 4) if sim.hoist else slice(1, 3)  # of theta1, theta2 in joint_state()
         while not self._loop_thread.stopping.is_set():
             deadline = ticker.deadline
             now = sleep_until(deadline, 0)
@@ -243,33 +259,42 @@ class SimNode(Node):
             if self._pending_params is not None:
                 params, self._pending_params = self._pending_params, None
                 sim.set_params(params)
-                lengths = (params.L1, params.L2)
+                L2 = params.L2
             if self._playout_args is not playout_args:
                 playout_args = self._playout_args
                 timeouts += playout.timeouts if playout else 0
                 playout = ReferencePlayout(*playout_args)
+                hoist_playout = ReferencePlayout(*playout_args) if sim.hoist else None
             if self._reset_requested.is_set():
                 self._reset_requested.clear()
                 sim.reset(CraneState(y=sim.state.y))
                 playout.reset()
+                if hoist_playout is not None:
+                    hoist_playout.reset()
             while inbox:
-                stamp, position, acceleration = inbox.popleft()
+                stamp, position, acceleration, *hoist = inbox.popleft()
                 try:
                     playout.push((stamp - epoch_ros) * 1e-9, position, acceleration)
+                    if hoist_playout is not None:
+                        hoist_playout.push((stamp - epoch_ros) * 1e-9, *hoist)
                 except SimulationError:  # not after the last one (a playout swapped meanwhile)
                     counts['out_of_order'] += 1
             t0 = ticker.tick * dt  # nominal time of the step since step 0
-            sim.step(*playout.step(t0, t0 + dt))
+            if hoist_playout is not None:
+                sim.step(*playout.step(t0, t0 + dt), *hoist_playout.step(t0, t0 + dt))
+            else:
+                sim.step(*playout.step(t0, t0 + dt))
             counts['steps'] += 1
             counts['timeouts'] = timeouts + playout.timeouts
             if ticker.tick % self._publish_every == 0:
                 positions, velocities = sim.joint_state()
-                positions[1], positions[2] = self._noise(positions[1], positions[2])
+                positions[angles] = self._noise(*positions[angles])
                 plant_time = epoch_ros + (ticker.tick + 1) * dt_ns - round(playout.delay * 1e9)
                 fill_joint_state(self._joint_state, plant_time, positions, velocities)
-                # the crane as measured: the published angles, the live cable lengths
+                # the crane as measured: the published angles, the live cable lengths (the hoist's now)
+                theta1, theta2 = positions[angles]
                 fill_crane_markers(self._markers, plant_time, positions[0],
-                                   *mass_positions(positions[0], positions[1], positions[2], *lengths))
+                                   *mass_positions(positions[0], theta1, theta2, sim.L1, L2))
                 try:
                     self._joint_states.publish(self._joint_state)
                     self._markers_pub.publish(self._markers)
@@ -305,7 +330,8 @@ class SimNode(Node):
             reference_type=self._reference_type, reference_source=self._source,
             playout_delay=self._playout_args[0],
             interpolation=self._interpolation, y=state.y, theta1=state.theta1, theta2=state.theta2,
-            load_excursion=self._sim.load_excursion, **self._sim.params)
+            load_excursion=self._sim.load_excursion, **self._sim.params,
+            **({'hoist_L1': self._sim.L1} if self._sim.hoist else {}))
 
     def destroy_node(self):
         self._loop_thread.stop()

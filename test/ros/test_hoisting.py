@@ -1,0 +1,85 @@
+"""ROS: hoisting while travelling through the real executables (issue 21).
+
+The planner, streamer and sim run with the joints [cart, hoist] in one
+namespace of a private graph (``hoist_crane`` fixture, always stopped). The
+test measures the swing itself from ``joint_states``, with the rope length
+they carry, and checks the served trajectory and the stream per joint.
+"""
+import numpy as np
+import pytest
+
+from crane_msgs_py.params import CraneParams
+
+NS = '/crane_hoist'
+SETTLE = 2.0
+T = 3.0
+NOMINAL = CraneParams()  # the planner's model and the sim's plant: tau 0.01 s, tau_hoist 0.01 s
+
+
+@pytest.fixture(scope='module')
+def hoist_crane(ros_domain, tmp_path_factory):
+    from crane_planner.tools.harness import CraneHarness, start_crane_nodes
+    from crane_planner.tools.processes import NodeGroup
+    nodes = NodeGroup(ros_domain, tmp_path_factory.mktemp('hoist-node-logs'))
+    driver = None
+    try:
+        start_crane_nodes(nodes, NS, hoist=True)
+        driver = CraneHarness(NS, nodes)
+        driver.wait_until_up(90.0)
+        yield driver
+        nodes.check_alive()
+    finally:
+        if driver is not None:
+            driver.close()
+        nodes.stop(timeout=10.0)
+
+
+def measured_residual_mm(driver, start_ns: int) -> tuple[float, np.ndarray]:
+    """The peak load excursion (mm) over SETTLE s after the motion, from joint_states with their rope length;
+    and the record (stamp, theta1, theta2, cart, hoist)."""
+    from crane_sim.metrics import residual_load_mm
+    end_ns = start_ns + round((T + SETTLE + 0.05) * 1e9)
+    driver.sleep(max(0.0, (end_ns - driver.now_ns()) * 1e-9))
+    rec = driver.states_between(start_ns, end_ns, timeout=10.0)
+    assert len(rec) > 40 * (T + SETTLE), f'only {len(rec)} joint_states'
+    t = (rec[:, 0] - start_ns) * 1e-9
+    return float(residual_load_mm(t, rec[:, 1], rec[:, 2], rec[:, 4], NOMINAL.L2, after=T, until=T + SETTLE)), rec
+
+
+@pytest.mark.parametrize('method, cart, hoist', [('zv', (0.0, 0.3), (0.47, 0.27)),
+                                                 ('rvf', (0.3, 0.0), (0.27, 0.47))], ids=['zv-lift', 'rvf-lower'])
+def test_a_move_that_hoists_streams_both_joints_and_leaves_no_swing(hoist_crane, method, cart, hoist):
+    from crane_msgs_py.conversions import joint_trajectory_to_arrays
+    driver = hoist_crane
+    start_ns, _, traj = driver.move(method, cart[0], cart[1], T, settle=SETTLE, hoist=hoist)
+    # the served trajectory: a column per joint, from the hold to the goal of each
+    assert list(traj.joint_names) == ['cart', 'hoist']
+    for joint, (a, b) in (('cart', cart), ('hoist', hoist)):
+        t, p, v, acc = joint_trajectory_to_arrays(traj, joint)
+        assert p[0] == pytest.approx(a, abs=1e-9) and p[-1] == pytest.approx(b, abs=1e-9), joint
+        assert t[-1] == pytest.approx(T, abs=1e-9) and abs(v[-1]) < 1e-9
+    residual, rec = measured_residual_mm(driver, start_ns)
+    # the sim's rope followed the hoist (joint_states' hoist column), and the cart its goal
+    assert rec[0, 4] == pytest.approx(hoist[0], abs=1e-4) and rec[-1, 4] == pytest.approx(hoist[1], abs=1e-4)
+    assert rec[-1, 3] == pytest.approx(cart[1], abs=1e-4)
+    assert np.ptp(rec[:, 4]) == pytest.approx(abs(hoist[1] - hoist[0]), abs=1e-3)
+    # no residual swing, and the action's result says the same (it reads the rope length too)
+    assert residual < 0.3, residual
+    result = driver.move_result(start_ns)
+    assert result.success and list(result.info.joint_names) == ['cart', 'hoist']
+    assert abs(1e3 * result.residual_swing - residual) < 0.05, (result.residual_swing, residual)
+    assert result.info.peak_velocity[1] > abs(hoist[1] - hoist[0]) / T  # the hoist's own peak, per joint
+    driver.reset_sim()
+
+
+def test_a_cart_move_holds_the_rope_and_a_rope_of_no_length_is_refused(hoist_crane):
+    from crane_msgs_py.conversions import joint_trajectory_to_arrays, move_message
+    driver = hoist_crane
+    hold = driver.planner.call(None, None, 0.0, 0.0, move=move_message([0.1], 3.0, method='zv',
+                                                                          joint_names=['cart']))
+    assert hold.success, hold.message
+    _, p, v, _ = joint_trajectory_to_arrays(hold.trajectory, 'hoist')
+    assert np.ptp(p) == 0.0 and np.all(v == 0.0)  # held where the streamer holds it
+    refused = driver.planner.call(None, None, 0.0, 0.0, move=move_message([0.1, -0.1], 3.0, method='zv'))
+    assert not refused.success and len(refused.trajectory.points) == 0
+    assert refused.message == 'move.goal: hoist -0.1 m: the rope length (L1) must be > 0', refused.message
