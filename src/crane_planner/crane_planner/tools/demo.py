@@ -40,6 +40,9 @@ NETWORK = {'network.delay': 0.002, 'network.jitter': 0.0005, 'network.distributi
 NETWORK_OFF = {'network.delay': 0.0, 'network.jitter': 0.0, 'network.loss': 0.0}
 
 
+#: The hoisting cases: the upper cable from 0.47 to 0.27 m (m) while the cart travels, in this long (s).
+HOIST, HOIST_DURATION = (0.47, 0.27), 3.0
+
 #: The commissioning case's crane: unknown to the planner (L1 +12 %, L2 -10 %, m2 +15 %: the mass
 #: ratio 0.511 -> 0.546), with a little joint damping and a slower servo than the model's.
 UNKNOWN_PLANT = CraneParams(L1=0.47 * 1.12, L2=0.391 * 0.90, m2=0.201 * 1.15, c1=0.002, c2=0.0005, tau=0.015)
@@ -56,6 +59,7 @@ class Case:
     plant: CraneParams  # the sim's, the true crane
     network: bool
     commission: bool = False  # first plan with the planner's model, identify, then plan again
+    hoist: tuple | None = None  # (L1 start, L1 goal) m: the rope moves during the motion (nodes with a hoist)
 
     @property
     def L1(self) -> float:
@@ -68,6 +72,10 @@ CASES = {
     'nominal+net': Case('nominal+net', CraneParams(), True),
     'perturbed+net': Case('perturbed+net', CraneParams(L1=PERTURBED_L1), True),
     'commission': Case('commission', UNKNOWN_PLANT, False, commission=True),
+    # issue 21: 0.3 m of travel while lifting the load by 0.2 m, on the model's plant and on one whose
+    # payload hangs 20 % lower than the model says
+    'hoist': Case('hoist', CraneParams(), False, hoist=HOIST),
+    'hoist+L2': Case('hoist+L2', CraneParams(L2=0.391 * 1.2), False, hoist=HOIST),
 }
 #: Table columns of the commission case: before and after identification.
 BEFORE, AFTER = 'commission:model', 'commission:identified'
@@ -88,6 +96,7 @@ class Run:
     plan_t: np.ndarray = field(repr=False)        # served plan: knot times (s)
     plan_v: np.ndarray = field(repr=False)
     plan_a: np.ndarray = field(repr=False)
+    rope: np.ndarray | None = field(default=None, repr=False)  # the upper cable's length (m) at ``t`` (hoisting)
 
     def row(self) -> dict:
         return {'case': self.case, 'method': self.method, 'plan_time_s': self.plan_time_s,
@@ -159,21 +168,22 @@ def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: s
     from crane_sim.dynamics import load_excursion
     from crane_sim.metrics import residual_load_mm
 
-    D, T = args.displacement, args.duration
-    start_ns, plan_time, traj = driver.move(method, 0.0, D, T, settle=args.settle)
+    D, T = args.displacement, (HOIST_DURATION if case.hoist else args.duration)
+    back_hoist = None if case.hoist is None else case.hoist[::-1]
+    start_ns, plan_time, traj = driver.move(method, 0.0, D, T, settle=args.settle, hoist=case.hoist)
     # One 50 Hz sample beyond the window, so the record covers all of it.
     end_ns = start_ns + round((T + args.settle + 0.05) * 1e9)
     # The move back is requested during the observation and starts as it ends: the streamer
     # holds the goal until then, and the sim, playing the stream out by its stamps, shows the
     # window untouched.
     request_back(driver, start_ns + round(T * 1e9), end_ns)
-    back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns)
+    back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns, hoist=back_hoist)
     rec = driver.states_between(start_ns, end_ns)
     action_residual = driver.move_result(start_ns).residual_swing  # what the caller of the action is told
     if len(rec) < 10:
         raise HarnessError(f'only {len(rec)} joint_states during the {method} motion: is the sim publishing?')
     t = (rec[:, 0] - start_ns) * 1e-9
-    L1, L2 = case.plant.L1, case.plant.L2
+    L1, L2 = (case.plant.L1 if case.hoist is None else rec[:, 4]), case.plant.L2  # hoisting: the measured rope
     residual = float(residual_load_mm(t, rec[:, 1], rec[:, 2], L1, L2, after=T, until=T + args.settle))
     plan_t, plan_p, plan_v, plan_a = joint_trajectory_to_arrays(traj)
     # the served plan as the streamer plays it: its peaks lie between knots (a ZVD base
@@ -185,7 +195,8 @@ def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: s
     driver.wait_for_state_after(back_end_ns)
     driver.reset_sim()
     return Run(name or case.name, method, plan_time, float(np.max(np.abs(plan_a))), residual, 1e3 * action_residual, t,
-               1e3 * load_excursion(rec[:, 1], rec[:, 2], L1, L2), plan_t, plan_v, plan_a)
+               1e3 * load_excursion(rec[:, 1], rec[:, 2], L1, L2), plan_t, plan_v, plan_a,
+               rope=None if case.hoist is None else rec[:, 4])
 
 
 def _dense(t, p, v, a, step: float = 2e-4):
@@ -282,11 +293,14 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
         for r in runs:
             if r.case == name:
                 ax.plot(r.t, r.load_mm, label=f'{r.method.upper()} ({r.residual_mm:.2f} mm)')
-        ax.axvline(args.duration, color='k', lw=0.6, ls=':')
+        ax.axvline(HOIST_DURATION if case.hoist else args.duration, color='k', lw=0.6, ls=':')
         ax.set_ylabel('load (mm)')
         if case.commission:
             title = (f'{name}: unknown crane (L1 {case.plant.L1:.3f}, L2 {case.plant.L2:.3f} m), planned with '
                      + ('the Table 1 model' if name == BEFORE else 'the identified model'))
+        elif case.hoist:
+            title = (f'{name}: hoisting L1 {case.hoist[0]:g} -> {case.hoist[1]:g} m while travelling, L2 '
+                     f'{case.plant.L2:.3f} m' + (' (the model: 0.391 m)' if case.plant.L2 != 0.391 else ''))
         else:
             title = f'{name}: L1 = {case.L1:g} m' + (', network impairment' if case.network else '')
         ax.set_title(title, fontsize=10)
@@ -295,6 +309,26 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
         ax.legend(ncol=3, fontsize=7)
     axes[-1, 0].set_xlabel('time from motion start (s); measured at 50 Hz (paper Figs. 6-15)')
     written.append(save_figure(fig, out / 'demo_swing.png'))
+
+    hoisting = [case for case in args.cases if case.hoist]
+    if hoisting:  # swing and rope length over time, per hoisting case
+        fig, axes = plt.subplots(2, len(hoisting), figsize=(6 * len(hoisting), 6.5), sharex=True, squeeze=False)
+        for col, case in enumerate(hoisting):
+            for r in runs:
+                if r.case == case.name and r.rope is not None:
+                    axes[0, col].plot(r.t, r.load_mm, label=f'{r.method.upper()} ({r.residual_mm:.2f} mm)')
+                    axes[1, col].plot(r.t, r.rope, label=r.method.upper())
+            axes[0, col].set_title(f'{case.name}: L2 {case.plant.L2:.3f} m', fontsize=10)
+            axes[0, col].set_ylabel('load swing (mm)')
+            axes[1, col].set_ylabel('rope length L1 (m), measured')
+            axes[1, col].set_xlabel('time from motion start (s)')
+            for ax in axes[:, col]:
+                ax.axvline(HOIST_DURATION, color='k', lw=0.6, ls=':')
+                ax.grid(True, alpha=0.3)
+            axes[0, col].legend(ncol=2, fontsize=7)
+        fig.suptitle(f'{args.displacement:g} m of travel while hoisting {HOIST[0]:g} -> {HOIST[1]:g} m in '
+                     f'{HOIST_DURATION:g} s (issue 21)', fontsize=11)
+        written.append(save_figure(fig, out / 'demo_hoist.png'))
 
     if timing_log and timing_log.exists():
         lateness = np.asarray(json.loads(timing_log.read_text()).get('lateness_us', []), dtype=float)
@@ -379,45 +413,54 @@ def _run(args, env: dict, t_start: float) -> int:
     timing_log = (out / 'streamer_timing.json').resolve()
     progress(f'ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, namespace {args.namespace}, node logs in {log_dir}')
     driver = recorder = None
+    written_bag = None
     try:
-        with NodeGroup(env, log_dir) as nodes:
-            start_crane_nodes(nodes, args.namespace, streamer_params={'timing_log': str(timing_log)})
-            driver = CraneHarness(args.namespace, nodes, log=progress, node_name='crane_demo')
-            driver.wait_until_up(args.startup_timeout)
-            recorder = None if args.no_record else start_recorder(args, env, log_dir, nodes)
-            progress(f'nodes up in {time.monotonic() - t_start:.1f} s')
-            model = CraneParams()  # the planner's
-            total, k = len(columns(args.cases)) * len(args.methods), 0
-            for case in args.cases:
-                driver.set_parameters('sim', {name: getattr(case.plant, name) for name in PARAMETER_NAMES})
-                driver.set_parameters('streamer', NETWORK if case.network else NETWORK_OFF)
-                driver.reset_sim()
-                phases = [(BEFORE, model), (AFTER, None)] if case.commission else [(case.name, model)]
-                for name, planner_model in phases:
-                    if planner_model is None:  # commissioning: identify the crane, give the planner its model
-                        progress('commissioning: one excitation move, recorded with '
-                                 f'{1e3 * COMMISSION_NOISE:g} mrad angle noise')
-                        recording, identified = commission(driver, args, model)
-                        planner_model = identified.params
-                        identification = (recording, identified)
-                        progress(f'identified {_describe(identified)} in {identified.fit_time_s:.2f} s')
-                    driver.set_parameters('planner', {n: getattr(planner_model, n) for n in PARAMETER_NAMES})
-                    for method in args.methods:
-                        k += 1
-                        run = run_case_method(driver, case, method, args, name)
-                        runs.append(run)
-                        progress(f'[{k:2d}/{total}] {name:<22} {method:<4} residual {run.residual_mm:6.2f} mm, '
-                                 f'peak a_ref {run.peak_acceleration:.3f} m/s^2, '
-                                 f'plan {1e3 * run.plan_time_s:.0f} ms')
-                driver.set_parameters('planner', {n: getattr(model, n) for n in PARAMETER_NAMES})
-            if recorder is not None:
-                written_bag, recorder = stop_recorder(recorder), None
-            driver.close()
-            driver = None
+        model = CraneParams()  # the planner's
+        total, k = len(columns(args.cases)) * len(args.methods), 0
+        # the cart-only cases on nodes with the joint [cart], then the hoisting ones on nodes with
+        # [cart, hoist] (the joints are fixed at a node's start-up)
+        setups = [(hoisting, [c for c in args.cases if (c.hoist is not None) == hoisting])
+                  for hoisting in (False, True)]
+        setups = [(hoisting, cases) for hoisting, cases in setups if cases]
+        for i, (hoisting, cases) in enumerate(setups):
+            with NodeGroup(env, log_dir / ('hoist' if hoisting else 'cart')) as nodes:
+                streamer = {} if hoisting else {'timing_log': str(timing_log)}  # the paper's stream's timing
+                start_crane_nodes(nodes, args.namespace, streamer_params=streamer, hoist=hoisting)
+                driver = CraneHarness(args.namespace, nodes, log=progress, node_name='crane_demo')
+                driver.wait_until_up(args.startup_timeout)
+                if recorder is None and not args.no_record:  # one recording of every case
+                    recorder = start_recorder(args, env, log_dir, nodes)
+                progress(f'nodes up{" with a hoist" if hoisting else ""} in {time.monotonic() - t_start:.1f} s')
+                for case in cases:
+                    driver.set_parameters('sim', {name: getattr(case.plant, name) for name in PARAMETER_NAMES})
+                    driver.set_parameters('streamer', NETWORK if case.network else NETWORK_OFF)
+                    driver.reset_sim()
+                    phases = [(BEFORE, model), (AFTER, None)] if case.commission else [(case.name, model)]
+                    for name, planner_model in phases:
+                        if planner_model is None:  # commissioning: identify the crane, give the planner its model
+                            progress('commissioning: one excitation move, recorded with '
+                                     f'{1e3 * COMMISSION_NOISE:g} mrad angle noise')
+                            recording, identified = commission(driver, args, model)
+                            planner_model = identified.params
+                            identification = (recording, identified)
+                            progress(f'identified {_describe(identified)} in {identified.fit_time_s:.2f} s')
+                        driver.set_parameters('planner', {n: getattr(planner_model, n) for n in PARAMETER_NAMES})
+                        for method in args.methods:
+                            k += 1
+                            run = run_case_method(driver, case, method, args, name)
+                            runs.append(run)
+                            progress(f'[{k:2d}/{total}] {name:<22} {method:<4} residual {run.residual_mm:6.2f} mm, '
+                                     f'peak a_ref {run.peak_acceleration:.3f} m/s^2, '
+                                     f'plan {1e3 * run.plan_time_s:.0f} ms')
+                    driver.set_parameters('planner', {n: getattr(model, n) for n in PARAMETER_NAMES})
+                if recorder is not None and i == len(setups) - 1:
+                    written_bag, recorder = stop_recorder(recorder), None
+                driver.close()
+                driver = None
         # The nodes are stopped here, so the streamer has written its timing log.
         print_table(runs, args.cases, args.methods)
         (out / 'results.json').write_text(json.dumps([r.row() for r in runs], indent=1) + '\n')
-        written = [out / 'results.json'] + ([written_bag] if not args.no_record else [])
+        written = [out / 'results.json'] + ([written_bag] if written_bag is not None else [])
         if identification is not None:
             recording, identified = identification
             (out / 'commission.json').write_text(json.dumps(
