@@ -117,6 +117,8 @@ def read_csv(path) -> Recording:
 
 #: Topic names (their last part: the recording may be namespaced) read from a rosbag2 recording.
 JOINT_STATES_NAME, REFERENCE_NAME = 'joint_states', 'reference'
+#: How far (m) the rope may move in a recording crane-plan identify takes: beyond, the hoist moved.
+HELD_ROPE = 1e-3
 
 
 def read_bag(path) -> Recording:
@@ -151,7 +153,7 @@ def read_bag(path) -> Recording:
             if not states:
                 raise RecordingError(f'{path} holds no joint_states topic (topics: '
                                      f'{", ".join(sorted({c.topic for c in reader.connections})) or "none"})')
-            rows = []
+            rows, ropes = [], []
             for conn, _, raw in reader.messages(connections=states):
                 msg = reader.deserialize(raw, conn.msgtype)
                 index = {name: k for k, name in enumerate(msg.name)}
@@ -160,6 +162,8 @@ def read_bag(path) -> Recording:
                                          f'(has {", ".join(msg.name)})')
                 stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
                 rows.append((stamp, *(float(msg.position[index[j]]) for j in ('cart', 'theta1', 'theta2'))))
+                if 'hoist' in index:
+                    ropes.append(float(msg.position[index['hoist']]))
             references = []
             for conn, _, raw in reader.messages(connections=named(REFERENCE_NAME)):
                 msg = reader.deserialize(raw, conn.msgtype)
@@ -170,6 +174,9 @@ def read_bag(path) -> Recording:
         raise RecordingError(f'cannot read {path}: {exc}') from None
     if not rows:
         raise RecordingError(f'{path} holds no joint_states messages')
+    if ropes and max(ropes) - min(ropes) > HELD_ROPE:  # the model has one L1: the fit needs the rope held
+        raise RecordingError(f'the hoist moved during the recording (the rope from {min(ropes):.4g} to '
+                             f'{max(ropes):.4g} m): identify needs a recording with the rope held')
     data = np.array(sorted(rows))
     t0 = data[0, 0]
     reference = None

@@ -40,8 +40,9 @@ NETWORK = {'network.delay': 0.002, 'network.jitter': 0.0005, 'network.distributi
 NETWORK_OFF = {'network.delay': 0.0, 'network.jitter': 0.0, 'network.loss': 0.0}
 
 
-#: The hoisting cases: the upper cable from 0.47 to 0.27 m (m) while the cart travels, in this long (s).
-HOIST, HOIST_DURATION = (0.47, 0.27), 3.0
+#: The hoisting cases: the upper cable from 0.47 to 0.27 m (m) while the cart travels, in this long (s),
+#: and the move back: the hoisting NLP does not converge at 1.25 s (see the README), at 1.5 s in 5 iterations.
+HOIST, HOIST_DURATION, HOIST_RETURN = (0.47, 0.27), 3.0, 1.5
 
 #: The commissioning case's crane: unknown to the planner (L1 +12 %, L2 -10 %, m2 +15 %: the mass
 #: ratio 0.511 -> 0.546), with a little joint damping and a slower servo than the model's.
@@ -77,6 +78,9 @@ CASES = {
     'hoist': Case('hoist', CraneParams(), False, hoist=HOIST),
     'hoist+L2': Case('hoist+L2', CraneParams(L2=0.391 * 1.2), False, hoist=HOIST),
 }
+#: What runs without --cases: every case but perturbed+net (nothing perturbed and nominal+net do not show
+#: between them), so that make demo, hoisting included, stays under 5 minutes; --cases all runs every one.
+DEFAULT_CASES = tuple(name for name in CASES if name != 'perturbed+net')
 #: Table columns of the commission case: before and after identification.
 BEFORE, AFTER = 'commission:model', 'commission:identified'
 
@@ -108,16 +112,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0].split(': ', 1)[1])
     p.add_argument('--methods', default=','.join(DEMO_METHODS), metavar='M,M,...',
                    help=f'methods to run (default {",".join(DEMO_METHODS)})')
-    p.add_argument('--cases', default=','.join(CASES), metavar='C,C,...',
-                   help=f'cases to run, from {",".join(CASES)} (default all)')
+    p.add_argument('--cases', default=','.join(DEFAULT_CASES), metavar='C,C,...',
+                   help=f'cases to run, from {",".join(CASES)}, or all (default {",".join(DEFAULT_CASES)})')
     p.add_argument('--displacement', type=float, default=0.3, metavar='D', help='cart move (m), default 0.3')
     p.add_argument('--duration', type=float, default=2.5, metavar='T', help='motion time (s), default 2.5 (paper §5)')
     p.add_argument('--settle', type=float, default=2.0, metavar='S',
                    help='seconds of swing observed after each motion (default 2.0, more than the slow '
                         "mode's 1.73 s period)")
-    p.add_argument('--return-duration', type=float, default=1.25, metavar='T',
+    p.add_argument('--return-duration', type=float, default=1.0, metavar='T',
                    help='time (s) of the unmeasured move back between runs, starting as the observation '
-                        'ends (default 1.25)')
+                        'ends (default 1.0)')
     p.add_argument('--out', default='out', help='folder for figures and results (default out)')
     p.add_argument('--namespace', default='/crane_demo', help='namespace of the three nodes')
     p.add_argument('--domain-id', type=int, help='ROS_DOMAIN_ID (default: random, with localhost discovery)')
@@ -140,6 +144,7 @@ def _parse(argv) -> argparse.Namespace:
     from crane_planner.planning import METHODS
     methods = [m.strip() for m in args.methods.split(',') if m.strip()]
     cases = [c.strip() for c in args.cases.split(',') if c.strip()]
+    cases = list(CASES) if cases == ['all'] else cases
     bad = [m for m in methods if m not in METHODS] + [c for c in cases if c not in CASES]
     if bad or not methods or not cases:
         parser.exit(2, f'{PROG}: error: unknown method or case {", ".join(bad) or "(none given)"}\n')
@@ -177,7 +182,8 @@ def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: s
     # holds the goal until then, and the sim, playing the stream out by its stamps, shows the
     # window untouched.
     request_back(driver, start_ns + round(T * 1e9), end_ns)
-    back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns, hoist=back_hoist)
+    back_duration = args.return_duration if case.hoist is None else max(args.return_duration, HOIST_RETURN)
+    back_ns, _, _ = driver.move('nvf', D, 0.0, back_duration, start_ns=end_ns, hoist=back_hoist)
     rec = driver.states_between(start_ns, end_ns)
     action_residual = driver.move_result(start_ns).residual_swing  # what the caller of the action is told
     if len(rec) < 10:
@@ -190,7 +196,7 @@ def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: s
     # motion of 76 ms starts and ends at rest, so its knots carry no acceleration at all)
     plan_t, plan_p, plan_v, plan_a = _dense(plan_t, plan_p, plan_v, plan_a)
     # After the move back, zero the swing: the simulated crane has no damping to wait for.
-    back_end_ns = back_ns + round((args.return_duration + 0.05) * 1e9)
+    back_end_ns = back_ns + round((back_duration + 0.05) * 1e9)
     driver.sleep((back_end_ns - driver.now_ns()) * 1e-9)
     driver.wait_for_state_after(back_end_ns)
     driver.reset_sim()

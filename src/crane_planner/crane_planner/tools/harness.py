@@ -162,9 +162,11 @@ class CraneHarness:
 
     def lead(self) -> float:
         """Seconds between a request and its motion start: three times the slowest round trip
-        seen so far, at least 0.5 s (a request after a parameter change, on a machine also
-        recording at 1 kHz, has taken 0.4 s)."""
-        return max(0.5, 3.0 * self._slowest_plan)
+        seen so far, at least 0.3 s (the planner's publish_lead: it sends the trajectory at once
+        then). A request after a parameter change, on a machine also recording at 1 kHz, has
+        taken 0.4 s: such a motion reaches the streamer late and is streamed whole from its
+        next tick, and every window follows the start it really got (``streamed_start``)."""
+        return max(0.3, 3.0 * self._slowest_plan)
 
     def move(self, method: str, start: float, goal: float, duration: float, start_ns: int | None = None,
              settle: float = 0.0, hoist: tuple[float, float] | None = None):

@@ -28,7 +28,7 @@ class BagData:
     """What a recording holds, as arrays (times in s from the first joint_state)."""
 
     t0_ns: int
-    states: np.ndarray                 # (n, 4): t, cart, theta1, theta2
+    states: np.ndarray                 # (n, 5): t, cart, theta1, theta2, hoist (the rope length; NaN: none)
     reference: np.ndarray              # (m, 2): t, position
     motions: list                      # [(start t, duration, goal position)]
     timing: np.ndarray                 # (k, 4): t, lateness p50, p99, max (us)
@@ -55,13 +55,15 @@ def read_bag(path) -> BagData:
                 if name == 'joint_states':
                     index = {j: k for k, j in enumerate(msg.name)}
                     if all(j in index for j in ('cart', 'theta1', 'theta2')):
+                        hoist = msg.position[index['hoist']] if 'hoist' in index else math.nan
                         states.append((_ns(msg.header.stamp), *(msg.position[index[j]]
-                                                              for j in ('cart', 'theta1', 'theta2'))))
+                                                              for j in ('cart', 'theta1', 'theta2')), hoist))
                 elif name == 'reference' and getattr(msg, 'points', None):
-                    reference.append((_ns(msg.header.stamp), msg.points[0].positions[0]))
+                    reference.append((_ns(msg.header.stamp), msg.points[0].positions[_cart(msg)]))
                 elif name == 'trajectory' and msg.points:
                     last = msg.points[-1]
-                    motions.append((_ns(msg.header.stamp), _ns(last.time_from_start) * 1e-9, last.positions[0]))
+                    motions.append((_ns(msg.header.stamp), _ns(last.time_from_start) * 1e-9,
+                                    last.positions[_cart(msg)]))
                 elif name == 'diagnostics':
                     for status in msg.status:
                         if status.name.endswith(': stream'):
@@ -91,10 +93,19 @@ def read_bag(path) -> BagData:
     return data
 
 
+def _cart(msg) -> int:
+    """The cart's column of a JointTrajectory (the first when it names no cart)."""
+    names = list(msg.joint_names)
+    return names.index('cart') if 'cart' in names else 0
+
+
 def load_mm(data: BagData) -> np.ndarray:
-    """Horizontal offset (mm) of the load from its rest below the cart at each joint_state."""
+    """Horizontal offset (mm) of the load from its rest below the cart at each joint_state (with a hoist,
+    with the rope length that joint_state reports)."""
     from crane_sim.dynamics import load_excursion
-    return 1e3 * load_excursion(data.states[:, 2], data.states[:, 3], data.L1, data.L2)
+    rope = data.states[:, 4]
+    L1 = np.where(np.isnan(rope), data.L1, rope)
+    return 1e3 * load_excursion(data.states[:, 2], data.states[:, 3], L1, data.L2)
 
 
 def motion_table(data: BagData, settle: float | None = None) -> list[dict]:
