@@ -88,7 +88,7 @@ class DirectSolver(VariationalSolver):
         with self._transcriptions_lock:
             tr = self._transcriptions.get(key)
             if tr is None:
-                tr = self._transcriptions[key] = Transcription(self.problem(form), self.intervals,
+                tr = self._transcriptions[key] = Transcription(self.problem(form), self.intervals_for(form.hoist),
                                                                free_time or self.has_limits, free_time=free_time)
         return tr
 
