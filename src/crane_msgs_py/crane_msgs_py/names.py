@@ -36,8 +36,6 @@ SIM_JOINTS = (CART_JOINT, 'theta1', 'theta2')
 HOIST_JOINT = 'hoist'
 #: The actuated joints a setup may have, in their order in every array (contract "Joints and hoisting").
 ACTUATED_JOINTS = (CART_JOINT, HOIST_JOINT)
-#: joint_states of a crane with a hoist.
-HOIST_SIM_JOINTS = (CART_JOINT, HOIST_JOINT, 'theta1', 'theta2')
 
 
 def check_joints(joints, name: str = 'joints') -> tuple:

@@ -234,8 +234,7 @@ class _Stepper:
         dL = (x[8], x[8] + half[3], x[8] + c[3])
         constants = self._constants
 
-        def at(stage):
-            k = stage
+        def at(k):
             return lambda q, v, a: hoisting_accelerations(q, v, a, L[k], dL[k], c[k], *constants)
 
         return (at(0), at(1), at(2)), (L[2], dL[2], c[2])
@@ -246,17 +245,17 @@ class _Stepper:
         W, h, h2, h6 = self.W, self._h, self._h2, self._h6
         c = W[0] * x[2] + W[1] * r0 + W[2] * r1  # a(0+), a(h/2), a(h), v and y increments
         if self.hoist:
-            (f0, fm, f1_), hoist_end = self._hoist_stages(x, hoist0, hoist1)
+            (f_begin, f_mid, f_end), hoist_end = self._hoist_stages(x, hoist0, hoist1)
         else:
-            f0 = fm = f1_ = self.model.accelerations
+            f_begin = f_mid = f_end = self.model.accelerations
         q, v = x[3:5], x[5:7]
-        f1 = f0(q, v, c[0])
+        f1 = f_begin(q, v, c[0])
         v2 = v + h2 * f1
-        f2 = fm(q + h2 * v, v2, c[1])
+        f2 = f_mid(q + h2 * v, v2, c[1])
         v3 = v + h2 * f2
-        f3 = fm(q + h2 * v2, v3, c[1])
+        f3 = f_mid(q + h2 * v2, v3, c[1])
         v4 = v + h * f3
-        f4 = f1_(q + h * v3, v4, c[2])
+        f4 = f_end(q + h * v3, v4, c[2])
         out = np.empty_like(x)
         out[0] = x[0] + h * x[1] + c[4]
         out[1] = x[1] + c[3]

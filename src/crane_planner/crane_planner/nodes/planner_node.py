@@ -418,8 +418,6 @@ class PlannerNode(Node):
 
     def _trajectory_of(self, checked: CheckedMove, samples: list) -> JointTrajectory:
         """The trajectory of every joint the plan moves or holds (``axis_samples``: one Samples per joint)."""
-        if len(samples) == 1:
-            return samples_to_joint_trajectory(samples[0], checked.start, checked.start_ns, self._config.frame_id)
         return samples_to_joint_trajectory(samples, checked.starts, checked.start_ns, self._config.frame_id,
                                            joint=list(checked.joints))
 

@@ -54,7 +54,7 @@ from crane_msgs_py.qos import REFERENCE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
 from crane_planner.streaming.impairment import DISTRIBUTIONS, DelayLine, Impairment
-from crane_planner.streaming.reference_stream import ReferenceStream
+from crane_planner.streaming.reference_stream import ReferenceStream, position_text
 
 STREAM_TASK = 'stream'
 TRAJECTORY_TASK = 'trajectory'
@@ -195,8 +195,7 @@ class StreamerNode(Node):
         return (t, *(np.column_stack(c) for c in zip(*columns)))
 
     def _hold_text(self) -> str:
-        hold = self._stream.hold
-        return ', '.join(f'{x:g}' for x in hold) if isinstance(hold, tuple) else f'{hold:g}'
+        return position_text(self._stream.hold)
 
     # -- services ------------------------------------------------------------
 

@@ -21,7 +21,7 @@ from .collocation import CollocationPlan, Transcription
 from .free_time import FreeTimeSearch
 from .ipopt import Instance, IterationCallback
 from .plan import AxesPlan, PlanError
-from .problem import PROBLEM_PARAMETERS, Form, breakpoints, displacements
+from .problem import AXIS_STATES, PROBLEM_PARAMETERS, Form, breakpoints, displacements
 from .variational import VariationalSolver
 
 
@@ -83,7 +83,7 @@ class DirectSolver(VariationalSolver):
     def transcription(self, form, free_time: bool = False) -> Transcription:
         """The NLP of one model form (``problem.Form``, or ``servo`` without a hoist; of fixed or free final
         time), built on first use, shared with spawned solvers."""
-        form = form if isinstance(form, Form) else Form(bool(form))
+        form = Form.coerce(form)
         key = ('free', form) if free_time else form
         with self._transcriptions_lock:
             tr = self._transcriptions.get(key)
@@ -92,8 +92,7 @@ class DirectSolver(VariationalSolver):
                                                                free_time or self.has_limits, free_time=free_time)
         return tr
 
-    def _instance(self, form) -> Instance:
-        form = form if isinstance(form, Form) else Form(bool(form))
+    def _instance(self, form: Form) -> Instance:
         inst = self._instances.get(form)
         if inst is None:
             tr = self.transcription(form)
@@ -128,9 +127,9 @@ class DirectSolver(VariationalSolver):
                 self._free_time = FreeTimeSearch(self)
             return self._free_time.fastest(displacement, params)
 
-    def last_solution(self, form) -> dict:
+    def last_solution(self, form: Form) -> dict:
         """x0 / lam_x0 / lam_g0 of this solver's last fixed-duration solution of the model form ``form``."""
-        return self._instances[form if isinstance(form, Form) else Form(bool(form))].warm[1]
+        return self._instances[form].warm[1]
 
     def costates(self, displacement: float, duration: float, params: CraneParams, frac: np.ndarray):
         """Solve on the mesh ``frac`` and return the costate estimate (``Transcription.costate_estimate``).
@@ -139,15 +138,15 @@ class DirectSolver(VariationalSolver):
         """
         with self._lock:
             self._solve(displacement, duration, params, frac)
-            servo = params.tau > 0.0
-            return self.transcription(servo).costate_estimate(frac, self.last_solution(servo))
+            form = Form.of(params, False)
+            return self.transcription(form).costate_estimate(frac, self.last_solution(form))
 
     def _may_retry(self, t0: float) -> bool:
         """Whether a further attempt may start, the first having started at ``t0`` (see ``retry_window``)."""
         return self.max_solve_time is None or time.perf_counter() - t0 <= self.retry_window
 
     def bounds(self, tr: Transcription, displacement, duration: float, sx: np.ndarray, limits) -> dict:
-        """IPOPT's bounds: rest at both ends, and ``limits`` (v, a, j), or one such triple per axis."""
+        """IPOPT's bounds: rest at both ends, and ``limits``: (v, a, j) of each of the problem's axes."""
         pb = tr.problem
         x0, xT = pb.boundary(displacement)
         lbx = np.full(tr.nw, -np.inf)
@@ -158,10 +157,9 @@ class DirectSolver(VariationalSolver):
         lbg[tr.nres:end] = ubg[tr.nres:end] = xT
         if tr.limits:
             d = tr.degree
-            per_axis = [limits] if limits and not isinstance(limits[0], tuple) else list(limits)
-            per_axis += [(None, None, None)] * (len(pb.axes) - len(per_axis))
             bounds = []
-            for (vmax, amax, jmax), (v_state, a_state) in zip(per_axis, (('v', 'a'), ('hv', 'ha'))):
+            for (vmax, amax, jmax), axis in zip(limits, pb.axes, strict=True):
+                _, v_state, a_state, _ = AXIS_STATES[axis]
                 sa = sx[pb.states.index(a_state)]
                 vmax = np.inf if vmax is None else vmax / sx[pb.states.index(v_state)]
                 amax = np.inf if amax is None else amax / sa
@@ -281,7 +279,7 @@ class DirectSolver(VariationalSolver):
                     break
                 alone = tuple(getattr(self, n) if n == name else None for n in names)
                 with inst.callback.solving(self.deadline):  # counted and timed like every solve
-                    solver(p=pvec, **self.bounds(tr, displacement, duration, sx, alone), **cold)
+                    solver(p=pvec, **self.bounds(tr, displacement, duration, sx, [alone]), **cold)
                 if not solver.stats()['success']:
                     failing.append(name)
         culprits = failing or present

@@ -18,7 +18,7 @@ from typing import Callable
 from crane_msgs_py.params import CraneParams, ParameterError, check_choice, check_nonnegative, check_positive
 
 from .hoisting import HOIST_SHAPER_DESIGNS, check_hoist, shaped_hoisting_plan
-from .limits import axis_limit_error, check_fastest_request
+from .limits import axis_limit_error, check_fastest_request, hoist_limits_of, limits_of
 from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
 from .model import modal_properties
 from .plan import Plan, PlanError
@@ -134,16 +134,6 @@ def check_request(method: str, displacement, duration) -> tuple[float, float]:
 LIMITS = (('max_velocity', 'm/s'), ('max_acceleration', 'm/s^2'), ('max_jerk', 'm/s^3'))
 
 
-def limits_of(options: PlanOptions) -> tuple:
-    """(max_velocity, max_acceleration, max_jerk) of ``options``, None for none."""
-    return options.max_velocity, options.max_acceleration, options.max_jerk
-
-
-def hoist_limits_of(options: PlanOptions) -> tuple:
-    """(max_hoist_velocity, max_hoist_acceleration, max_hoist_jerk) of ``options``, None for none."""
-    return options.max_hoist_velocity, options.max_hoist_acceleration, options.max_hoist_jerk
-
-
 def check_axis_limits(plan, options: PlanOptions, axis: str = '') -> None:
     """PlanError naming the limit if the shaped plan's |v|, |a_ref| or |jerk| peak exceeds it
     (``axis`` 'hoist': the hoist's limits, named so).
@@ -217,9 +207,8 @@ def plan(method: str, displacement: float, duration: float, params: CraneParams 
             check_axis_limits(both.axes['cart'], options)
             check_axis_limits(both.axes['hoist'], options, 'hoist')
             return both
-        return (variational or _new_solver)(VariationalRequest('plan', method, (displacement, hoist_displacement),
-                                                               duration, params, hoisting_options(options)))
-    if method in SHAPER_METHODS:
+        displacement, options = (displacement, hoist_displacement), hoisting_options(options)
+    elif method in SHAPER_METHODS:
         omegas, zetas = shaper_design(params, options)
         shaped = shaped_plan(method, displacement, duration, omegas, zetas, options.base, limits_of(options))
         check_axis_limits(shaped, options)
@@ -244,15 +233,12 @@ def fastest(method: str, displacement: float, params: CraneParams | None = None,
         params, hoist_displacement = hoisting_request(params, options, hoist)
         if method in SHAPER_METHODS:
             raise PlanError('the fastest shaped plan with a hoist is not offered: give a duration, or use nvf/rvf')
-        if options.solver != 'direct':
-            raise PlanError('the fastest NVF/RVF plan needs the direct solver (free final time)')
-        return (variational or _new_solver)(VariationalRequest('fastest', method, (float(displacement),
-                                                                                    hoist_displacement),
-                                                               None, params, hoisting_options(options)))
-    limits = limits_of(options)
-    displacement = check_fastest_request(displacement, limits)  # before a solver is asked
-    if method in SHAPER_METHODS:
-        return fastest_shaped(method, displacement, *shaper_design(params, options), limits, options.base)
+        displacement, options = (float(displacement), hoist_displacement), hoisting_options(options)
+    else:
+        limits = limits_of(options)
+        displacement = check_fastest_request(displacement, limits)  # before a solver is asked
+        if method in SHAPER_METHODS:
+            return fastest_shaped(method, displacement, *shaper_design(params, options), limits, options.base)
     if options.solver != 'direct':
         raise PlanError('the fastest NVF/RVF plan needs the direct solver (free final time)')
     return (variational or _new_solver)(VariationalRequest('fastest', method, displacement, None, params, options))

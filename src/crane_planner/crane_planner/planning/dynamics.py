@@ -26,9 +26,9 @@ from crane_msgs_py.params import PARAMETER_NAMES
 #: Order of the model parameter vector ``p`` of every model here (CraneParams' fields).
 PARAMETERS = PARAMETER_NAMES
 SWING_STATES = ('theta1', 'theta2', 'dtheta1', 'dtheta2')
-IDEAL_STATES = ('y', 'v', 'a') + SWING_STATES
-SERVO_STATES = ('y', 'v', 'a', 'a_ref') + SWING_STATES
-#: The hoist's states (its displacement from the start length L1, rate, acceleration, reference acceleration).
+#: Each axis's states: position, velocity, acceleration and (with its servo) reference acceleration;
+#: the hoist's position is its displacement from the start length L1.
+CART_STATES = ('y', 'v', 'a', 'a_ref')
 HOIST_STATES = ('h', 'hv', 'ha', 'ha_ref')
 
 
@@ -155,7 +155,7 @@ def crane_ode(servo: bool, hoist: bool = False, hoist_servo: bool = False) -> Cr
     the cart's, then ``HOIST_STATES`` (``ha_ref`` only with ``hoist_servo``),
     then the swing.
     """
-    cart_names = ('y', 'v', 'a', 'a_ref') if servo else ('y', 'v', 'a')
+    cart_names = CART_STATES if servo else CART_STATES[:3]
     hoist_names = (HOIST_STATES if hoist_servo else HOIST_STATES[:3]) if hoist else ()
     names = cart_names + hoist_names + SWING_STATES
     x = ca.SX.sym('x', len(names))

@@ -12,6 +12,16 @@ import math
 from .plan import PlanError
 
 
+def limits_of(options) -> tuple:
+    """(max_velocity, max_acceleration, max_jerk) of ``options`` (a ``dispatch.PlanOptions``), None for none."""
+    return options.max_velocity, options.max_acceleration, options.max_jerk
+
+
+def hoist_limits_of(options) -> tuple:
+    """(max_hoist_velocity, max_hoist_acceleration, max_hoist_jerk) of ``options``, None for none."""
+    return options.max_hoist_velocity, options.max_hoist_acceleration, options.max_hoist_jerk
+
+
 def check_fastest_request(displacement: float, limits) -> float:
     """``displacement`` as float if a fastest plan of it within ``limits`` = (v, a, j) is a question at
     all, else PlanError: without a velocity or acceleration limit a motion could be arbitrarily fast,

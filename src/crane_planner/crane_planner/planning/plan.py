@@ -122,9 +122,6 @@ class AxesPlan(Plan):
     def peaks(self, *args) -> tuple[float, float, float]:
         return self.axes['cart'].peaks(*args)
 
-    def axis(self, name: str) -> Plan:
-        return self.axes[name]
-
     def evaluate_axis(self, name: str, t) -> Samples:
         """``name``'s samples at ``t``, its start added (the hoist's: the rope length in m)."""
         s = self.axes[name].evaluate(t)

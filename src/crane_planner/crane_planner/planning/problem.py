@@ -26,7 +26,7 @@ from scipy.optimize import brentq
 
 from crane_msgs_py.params import CraneParams
 
-from .dynamics import PARAMETERS, augment, crane_ode
+from .dynamics import CART_STATES, HOIST_STATES, PARAMETERS, augment, crane_ode
 from .profiles import QUINTIC
 
 #: Smallest position scale (m): a request for D = 0 is still well scaled.
@@ -96,6 +96,15 @@ class Form:
     def of(cls, params: CraneParams, hoist: bool) -> 'Form':
         return cls(params.tau > 0.0, hoist, hoist and params.tau_hoist > 0.0)
 
+    @classmethod
+    def coerce(cls, form) -> 'Form':
+        """``form`` itself, or for a bool ``servo`` the form of the crane without a hoist."""
+        return form if isinstance(form, cls) else cls(bool(form))
+
+
+#: Each axis's states (``dynamics``), by axis name.
+AXIS_STATES = {'cart': CART_STATES, 'hoist': HOIST_STATES}
+
 
 class Problem:
     """NVF (Eq. 10) or RVF (Eq. 15) for the crane, in scaled variables on s = t / T.
@@ -118,8 +127,7 @@ class Problem:
         G: the cost integrand in scaled units; J = T (P/T^3)^2 int_0^1 G ds.
     """
 
-    def __init__(self, robust: tuple, servo, hoist: bool = False, hoist_servo: bool = False):
-        form = servo if isinstance(servo, Form) else Form(bool(servo), hoist, hoist_servo)
+    def __init__(self, robust: tuple, form: Form):
         ode = crane_ode(form.servo, form.hoist, form.hoist_servo)
         self.ode = augment(ode, robust) if robust else ode
         self.form, self.servo = form, form.servo
@@ -156,15 +164,10 @@ class Problem:
         self.scales = ca.Function('scales', [P], [sx, su])
         # reference velocity and acceleration of each axis (for the axis limits), scaled by P/T and P/T^2
         ref_v, ref_a = [], []
-        for axis, (y, v, a, a_ref, servo_on, tc, scale) in zip(self.axes, (
-                ('y', 'v', 'a', 'a_ref', form.servo, par['tau'], Ps),
-                ('h', 'hv', 'ha', 'ha_ref', form.hoist_servo, par['tau_hoist'], par['P_hoist']))):
-            if servo_on:
-                ref_v.append((s[v] + tc * s[a]) / (scale / T))
-                ref_a.append(s[a_ref] / (scale / T ** 2))
-            else:
-                ref_v.append(s[v] / (scale / T))
-                ref_a.append(s[a] / (scale / T ** 2))
+        for axis, scale in zip(self.axes, (Ps, par['P_hoist'])):
+            _, v, a = self.reference(s, par['tau'], axis, par['tau_hoist'])
+            ref_v.append(v / (scale / T))
+            ref_a.append(a / (scale / T ** 2))
         self.reference_va = ca.Function('reference_va', [X, P], [ca.vertcat(*ref_v), ca.vertcat(*ref_a)])
 
     def parameters(self, displacement, duration: float, params: CraneParams,
@@ -183,13 +186,11 @@ class Problem:
         v_ref = v + tau a exactly; with tau = 0 the axis is the reference. The
         hoist's position is its displacement from the start length.
         """
-        if axis == 'hoist':
-            if self.form.hoist_servo:
-                return x['h'] + tau_hoist * x['hv'], x['hv'] + tau_hoist * x['ha'], x['ha_ref']
-            return x['h'], x['hv'], x['ha']
-        if self.servo:
-            return x['y'] + tau * x['v'], x['v'] + tau * x['a'], x['a_ref']
-        return x['y'], x['v'], x['a']
+        y, v, a, a_ref = AXIS_STATES[axis]
+        servo, tc = (self.form.hoist_servo, tau_hoist) if axis == 'hoist' else (self.form.servo, tau)
+        if servo:
+            return x[y] + tc * x[v], x[v] + tc * x[a], x[a_ref]
+        return x[y], x[v], x[a]
 
     def boundary(self, displacement) -> tuple[np.ndarray, np.ndarray]:
         """Scaled states at s = 0 and s = 1: rest at 0 and at D (and the hoist at D_h)."""

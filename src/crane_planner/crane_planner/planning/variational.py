@@ -12,7 +12,7 @@ import numpy as np
 
 from crane_msgs_py.params import CraneParams
 
-from .limits import axis_limit_error
+from .limits import axis_limit_error, hoist_limits_of, limits_of
 from .methods import VARIATIONAL_METHODS
 from .plan import Plan, PlanError
 from .problem import Form, Problem, Weights, displacements, graded_mesh, servo_layer, uniform_mesh
@@ -66,8 +66,7 @@ class VariationalSolver:
     @staticmethod
     def key(method: str, options) -> tuple:
         """Everything that makes two solvers differ: the NLP structure, the limit values and the time budget."""
-        return (*VariationalSolver.structure_of(method, options), options.max_velocity, options.max_acceleration,
-                options.max_jerk, hoist_limits_of(options),
+        return (*VariationalSolver.structure_of(method, options), *limits_of(options), hoist_limits_of(options),
                 options.max_solve_time)
 
     @staticmethod
@@ -75,8 +74,7 @@ class VariationalSolver:
         """What a solver builds depends on: the route, the method, intervals, robust set, whether limits are set."""
         return (options.solver, method, options.intervals or VariationalSolver.default_intervals,
                 tuple(options.robust) if method == 'rvf' else (),
-                any(x is not None for x in (options.max_velocity, options.max_acceleration, options.max_jerk,
-                                            *hoist_limits_of(options))))
+                any(x is not None for x in (*limits_of(options), *hoist_limits_of(options))))
 
     @property
     def structure(self) -> tuple:
@@ -104,7 +102,7 @@ class VariationalSolver:
 
     def problem(self, form) -> Problem:
         """The ``Problem`` of a ``problem.Form`` (or of ``servo``, a bool, without a hoist)."""
-        form = form if isinstance(form, Form) else Form(bool(form))
+        form = Form.coerce(form)
         if form not in self._problems:
             self._problems[form] = Problem(self.robust, form)
         return self._problems[form]
@@ -165,7 +163,3 @@ class VariationalSolver:
         """Solve one checked request on the mesh ``frac``; called under the solver's lock."""
         raise NotImplementedError
 
-
-def hoist_limits_of(options) -> tuple:
-    """(max_hoist_velocity, max_hoist_acceleration, max_hoist_jerk) of ``options``, None for none."""
-    return tuple(getattr(options, f'max_hoist_{q}', None) for q in ('velocity', 'acceleration', 'jerk'))

@@ -23,9 +23,6 @@ from ..planning.hoisting import QuinticPlan
 from ..planning.methods import METHODS
 from ..planning.plan import AxesPlan, Plan, PlanError
 
-#: The actuated joints a planner may serve, in their order in every array.
-JOINTS = ACTUATED_JOINTS
-
 
 class MoveError(PlanError):
     """A move refused; the message starts with the field it concerns (``move.<field>: ...``)."""

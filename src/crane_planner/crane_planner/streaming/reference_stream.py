@@ -68,11 +68,11 @@ class Motion:
 
     @property
     def summary(self) -> str:
-        return (f'{_text(self.position[0])} -> {_text(self.end_position)} m in {self.duration:.3f} s, '
+        return (f'{position_text(self.position[0])} -> {position_text(self.end_position)} m in {self.duration:.3f} s, '
                 f'{len(self.position)} ticks' + (f', started {self.late:.3f} s late' if self.late else ''))
 
 
-def _text(position) -> str:
+def position_text(position) -> str:
     """A position (m) of one joint or of several, for messages."""
     if isinstance(position, tuple):
         return '(' + ', '.join(f'{x:.6g}' for x in position) + ')'
@@ -98,7 +98,7 @@ class ReferenceStream:
         self.start_tolerance = float(start_tolerance)
         self.joints = 1 if np.ndim(hold) == 0 else len(hold)
         hold = float(hold) if np.ndim(hold) == 0 else tuple(float(x) for x in hold)
-        self._rest = 0.0 if self.joints == 1 and not isinstance(hold, tuple) else (0.0,) * self.joints
+        self._rest = (0.0,) * self.joints if isinstance(hold, tuple) else 0.0
         # The loop (sample) owns _hold and _motion; accept hands a motion over
         # through _incoming. The lock guards the hand-over and the state.
         self._lock = threading.Lock()
@@ -202,8 +202,9 @@ class ReferenceStream:
             hold = np.atleast_1d(self._hold)
             if np.max(np.abs(p - hold)) > self.start_tolerance:
                 jump = p - hold
-                raise ValueError(f'it starts at {_text(tuple(p) if several else p[0])} m, not at the hold position '
-                                 f'{_text(self._hold)} m (a jump of {_text(tuple(jump) if several else jump[0])} m)')
+                raise ValueError(f'it starts at {position_text(tuple(p) if several else p[0])} m, not at the hold '
+                                 f'position {position_text(self._hold)} m (a jump of '
+                                 f'{position_text(tuple(jump) if several else jump[0])} m)')
             epoch = self._epoch_ns
             first = self._tick() + 2  # a tick the loop cannot have reached yet
             offset = late = 0  # offset: time (ns) into the motion at the first tick
