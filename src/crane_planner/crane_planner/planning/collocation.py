@@ -210,8 +210,10 @@ class Transcription:
         lam = -mu / np.tile(self.B[1:], self.intervals)
         return self.node_times(frac), self.states(w), np.hstack([lam[:, :1], lam])
 
-    def guess(self, displacement: float, frac: np.ndarray) -> np.ndarray:
+    def guess(self, displacement, frac: np.ndarray, x0: np.ndarray | None = None,
+              xT: np.ndarray | None = None) -> np.ndarray:
+        """The NLP variables of ``Problem.initial_guess`` (rest to rest, or from the scaled start ``x0``)."""
         s = self.node_times(frac)
-        X, U = self.problem.initial_guess(displacement, s)
+        X, U = self.problem.initial_guess(displacement, s, x0, xT)
         body = np.vstack([X[:, 1:], U[:, 1:]])
         return np.concatenate([X[:, 0], body.T.ravel()])

@@ -145,16 +145,20 @@ class DirectSolver(VariationalSolver):
         """Whether a further attempt may start, the first having started at ``t0`` (see ``retry_window``)."""
         return self.max_solve_time is None or time.perf_counter() - t0 <= self.retry_window
 
-    def bounds(self, tr: Transcription, displacement, duration: float, sx: np.ndarray, limits) -> dict:
-        """IPOPT's bounds: rest at both ends, and ``limits``: (v, a, j) of each of the problem's axes."""
+    def bounds(self, tr: Transcription, displacement, duration: float, sx: np.ndarray, limits,
+               start: dict | None = None, free_end: bool = False) -> dict:
+        """IPOPT's bounds: the ends (``Problem.boundary``: rest, or ``start``; a free end position with
+        ``free_end``), and ``limits``: (v, a, j) of each of the problem's axes."""
         pb = tr.problem
-        x0, xT = pb.boundary(displacement)
+        x0, xT = pb.boundary(displacement, sx, start, free_end)
         lbx = np.full(tr.nw, -np.inf)
         ubx = np.full(tr.nw, np.inf)
         lbx[:pb.nx] = ubx[:pb.nx] = x0
         lbg, ubg = np.zeros(tr.ng), np.zeros(tr.ng)
         end = tr.nres + pb.nx
-        lbg[tr.nres:end] = ubg[tr.nres:end] = xT
+        free = np.isnan(xT)
+        lbg[tr.nres:end] = np.where(free, -np.inf, xT)
+        ubg[tr.nres:end] = np.where(free, np.inf, xT)
         if tr.limits:
             d = tr.degree
             bounds = []
@@ -170,7 +174,7 @@ class DirectSolver(VariationalSolver):
             lbg[end:], ubg[end:] = -bound, bound
         return dict(lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
 
-    def _solve(self, displacement, duration, params, frac):
+    def _solve(self, displacement, duration, params, frac, start: dict | None = None, free_end: bool = False):
         hoisting = displacements(displacement)[1] is not None
         form = Form.of(params, hoisting)
         t_build, built = time.perf_counter(), form not in self._instances
@@ -178,16 +182,21 @@ class DirectSolver(VariationalSolver):
         build_time = time.perf_counter() - t_build if built else 0.0
         tr, solver = inst.transcription, inst.solver
         pb = tr.problem
-        pvec = np.concatenate([pb.parameters(displacement, duration, params, self.weights), frac])
+        pvec = np.concatenate([pb.parameters(displacement, duration, params, self.weights, start), frac])
         sx, su = pb.scales(pvec[:len(PROBLEM_PARAMETERS)])
         sx, su = np.array(sx, dtype=float).ravel(), np.array(su, dtype=float).ravel()
-        args = dict(p=pvec, **self.bounds(tr, displacement, duration, sx, self.axis_limits(hoisting)))
+        args = dict(p=pvec, **self.bounds(tr, displacement, duration, sx, self.axis_limits(hoisting), start, free_end))
         t0 = time.perf_counter()
+        # plans from a state keep their own warm start: a rest-to-rest solution is a poor start for a
+        # stop, and a stop's would spoil the next rest-to-rest request
+        slot = 'warm_state' if start is not None or free_end else 'warm'
+        x0, xT = (pb.boundary(displacement, sx, start, free_end) if slot == 'warm_state' else (None, None))
 
         def cold():  # the initial guess; only computed when needed
-            return dict(x0=tr.guess(displacement, frac))
+            return dict(x0=tr.guess(displacement, frac, x0, xT))
 
-        warm = self.warm_start(inst.warm, displacement) if inst.warm is not None else None
+        kept = getattr(inst, slot, None)
+        warm = self.warm_start(kept, displacement) if kept is not None else None
         starts = ([lambda: warm] if warm is not None else []) + [cold]
         for k, start in enumerate(starts):
             if k and not self._may_retry(t0):
@@ -199,25 +208,32 @@ class DirectSolver(VariationalSolver):
                 break
         solve_time = time.perf_counter() - t0
         if not stats['success']:
-            raise PlanError(self._failure_message(stats, inst, displacement, duration, pvec, sx, cold(), t0))
-        inst.warm = (self.sign(displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
+            raise PlanError(self._failure_message(stats, inst, displacement, duration, pvec, sx, cold(), t0,
+                                                  start, free_end))
+        setattr(inst, slot, (self.sign(displacement), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g'])))
         info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),
                 'solve_time_s': solve_time, 'build_time_s': build_time,
                 'objective': float(sol['f']) * duration * su[0] ** 2, 'intervals': tr.intervals,
                 'robust': list(self.robust), 'sensitivities': list(pb.robust), 'servo_model': form.servo}
         if hoisting:
             info['hoist_servo_model'] = form.hoist_servo
-        return self.plan_of(tr, np.array(sol['x']).ravel(), sx, displacement, duration, frac, params, info)
+        if start is not None:
+            info['from_state'] = True
+        return self.plan_of(tr, np.array(sol['x']).ravel(), sx, displacement, duration, frac, params, info, free_end)
 
-    def plan_of(self, tr, w, sx, displacement, duration, frac, params, info) -> CollocationPlan | AxesPlan:
+    def plan_of(self, tr, w, sx, displacement, duration, frac, params, info,
+                free_end: bool = False) -> CollocationPlan | AxesPlan:
         """The CollocationPlan of the solution ``w`` (states scaled by ``sx``) lasting ``duration`` s; with a
-        hoist an AxesPlan of the cart's and the hoist's."""
+        hoist an AxesPlan of the cart's and the hoist's. With ``free_end`` (a stop) each axis's displacement
+        is where the solution ends."""
         pb = tr.problem
         nodes = tr.interval_nodes(w) * sx  # (N, d+1, nx), SI units
         x = {n: nodes[:, :, i] for i, n in enumerate(pb.states)}
         plans = {}
         for axis, D in zip(pb.axes, displacements(displacement)):
             pos, vel, acc = pb.reference(x, params.tau, axis, params.tau_hoist)
+            if free_end:
+                D = pos[-1, -1]
             plans[axis] = CollocationPlan(self.method, float(D), float(duration), info,
                                           mesh=duration * breakpoints(frac), coef=acc @ tr.basis,
                                           start=np.stack([pos[:, 0], vel[:, 0]], axis=1))
@@ -253,10 +269,12 @@ class DirectSolver(VariationalSolver):
             return None
         return {k: -v for k, v in start.items()}
 
-    def _failure_message(self, stats, inst: Instance, displacement, duration, pvec, sx, cold, t0) -> str:
+    def _failure_message(self, stats, inst: Instance, displacement, duration, pvec, sx, cold, t0,
+                         start=None, free_end=False) -> str:
         tr, solver = inst.transcription, inst.solver
         D, Dh = displacements(displacement)
-        where = f'D={D:g} m, ' + (f'hoist {Dh:+g} m, ' if Dh is not None else '') + f'T={duration:g} s'
+        where = (('a stop, ' if free_end else '') + f'D={D:g} m, '
+                 + (f'hoist {Dh:+g} m, ' if Dh is not None else '') + f'T={duration:g} s')
         status = stats['return_status']
         if status == 'Maximum_WallTime_Exceeded':
             cap = (f'max_solve_time {self.max_solve_time:g} s' if self.max_solve_time is not None
@@ -279,7 +297,7 @@ class DirectSolver(VariationalSolver):
                     break
                 alone = tuple(getattr(self, n) if n == name else None for n in names)
                 with inst.callback.solving(self.deadline):  # counted and timed like every solve
-                    solver(p=pvec, **self.bounds(tr, displacement, duration, sx, [alone]), **cold)
+                    solver(p=pvec, **self.bounds(tr, displacement, duration, sx, [alone], start, free_end), **cold)
                 if not solver.stats()['success']:
                     failing.append(name)
         culprits = failing or present

@@ -156,7 +156,9 @@ def check_axis_limits(plan, options: PlanOptions, axis: str = '') -> None:
 class VariationalRequest:
     """A checked NVF/RVF request, as a solver runs it (and a worker process receives it).
 
-    ``operation`` ``plan``: from 0 to ``displacement`` (m) in ``duration`` (s);
+    ``operation`` ``plan``: from 0 to ``displacement`` (m) in ``duration`` (s),
+    from rest or from ``start`` (SI values of the problem's states by name,
+    ``continuation.problem_start``), with ``free_end`` to rest anywhere (a stop);
     ``fastest``: the shortest plan within the options' limits (``duration`` None).
     """
 
@@ -166,12 +168,16 @@ class VariationalRequest:
     duration: float | None
     params: CraneParams
     options: PlanOptions
+    start: dict | None = None
+    free_end: bool = False
 
     def run(self, solver) -> Plan:
         """This request on ``solver`` (a ``variational.VariationalSolver`` for this method and options)."""
         if self.operation == 'fastest':
             return solver.fastest(self.displacement, self.params)
-        return solver.solve(self.displacement, self.duration, self.params)
+        if self.start is None and not self.free_end:
+            return solver.solve(self.displacement, self.duration, self.params)
+        return solver.solve(self.displacement, self.duration, self.params, self.start, self.free_end)
 
 
 #: Runs a VariationalRequest on some solver and returns its plan.

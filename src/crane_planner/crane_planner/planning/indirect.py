@@ -153,7 +153,8 @@ class IndirectSolver(VariationalSolver):
         tpbvp, linearized = self._tpbvps[servo]
         pb = tpbvp.problem
         pvec = pb.parameters(displacement, duration, params, self.weights)
-        x0, xT = pb.boundary(displacement)
+        sx, _ = pb.scales(pvec)
+        x0, xT = pb.boundary(displacement, np.array(sx, dtype=float).ravel())
         if self.start is None:
             t0 = time.perf_counter()
             s = breakpoints(frac)

@@ -76,4 +76,5 @@ class Instance:
     solver: ca.Function
     callback: IterationCallback
     warm: tuple | None = None  # (sign of D, x0 / lam_x0 / lam_g0 of the solution)
+    warm_state: tuple | None = None  # the same of the last plan from a state (``continuation``)
     T0: float | None = None  # free-time instances: the duration T = sigma T0 is scaled by

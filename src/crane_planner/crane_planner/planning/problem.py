@@ -170,12 +170,27 @@ class Problem:
             ref_a.append(a / (scale / T ** 2))
         self.reference_va = ca.Function('reference_va', [X, P], [ca.vertcat(*ref_v), ca.vertcat(*ref_a)])
 
-    def parameters(self, displacement, duration: float, params: CraneParams,
-                   weights: Weights) -> np.ndarray:
+    def parameters(self, displacement, duration: float, params: CraneParams, weights: Weights,
+                   start: dict | None = None) -> np.ndarray:
+        """The NLP parameter vector (``PROBLEM_PARAMETERS``) of a request.
+
+        The position scales P and P_hoist are the displacements, and with a
+        ``start`` (SI state values by name, see ``boundary``) also what the
+        start's velocity, acceleration and swing would carry the axis in T,
+        so a stop (D ~ 0) or a settle (D = 0, the swing alone) is well scaled too.
+        """
         D, Dh = displacements(displacement)
-        values = dict(params.as_dict(), T=duration, P=max(abs(D), P_MIN),
+        P, H = max(abs(D), P_MIN), max(abs(Dh or 0.0), P_MIN)
+        if start:
+            T, g = duration, params.g
+            x = {k: abs(v) for k, v in start.items()}
+            P = max(P, x.get('y', 0.0), x.get('v', 0.0) * T, x.get('a', 0.0) * T ** 2, x.get('a_ref', 0.0) * T ** 2,
+                    *(g * T ** 2 * x.get(n, 0.0) for n in ('theta1', 'theta2')),
+                    *(g * T ** 3 * x.get(n, 0.0) for n in ('dtheta1', 'dtheta2')))
+            H = max(H, x.get('h', 0.0), x.get('hv', 0.0) * T, x.get('ha', 0.0) * T ** 2, x.get('ha_ref', 0.0) * T ** 2)
+        values = dict(params.as_dict(), T=duration, P=P,
                       acceleration_weight=weights.acceleration, sensitivity_weight=weights.sensitivity,
-                      reference_jerk_weight=weights.reference_jerk, P_hoist=max(abs(Dh or 0.0), P_MIN),
+                      reference_jerk_weight=weights.reference_jerk, P_hoist=H,
                       hoist_weight=weights.hoist)
         return np.array([values[k] for k in PROBLEM_PARAMETERS], dtype=float)
 
@@ -192,33 +207,67 @@ class Problem:
             return x[y] + tc * x[v], x[v] + tc * x[a], x[a_ref]
         return x[y], x[v], x[a]
 
-    def boundary(self, displacement) -> tuple[np.ndarray, np.ndarray]:
-        """Scaled states at s = 0 and s = 1: rest at 0 and at D (and the hoist at D_h)."""
-        D, Dh = displacements(displacement)
-        x0 = np.zeros(self.nx)
-        xT = np.zeros(self.nx)
-        xT[self.states.index('y')] = D / max(abs(D), P_MIN)
-        if self.form.hoist:
-            xT[self.states.index('h')] = (Dh or 0.0) / max(abs(Dh or 0.0), P_MIN)
-        return x0, xT
+    def boundary(self, displacement, sx: np.ndarray, start: dict | None = None,
+                 free_end: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Scaled states at s = 0 and s = 1 (``sx``: the state scales of ``scales``).
 
-    def initial_guess(self, displacement, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Scaled states (nx, len(s)) and inputs (nu, len(s)) of the rest-to-rest quintic with quasi-static swing.
-
-        theta1 ~ a/g and dtheta1 ~ jerk/g, which in scaled units are A and U.
+        At s = 0 rest, or ``start``: SI values of states by name (the others
+        0; sensitivities are always 0 there, the start being known), positions
+        relative to where the plan's reference starts (``continuation``). At
+        s = 1 rest at D (and the hoist at D_h); with ``free_end`` the axes'
+        positions are free (NaN): a stop.
         """
         D, Dh = displacements(displacement)
-        k = D / max(abs(D), P_MIN)
-        q = [k * poly.polyval(s, QUINTIC[i]) for i in range(4)]
-        guess = {'y': q[0], 'v': q[1], 'a': q[2], 'a_ref': q[2], 'theta1': q[2], 'dtheta1': q[3]}
-        U = [q[3]]
-        if self.form.hoist:
-            kh = (Dh or 0.0) / max(abs(Dh or 0.0), P_MIN)
-            qh = [kh * poly.polyval(s, QUINTIC[i]) for i in range(4)]
-            guess.update({'h': qh[0], 'hv': qh[1], 'ha': qh[2], 'ha_ref': qh[2]})
-            U.append(qh[3])
+        x0 = np.zeros(self.nx)
+        for name, value in (start or {}).items():
+            if name in self.states and '/' not in name:
+                x0[self.states.index(name)] = value / sx[self.states.index(name)]
+        xT = np.zeros(self.nx)
+        ends = [('y', D)] + ([('h', Dh or 0.0)] if self.form.hoist else [])
+        for name, value in ends:
+            i = self.states.index(name)
+            xT[i] = np.nan if free_end else value / sx[i]
+        return x0, xT
+
+    def initial_guess(self, displacement, s: np.ndarray, x0: np.ndarray | None = None,
+                      xT: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Scaled states (nx, len(s)) and inputs (nu, len(s)) of a quintic with quasi-static swing.
+
+        From rest to rest the quintic of D; from a scaled start ``x0`` to the
+        end ``xT`` (``boundary``) the quintic that starts with x0's position,
+        velocity and acceleration and ends at rest at xT's position (a free one:
+        where the start's velocity carries it in half the time), the start's
+        swing fading out linearly. In scaled units a state's s-derivative is
+        the next state, and theta1 ~ a/g, dtheta1 ~ jerk/g are A and U.
+        """
+        D, Dh = displacements(displacement)
+        axes = [('y', 'v', 'a', 'a_ref', D)] + ([('h', 'hv', 'ha', 'ha_ref', Dh or 0.0)] if self.form.hoist else [])
+        guess, U = {}, []
+        for y, v, a, a_ref, d in axes:
+            k = d / max(abs(d), P_MIN)
+            if x0 is None:
+                q = [k * poly.polyval(s, QUINTIC[i]) for i in range(4)]
+            else:
+                p0, v0, a0 = (x0[self.states.index(n)] for n in (y, v, a))
+                end = xT[self.states.index(y)]
+                p1 = p0 + v0 / 2 if np.isnan(end) else end
+                c = _hermite5(p0, v0, a0, p1)
+                q = [poly.polyval(s, poly.polyder(c, i)) for i in range(4)]
+            guess.update({y: q[0], v: q[1], a: q[2], a_ref: q[2]})
+            U.append(q[3])
+        guess.update(theta1=guess['a'], dtheta1=U[0])
+        if x0 is not None:
+            for n in ('theta1', 'theta2', 'dtheta1', 'dtheta2'):
+                guess[n] = guess.get(n, 0.0 * s) + x0[self.states.index(n)] * (1.0 - s)
         X = np.array([guess.get(n, 0.0 * s) for n in self.states])
         return X, np.array(U)
+
+
+def _hermite5(p0: float, v0: float, a0: float, p1: float) -> np.ndarray:
+    """Coefficients (powers of s) of the quintic on [0, 1] from (p0, v0, a0) to rest at p1."""
+    rhs = [p1 - p0 - v0 - a0 / 2, -v0 - a0, -a0]  # p, p', p'' at s = 1 less what the first three terms give
+    c345 = np.linalg.solve([[1.0, 1.0, 1.0], [3.0, 4.0, 5.0], [6.0, 12.0, 20.0]], rhs)
+    return np.concatenate([[p0, v0, a0 / 2], c345])
 
 
 def uniform_mesh(intervals: int) -> np.ndarray:

@@ -127,8 +127,13 @@ class VariationalSolver:
         """Collocation intervals of the model without or with a hoist."""
         return self.hoist_intervals if hoisting else self.intervals
 
-    def solve(self, displacement, duration: float, params: CraneParams) -> Plan:
+    def solve(self, displacement, duration: float, params: CraneParams, start: dict | None = None,
+              free_end: bool = False) -> Plan:
         """The plan from 0 to ``displacement`` (m) in ``duration`` (s) for the model ``params``.
+
+        From rest, or from ``start`` (SI values of the problem's states by
+        name, ``continuation.problem_start``); with ``free_end`` the end
+        position is free (a stop: ``displacement`` then only sets the scale).
 
         ``displacement`` is the cart's (a number), or the cart's and the
         hoist's (a pair: the hoist from the model's L1 to L1 + the second,
@@ -139,7 +144,9 @@ class VariationalSolver:
         D, Dh = displacements(displacement)
         if Dh is not None and not self.handles_hoist:
             raise PlanError(f'the {self.route} solver does not plan a hoist; use the direct solver')
-        if Dh is not None:
+        if start is not None and self.route != 'direct':
+            raise PlanError(f'planning from a moving state needs the direct solver, not the {self.route} one')
+        if Dh is not None and start is None and not free_end:
             err = axis_limit_error(Dh, duration, *self.hoist_limits, axis='hoist')
             if err is not None:
                 raise err
@@ -152,14 +159,17 @@ class VariationalSolver:
         if self.max_solve_time is not None and not self.handles_time_budget:
             raise PlanError(f'the {self.route} solver cannot bound its solve time (max_solve_time); '
                             'use the direct solver')
-        err = axis_limit_error(D, duration, *self.limits)
-        if err is not None:
+        err = axis_limit_error(D, duration, *self.limits) if start is None and not free_end else None
+        if err is not None:  # (from a state the rest-to-rest conditions do not apply: IPOPT decides)
             raise err
         frac = self.mesh(duration, params, Dh is not None)
         with self._lock:
-            return self._solve(displacement, duration, params, frac)
+            if start is None and not free_end:
+                return self._solve(displacement, duration, params, frac)
+            return self._solve(displacement, duration, params, frac, start, free_end)
 
-    def _solve(self, displacement, duration: float, params: CraneParams, frac: np.ndarray) -> Plan:
+    def _solve(self, displacement, duration: float, params: CraneParams, frac: np.ndarray,
+               start: dict | None = None, free_end: bool = False) -> Plan:
         """Solve one checked request on the mesh ``frac``; called under the solver's lock."""
         raise NotImplementedError
 

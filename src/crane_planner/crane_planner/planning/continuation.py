@@ -1,0 +1,296 @@
+"""Motion from any state (beyond the paper): a new goal mid-move, a stop, damping a swinging load.
+
+The variational formulation takes any initial state: its boundary conditions
+are just numbers (``Problem.boundary``). A plan from a state starts where the
+reference is at the handover (position, velocity, acceleration of each axis)
+with the swing there, and ends at rest at a goal, or anywhere (a stop,
+``free_end``), or where it started (a settle). ``MotionState`` is that state;
+``problem_start`` turns it into the problem's states (the servo's lag
+included); ``predict`` carries a measured state forward along a known
+reference to the handover with the planning model.
+
+Shapers cannot start from a swing they did not cause. What they can do is
+shape a *change*: the linear crane's response to sum_i A_i q(t - t_i) is
+zero after the shaper for every rest-to-rest q, and a change of the command
+at t_h is such a q starting at t_h, so ``Continuation`` (the running
+reference, continued, plus the shaped change) still leaves no swing on the
+linear model. A stop is such a change too: the base command brought to rest
+as fast as the limits allow from where it is at t_h (``shaped_stop``), which
+needs the running plan's own base and shaper (a ``ShapedPlan``).
+
+Pure Python, no ROS import.
+"""
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from crane_msgs_py.params import CraneParams
+
+from .dynamics import PARAMETERS, crane_ode
+from .model import modal_frequencies
+from .plan import Plan, PlanError
+from .problem import Form
+from .profiles import ORDER, BaseProfile
+from .shaped import ShapedPlan
+
+
+@dataclass(frozen=True)
+class MotionState:
+    """The crane at one instant, SI units.
+
+    Attributes:
+        cart: the cart reference's (position m, velocity m/s, acceleration m/s^2).
+        swing: (theta1, theta2, dtheta1, dtheta2) in rad and rad/s.
+        cart_lag: the actual cart's position less the reference's (m); None =
+            steady tracking by the servo (Eq. 6), i.e. -tau (v - tau a).
+        hoist: the hoist reference's (rope length L1 m, its rate, its
+            acceleration), or None without a hoist axis.
+        hoist_lag: the actual rope length less the reference's (m); None = steady.
+    """
+
+    cart: tuple = (0.0, 0.0, 0.0)
+    swing: tuple = (0.0, 0.0, 0.0, 0.0)
+    cart_lag: float | None = None
+    hoist: tuple | None = None
+    hoist_lag: float | None = None
+
+    def __post_init__(self):
+        values = [*self.cart, *self.swing, *(self.hoist or ()), self.cart_lag or 0.0, self.hoist_lag or 0.0]
+        if len(self.cart) != 3 or len(self.swing) != 4 or (self.hoist is not None and len(self.hoist) != 3):
+            raise PlanError('a motion state needs the cart (p, v, a), the swing (theta1, theta2, dtheta1, '
+                            'dtheta2) and optionally the hoist (L1, rate, acceleration)')
+        if not all(math.isfinite(float(x)) for x in values):
+            raise PlanError('a motion state must be finite')
+
+    @property
+    def at_rest(self) -> bool:
+        """Whether every axis and the swing are still (to 1e-9)."""
+        moving = [*self.cart[1:], *self.swing, *(self.hoist[1:] if self.hoist else ())]
+        return max(abs(x) for x in moving) < 1e-9
+
+
+def _servo_start(p_lag: float | None, v: float, a: float, tau: float) -> tuple[float, float, float]:
+    """(position less the reference's, velocity, acceleration) of an axis whose reference moves at (v, a).
+
+    The servo tau y' + y = y_ref of Eq. 6 (its derivatives give the model's
+    tau a' + a = a_ref): with the lag y - y_ref known the actual velocity is
+    -lag / tau and the acceleration (v_ref - velocity) / tau; steady tracking
+    (lag None) has the velocity v - tau a.
+    """
+    if tau == 0.0:
+        return 0.0, v, a
+    velocity = v - tau * a if p_lag is None else -p_lag / tau
+    lag = -tau * velocity if p_lag is None else p_lag
+    return lag, velocity, (v - velocity) / tau
+
+
+def problem_start(state: MotionState, params: CraneParams) -> tuple[dict, CraneParams]:
+    """(start, params): the problem's states at the start (SI, by name, ``Problem.boundary``) and the model.
+
+    Positions are relative to the cart reference's position; with a hoist
+    the model's L1 is the actual rope length then (the hoist's h starts at 0),
+    so the plan's hoist reference, L1 + h + tau_hoist h', starts at the
+    reference's length.
+    """
+    p, v, a = (float(x) for x in state.cart)
+    lag, velocity, acceleration = _servo_start(state.cart_lag, v, a, params.tau)
+    start = {'y': lag, 'v': velocity, 'a': acceleration, 'a_ref': a}
+    start.update(zip(('theta1', 'theta2', 'dtheta1', 'dtheta2'), (float(x) for x in state.swing)))
+    if state.hoist is not None:
+        L, Lv, La = (float(x) for x in state.hoist)
+        lag, velocity, acceleration = _servo_start(state.hoist_lag, Lv, La, params.tau_hoist)
+        start.update(h=0.0, hv=velocity, ha=acceleration, ha_ref=La)
+        if not L + lag > 0.0:
+            raise PlanError(f'the rope length must be > 0 m, got {L + lag:g} m')
+        params = params.replace(L1=L + lag)
+    return start, params
+
+
+# -- prediction ----------------------------------------------------------------------------------------------
+
+
+@functools.lru_cache(maxsize=None)
+def _rk4_step(form: Form) -> tuple[ca.Function, tuple]:
+    """(step, state names): one classic RK4 step x(t + h) of the planning model, its input (the
+    reference jerk per axis) given at t, t + h/2 and t + h: one CasADi call per step."""
+    ode = crane_ode(form.servo, form.hoist, form.hoist_servo)
+    f = ode.function()
+    u0, um, u1 = (ca.SX.sym(n, ode.u.shape[0]) for n in ('u0', 'um', 'u1'))
+    h = ca.SX.sym('h')
+    x, p = ode.x, ode.p
+    k1 = f(x, u0, p)
+    k2 = f(x + h / 2 * k1, um, p)
+    k3 = f(x + h / 2 * k2, um, p)
+    k4 = f(x + h * k3, u1, p)
+    step = ca.Function('rk4', [x, u0, um, u1, p, h], [x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
+    return step, ode.states
+
+
+def predict(measured: MotionState, reference, t_measured: float, t_handover: float, params: CraneParams,
+            step: float = 1e-3) -> MotionState:
+    """The state at ``t_handover`` (s) of a crane measured at ``t_measured``, driven meanwhile by ``reference``.
+
+    ``measured`` holds the reference at ``t_measured`` with the actual axes
+    (``cart_lag``, ``hoist_lag``) and the measured swing; ``reference(t)``
+    gives the reference's (position, velocity, acceleration, jerk) per axis
+    at the times ``t`` (an array), a list with the cart's first. The planning model
+    (``dynamics.crane_ode``, Eqs. 18-19 with the servo of Eq. 6, the hoist's
+    Lagrangian with one) is integrated by RK4 with the reference's jerk as
+    input. With ``t_handover`` before ``t_measured`` the measured state is
+    taken as it is (a measurement newer than the handover).
+    """
+    hoist = measured.hoist is not None
+    form = Form.of(params, hoist)
+    start, model = problem_start(measured, params)
+    rk4, names = _rk4_step(form)
+    values = model.as_dict()
+    p = np.array([values[k] for k in PARAMETERS])
+    x = np.array([start.get(n, 0.0) for n in names])
+    span = t_handover - t_measured
+    n = max(0, int(math.ceil(span / step - 1e-9)))
+    h = span / n if n else 0.0
+    if n:  # the reference's jerk at every stage time, in one call
+        jerk = np.array([r[3] for r in reference(t_measured + h / 2 * np.arange(2 * n + 1))])[:2 if hoist else 1]
+        for k in range(n):
+            x = np.asarray(rk4(x, jerk[:, 2 * k], jerk[:, 2 * k + 1], jerk[:, 2 * k + 2], p, h)).ravel()
+    s = dict(zip(names, x))
+    refs = reference(np.array([t_handover])) if n else None
+    cart = tuple(float(r[0]) for r in refs[0][:3]) if n else measured.cart
+    # positions in the model are relative to the cart reference at t_measured: the lag is y - (p_h - p_m)
+    cart_lag = s['y'] - (cart[0] - measured.cart[0])
+    swing = tuple(float(s[k]) for k in ('theta1', 'theta2', 'dtheta1', 'dtheta2'))
+    if not hoist:
+        return MotionState(cart, swing, cart_lag)
+    hoist_ref = tuple(float(r[0]) for r in refs[1][:3]) if n else measured.hoist
+    return MotionState(cart, swing, cart_lag, hoist_ref, model.L1 + s['h'] - hoist_ref[0])
+
+
+# -- how long a stop and a settle take --------------------------------------------------------------------
+
+
+def first_period(params: CraneParams, length: float | None = None) -> float:
+    """The first mode's period (s) of the linearized crane (at the rope length ``length``, default L1)."""
+    model = params if length is None else params.replace(L1=length)
+    return 2.0 * math.pi / modal_frequencies(model)[0]
+
+
+def braking_time(velocity: float, acceleration: float, max_acceleration: float, max_jerk: float | None) -> float:
+    """Shortest time (s) to bring a reference moving at (v, a) to rest within |a| <= max_acceleration and
+    |jerk| <= max_jerk (ruckig's velocity interface, the jerk-limited time-optimal profile)."""
+    from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
+    inp = InputParameter(1)
+    inp.control_interface = ControlInterface.Velocity
+    inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [velocity], [acceleration]
+    inp.target_velocity, inp.target_acceleration = [0.0], [0.0]
+    inp.max_velocity = [1e9]
+    inp.max_acceleration = [max(max_acceleration, abs(acceleration))]
+    inp.max_jerk = [max_jerk if max_jerk is not None else math.inf]
+    trajectory = Trajectory(1)
+    result = Ruckig(1).calculate(inp, trajectory)
+    if result not in (Result.Working, Result.Finished):
+        raise PlanError(f'no stop profile from v={velocity:g} m/s, a={acceleration:g} m/s^2 (ruckig: {result})')
+    return float(trajectory.duration)
+
+
+# -- shapers: shaping a change ---------------------------------------------------------------------------
+
+
+@dataclass(kw_only=True)
+class Continuation(Plan):
+    """A running reference continued from its time ``t0`` (t = 0 here), plus a ``change`` starting then.
+
+    Positions are relative to the running reference's at t0 (like every
+    plan's, they start at 0). ``change`` is a rest-to-rest plan (a shaped
+    change of the command) or None; the whole lasts until both have ended.
+    """
+
+    running: Plan
+    t0: float
+    change: Plan | None = None
+    _origin: float = field(init=False, repr=False)
+
+    def __post_init__(self):
+        self._origin = float(self.running.evaluate(self.t0).position[0])
+
+    @classmethod
+    def of(cls, method: str, running: Plan, t0: float, change: Plan | None, info: dict | None = None):
+        duration = max(running.duration - t0, change.duration if change is not None else 0.0)
+        end = running.evaluate(running.duration).position[0]
+        plan = cls(method=method, displacement=0.0, duration=float(duration), info=dict(info or {}),
+                   running=running, t0=float(t0), change=change)
+        plan.displacement = float(end - plan._origin + (change.displacement if change is not None else 0.0))
+        return plan
+
+    def breakpoints(self) -> np.ndarray:
+        b = [self.running.breakpoints() - self.t0] + ([self.change.breakpoints()] if self.change else [])
+        b = np.concatenate(b + [[0.0, self.duration]])
+        return np.unique(b[(b >= 0.0) & (b <= self.duration)])
+
+    def _evaluate(self, t):
+        r = self.running.evaluate(t + self.t0)
+        out = [r.position - self._origin, r.velocity, r.acceleration, r.jerk]
+        if self.change is not None:
+            c = self.change.evaluate(t)
+            out = [x + y for x, y in zip(out, (c.position, c.velocity, c.acceleration, c.jerk))]
+        return tuple(out)
+
+
+def shaped_stop(running: ShapedPlan, t0: float, max_acceleration: float, max_jerk: float | None) -> ShapedPlan:
+    """The shaped plan whose base is ``running``'s until ``t0`` and then brought to rest as fast as
+    |a| <= max_acceleration, |jerk| <= max_jerk allow (ruckig); the same as ``running`` before t0.
+
+    Its reference is sum_i A_i q'(t - t_i) with q' a rest-to-rest base, so it
+    leaves no swing on the linear model; it is returned in ``running``'s time
+    (``Continuation`` shifts it to the handover).
+    """
+    from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
+    base = running.base
+    if t0 >= base.duration:  # the base has arrived: the shaper finishes by itself
+        return running
+    k = int(base.piece(np.array([t0]))[0])
+    c = base.taylor(np.array([t0]), np.array([k]))[0]  # position Taylor coefficients at t0 (with 1/k!)
+    p, v, a = c[0], c[1], 2.0 * c[2]
+    inp = InputParameter(1)
+    inp.control_interface = ControlInterface.Velocity
+    inp.current_position, inp.current_velocity, inp.current_acceleration = [p], [v], [a]
+    inp.target_velocity, inp.target_acceleration = [0.0], [0.0]
+    inp.max_velocity = [1e9]
+    inp.max_acceleration = [max(max_acceleration, abs(a))]
+    inp.max_jerk = [max_jerk if max_jerk is not None else math.inf]
+    trajectory = Trajectory(1)
+    result = Ruckig(1).calculate(inp, trajectory)
+    if result not in (Result.Working, Result.Finished):
+        raise PlanError(f'no stop of the shaped base from v={v:g} m/s (ruckig: {result})')
+    prof = trajectory.profiles[0][0]
+    steps = np.asarray(prof.t, dtype=float)
+    keep = steps > 0.0
+    starts = t0 + np.concatenate(([0.0], np.cumsum(steps)[:-1]))[keep]
+    stop = np.zeros((int(keep.sum()), ORDER + 1))
+    pp, vv, aa, jj = (np.asarray(x, dtype=float)[:7][keep] for x in (prof.p, prof.v, prof.a, prof.j))
+    stop[:, 0], stop[:, 1], stop[:, 2], stop[:, 3] = pp, vv, aa / 2.0, jj / 6.0
+    before = base.breaks < t0
+    end = float(trajectory.at_time(trajectory.duration)[0][0])
+    duration = t0 + float(np.sum(steps))
+    breaks = np.concatenate([base.breaks[before], starts])
+    coefficients = np.concatenate([base.coefficients[before], stop]) if stop.size else base.coefficients[before]
+    if breaks.size == 0 or breaks[0] != 0.0:
+        raise PlanError('the shaped base has no piece before the stop')
+    new_base = BaseProfile(base.kind, end, duration, breaks, coefficients)
+    shaped = ShapedPlan(method=running.method, displacement=end, duration=duration + running.shaper.duration,
+                        info=dict(running.info, stop={'at_s': t0, 'base_end_m': end}), shaper=running.shaper,
+                        base=new_base)
+    return shaped
+
+
+def shaped_change(plan_change, running: Plan, t0: float, change: float, duration: float,
+                  info: dict | None = None) -> Continuation:
+    """``running`` continued from ``t0`` plus the shaped change of the goal by ``change`` (m) over
+    ``duration`` (s): ``plan_change(change, duration)`` makes the shaped rest-to-rest plan of the change."""
+    shaped = plan_change(change, duration) if change != 0.0 else None
+    return Continuation.of(shaped.method if shaped is not None else running.method, running, t0, shaped, info)
+
