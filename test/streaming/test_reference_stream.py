@@ -77,21 +77,65 @@ def test_the_start_tolerance_can_be_changed_live(stream):
     assert stream.accept(*quintic_knots(HOLD + 0.005, HOLD + 0.3), 0, EPOCH).first_tick == 2
 
 
-def test_a_trajectory_arriving_while_a_motion_streams_is_refused(stream):
+def test_a_trajectory_arriving_while_a_motion_streams_needs_a_handover_time(stream):
     loop = Loop(stream)
     motion = stream.accept(*quintic_knots(), 0, EPOCH)
     loop.run_to(motion.first_tick + 10)
     assert stream.streaming
-    with pytest.raises(ValueError, match='a motion is streaming; a new one is accepted only after it ends'):
+    with pytest.raises(ValueError, match='a motion is streaming: a trajectory during it must start at a time '
+                                         'within it'):
         stream.accept(*quintic_knots(), 0, EPOCH + 12 * MS)
 
 
-def test_a_second_trajectory_while_one_is_queued_is_refused(stream):
+def test_a_second_trajectory_starting_after_a_queued_one_is_refused(stream):
     Loop(stream)
     stream.accept(*quintic_knots(), EPOCH + 500 * MS, EPOCH)
     assert not stream.streaming  # queued, not taken over yet
-    with pytest.raises(ValueError, match='a motion is streaming'):
+    with pytest.raises(ValueError, match='its start is outside the streaming motion'):
         stream.accept(*quintic_knots(), EPOCH + 3000 * MS, EPOCH)
+
+
+# -- handovers (a new goal or a stop mid-move) ------------------------------------------------
+
+
+def continuation_knots(t_h, goal, duration=1.0):
+    """Knots from the quintic_knots motion's state at t_h (s into it) to rest at ``goal`` in ``duration``:
+    the interpolant the streamer uses gives the state, as the planner computes it."""
+    p, v, a = (x[0] for x in QuinticHermite(*quintic_knots())(t_h))
+    return np.array([0.0, duration]), np.array([p, goal]), np.array([v, 0.0]), np.array([a, 0.0])
+
+
+def test_a_handover_replaces_the_rest_of_the_motion_without_a_jump(stream):
+    loop = Loop(stream)
+    motion = stream.accept(*quintic_knots(), EPOCH + 100 * MS, EPOCH)
+    before = loop.run_to(motion.first_tick + 300)
+    t_h = 0.4005  # between two ticks: the first tick at or after it takes over
+    handover = stream.accept(*continuation_knots(t_h, HOLD + 0.5), EPOCH + 100 * MS + round(t_h * 1e9),
+                             EPOCH + 400 * MS)
+    assert handover.handover and handover.first_tick == motion.first_tick + 401
+    rows = np.vstack([before, loop.run(1200)])
+    assert stream.last_motion is handover and not stream.streaming
+    assert rows[-1, 1] == pytest.approx(HOLD + 0.5, abs=1e-12)  # ends at the new goal
+    # no step at the handover: consecutive ticks differ by what the motion's own rates give over a tick
+    dp, dv, da = (np.abs(np.diff(rows[:, k])) for k in (1, 2, 3))
+    i = np.searchsorted(rows[:, 0], handover.first_tick) - 1  # the step into the handover tick
+    assert dp[i] < 1e-3 * 0.6 and dv[i] < 1e-3 * 3.0 and da[i] < 1e-3 * 30.0
+    assert dv[i] < 2 * np.median(dv[i - 5:i]) + 1e-6 and da[i] < 2 * np.median(da[i - 5:i]) + 1e-4
+
+
+def test_a_handover_that_does_not_continue_the_motion_is_refused_naming_the_gap(stream):
+    loop = Loop(stream)
+    motion = stream.accept(*quintic_knots(), EPOCH + 100 * MS, EPOCH)
+    loop.run_to(motion.first_tick + 300)
+    t, p, v, a = continuation_knots(0.5, HOLD + 0.5)
+    v = v + np.array([1e-3, 0.0])
+    with pytest.raises(ValueError, match=r'the velocity differs by 0\.001 m/s'):
+        stream.accept(t, p, v, a, EPOCH + 600 * MS, EPOCH + 400 * MS)
+    with pytest.raises(ValueError, match='too late for its handover'):
+        stream.accept(*continuation_knots(0.2, HOLD + 0.5), EPOCH + 300 * MS, EPOCH + 400 * MS)
+    with pytest.raises(ValueError, match='outside the streaming motion'):
+        stream.accept(*continuation_knots(1.0, HOLD + 0.5), EPOCH + 1200 * MS, EPOCH + 400 * MS)
+    assert stream.last_motion is motion and stream.streaming  # nothing changed
 
 
 def test_refused_before_the_loop_starts_and_while_stopped():

@@ -48,10 +48,15 @@ class QuinticHermite:
 
     def __call__(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration at times ``t`` (array-like)."""
+        return self.evaluate(t)[:3]
+
+    def evaluate(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity, acceleration and jerk at times ``t`` (array-like); the jerk is 0 outside the
+        knots, and on a knot the next segment's."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         if self.t.size == 1:
             return (np.full(t.shape, self.position[0]), np.full(t.shape, self.velocity[0]),
-                    np.full(t.shape, self.acceleration[0]))
+                    np.full(t.shape, self.acceleration[0]), np.zeros(t.shape))
         tc = np.clip(t, self.t[0], self.t[-1])
         k = np.clip(np.searchsorted(self.t, tc, side='right') - 1, 0, self._h.size - 1)
         h = self._h[k]
@@ -60,8 +65,10 @@ class QuinticHermite:
         p = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
         v = (c1 + s * (2.0 * c2 + s * (3.0 * c3 + s * (4.0 * c4 + s * 5.0 * c5)))) / h
         a = (2.0 * c2 + s * (6.0 * c3 + s * (12.0 * c4 + s * 20.0 * c5))) / (h * h)
+        j = np.where((t < self.t[0]) | (t >= self.t[-1]), 0.0,
+                     (6.0 * c3 + s * (24.0 * c4 + s * 60.0 * c5)) / (h * h * h))
         # knots are met exactly at s = 0; the last one (s = 1) would carry rounding
         end = tc >= self.t[-1]
         if end.any():
             p[end], v[end], a[end] = self.position[-1], self.velocity[-1], self.acceleration[-1]
-        return p, v, a
+        return p, v, a, j

@@ -8,10 +8,15 @@ can be streamed without one:
 
 - the stream must be running (not stopped, and started: ticks have an
   epoch to align the motion to);
-- one motion at a time: none may be streaming or queued, since a second one
-  could only start where the first ends, and nobody promised that;
 - it must start within ``start_tolerance`` (m) of the hold position;
-- it must not have ended already (a plan that came too late for all of it).
+- it must not have ended already (a plan that came too late for all of it);
+- while a motion streams (or is queued), only a *handover*: a trajectory
+  whose start stamp falls within that motion, at a tick the loop has not
+  reached, and whose first knot is that motion's state there (position
+  within ``start_tolerance``, velocity and acceleration within
+  ``HANDOVER_VELOCITY`` and ``HANDOVER_ACCELERATION``), replaces the rest of
+  it from that tick on (contract "Motion from any state": a new goal or a
+  stop mid-move). Anything else would be a jump, and is refused.
 
 A motion starts at its start stamp plus its first knot's time (a zero stamp:
 at once), from the first tick at or after that moment, and is sampled at
@@ -49,6 +54,11 @@ from .hermite import QuinticHermite
 # never stopped, waits for the loop's start), running (ticks have an epoch).
 STOPPED, STARTING, RUNNING = 'stopped', 'starting', 'running'
 
+#: How far a handover's first knot may be from the running motion's state then: velocity (m/s) and
+#: acceleration (m/s^2). The planner evaluates the same interpolant, so they agree to rounding.
+HANDOVER_VELOCITY = 1e-6
+HANDOVER_ACCELERATION = 1e-5
+
 
 @dataclass(frozen=True)
 class Motion:
@@ -61,6 +71,14 @@ class Motion:
     duration: float     # s
     late: float         # s the start was shifted: the trajectory came after its start stamp
     start_ns: int = 0   # ROS time (ns) of the first tick
+    origin_ns: int = 0  # ROS time (ns) of the first knot (start_ns less the offset into the motion)
+    interps: tuple = ()  # the knots' interpolants, one per joint (a handover is checked on them)
+    handover: bool = False  # it replaces the running motion from its first tick
+
+    def state_at(self, time_ns: int) -> np.ndarray:
+        """(position, velocity, acceleration) rows, a column per joint, of the motion at ROS time ``time_ns``."""
+        t = self.interps[0].t[0] + (time_ns - self.origin_ns) * 1e-9
+        return np.array([[x[0] for x in interp(t)] for interp in self.interps]).T
 
     @property
     def end_position(self) -> float:
@@ -198,7 +216,7 @@ class ReferenceStream:
             if self._state is not RUNNING:
                 raise ValueError('the stream has not started yet')
             if self._motion is not None or self._incoming is not None:
-                raise ValueError('a motion is streaming; a new one is accepted only after it ends')
+                return self._handover(interps, start_ns, duration_ns, several)
             hold = np.atleast_1d(self._hold)
             if np.max(np.abs(p - hold)) > self.start_tolerance:
                 jump = p - hold
@@ -214,14 +232,60 @@ class ReferenceStream:
                     first, offset = due, epoch + due * period - start_ns
                 else:
                     late = epoch + first * period - start_ns
-            n = max(0, -(-(duration_ns - offset) // period)) + 1  # the last sample at or past the end
-            times = t[0] + (offset + period * np.arange(n)) * 1e-9
-            if several:  # per tick a tuple per joint
-                pos, vel, acc = (list(zip(*(x.tolist() for x in col))) for col in zip(*(i(times) for i in interps)))
-            else:
-                pos, vel, acc = (x.tolist() for x in interps[0](times))
-            self._incoming = Motion(first, pos, vel, acc, duration_ns * 1e-9, late * 1e-9, epoch + first * period)
+            self._incoming = self._sampled(interps, first, offset, duration_ns, late, several)
             return self._incoming
+
+    def _sampled(self, interps, first: int, offset: int, duration_ns: int, late: int, several: bool,
+                 handover: bool = False) -> Motion:
+        """The motion of ``interps`` from tick ``first``, ``offset`` ns into it then, to its end."""
+        period = self.period_ns
+        n = max(0, -(-(duration_ns - offset) // period)) + 1  # the last sample at or past the end
+        times = interps[0].t[0] + (offset + period * np.arange(n)) * 1e-9
+        if several:  # per tick a tuple per joint
+            pos, vel, acc = (list(zip(*(x.tolist() for x in col))) for col in zip(*(i(times) for i in interps)))
+        else:
+            pos, vel, acc = (x.tolist() for x in interps[0](times))
+        start = self._epoch_ns + first * period
+        return Motion(first, pos, vel, acc, duration_ns * 1e-9, late * 1e-9, start, start - offset, tuple(interps),
+                      handover)
+
+    def _handover(self, interps, start_ns: int, duration_ns: int, several: bool) -> Motion:
+        """A trajectory arriving during a motion: the rest of that motion replaced from ``start_ns`` on
+        (see the module docstring); ValueError says why not. Called under the lock."""
+        if not start_ns:
+            raise ValueError('a motion is streaming: a trajectory during it must start at a time within it '
+                             '(header stamp), where it continues the motion without a jump')
+        period, epoch = self.period_ns, self._epoch_ns
+        due = -(-(start_ns - epoch) // period)  # the first tick at or after the handover
+        incoming = self._incoming
+        # the motion that will be streaming at that tick: a queued one once it has started, else the current
+        running = incoming if incoming is not None and due >= incoming.first_tick else self._motion
+        if running is None:  # queued, not started by then: the new one would start before it
+            raise ValueError('a motion is queued and starts after this trajectory would; it cannot be '
+                             'handed over to')
+        end_tick = running.first_tick + len(running.position) - 1
+        if not running.first_tick <= due < end_tick:
+            into = (due - running.first_tick) * period * 1e-9
+            raise ValueError(f'its start is outside the streaming motion ({into:.3f} s from its start, which lasts '
+                             f'{running.duration:.3f} s)')
+        first = self._tick() + 2
+        if due < first:
+            raise ValueError(f'it came {(first - due) * period * 1e-9:.3f} s too late for its handover (the stream '
+                             'is past its start): a handover is never shifted')
+        here = running.state_at(start_ns)  # rows p, v, a; a column per joint
+        new = np.array([[i.position[0] for i in interps], [i.velocity[0] for i in interps],
+                        [i.acceleration[0] for i in interps]])
+        gaps = np.max(np.abs(new - here), axis=1)
+        tolerances = (self.start_tolerance, HANDOVER_VELOCITY, HANDOVER_ACCELERATION)
+        for gap, tolerance, what, unit in zip(gaps, tolerances, ('position', 'velocity', 'acceleration'),
+                                              ('m', 'm/s', 'm/s^2')):
+            if gap > tolerance:
+                raise ValueError(f'its first knot is not the streaming motion\'s state at its start: the {what} '
+                                 f'differs by {gap:.3g} {unit} (> {tolerance:g}); a handover must continue the '
+                                 'motion without a jump')
+        self._incoming = self._sampled(interps, due, epoch + due * period - start_ns, duration_ns, 0, several,
+                                       handover=True)
+        return self._incoming
 
     # -- the loop -------------------------------------------------------------------
 
@@ -231,15 +295,14 @@ class ReferenceStream:
         Takes the queued motion over at its first tick, ends a motion after
         its last sample and holds its end position at rest.
         """
-        motion = self._motion
-        if motion is None:
-            motion = self._incoming
-            if motion is None or tick < motion.first_tick:
-                return self._hold, self._rest, self._rest
+        motion, incoming = self._motion, self._incoming
+        if incoming is not None and tick >= incoming.first_tick:  # a new motion, or a handover
             with self._lock:
-                if self._incoming is not motion:  # dropped by stop() meanwhile
-                    return self._hold, self._rest, self._rest
-                self._motion, self._incoming, self._last = motion, None, motion
+                if self._incoming is incoming:  # (else dropped by stop() or replaced meanwhile)
+                    self._motion, self._incoming, self._last = incoming, None, incoming
+                motion = self._motion
+        if motion is None:
+            return self._hold, self._rest, self._rest
         i = tick - motion.first_tick
         if i < len(motion.position):
             self._hold = motion.position[i]
