@@ -133,6 +133,11 @@ class Planner:
         for request in requests:
             self._in_threads(request)
 
+    def variational(self, request: VariationalRequest) -> Plan:
+        """Run one checked NVF/RVF request (e.g. a plan from a state, ``serving.transitions``) like
+        ``plan`` runs its own: in a worker process, else in a pooled solver."""
+        return self._variational(request)
+
     def _variational(self, request: VariationalRequest) -> Plan:
         """An NVF/RVF request in a worker process (direct route, if there are workers), else in a thread."""
         if self._processes is None or request.options.solver != 'direct':

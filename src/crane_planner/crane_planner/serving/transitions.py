@@ -1,0 +1,293 @@
+"""Motion from any state as the planner serves it: a new goal mid-move, a stop, a settle.
+
+The streamer streams a motion as the quintic Hermite interpolant of the knots
+it was sent (``streaming.hermite``); ``Running`` is that motion as the planner
+sent it, so the state the planner plans from at the handover time is exactly
+the one the streamer checks the new trajectory against. The swing there is
+predicted from the newest ``joint_states`` (a ``Measurement``) along the
+running reference with the planning model (``continuation.predict``), or,
+with no measurement, from the motion's start at rest.
+
+Each function takes ``variational``, what runs a ``dispatch.VariationalRequest``
+(``Planner.variational``, or a ``dispatch.SolverCache``). What each method
+does (contract "Motion from any state"):
+
+- a new goal: NVF/RVF plan from the handover state to rest at the goal; a
+  shaper continues the running reference and adds the shaped change of the
+  goal (``continuation.shaped_change``: no swing on the linear model, whatever
+  the running reference was, as long as it would have ended without one). A
+  shaper cannot follow a hoist's changing rope: with the hoist moving, or
+  asked to move, shapers refuse and NVF/RVF serve.
+- a stop: NVF from the handover state to rest anywhere (``free_end``), or,
+  for a motion a shaper made from rest, that shaper's base braked by ruckig
+  and reshaped (``continuation.shaped_stop``). The NVF stop lasts one period
+  of the first swing mode at the rope length then, or the braking time the
+  axis limits allow if longer, lengthened by a quarter until it solves within
+  the limits.
+- a settle: NVF from the measured swing at rest back to the same place, over
+  one first-mode period (the same lengthening).
+
+Pure Python, no ROS import.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
+from crane_msgs_py.params import CraneParams
+
+from ..planning.continuation import (
+    Continuation,
+    MotionState,
+    braking_time,
+    first_period,
+    predict,
+    problem_start,
+    shaped_change,
+    shaped_stop,
+)
+from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options, plan, shaper_design
+from ..planning.limits import hoist_limits_of, limits_of
+from ..planning.methods import SHAPER_METHODS
+from ..planning.plan import AxesPlan, Plan, PlanError
+from ..planning.shaped import ShapedPlan
+from ..streaming.hermite import QuinticHermite
+
+#: How many times a stop or a settle is lengthened by ``LENGTHEN`` when it does not solve within the limits.
+ATTEMPTS = 4
+LENGTHEN = 1.25
+#: The newest measurement is used if it is at most this old (s) at the handover; else the model's swing.
+MEASUREMENT_AGE = 0.5
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """``joint_states`` at ``stamp_ns``: the cart's (position m, velocity m/s), the swing (theta1, theta2,
+    dtheta1, dtheta2) and with a hoist the rope's (length m, rate m/s)."""
+
+    stamp_ns: int
+    cart: tuple
+    swing: tuple
+    hoist: tuple | None = None
+
+
+class KnotPlan(Plan):
+    """A joint's knots as the streamer interpolates them, as a ``Plan`` in the motion's time (t = 0 at the
+    first knot), positions absolute (m)."""
+
+    def __init__(self, interp: QuinticHermite, method: str = ''):
+        super().__init__(method=method, displacement=float(interp.position[-1]),
+                         duration=float(interp.t[-1] - interp.t[0]))
+        self.interp = interp
+
+    def breakpoints(self) -> np.ndarray:
+        return self.interp.t - self.interp.t[0]
+
+    def _evaluate(self, t):
+        return self.interp.evaluate(t + self.interp.t[0])
+
+
+class Running:
+    """A motion sent to the streamer: its joints' knots and the ROS time (ns) of its first knot.
+
+    Args:
+        joints: the joint names, the cart's first.
+        t: knot times (s); position, velocity, acceleration: (knots, joints) absolute (m, m/s, m/s^2).
+        origin_ns: when the first knot is streamed (the trajectory's stamp, or the motion's first tick).
+        plan: the plan the knots were sampled from (relative), and its method.
+    """
+
+    def __init__(self, joints, t, position, velocity, acceleration, origin_ns: int, plan: Plan | None = None):
+        self.joints = tuple(joints)
+        columns = [np.asarray(x, dtype=float).reshape(len(t), -1) for x in (position, velocity, acceleration)]
+        self.interps = [QuinticHermite(t, *(c[:, j] for c in columns)) for j in range(len(self.joints))]
+        self.origin_ns, self.plan = int(origin_ns), plan
+        self.method = plan.method if plan is not None else ''
+
+    @property
+    def duration(self) -> float:
+        t = self.interps[0].t
+        return float(t[-1] - t[0])
+
+    @property
+    def end_ns(self) -> int:
+        return self.origin_ns + round(self.duration * 1e9)
+
+    def time_of(self, stamp_ns) -> np.ndarray:
+        """The motion's time (s, from its first knot) at ROS time(s) ``stamp_ns``, as the streamer computes it."""
+        return (np.asarray(stamp_ns, dtype=np.int64) - self.origin_ns) * 1e-9
+
+    def at(self, stamp_ns) -> list:
+        """Per joint (position, velocity, acceleration, jerk) at ROS time(s) ``stamp_ns``."""
+        return [interp.evaluate(interp.t[0] + self.time_of(stamp_ns)) for interp in self.interps]
+
+    def knot_plan(self, joint: str = CART_JOINT) -> KnotPlan:
+        return KnotPlan(self.interps[self.joints.index(joint)], self.method)
+
+    @property
+    def hoist_moves(self) -> bool:
+        """Whether the hoist's reference moves in this motion."""
+        if HOIST_JOINT not in self.joints:
+            return False
+        interp = self.interps[self.joints.index(HOIST_JOINT)]
+        return bool(np.ptp(interp.position) > 1e-9 or np.abs(interp.velocity).max() > 1e-9)
+
+
+def handover_state(running: Running, handover_ns: int, measured: Measurement | None,
+                   params: CraneParams) -> MotionState:
+    """The crane's state at ``handover_ns``: the running reference there, the swing predicted from
+    ``measured`` (if it is recent and not after the handover) along it, else from the motion's start at
+    rest (the model's own swing)."""
+    hoisting = HOIST_JOINT in running.joints
+    if measured is not None and 0 <= handover_ns - measured.stamp_ns <= MEASUREMENT_AGE * 1e9:
+        t_m = measured.stamp_ns
+        refs = running.at(t_m)
+        cart = tuple(float(x[0]) for x in refs[0][:3])
+        state = MotionState(cart, tuple(measured.swing), measured.cart[0] - cart[0])
+        if hoisting:
+            hoist = tuple(float(x[0]) for x in refs[1][:3])
+            L = measured.hoist[0] if measured.hoist is not None else hoist[0]
+            state = MotionState(cart, tuple(measured.swing), measured.cart[0] - cart[0], hoist, L - hoist[0])
+    else:  # the model's swing: the motion from its start, where it was at rest
+        t_m = min(running.origin_ns, handover_ns)
+        refs = running.at(t_m)
+        cart = tuple(float(x[0]) for x in refs[0][:3])
+        hoist = tuple(float(x[0]) for x in refs[1][:3]) if hoisting else None
+        state = MotionState(cart, hoist=hoist)
+    # (the model's L1 is the rope's length: the hoist's reference carries it, else the parameter)
+    return predict(state, lambda t: running.at(np.round(t * 1e9).astype(np.int64)), t_m * 1e-9,
+                   handover_ns * 1e-9, params)
+
+
+def _model(params: CraneParams, state: MotionState) -> CraneParams:
+    return params if state.hoist is None else params.replace(L1=state.hoist[0])
+
+
+def _variational(variational, method: str, state: MotionState, goal: dict, duration: float, params: CraneParams,
+                 options: PlanOptions, free_end: bool = False) -> Plan:
+    """An NVF/RVF plan from ``state`` to rest at ``goal`` (per joint, absolute) or anywhere (``free_end``)."""
+    start, model = problem_start(state, params)
+    cart = goal.get(CART_JOINT, state.cart[0]) - state.cart[0] if not free_end else state.cart[1] * duration / 2
+    if state.hoist is None:
+        displacement, opts = cart, options
+    else:
+        hoist = (goal.get(HOIST_JOINT, state.hoist[0]) - model.L1 if not free_end
+                 else state.hoist[1] * duration / 2)
+        displacement, opts = (cart, hoist), hoisting_options(options)
+    if not free_end and duration <= 0.0:
+        raise PlanError('a new goal during a motion needs a duration (> 0 s): the fastest plan is planned '
+                        'from rest only')
+    return variational(VariationalRequest('plan', method, displacement, duration, model, opts, start,
+                                                  free_end))
+
+
+def retarget(variational, running: Running, handover_ns: int, state: MotionState, method: str, goal: dict,
+             duration: float, params: CraneParams, options: PlanOptions) -> Plan:
+    """The plan from the handover (relative to the cart reference there) to rest at ``goal`` (per joint,
+    absolute) in ``duration`` s from the handover; see the module docstring for what each method does."""
+    if method not in SHAPER_METHODS:
+        return _variational(variational, method, state, goal, duration, params, options)
+    if running.hoist_moves or (state.hoist is not None and abs(goal.get(HOIST_JOINT, state.hoist[0])
+                                                              - state.hoist[0]) > 1e-9):
+        raise PlanError(f'{method}: a shaper cannot retarget a motion while the rope length changes (its '
+                        'delays follow the rope); use nvf or rvf')
+    if duration <= 0.0:
+        raise PlanError(f'{method}: a new goal during a motion needs a duration (> 0 s)')
+    model = _model(params, state)
+    omegas, zetas = shaper_design(model, options)
+    knots = running.knot_plan(CART_JOINT)
+    t0 = float(running.time_of(handover_ns))
+    change = goal.get(CART_JOINT, knots.displacement) - knots.displacement  # from where the running one ends
+
+    def plan_change(d, T):
+        return plan(method, d, T, model, options)
+
+    new = shaped_change(plan_change, knots, t0, change, duration,
+                        info={'shaper_change_m': change, 'design_omegas': list(omegas), 'design_zetas': zetas})
+    return _with_held_hoist(new, state)
+
+
+def stop(variational, running: Running, handover_ns: int, state: MotionState, method: str, params: CraneParams,
+         options: PlanOptions) -> Plan:
+    """A stop from the handover to rest as near as the limits allow, without residual swing (relative plan)."""
+    vmax, amax, jmax = limits_of(options)
+    shaped = running.plan if isinstance(running.plan, ShapedPlan) else None
+    if method in SHAPER_METHODS and shaped is not None:
+        accel, jerk = amax or shaped.peaks()[1], jmax or shaped.peaks()[2]
+        t0 = float(running.time_of(handover_ns))
+        knots = running.knot_plan(CART_JOINT)
+        # in the knots' absolute positions: the shaped plan is relative to the motion's start
+        stopped = shaped_stop(shaped, t0, accel, jerk)
+        new = Continuation.of(method, _Shifted(stopped, float(knots.evaluate(0.0).position[0])), t0, None,
+                              info={'stop': 'shaped'})
+        return _with_held_hoist(new, state)
+    method = method if method not in SHAPER_METHODS else 'nvf'
+    period = first_period(_model(params, state))
+    duration = period
+    if amax is not None:
+        duration = max(duration, braking_time(state.cart[1], state.cart[2], amax, jmax))
+    if state.hoist is not None:
+        hv, ha, hj = hoist_limits_of(options)
+        if ha is not None:
+            duration = max(duration, braking_time(state.hoist[1], state.hoist[2], ha, hj))
+    return _lengthened(lambda T: _variational(variational, method, state, {}, T, params, options, free_end=True),
+                       duration)
+
+
+def settle(variational, state: MotionState, params: CraneParams, options: PlanOptions, method: str = 'nvf') -> Plan:
+    """A short motion from the measured swing at rest (``state``) back to where it started, damping it."""
+    if method in SHAPER_METHODS:
+        raise PlanError(f'{method}: a shaper cannot damp a swing it did not cause; settle with nvf or rvf')
+    goal = {CART_JOINT: state.cart[0]}
+    if state.hoist is not None:
+        goal[HOIST_JOINT] = state.hoist[0]
+    return _lengthened(lambda T: _variational(variational, method, state, goal, T, params, options),
+                       first_period(_model(params, state)))
+
+
+def _lengthened(solve, duration: float) -> Plan:
+    """``solve(duration)``, lengthened by ``LENGTHEN`` when it fails (the limits), ``ATTEMPTS`` times."""
+    for attempt in range(ATTEMPTS):
+        try:
+            return solve(duration)
+        except PlanError:
+            if attempt == ATTEMPTS - 1:
+                raise
+            duration *= LENGTHEN
+    raise AssertionError('unreachable')
+
+
+class _Shifted(Plan):
+    """A relative plan moved to absolute positions (+ ``origin`` m), so it continues absolute knots."""
+
+    def __init__(self, plan: Plan, origin: float):
+        super().__init__(method=plan.method, displacement=plan.displacement + origin, duration=plan.duration,
+                         info=plan.info)
+        self.plan, self.origin = plan, origin
+
+    def breakpoints(self) -> np.ndarray:
+        return self.plan.breakpoints()
+
+    def _evaluate(self, t):
+        s = self.plan.evaluate(t)
+        return s.position + self.origin, s.velocity, s.acceleration, s.jerk
+
+
+def _with_held_hoist(plan: Plan, state: MotionState) -> Plan:
+    """``plan`` of the cart, with the hoist held where it is when the planner has one."""
+    if state.hoist is None:
+        return plan
+    from ..planning.hoisting import QuinticPlan
+    held = QuinticPlan(method='hold', displacement=0.0, duration=plan.duration)
+    return AxesPlan(method=plan.method, displacement=plan.displacement, duration=plan.duration, info=plan.info,
+                    axes={CART_JOINT: plan, HOIST_JOINT: held}, starts={CART_JOINT: 0.0, HOIST_JOINT: state.hoist[0]})
+
+
+def hoist_start(plan: Plan, state: MotionState) -> float | None:
+    """Where the trajectory's hoist positions start from (``AxesPlan.starts``), None without a hoist."""
+    if state.hoist is None:
+        return None
+    return plan.starts.get(HOIST_JOINT, state.hoist[0]) if isinstance(plan, AxesPlan) else state.hoist[0]
+
