@@ -28,6 +28,9 @@ EXECUTE_MOVE_ACTION = '~/execute_move'   # crane_interfaces/action/ExecuteMove: 
 START_SERVICE = '~/start'
 STOP_SERVICE = '~/stop'
 RESET_SERVICE = '~/reset'
+SETTLE_SERVICE = '~/settle'  # planner: damp the swing measured now (std_srvs/Trigger)
+PUSH_SERVICE = '~/push'  # sim: set the load swinging (std_srvs/Trigger), for tests and the demo
+CMD_VEL_TOPIC = 'cmd_vel'  # streamer in operator mode: geometry_msgs/Twist
 
 #: The cart's joint in trajectories and joint states; the swing angles follow it.
 CART_JOINT = 'cart'

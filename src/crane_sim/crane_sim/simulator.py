@@ -594,6 +594,18 @@ class CraneSimulator:
     def state(self) -> CraneState:
         return CraneState(*(float(v) for v in _to_public(self._x)[:7, 0]))
 
+    def push(self, excursion: float) -> None:
+        """Set the load swinging, as a push would: the load displaced ``excursion`` (m) horizontally with
+        both cables in line (theta2 = 0) and released from rest; the cart and the hoist keep their state."""
+        excursion = float(excursion)
+        length = self.L1 + float(self._plants.L2[0])
+        if not (math.isfinite(excursion) and abs(excursion) < length):
+            raise SimulationError(f'a push must displace the load less than the cables\' length '
+                                  f'({length:g} m), got {excursion} m')
+        x = _to_public(self._x)
+        x[3:7, 0] = (math.asin(excursion / length), 0.0, 0.0, 0.0)
+        self._x = _to_internal(x)
+
     @property
     def L1(self) -> float:
         """The upper cable's length (m) now: the hoist's, or the plant's."""

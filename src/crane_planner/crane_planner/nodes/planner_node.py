@@ -24,6 +24,7 @@ import threading
 import time
 from dataclasses import dataclass
 
+import numpy as np
 import rclpy
 from crane_interfaces.action import ExecuteMove
 from crane_interfaces.msg import PlanInfo, StreamState
@@ -33,22 +34,26 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.conversions import (
     joint_state_to_arrays,
+    joint_trajectory_to_arrays,
     read_stream_state,
     samples_to_joint_trajectory,
     stamp_ns,
 )
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (
+    CART_JOINT,
     DEFAULT_FRAME_ID,
     EXECUTE_MOVE_ACTION,
     HOIST_JOINT,
     JOINT_STATES_TOPIC,
     PLAN_MOVE_SERVICE,
     PLANNER_NODE,
+    SETTLE_SERVICE,
     SIM_JOINTS,
     STREAM_STATE_TOPIC,
     TRAJECTORY_TOPIC,
@@ -68,11 +73,12 @@ from crane_msgs_py.qos import JOINT_STATES_QOS, PLAN_MOVE_QOS, STREAM_STATE_QOS,
 from crane_msgs_py.realtime import fix_mmap_threshold
 from crane_msgs_py.runner import run, spinning
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOptions
+from crane_planner.planning.continuation import MotionState, problem_start
 from crane_planner.planning.dispatch import VariationalRequest, hoisting_options
 from crane_planner.planning.hoisting import HOIST_SHAPER_DESIGNS
 from crane_planner.planning.plan import time_grid
 from crane_planner.planning.profiles import BASES
-from crane_planner.serving import Planner
+from crane_planner.serving import Planner, transitions
 from crane_planner.serving.execution import DONE, FAILED, MOVING, WAITING, Execution
 from crane_planner.serving.moves import (
     CheckedMove,
@@ -84,6 +90,7 @@ from crane_planner.serving.moves import (
     plan_move,
     summarize,
 )
+from crane_planner.serving.transitions import Measurement, Running
 from crane_planner.streaming.knots import knot_times
 
 #: The planner's per-request diagnostic task (status ``<planner>: plan``), and the executions'.
@@ -95,6 +102,13 @@ DEFAULT_SETTLE = 2.0
 STREAM_FRESH = 1.0
 #: Feedback period (s): 20 Hz, above the contract's 10 Hz.
 FEEDBACK_PERIOD = 0.05
+#: A handover's trajectory must be sent at least this long (s) before the handover, for its transport
+#: to the streamer and the streamer's check (a busy two-core machine has taken 13 ms).
+TRANSPORT_MARGIN = 0.02
+#: Attempts at a handover whose plan took longer than its lead (the lead doubles each time).
+HANDOVER_ATTEMPTS = 3
+#: The lead (s) of a stop's handover: a stop is planned once, from further ahead.
+STOP_LEAD = 0.1
 
 #: name -> (default, description, range descriptor fields). Ranges are the
 #: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by the
@@ -155,6 +169,14 @@ PARAMETERS = {
     'shaper_base': ('quintic', "the motion shapers shape: 'quintic' (the paper's) or 'limits' (the jerk-limited "
                                'time-optimal profile under the axis limits; needs max_velocity or max_acceleration)',
                     {'additional_constraints': f'one of {", ".join(BASES)}'}),
+    'handover_lead': (0.05, 'a new NVF/RVF goal during a motion takes over this long (s) after it arrives, from '
+                            'the state the motion is in then (a plan taking longer is planned again further ahead)',
+                      float_range(0.001, 1.0)),
+    'shaper_handover_lead': (0.025, 'the same for a shaper (its change is planned in about a millisecond; the '
+                                    'rest is the trajectory\'s transport to the streamer)',
+                             float_range(0.001, 1.0)),
+    'settle_method': ('nvf', '~/settle plans with this method: nvf or rvf (a shaper cannot damp a swing it did not '
+                             'cause)', {'additional_constraints': 'nvf or rvf'}),
     'max_solve_time': (1.0, 'budget of one NVF/RVF solve (s), > 0: a request not solved within it is '
                             'refused; every request is answered within this + 0.5 s',
                        float_range(0.0, 60.0)),
@@ -184,6 +206,9 @@ class Config:
     solver_processes: int
     joints: tuple
     publish_lead: float
+    handover_lead: float = 0.05
+    shaper_handover_lead: float = 0.025
+    settle_method: str = 'nvf'
 
     @property
     def bounds(self) -> MoveBounds:
@@ -209,10 +234,13 @@ class Config:
         if not v['frame_id']:
             raise ParameterError('frame_id must not be empty')
         joints = check_joints(v['joints'])
+        check_choice('settle_method', v['settle_method'], VARIATIONAL_METHODS)
         return cls(params, options, v['method'], check_nonnegative('sample_period', v['sample_period']),
                    v['frame_id'], check_positive('max_duration', v['max_duration']),
                    check_positive('max_displacement', v['max_displacement']), int(v['solver_pool_size']),
-                   int(v['solver_processes']), joints, check_nonnegative('publish_lead', v['publish_lead']))
+                   int(v['solver_processes']), joints, check_nonnegative('publish_lead', v['publish_lead']),
+                   check_positive('handover_lead', v['handover_lead']),
+                   check_positive('shaper_handover_lead', v['shaper_handover_lead']), v['settle_method'])
 
     def warmups(self) -> list[VariationalRequest]:
         """Requests that build the NVF/RVF solvers of this configuration.
@@ -230,6 +258,15 @@ class Config:
             hoisting = hoisting_options(self.options)
             requests += [VariationalRequest('plan', method, (D, -0.1 * self.params.L1), duration, self.params,
                                             hoisting) for method in VARIATIONAL_METHODS]
+        # and a plan from a moving, swinging state (a new goal mid-move) and a stop: their own warm starts
+        state = MotionState((0.0, 0.1, 0.05), (0.02, 0.0, -0.05, 0.0),
+                            hoist=(self.params.L1, 0.0, 0.0) if HOIST_JOINT in self.joints else None)
+        start, model = problem_start(state, self.params)
+        options = hoisting_options(self.options) if state.hoist else self.options
+        for free_end in (False, True):
+            displacement = (D, 0.0) if state.hoist else D
+            requests += [VariationalRequest('plan', method, displacement, duration, model, options, start, free_end)
+                         for method in VARIATIONAL_METHODS]
         return requests
 
 
@@ -260,6 +297,9 @@ class PlannerNode(Node):
         self._lock = threading.Lock()
         self._stream: tuple | None = None  # (ROS time received ns, read_stream_state(...))
         self._goals: list[_Goal] = []  # goals being executed: planned, streaming or settling
+        self._measured: Measurement | None = None  # the newest joint_states
+        self._running: Running | None = None  # the last motion sent to the streamer (a goal's or a settle's)
+        self._handing_over = threading.Lock()  # one handover (goal, stop, settle) planned at a time
         # The two 50 Hz inputs go to a node of their own on a SingleThreadedExecutor thread: through the
         # services' MultiThreadedExecutor their 100 messages a second kept the node at a whole core (4 %
         # this way). Not the EventsExecutor: after 900 previews it ran the inputs about once a second
@@ -277,6 +317,7 @@ class PlannerNode(Node):
                             callback_group=group)
         self._action = ActionServer(self, ExecuteMove, EXECUTE_MOVE_ACTION, self._execute,
                                     cancel_callback=self._on_cancel, callback_group=group)
+        self.create_service(Trigger, SETTLE_SERVICE, self._on_settle, callback_group=group)
         self.get_logger().info(f'serving {", ".join(METHODS)} on {self.get_fully_qualified_name()}/plan_move '
                                '(PlanMove: a preview) and .../execute_move (ExecuteMove: plan, stream, settle)')
         self._warmup = threading.Thread(target=self._build_solvers, name='solver-warmup', daemon=True)
@@ -327,6 +368,11 @@ class PlannerNode(Node):
             build = plan.info.get('build_time_s')
             self.get_logger().info(f'{method} ready in {times[method]:.2f} s'
                                    + (f' (solver built in {build:.2f} s)' if build else ''))
+        # the handover's predictor (a CasADi function built on first use)
+        holding = Running.holding(config.joints, [0.0, config.params.L1][:len(config.joints)], 0)
+        measured = Measurement(0, (0.0, 0.0), (0.0, 0.0, 0.0, 0.0), (config.params.L1, 0.0) if len(config.joints) > 1
+                               else None)
+        transitions.handover_state(holding, 10_000_000, measured, config.params)
         message = f'{len(times)} of {len(METHODS)} methods ready in {time.perf_counter() - t_all:.2f} s'
         self._diagnostics.report('solvers', WARN if failed else OK, message,
                                  **{f'{m}_s': v for m, v in times.items()},
@@ -344,19 +390,24 @@ class PlannerNode(Node):
             execution.on_stream_state(stamp, motion_start, motion_duration)
 
     def _on_joint_state(self, msg: JointState):
-        with self._lock:
-            executions = [g.execution for g in self._goals if g.execution is not None]
-        if not executions:
-            return
         try:
-            position, _ = joint_state_to_arrays(msg, SIM_JOINTS)
+            position, velocity = joint_state_to_arrays(msg, SIM_JOINTS)
         except ValueError:  # not the crane's joints: nothing to measure the swing with
             return
-        length = None  # with a hoist, the rope length measured with the angles
+        length = hoist = None  # with a hoist, the rope length measured with the angles
         if HOIST_JOINT in msg.name:
-            length = float(msg.position[list(msg.name).index(HOIST_JOINT)])
+            k = list(msg.name).index(HOIST_JOINT)
+            length = float(msg.position[k])
+            hoist = (length, float(msg.velocity[k]) if len(msg.velocity) > k else 0.0)
+        stamp = stamp_ns(msg.header.stamp)
+        velocity = [0.0 if math.isnan(v) else float(v) for v in velocity]
+        measured = Measurement(stamp, (float(position[0]), velocity[0]),
+                               (float(position[1]), float(position[2]), velocity[1], velocity[2]), hoist)
+        with self._lock:
+            self._measured = measured  # what a handover predicts the swing from
+            executions = [g.execution for g in self._goals if g.execution is not None]
         for execution in executions:
-            execution.on_joint_state(stamp_ns(msg.header.stamp), position[1], position[2], length)
+            execution.on_joint_state(stamp, position[1], position[2], length)
 
     def _hold(self) -> dict | None:
         """Where the streamer holds each joint (m), if it was heard within ``STREAM_FRESH`` s."""
@@ -421,7 +472,7 @@ class PlannerNode(Node):
         return samples_to_joint_trajectory(samples, checked.starts, checked.start_ns, self._config.frame_id,
                                            joint=list(checked.joints))
 
-    def _report_plan(self, values: dict, plan, samples, t0: float, solved: float, error: str = ''):
+    def _report_plan(self, values: dict, plan, knots: int, t0: float, solved: float, error: str = ''):
         """One /diagnostics status per request: the plan's facts, or the reason it was refused."""
         now = time.perf_counter()
         if error:
@@ -431,10 +482,10 @@ class PlannerNode(Node):
             return
         info = plan.info
         self._diagnostics.report(
-            PLAN_TASK, OK, f'{values["method"]}: {len(samples[0].t)} knots in {plan.duration:.4f} s', **values,
+            PLAN_TASK, OK, f'{values["method"]}: {knots} knots in {plan.duration:.4f} s', **values,
             solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
             iterations=info.get('iterations', 0), plan_time=solved - t0, message_time=now - solved,
-            knots=len(samples[0].t), error='')
+            knots=knots, error='')
 
     def _on_plan_move(self, request, response):
         t0 = time.perf_counter()
@@ -448,32 +499,25 @@ class PlannerNode(Node):
         response.success, response.message = True, ''
         response.trajectory = self._trajectory_of(checked, samples)
         response.info = self._info(plan, checked, solved - t0)
-        self._report_plan(values, plan, samples, t0, solved)
+        self._report_plan(values, plan, len(samples[0].t), t0, solved)
         return response
 
     def _refuse(self, response, reason: str, values: dict, t0: float):
         response.success, response.message = False, reason
         response.trajectory.header.frame_id = self._config.frame_id
         values = {'service': 'plan_move', 'method': '', **values}
-        self._report_plan(values, None, None, t0, t0, error=reason)
+        self._report_plan(values, None, 0, t0, t0, error=reason)
         return response
 
     # -- execution (ExecuteMove) ----------------------------------------------------------
 
     def _on_cancel(self, goal_handle) -> CancelResponse:
-        """A cancel is accepted until the goal's trajectory is sent; after that its motion is the
-        streamer's and stopping it mid-move is not supported yet: refused, saying so."""
+        """Every cancel is accepted: before the goal's trajectory is sent nothing streams; during its motion
+        the goal's thread plans a stop (contract "Motion from any state"); after it the goal ends at once."""
         with self._lock:
             goal = next((g for g in self._goals if g.goal_handle is goal_handle), None)
-            sent = goal is not None and goal.sent
-            if goal is not None and not sent:
+            if goal is not None and not goal.sent:
                 goal.cancel = True  # seen by _run under this lock before it sends anything
-        if sent:
-            reason = ('cancel refused: the motion is already sent to the streamer; stopping a motion once '
-                      'sent is not supported yet')
-            self.get_logger().warn(reason)
-            self._diagnostics.report(EXECUTE_TASK, WARN, reason, error=reason)
-            return CancelResponse.REJECT
         return CancelResponse.ACCEPT
 
     def _execute(self, goal_handle):
@@ -482,14 +526,10 @@ class PlannerNode(Node):
         result.residual_swing = math.nan
         goal = _Goal(goal_handle)
         with self._lock:
-            # one motion at a time; goals whose motion has ended may still be settling (observing)
-            busy = [g for g in self._goals if g.phase in ('', WAITING, MOVING)]
-            if not busy:
-                self._goals.append(goal)
-        if busy:
-            return self._end(goal_handle, result, 'abort', 'a motion is executing (planned, streaming or '
-                             'waiting for its start); a new goal is accepted once it has ended, and '
-                             'preempting a motion is not supported yet')
+            for other in self._goals:  # one not sent yet gives way: it never streams
+                if not other.sent:
+                    other.cancel = other.preempted = True
+            self._goals.append(goal)
         try:
             return self._run(goal, request, result)
         except Exception as exc:  # a bug must not leave the caller waiting forever
@@ -501,6 +541,14 @@ class PlannerNode(Node):
             with self._lock:
                 self._goals.remove(goal)
 
+    def _in_motion(self) -> Running | None:
+        """The motion the streamer is streaming (or about to), if any."""
+        with self._lock:
+            running = self._running
+        if running is None or self.get_clock().now().nanoseconds >= running.end_ns:
+            return None
+        return running
+
     def _run(self, goal: '_Goal', request, result):
         goal_handle, config = goal.goal_handle, self._config
         t0 = time.perf_counter()
@@ -508,53 +556,268 @@ class PlannerNode(Node):
             return self._end(goal_handle, result, 'abort', f'settle: must be finite and >= 0 s (0 = '
                              f'{DEFAULT_SETTLE:g} s), got {request.settle}')
         settle = request.settle or DEFAULT_SETTLE
+        running = self._in_motion()
         try:
-            checked, plan, samples, values = self._plan(request.move, 'execute_move', execute=True)
+            if running is not None:  # a new goal during a motion: it takes over (preemption)
+                self.get_logger().info('execute_move: a goal during a motion: planning the handover')
+                checked, plan, trajectory, values, handover = self._preempting(request.move, running)
+                samples = None
+            else:
+                checked, plan, samples, values = self._plan(request.move, 'execute_move', execute=True)
+                handover = None
         except ValueError as exc:
             self._report_plan({'service': 'execute_move', 'method': '', **getattr(exc, 'values', {})},
-                              None, None, t0, t0, error=str(exc))
+                              None, 0, t0, t0, error=str(exc))
             return self._end(goal_handle, result, 'abort', str(exc))
         solved = time.perf_counter()
-        self._report_plan(values, plan, samples, t0, solved)
+        self._report_plan(values, plan, len(samples[0].t) if samples else len(trajectory.points), t0, solved)
         result.info = self._info(plan, checked, solved - t0)
         feedback = ExecuteMove.Feedback(progress=0.0, time_remaining=plan.duration, swing=math.nan)
         goal_handle.publish_feedback(feedback)  # planned: the caller knows at once
-        # hold the trajectory until publish_lead before its start: a cancel before then streams nothing
-        send_at = checked.start_ns - round(config.publish_lead * 1e9) if checked.start_ns else 0
-        while self.get_clock().now().nanoseconds < send_at and not (goal.cancel or goal_handle.is_cancel_requested):
-            time.sleep(min(FEEDBACK_PERIOD, max(0.0, (send_at - self.get_clock().now().nanoseconds) * 1e-9)))
+        if handover is None:
+            # hold the trajectory until publish_lead before its start: a cancel before then streams nothing
+            send_at = checked.start_ns - round(config.publish_lead * 1e9) if checked.start_ns else 0
+            while self.get_clock().now().nanoseconds < send_at and not (goal.cancel or
+                                                                         goal_handle.is_cancel_requested):
+                time.sleep(min(FEEDBACK_PERIOD, max(0.0, (send_at - self.get_clock().now().nanoseconds) * 1e-9)))
+            trajectory = self._trajectory_of(checked, samples)
         with self._lock:
-            canceled = goal.cancel or goal_handle.is_cancel_requested
+            canceled = goal.cancel or (goal_handle.is_cancel_requested and handover is None)
             if not canceled:
                 goal.sent = True
                 sent_ns = self.get_clock().now().nanoseconds
+                start_ns = handover or checked.start_ns or sent_ns
                 for other in self._goals:  # settling goals observe until this motion starts at the latest
                     if other is not goal and other.execution is not None:
-                        other.execution.cut(checked.start_ns or sent_ns)
+                        other.execution.cut(start_ns)
+                        if other.sent and other.execution.phase(0) in (WAITING, MOVING):
+                            other.preempted = True  # its motion is handed over to this goal's
+                goal.running = self._running = self._running_of(trajectory, handover or checked.start_ns, plan)
         if canceled:  # (ended outside the lock: _end may wait for the server's canceling state)
+            if goal.preempted:
+                return self._end(goal_handle, result, 'abort', 'preempted by a newer goal before its motion '
+                                 'started: nothing was streamed')
             return self._end(goal_handle, result, 'cancel', 'canceled before its motion started: nothing '
                              'was streamed')
-        goal.execution = Execution(plan.duration, settle, checked.start_ns or sent_ns, config.params.L1,
-                                   config.params.L2)
-        self._trajectory.publish(self._trajectory_of(checked, samples))
-        execution = goal.execution
+        goal.execution = Execution(plan.duration, settle, start_ns, config.params.L1, config.params.L2)
+        self._trajectory.publish(trajectory)
+        what = f'{checked.method}: ' + (f'from {checked.start:g} m (taking over the motion) ' if handover else
+                                        f'{checked.start:g} ') + f'-> {checked.goal:g} m in {plan.duration:.4g} s'
+        return self._follow(goal, result, feedback, settle, what)
+
+    def _follow(self, goal: '_Goal', result, feedback, settle: float, what: str):
+        """Follow the goal's motion to its result: done, preempted by a newer goal, or stopped on a cancel."""
+        goal_handle = goal.goal_handle
+        stopped = None  # (where the stop ends, m) once a cancel has stopped the motion
         while True:
+            execution = goal.execution
             phase = execution.phase(self.get_clock().now().nanoseconds)
             feedback.progress, feedback.time_remaining = execution.progress, execution.time_remaining
             feedback.swing = execution.swing
             goal_handle.publish_feedback(feedback)
+            if goal.preempted:
+                return self._end(goal_handle, result, 'abort', f'preempted by a newer goal after '
+                                 f'{execution.progress * execution.duration:.3f} s of its motion ({what})')
+            if goal_handle.is_cancel_requested and stopped is None:
+                if phase in (WAITING, MOVING) and goal.running is not None:
+                    try:
+                        stopped = self._stop(goal, settle)
+                    except ValueError as exc:
+                        return self._end(goal_handle, result, 'cancel', f'canceled, but no stop could be planned '
+                                         f'({exc}): the motion runs to its end')
+                    continue
+                result.residual_swing = execution.residual
+                return self._end(goal_handle, result, 'cancel', 'canceled after its motion had ended')
             if phase in (DONE, FAILED):
                 break
             time.sleep(FEEDBACK_PERIOD)
         if phase == FAILED:
+            with self._lock:
+                if self._running is goal.running:
+                    self._running = None  # the streamer did not take it: nothing is in motion
             return self._end(goal_handle, result, 'abort', execution.failure)
         result.residual_swing = execution.residual
         residual = ('no joint_states: residual not measured' if math.isnan(execution.residual)
                     else f'residual swing {1e3 * execution.residual:.3f} mm')
         cut = ('' if execution.window_end_ns == execution.end_ns + round(settle * 1e9) else
                f' (observed {(execution.window_end_ns - execution.end_ns) * 1e-9:.3g} s: the next motion started)')
-        return self._end(goal_handle, result, 'succeed', f'{checked.method}: {checked.start:g} -> {checked.goal:g} m '
-                         f'in {plan.duration:.4g} s; {residual}{cut}', success=True)
+        if stopped is not None:
+            return self._end(goal_handle, result, 'cancel', f'canceled: stopped at {stopped:.6g} m in '
+                             f'{execution.duration:.4g} s without swing ({what}); {residual}{cut}')
+        return self._end(goal_handle, result, 'succeed', f'{what}; {residual}{cut}', success=True)
+
+    # -- motion from any state: a new goal, a stop, a settle ------------------------------------
+
+    def _running_of(self, trajectory: JointTrajectory, origin_ns: int, plan) -> Running:
+        """The motion of ``trajectory`` as the streamer will interpolate it; origin 0 (as soon as possible):
+        learned from stream_state when the motion starts (``_origin``)."""
+        arrays = [joint_trajectory_to_arrays(trajectory, joint) for joint in trajectory.joint_names]
+        t = arrays[0][0]
+        return Running(trajectory.joint_names, t, *(np.column_stack([a[k] for a in arrays]) for k in (1, 2, 3)),
+                       origin_ns, plan)
+
+    def _origin(self, running: Running, wait: float = 0.2) -> bool:
+        """Whether ``running``'s origin is known; one sent as soon as possible learns it from stream_state
+        (the motion's first tick), waited for up to ``wait`` s."""
+        deadline = time.monotonic() + wait
+        while running.origin_ns == 0:
+            with self._lock:
+                goal = next((g for g in self._goals if g.running is running), None)
+            start = goal.execution.motion_start_ns if goal is not None and goal.execution is not None else None
+            if start is not None:
+                running.origin_ns = start
+                break
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.002)
+        return True
+
+    def _handover(self, running: Running, lead: float, make_plan, swing: bool = True):
+        """(plan, handover ns, state): ``make_plan(handover_ns, state)`` planned from the state ``running``
+        will be in ``lead`` s from now, planned again further ahead if it took longer than that (None if the
+        motion ends first). ``swing``: predict the swing there (not needed by a shaper's change)."""
+        if not self._origin(running):
+            raise MoveError('goal', 'the running motion has not started on the streamer yet (no stream_state '
+                                    'of it): a goal during it is accepted once it streams')
+        with self._handing_over:
+            for attempt in range(HANDOVER_ATTEMPTS):
+                now = self.get_clock().now().nanoseconds
+                handover = max(now + round(lead * 1e9), running.origin_ns)
+                if handover >= running.end_ns:
+                    return None
+                with self._lock:
+                    measured = self._measured
+                t0 = time.perf_counter()
+                state = transitions.handover_state(running, handover, measured, self._config.params, swing)
+                t1 = time.perf_counter()
+                plan = make_plan(handover, state)
+                took = time.perf_counter() - t0
+                if self.get_clock().now().nanoseconds < handover - TRANSPORT_MARGIN * 1e9:
+                    return plan, handover, state
+                self.get_logger().warn(f'handover: planning took {1e3 * took:.1f} ms (the state {1e3 * (t1 - t0):.1f} '
+                                       f'ms), beyond the lead {1e3 * lead:.1f} ms: planning again further ahead')
+                lead = max(2.0 * lead, 1.5 * took + TRANSPORT_MARGIN)
+        raise MoveError('duration', f'planning took longer than the handover lead {HANDOVER_ATTEMPTS} times '
+                                    f'(last lead {lead / 2:.3f} s); raise handover_lead')
+
+    def _trajectory_from(self, plan, state, joints, handover_ns: int) -> JointTrajectory:
+        config = self._config
+        times = knot_times(plan) if config.sample_period == 0.0 else time_grid(plan.duration, config.sample_period)
+        starts = [state.cart[0]] + ([transitions.hoist_start(plan, state)] if len(joints) > 1 else [])
+        return samples_to_joint_trajectory(axis_samples(plan, times), starts, handover_ns, config.frame_id,
+                                           joint=list(joints))
+
+    def _preempting(self, move_msg, running: Running):
+        """(checked, plan, trajectory, values, handover ns) of a goal arriving during ``running``."""
+        config = self._config
+        move = Move(move_msg.method, tuple(move_msg.joint_names), tuple(move_msg.start), tuple(move_msg.goal),
+                    move_msg.duration, stamp_ns(move_msg.start_time))
+        values = {'service': 'execute_move', 'method': move.method or config.method,
+                  'goal': move.goal[0] if move.goal else math.nan, 'duration': move.duration, 'preempts': True}
+        try:
+            if move.start:
+                raise MoveError('start', 'a goal during a motion starts where the motion is when it takes over: '
+                                         'leave start empty')
+            if move.start_ns:
+                raise MoveError('start_time', 'a goal during a motion takes over at once: leave start_time zero')
+            end = dict(zip(running.joints, (float(i.position[-1]) for i in running.interps)))
+            checked = check_move(move, config.bounds, end, config.params.L1)
+            if checked.duration is None:
+                raise MoveError('duration', 'a goal during a motion needs a duration (> 0 s): the fastest plan is '
+                                            'planned from rest only')
+            goal = {'cart': checked.goal}
+            if checked.hoist_goal is not None:
+                goal['hoist'] = checked.hoist_goal
+            shaper = checked.method not in VARIATIONAL_METHODS
+            lead = config.shaper_handover_lead if shaper else config.handover_lead
+
+            def make(handover_ns, state):
+                return transitions.retarget(self._planner.variational, running, handover_ns, state, checked.method,
+                                            goal, checked.duration, config.params, config.options)
+
+            try:
+                done = self._handover(running, lead, make, swing=not shaper)
+            except MoveError:
+                raise
+            except ValueError as exc:
+                raise MoveError('duration', str(exc)) from None
+            if done is None:
+                raise MoveError('goal', 'the running motion ended while this goal was planned; send it again')
+        except ValueError as exc:
+            exc.values = values
+            raise
+        plan, handover, state = done
+        checked = CheckedMove(checked.method, checked.joint_names, state.cart[0], checked.goal, checked.duration,
+                              handover, state.hoist[0] if state.hoist else None, checked.hoist_goal)
+        values.update(method=checked.method, start=state.cart[0], goal=checked.goal, duration=plan.duration,
+                      handover_lead=(handover - self.get_clock().now().nanoseconds) * 1e-9)
+        return checked, plan, self._trajectory_from(plan, state, running.joints, handover), values, handover
+
+    def _stop(self, goal: '_Goal', settle: float) -> float:
+        """Stop ``goal``'s motion without swing (a cancel during it): send the stop, follow it from now on.
+        Returns where the cart stops (m); ValueError says why no stop could be planned."""
+        config, running = self._config, goal.running
+
+        def make(handover_ns, state):
+            return transitions.stop(self._planner.variational, running, handover_ns, state, running.method,
+                                    config.params, config.options)
+
+        done = self._handover(running, STOP_LEAD, make)
+        if done is None:  # the motion ended meanwhile: it is at rest already
+            return float(running.interps[0].position[-1])
+        plan, handover, state = done
+        trajectory = self._trajectory_from(plan, state, running.joints, handover)
+        with self._lock:
+            goal.running = self._running = self._running_of(trajectory, handover, plan)
+        goal.execution = Execution(plan.duration, settle, handover, config.params.L1, config.params.L2)
+        self._trajectory.publish(trajectory)
+        where = state.cart[0] + plan.displacement
+        self.get_logger().info(f'execute_move: canceled during its motion: stopping at {where:.6g} m in '
+                               f'{plan.duration:.4g} s ({plan.method})')
+        return where
+
+    def _on_settle(self, request, response):
+        """``~/settle``: damp the swing measured now by a short motion ending where the cart is held."""
+        config = self._config
+        response.success = False
+        try:
+            if self._in_motion() is not None:
+                raise MoveError('settle', 'a motion is streaming: settle once it has ended')
+            hold = self._hold()
+            if hold is None:
+                raise MoveError('settle', f'no streamer heard on {STREAM_STATE_TOPIC}: nothing would stream the '
+                                          'motion')
+            with self._lock:
+                measured = self._measured
+            now = self.get_clock().now().nanoseconds
+            if measured is None or now - measured.stamp_ns > transitions.MEASUREMENT_AGE * 1e9:
+                raise MoveError('settle', f'no joint_states within {transitions.MEASUREMENT_AGE:g} s: the swing '
+                                          'to damp is not measured')
+            joints = tuple(j for j in config.joints if j in hold)
+            holding = Running.holding(joints, [hold[j] for j in joints], now)
+
+            def make(handover_ns, state):
+                return transitions.settle(self._planner.variational, state, config.params, config.options,
+                                          config.settle_method)
+
+            done = self._handover(holding, config.handover_lead, make)
+            plan, handover, state = done
+            trajectory = self._trajectory_from(plan, state, joints, handover)
+            with self._lock:
+                self._running = self._running_of(trajectory, handover, plan)
+            self._trajectory.publish(trajectory)
+        except ValueError as exc:
+            response.message = str(exc)
+            self.get_logger().warn(f'settle refused: {exc}')
+            self._diagnostics.report('settle', WARN, f'settle refused: {exc}', error=str(exc))
+            return response
+        swing = transitions.swing_of(state, config.params)
+        response.success = True
+        response.message = (f'settling a swing of about {1e3 * swing:.1f} mm: a {plan.duration:.3g} s {plan.method} '
+                            f'motion ending where the cart is held ({hold[CART_JOINT]:.6g} m)')
+        self.get_logger().info(response.message)
+        self._diagnostics.report('settle', OK, response.message, swing=swing, duration=plan.duration, error='')
+        return response
 
     def _end(self, goal_handle, result, how: str, message: str, success: bool = False):
         """End a goal (``succeed``, ``abort`` or ``cancel``) with ``message``, also on /diagnostics."""
@@ -593,9 +856,11 @@ class _Goal:
 
     def __init__(self, goal_handle):
         self.goal_handle = goal_handle
-        self.sent = False  # the trajectory went to the streamer: no cancel any more
+        self.sent = False  # the trajectory went to the streamer: a cancel now stops the motion
         self.cancel = False  # a cancel was accepted before it was sent
         self.execution: Execution | None = None
+        self.preempted = False  # a newer goal took over (or, before it was sent, replaced it)
+        self.running: Running | None = None  # its motion as sent (a stop's once canceled)
 
     @property
     def phase(self) -> str:

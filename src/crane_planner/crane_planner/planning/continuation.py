@@ -114,10 +114,14 @@ def problem_start(state: MotionState, params: CraneParams) -> tuple[dict, CraneP
 # -- prediction ----------------------------------------------------------------------------------------------
 
 
+#: RK4 steps of one CasADi call of the predictor (``_rk4_steps``): a call costs ~0.1 ms from Python, a step ~1 us.
+CHUNK = 64
+
+
 @functools.lru_cache(maxsize=None)
-def _rk4_step(form: Form) -> tuple[ca.Function, tuple]:
-    """(step, state names): one classic RK4 step x(t + h) of the planning model, its input (the
-    reference jerk per axis) given at t, t + h/2 and t + h: one CasADi call per step."""
+def _rk4_steps(form: Form) -> tuple[ca.Function, tuple]:
+    """(steps, state names): ``CHUNK`` classic RK4 steps of the planning model in one call, x0 and the
+    reference jerk per axis at each step's t, t + h/2 and t + h (columns) in, the state after them out."""
     ode = crane_ode(form.servo, form.hoist, form.hoist_servo)
     f = ode.function()
     u0, um, u1 = (ca.SX.sym(n, ode.u.shape[0]) for n in ('u0', 'um', 'u1'))
@@ -127,8 +131,8 @@ def _rk4_step(form: Form) -> tuple[ca.Function, tuple]:
     k2 = f(x + h / 2 * k1, um, p)
     k3 = f(x + h / 2 * k2, um, p)
     k4 = f(x + h * k3, u1, p)
-    step = ca.Function('rk4', [x, u0, um, u1, p, h], [x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
-    return step, ode.states
+    step = ca.Function('rk4', [x, ca.vertcat(u0, um, u1), p, h], [x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
+    return step.mapaccum('rk4_steps', CHUNK, [0], [0]), ode.states
 
 
 def predict(measured: MotionState, reference, t_measured: float, t_handover: float, params: CraneParams,
@@ -147,27 +151,33 @@ def predict(measured: MotionState, reference, t_measured: float, t_handover: flo
     hoist = measured.hoist is not None
     form = Form.of(params, hoist)
     start, model = problem_start(measured, params)
-    rk4, names = _rk4_step(form)
+    rk4, names = _rk4_steps(form)
     values = model.as_dict()
     p = np.array([values[k] for k in PARAMETERS])
     x = np.array([start.get(n, 0.0) for n in names])
     span = t_handover - t_measured
-    n = max(0, int(math.ceil(span / step - 1e-9)))
+    n = max(0, int(math.ceil(span / step / CHUNK - 1e-9))) * CHUNK  # whole chunks of steps <= step
     h = span / n if n else 0.0
     if n:  # the reference's jerk at every stage time, in one call
         jerk = np.array([r[3] for r in reference(t_measured + h / 2 * np.arange(2 * n + 1))])[:2 if hoist else 1]
-        for k in range(n):
-            x = np.asarray(rk4(x, jerk[:, 2 * k], jerk[:, 2 * k + 1], jerk[:, 2 * k + 2], p, h)).ravel()
+        u = np.vstack([jerk[:, 0:-1:2], jerk[:, 1::2], jerk[:, 2::2]])  # (3 axes-blocks, n) per step
+        for k in range(0, n, CHUNK):
+            x = np.asarray(rk4(x, u[:, k:k + CHUNK], p, h))[:, -1]  # (the state after every step: the last)
     s = dict(zip(names, x))
     refs = reference(np.array([t_handover])) if n else None
     cart = tuple(float(r[0]) for r in refs[0][:3]) if n else measured.cart
-    # positions in the model are relative to the cart reference at t_measured: the lag is y - (p_h - p_m)
-    cart_lag = s['y'] - (cart[0] - measured.cart[0])
     swing = tuple(float(s[k]) for k in ('theta1', 'theta2', 'dtheta1', 'dtheta2'))
+    # the lags only if the measurement gave them: derived from integrated positions they carry the
+    # integration's error over tau (velocity) and tau^2 (acceleration); steady tracking does not
+    if measured.cart_lag is None:
+        cart_lag = None
+    else:  # model positions are relative to the cart reference at t_measured: the lag is y - (p_h - p_m)
+        cart_lag = s['y'] - (cart[0] - measured.cart[0])
     if not hoist:
         return MotionState(cart, swing, cart_lag)
     hoist_ref = tuple(float(r[0]) for r in refs[1][:3]) if n else measured.hoist
-    return MotionState(cart, swing, cart_lag, hoist_ref, model.L1 + s['h'] - hoist_ref[0])
+    hoist_lag = None if measured.hoist_lag is None else model.L1 + s['h'] - hoist_ref[0]
+    return MotionState(cart, swing, cart_lag, hoist_ref, hoist_lag)
 
 
 # -- how long a stop and a settle take --------------------------------------------------------------------

@@ -18,12 +18,15 @@ does (contract "Motion from any state"):
   the running reference was, as long as it would have ended without one). A
   shaper cannot follow a hoist's changing rope: with the hoist moving, or
   asked to move, shapers refuse and NVF/RVF serve.
-- a stop: NVF from the handover state to rest anywhere (``free_end``), or,
+- a stop: NVF (for every variational method: RVF's sensitivities forced to
+  zero with a free end position make stops that wander metres) from the
+  handover state to rest anywhere (``free_end``), or,
   for a motion a shaper made from rest, that shaper's base braked by ruckig
-  and reshaped (``continuation.shaped_stop``). The NVF stop lasts one period
-  of the first swing mode at the rope length then, or the braking time the
-  axis limits allow if longer, lengthened by a quarter until it solves within
-  the limits.
+  and reshaped (``continuation.shaped_stop``). The NVF stop is the shortest
+  of a few durations (from half the first swing mode's period, or the
+  braking time, 15 % apart) whose peak acceleration stays within
+  ``max_acceleration``, or without one within twice the running motion's
+  peak: as near as the limits allow, never braking harder than that.
 - a settle: NVF from the measured swing at rest back to the same place, over
   one first-mode period (the same lengthening).
 
@@ -31,12 +34,14 @@ Pure Python, no ROS import.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
+from crane_sim.dynamics import load_excursion
 
 from ..planning.continuation import (
     Continuation,
@@ -51,13 +56,21 @@ from ..planning.continuation import (
 from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options, plan, shaper_design
 from ..planning.limits import hoist_limits_of, limits_of
 from ..planning.methods import SHAPER_METHODS
+from ..planning.model import modal_frequencies
 from ..planning.plan import AxesPlan, Plan, PlanError
 from ..planning.shaped import ShapedPlan
 from ..streaming.hermite import QuinticHermite
 
-#: How many times a stop or a settle is lengthened by ``LENGTHEN`` when it does not solve within the limits.
+#: How many times a settle is lengthened by ``LENGTHEN`` when it does not solve within the limits.
 ATTEMPTS = 4
 LENGTHEN = 1.25
+#: A stop without an acceleration limit brakes at most this many times the running motion's peak acceleration.
+STOP_BRAKING = 2.0
+#: A stop's durations tried: from this fraction of the first mode's period (or the braking time if longer),
+#: ``STOP_STEPS`` times longer each, ``STOP_TRIES`` of them; the first within the braking target is taken.
+STOP_SHORTEST = 0.5
+STOP_STEPS = 1.15
+STOP_TRIES = 10
 #: The newest measurement is used if it is at most this old (s) at the handover; else the model's swing.
 MEASUREMENT_AGE = 0.5
 
@@ -106,6 +119,13 @@ class Running:
         self.origin_ns, self.plan = int(origin_ns), plan
         self.method = plan.method if plan is not None else ''
 
+    @classmethod
+    def holding(cls, joints, positions, now_ns: int) -> 'Running':
+        """The axes held at ``positions`` (at rest) from ``now_ns`` on: what a settle starts from."""
+        n = len(positions)
+        p = np.array([positions, positions], dtype=float)
+        return cls(joints, [0.0, 3600.0], p, np.zeros((2, n)), np.zeros((2, n)), now_ns)
+
     @property
     def duration(self) -> float:
         t = self.interps[0].t
@@ -136,20 +156,23 @@ class Running:
 
 
 def handover_state(running: Running, handover_ns: int, measured: Measurement | None,
-                   params: CraneParams) -> MotionState:
+                   params: CraneParams, swing: bool = True) -> MotionState:
     """The crane's state at ``handover_ns``: the running reference there, the swing predicted from
     ``measured`` (if it is recent and not after the handover) along it, else from the motion's start at
-    rest (the model's own swing)."""
+    rest (the model's own swing); the axes' servos track the reference steadily (``MotionState``).
+    Without ``swing`` (what a shaper needs) the reference alone, at once."""
     hoisting = HOIST_JOINT in running.joints
+    if not swing:
+        refs = running.at(handover_ns)
+        return MotionState(tuple(float(x[0]) for x in refs[0][:3]),
+                           hoist=tuple(float(x[0]) for x in refs[1][:3]) if hoisting else None)
     if measured is not None and 0 <= handover_ns - measured.stamp_ns <= MEASUREMENT_AGE * 1e9:
+        # the measured swing; the axes as their servos track the reference (their lag is tau times the
+        # velocity: derived from a measured position it would carry the position's error over tau^2)
         t_m = measured.stamp_ns
         refs = running.at(t_m)
-        cart = tuple(float(x[0]) for x in refs[0][:3])
-        state = MotionState(cart, tuple(measured.swing), measured.cart[0] - cart[0])
-        if hoisting:
-            hoist = tuple(float(x[0]) for x in refs[1][:3])
-            L = measured.hoist[0] if measured.hoist is not None else hoist[0]
-            state = MotionState(cart, tuple(measured.swing), measured.cart[0] - cart[0], hoist, L - hoist[0])
+        state = MotionState(tuple(float(x[0]) for x in refs[0][:3]), tuple(measured.swing),
+                            hoist=tuple(float(x[0]) for x in refs[1][:3]) if hoisting else None)
     else:  # the model's swing: the motion from its start, where it was at rest
         t_m = min(running.origin_ns, handover_ns)
         refs = running.at(t_m)
@@ -159,6 +182,16 @@ def handover_state(running: Running, handover_ns: int, measured: Measurement | N
     # (the model's L1 is the rope's length: the hoist's reference carries it, else the parameter)
     return predict(state, lambda t: running.at(np.round(t * 1e9).astype(np.int64)), t_m * 1e-9,
                    handover_ns * 1e-9, params)
+
+
+def swing_of(state: MotionState, params: CraneParams) -> float:
+    """The amplitude (m) of the load's swing in ``state``, as the first mode's: sqrt(x^2 + (x'/omega_1)^2)
+    of the load's horizontal excursion x (the instant's excursion alone is 0 as the load passes below)."""
+    model = _model(params, state)
+    th1, th2, dth1, dth2 = state.swing
+    x = float(load_excursion(th1, th2, model.L1, model.L2))
+    rate = model.L1 * math.cos(th1) * dth1 + model.L2 * math.cos(th1 + th2) * (dth1 + dth2)
+    return math.hypot(x, rate / modal_frequencies(model)[0])
 
 
 def _model(params: CraneParams, state: MotionState) -> CraneParams:
@@ -223,17 +256,27 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
         new = Continuation.of(method, _Shifted(stopped, float(knots.evaluate(0.0).position[0])), t0, None,
                               info={'stop': 'shaped'})
         return _with_held_hoist(new, state)
-    method = method if method not in SHAPER_METHODS else 'nvf'
+    # NVF: RVF's sensitivities forced to zero at a free end make it wander (metres past the goal)
+    method = 'nvf'
     period = first_period(_model(params, state))
-    duration = period
-    if amax is not None:
-        duration = max(duration, braking_time(state.cart[1], state.cart[2], amax, jmax))
+    # how hard it may brake: the axis limit, else STOP_BRAKING times the running motion's own peak
+    accel = amax if amax is not None else STOP_BRAKING * max(_peak_acceleration(running), abs(state.cart[2]))
+    shortest = max(STOP_SHORTEST * period, braking_time(state.cart[1], state.cart[2], accel, jmax))
     if state.hoist is not None:
         hv, ha, hj = hoist_limits_of(options)
         if ha is not None:
-            duration = max(duration, braking_time(state.hoist[1], state.hoist[2], ha, hj))
-    return _lengthened(lambda T: _variational(variational, method, state, {}, T, params, options, free_end=True),
-                       duration)
+            shortest = max(shortest, braking_time(state.hoist[1], state.hoist[2], ha, hj))
+    last = None
+    for duration in shortest * STOP_STEPS ** np.arange(STOP_TRIES):
+        try:
+            last = _variational(variational, method, state, {}, duration, params, options, free_end=True)
+        except PlanError:
+            continue
+        if last.peaks()[1] <= accel * (1.0 + 1e-6):
+            return last
+    if last is None:
+        raise PlanError(f'{method}: no stop within the axis limits from {state.cart[1]:.3g} m/s')
+    return last  # the longest tried: its peak above the braking target, within the axis limits
 
 
 def settle(variational, state: MotionState, params: CraneParams, options: PlanOptions, method: str = 'nvf') -> Plan:
@@ -245,6 +288,13 @@ def settle(variational, state: MotionState, params: CraneParams, options: PlanOp
         goal[HOIST_JOINT] = state.hoist[0]
     return _lengthened(lambda T: _variational(variational, method, state, goal, T, params, options),
                        first_period(_model(params, state)))
+
+
+def _peak_acceleration(running: Running) -> float:
+    """The running motion's peak |acceleration| of the cart (m/s^2), from its knots."""
+    interp = running.interps[0]
+    t = np.linspace(interp.t[0], interp.t[-1], 400)
+    return float(np.abs(interp(t)[2]).max())
 
 
 def _lengthened(solve, duration: float) -> Plan:

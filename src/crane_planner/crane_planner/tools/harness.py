@@ -24,20 +24,29 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.client import PlannerClient
-from crane_msgs_py.conversions import joint_state_to_arrays, move_message, samples_to_joint_trajectory, stamp_ns
+from crane_msgs_py.conversions import (
+    joint_state_to_arrays,
+    move_message,
+    read_reference,
+    samples_to_joint_trajectory,
+    stamp_ns,
+)
 from crane_msgs_py.diagnostics import OK, level_of, status_values
 from crane_msgs_py.names import (
     HOIST_JOINT,
     JOINT_STATES_TOPIC,
     PLANNER_NODE,
+    PUSH_SERVICE,
+    REFERENCE_TOPIC,
     RESET_SERVICE,
+    SETTLE_SERVICE,
     SIM_JOINTS,
     SIM_NODE,
     STREAMER_NODE,
     TRAJECTORY_TOPIC,
     service_of,
 )
-from crane_msgs_py.qos import JOINT_STATES_QOS, TRAJECTORY_QOS, recording
+from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS, TRAJECTORY_QOS, recording
 from crane_msgs_py.runner import spinning
 
 from .processes import PLANNER, SIM, STREAMER, NodeGroup
@@ -80,6 +89,9 @@ class CraneHarness:
                         for target, name in (('planner', PLANNER_NODE), ('sim', SIM_NODE),
                                              ('streamer', STREAMER_NODE))}
         self._reset = self.node.create_client(Trigger, service_of(SIM_NODE, RESET_SERVICE), callback_group=group)
+        self._push = self.node.create_client(Trigger, service_of(SIM_NODE, PUSH_SERVICE), callback_group=group)
+        self._settle = self.node.create_client(Trigger, service_of(PLANNER_NODE, SETTLE_SERVICE),
+                                               callback_group=group)
         self._lock = threading.Lock()
         self._slowest_plan = 0.0
         self._states: list = []  # (stamp ns, theta1, theta2, cart, hoist: the rope length, NaN without one)
@@ -91,6 +103,7 @@ class CraneHarness:
         self.node.create_subscription(JointTrajectory, TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS,
                                       callback_group=group)
         self._trajectory_pub = self.node.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
+        self._reference_sub = None  # (node, spinning, rows) while the 1 kHz reference is kept (keep_references)
         self._executor = MultiThreadedExecutor(num_threads=3)
         self._executor.add_node(self.node)
         self._spinning = spinning(self._executor)  # entered here, left in close()
@@ -102,6 +115,36 @@ class CraneHarness:
         hoist = msg.position[list(msg.name).index(HOIST_JOINT)] if HOIST_JOINT in msg.name else math.nan
         with self._lock:
             self._states.append((stamp_ns(msg.header.stamp), pos[1], pos[2], pos[0], hoist))
+
+    def keep_references(self, keep: bool = True) -> np.ndarray | None:
+        """Start (``keep``: once they flow) or stop keeping the streamed references at 1 kHz; stopping
+        returns the cart's as rows of (stamp ns, position, velocity, acceleration).
+
+        On a node of their own spun by an EventsExecutor: the harness's executor would spend a core on them.
+        """
+        if keep:
+            if self._reference_sub is not None:
+                return None
+            from rclpy.experimental import EventsExecutor
+            rows: list = []
+            node = rclpy.create_node(f'{self.node.get_name()}_references', namespace=self.node.get_namespace())
+            node.create_subscription(JointTrajectory, REFERENCE_TOPIC,
+                                     lambda m: rows.append(read_reference(m)),
+                                     recording(REFERENCE_EVERY_SAMPLE_QOS, 10.0, 1000.0))
+            executor = EventsExecutor()
+            executor.add_node(node)
+            spin = spinning(executor)
+            spin.__enter__()
+            self._reference_sub = (node, spin, rows)
+            self.wait_until(lambda: bool(rows), 5.0, 'no reference received')
+            return None
+        if self._reference_sub is None:
+            return None
+        node, spin, rows = self._reference_sub
+        self._reference_sub = None
+        spin.__exit__(None, None, None)
+        node.destroy_node()
+        return np.array([(r[0], r[1], r[2], r[3]) for r in rows], dtype=float).reshape(-1, 4)
 
     def _on_trajectory(self, msg):
         with self._lock:
@@ -204,6 +247,66 @@ class CraneHarness:
             self._goals[streamed] = handle
         return streamed, plan_time, traj
 
+    def retarget(self, method: str, goal: float, duration: float, settle: float = 0.0,
+                 hoist_goal: float | None = None) -> int:
+        """Send a new goal during a motion (as soon as possible, from where the motion is): the stamp the
+        planner hands the motion over at. PlanError (the planner's reason) if it was refused."""
+        before = set(self.sent_trajectories())
+        mark = self.planner.diagnostics.mark()
+        planned = threading.Event()
+        joints = ['cart'] + ([HOIST_JOINT] if hoist_goal is not None else [])
+        move = move_message([goal] + ([hoist_goal] if hoist_goal is not None else []), duration, [], method,
+                            joints if hoist_goal is not None else [])
+        handle = self.planner.send_execute(method, None, goal, duration, 0, settle,
+                                           feedback=lambda _: planned.set(), timeout=30.0, move=move)
+        outcome = handle.get_result_async()
+        self.wait_until(lambda: planned.is_set() or outcome.done(), 30.0, f'the {method} goal was never planned')
+        if not planned.is_set():
+            self.planner.result(handle, timeout=5.0)  # raises PlanError with the planner's reason
+
+        def new_stamp():
+            return [s for s in self.sent_trajectories() if s not in before]
+
+        self.wait_until(lambda: bool(new_stamp()), 5.0, f'the {method} handover never appeared on the trajectory '
+                                                        'topic')
+        handover = new_stamp()[-1]
+        self.streamed_start(handover, mark, f'the {method} handover')
+        with self._lock:
+            self._goals[handover] = handle
+        return handover
+
+    def cancel(self, start_ns: int, timeout: float = 30.0):
+        """Cancel the goal whose motion started at ``start_ns`` and wait for its end: (status, result)."""
+        with self._lock:
+            handle = self._goals.pop(start_ns)
+        self._wait(handle.cancel_goal_async(), 5.0, 'the cancel')
+        response = self._wait(handle.get_result_async(), timeout, 'the canceled goal\'s result')
+        return response.status, response.result
+
+    def outcome(self, start_ns: int, timeout: float = 30.0):
+        """(status, result) of the goal whose motion started at ``start_ns``, whatever its outcome."""
+        with self._lock:
+            handle = self._goals.pop(start_ns)
+        response = self._wait(handle.get_result_async(), timeout, 'the goal\'s result')
+        return response.status, response.result
+
+    def push_sim(self):
+        """Set the load swinging (the sim's ``~/push``, ``push_swing`` m aside)."""
+        response = self._wait(self._push.call_async(Trigger.Request()), 5.0, 'sim push service')
+        if not response.success:
+            raise HarnessError(f'sim push failed: {response.message}')
+
+    def settle(self) -> tuple[int, str]:
+        """Call the planner's ``~/settle``: (the settle motion's stamp, the planner's message); HarnessError
+        with the planner's reason if refused."""
+        before = set(self.sent_trajectories())
+        response = self._wait(self._settle.call_async(Trigger.Request()), 5.0, 'planner settle service')
+        if not response.success:
+            raise HarnessError(f'settle refused: {response.message}')
+        self.wait_until(lambda: any(s not in before for s in self.sent_trajectories()), 5.0,
+                        'the settle motion never appeared on the trajectory topic')
+        return [s for s in self.sent_trajectories() if s not in before][-1], response.message
+
     def goal(self, start_ns: int):
         """The ExecuteMove goal handle of the move that started at ``start_ns`` (to cancel it, say)."""
         with self._lock:
@@ -270,6 +373,11 @@ class CraneHarness:
                 return bool(self._states) and self._states[-1][0] >= stamp_ns
         self.wait_until(arrived, timeout, f'no joint_states stamped past the motion within {timeout:g} s', 0.02)
 
+    def last_state(self) -> tuple | None:
+        """The newest joint_states row (stamp ns, theta1, theta2, cart, hoist or NaN), None before any."""
+        with self._lock:
+            return self._states[-1] if self._states else None
+
     def states_between(self, begin_ns: int, end_ns: int, timeout: float = 3.0) -> np.ndarray:
         """joint_states stamped in [begin, end] (dropping everything older than ``end_ns``): rows of
         (stamp ns, theta1, theta2, cart, hoist or NaN)."""
@@ -280,6 +388,7 @@ class CraneHarness:
         return np.array(rows).reshape(-1, 5)
 
     def close(self):
+        self.keep_references(False)
         self._spinning.__exit__(None, None, None)  # the spin thread out of rcl, then the executor shut down
         self.node.destroy_node()
         rclpy.try_shutdown()

@@ -45,6 +45,7 @@ from crane_msgs_py.names import (
     MARKERS_TOPIC,
     OUTPUT_FLOAT64_ARRAY,
     OUTPUT_JOINT_TRAJECTORY,
+    PUSH_SERVICE,
     REFERENCE_TOPIC,
     RESET_SERVICE,
     SIM_NODE,
@@ -109,6 +110,8 @@ PARAMETERS = {
                    '(a measurement such as a camera\'s; the simulation itself is exact); may change while running',
               float_range(0.0, 1.0)),
     'seed': (0, 'seed of the measurement noise; fixed at start-up', {**int_range(0, 2**31 - 1), 'read_only': True}),
+    'push_swing': (0.03, '~/push displaces the load this far (m) horizontally, cables in line, and lets go: a '
+                         'swing for tests and the demo (the planner\'s ~/settle damps it)', float_range(-1.0, 1.0)),
     'sched_priority': (0, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
                        'feeds it one below (without the privilege a warning and normal scheduling); '
                        '0 = normal scheduling, enough: the playout delay absorbs late steps',
@@ -144,6 +147,7 @@ class SimNode(Node):
         self._inbox: deque = deque(maxlen=1000)   # (stamp ns, position, acceleration[, hoist's two]), checked
         self._pending_params: CraneParams | None = None
         self._reset_requested = threading.Event()
+        self._push: float | None = None  # a push for the loop to apply (m)
         # The loop's counts (out_of_order: a sample a swapped playout could not take); the
         # intake's own are the executor's: one writer per dict. The diagnostics add them up.
         self.counts = dict.fromkeys(('out_of_order', 'timeouts', 'steps', 'skipped', 'published'), 0)
@@ -160,6 +164,7 @@ class SimNode(Node):
         else:
             self._subscribe(self._reference_type)
         self.create_service(Trigger, RESET_SERVICE, self._on_reset)
+        self.create_service(Trigger, PUSH_SERVICE, self._on_push)
         self.create_timer(1.0, self._report)
         self._loop_thread = LoopThread(self, self._loop, 'sim-loop', p['sched_priority'])
         self.get_logger().info(f'simulating {self._sim.params} every {p["step"] * 1e3:g} ms, joint_states at '
@@ -235,6 +240,19 @@ class SimNode(Node):
         if sample is not None:
             self._inbox.append(sample)
 
+    def _on_push(self, request, response):
+        push = float(self.get_parameter('push_swing').value)
+        length = self._sim.L1 + self._sim.params['L2']
+        if not abs(push) < length:
+            response.success = False
+            response.message = f'push_swing {push:g} m: must be less than the cables\' length ({length:g} m)'
+            return response
+        self._push = push
+        response.success = True
+        response.message = f'load pushed {push * 1e3:g} mm aside and released, from the next step'
+        self.get_logger().info(response.message)
+        return response
+
     def _on_reset(self, request, response):
         self._reset_requested.set()
         response.success = True
@@ -265,6 +283,12 @@ class SimNode(Node):
                 timeouts += playout.timeouts if playout else 0
                 playout = ReferencePlayout(*playout_args)
                 hoist_playout = ReferencePlayout(*playout_args) if sim.hoist else None
+            if self._push is not None:
+                push, self._push = self._push, None
+                try:
+                    sim.push(push)
+                except SimulationError as exc:  # the rope shortened since the request was checked
+                    self.get_logger().warn(f'push not applied: {exc}')
             if self._reset_requested.is_set():
                 self._reset_requested.clear()
                 sim.reset(CraneState(y=sim.state.y))
