@@ -26,6 +26,7 @@ setup(
             'crane-plan = crane_planner.tools.cli:main',
             'crane-demo = crane_planner.tools.demo:main',
             'crane-record = crane_planner.tools.record:main',
+            'crane-teleop = crane_planner.tools.teleop:main',
         ],
     },
 )

@@ -49,6 +49,12 @@ JOINT_STATES_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=25,
     reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
 
+#: ``cmd_vel`` as the streamer reads it: best effort (it matches reliable publishers, such as
+#: teleop_twist_keyboard's and crane-teleop's, and best-effort ones), depth 1: the newest command wins.
+CMD_VEL_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1,
+    reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
+
 #: ``crane_markers``: reliable (RViz2's MarkerArray display subscribes reliable; a best-effort
 #: publisher would not match it), volatile, a short queue: a late frame is worth nothing.
 MARKERS_QOS = QoSProfile(

@@ -13,6 +13,17 @@ they are due. Every ``rate / state_rate`` ticks it also publishes the stream's
 state (``crane_interfaces/StreamState`` on ``stream_state``, not impaired: a
 status, like ros2_controllers' controller_state), from which the planner
 follows an executed move by this clock and learns where the axes are held.
+
+Two modes (``mode``, switched only at rest): ``trajectory`` streams what the
+planner sends (a trajectory during a motion is a handover, see the core);
+``operator`` follows ``cmd_vel`` (``geometry_msgs/Twist``: ``linear.x`` the
+cart's velocity, ``linear.z`` the load's vertical velocity, + = up, the rope
+shortening) through ``streaming.operator.OperatorStream``: jerk-limited by
+ruckig within the ``operator.*`` limits and shaped online by
+``operator_shaper`` at every tick. ``~/stop`` stops without swing: in
+operator mode by a zero command, during a trajectory's motion by an NVF stop
+from the motion's state (``serving.transitions.stop``, the swing the model's);
+the stream stops once the crane is at rest.
 """
 from __future__ import annotations
 
@@ -20,9 +31,11 @@ import json
 import math
 import threading
 import time
+from typing import NamedTuple
 
 import numpy as np
 from crane_interfaces.msg import StreamState
+from geometry_msgs.msg import Twist
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from std_srvs.srv import Trigger
@@ -38,6 +51,8 @@ from crane_msgs_py.conversions import (
 )
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (
+    CMD_VEL_TOPIC,
+    HOIST_JOINT,
     OUTPUT_JOINT_TRAJECTORY,
     OUTPUTS,
     REFERENCE_TOPIC,
@@ -49,15 +64,30 @@ from crane_msgs_py.names import (
     check_joints,
 )
 from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
-from crane_msgs_py.params import CraneParams
-from crane_msgs_py.qos import REFERENCE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
+from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError, check_choice
+from crane_msgs_py.qos import CMD_VEL_QOS, REFERENCE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
 from crane_planner.streaming.impairment import DISTRIBUTIONS, DelayLine, Impairment
+from crane_planner.streaming.operator import OPERATOR_SHAPERS, AxisLimits, OperatorStream
 from crane_planner.streaming.reference_stream import ReferenceStream, position_text
+
+MODES = ('trajectory', 'operator')
 
 STREAM_TASK = 'stream'
 TRAJECTORY_TASK = 'trajectory'
+#: How far ahead (s) a ~/stop during a motion takes over (its NVF stop is planned in milliseconds).
+STOP_LEAD = 0.1
+
+
+class _Config(NamedTuple):
+    """The streamer's parameters checked together: the link's impairment, the crane model, the mode and
+    the operator mode's settings (shaper, cmd_timeout, limits per axis, hoist range, model)."""
+
+    impairment: Impairment
+    model: CraneParams
+    mode: str
+    operator: tuple
 
 
 PARAMETERS = {
@@ -94,6 +124,29 @@ PARAMETERS = {
     'network.loss': (0.0, 'impairment: probability that a message is lost', float_range(0.0, 1.0)),
     'network.reorder': (False, 'impairment: let messages overtake each other (false = FIFO delivery)', {}),
     'network.seed': (0, 'impairment: seed of the random draws', {}),
+    'mode': ('trajectory', 'trajectory: stream the trajectories sent on trajectory; operator: follow cmd_vel '
+                           '(geometry_msgs/Twist: linear.x the cart velocity, linear.z the load\'s vertical velocity, '
+                           '+ = up), jerk-limited and shaped online; switched only with the crane at rest',
+             {'additional_constraints': f'one of {", ".join(MODES)}'}),
+    'operator_shaper': ('zv', 'operator mode: the shaper applied online to the jerk-limited command, designed '
+                              'every tick for the rope length then (length-adaptive); none = rate limits only',
+                        {'additional_constraints': f'one of {", ".join(OPERATOR_SHAPERS)}'}),
+    'cmd_timeout': (0.5, 'operator mode: a command older than this (s) counts as zero, so a lost joystick stops '
+                         'the crane (without swing)', float_range(0.001, 10.0)),
+    'operator.max_velocity': (0.3, 'operator mode: the cart\'s velocity limit (m/s)', float_range(1e-6, 100.0)),
+    'operator.max_acceleration': (0.5, 'operator mode: the cart\'s acceleration limit (m/s^2)',
+                                  float_range(1e-6, 1000.0)),
+    'operator.max_jerk': (5.0, 'operator mode: the cart\'s jerk limit (m/s^3)', float_range(1e-6, 1e6)),
+    'operator.max_hoist_velocity': (0.2, 'operator mode: the hoist\'s velocity limit (m/s)',
+                                    float_range(1e-6, 100.0)),
+    'operator.max_hoist_acceleration': (0.5, 'operator mode: the hoist\'s acceleration limit (m/s^2)',
+                                        float_range(1e-6, 1000.0)),
+    'operator.max_hoist_jerk': (5.0, 'operator mode: the hoist\'s jerk limit (m/s^3)', float_range(1e-6, 1e6)),
+    'operator.hoist_range': ([0.1, 3.0], 'operator mode: the shortest and longest rope (m) the hoist may reach',
+                             {'additional_constraints': '[shortest, longest], 0 < shortest < longest'}),
+    **{name: (getattr(CraneParams, name), f'crane model of the operator shaper and of a ~/stop: '
+                                          f'{PARAMETER_DESCRIPTIONS[name]}', float_range(0.0, 1e4))
+       for name in PARAMETER_NAMES},
 }
 
 
@@ -105,13 +158,19 @@ class StreamerNode(Node):
         p = declare(self, PARAMETERS)
         self._joints = check_joints(p['joints'])  # ValueError: see main()
         self._msg = reference_message(p['output'], joint=list(self._joints))  # ParameterError: unknown output
-        self._impairment = self._impairment_of(p)  # ParameterError on a bad override
+        self._mode = p['mode']
+        self._operator: OperatorStream | None = None  # the operator mode's stream while in that mode
+        self._stop_at_rest = False  # a ~/stop waits for the crane to come to rest
+        self._stopper = None  # ~/stop's NVF solvers during a motion (a dispatch.SolverCache), built in the background
+        config = self._config_of(p)  # ParameterError on a bad override
+        self._impairment = config.impairment
         self._ticker = Ticker(round(1e9 / p['rate']))
         self._period_ns = self._ticker.period
         self._busy_wait_ns = round(p['busy_wait'] * 1e9)
         self._timing_log = p['timing_log']
         self._diagnostics = DiagnosticsPublisher(self)
-        Guard(self, PARAMETERS, self._impairment_of, self._apply, self._diagnostics)
+        Guard(self, PARAMETERS, self._config_of, self._apply, self._diagnostics)
+        self._model = config.model
         self._publisher = self.create_publisher(type(self._msg), REFERENCE_TOPIC, REFERENCE_QOS)
         self._state_msg = stream_state_message(self._joints)
         self._state_pub = self.create_publisher(StreamState, STREAM_STATE_TOPIC, STREAM_STATE_QOS)
@@ -122,6 +181,9 @@ class StreamerNode(Node):
         hold = p['initial_position'] if len(self._joints) == 1 else (p['initial_position'],
                                                                      p['initial_hoist_position'])
         self._stream = ReferenceStream(self._period_ns, hold, p['start_tolerance'], stopped=not p['auto_start'])
+        self._operator_config = config.operator
+        if self._mode == 'operator':
+            self._operator = self._operator_of(config, hold)
         self._running = threading.Event()
         self._created_ns = self.get_clock().now().nanoseconds
         self._lateness = Lateness(keep_all=bool(self._timing_log))
@@ -133,30 +195,131 @@ class StreamerNode(Node):
         self._window_start = time.monotonic()
 
         self.create_subscription(JointTrajectory, TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS)
+        self.create_subscription(Twist, CMD_VEL_TOPIC, self._on_cmd_vel, CMD_VEL_QOS)
+        self.commands = 0
         self.create_service(Trigger, START_SERVICE, self._on_start)
         self.create_service(Trigger, STOP_SERVICE, self._on_stop)
         self.create_timer(1.0, self._report)
         if p['auto_start']:
             self._running.set()
         self._loop_thread = LoopThread(self, self._loop, 'reference-loop', p['sched_priority'])
+        threading.Thread(target=self._build_stopper, name='stop-solver', daemon=True).start()
         self.get_logger().info(f'streaming {p["output"]} on {self.resolve_topic_name(REFERENCE_TOPIC)} at '
                                f'{p["rate"]:g} Hz, {", ".join(self._joints)} held at {self._hold_text()} m'
                                + ('' if p['auto_start'] else ' (waiting for ~/start)'))
 
     # -- parameters -------------------------------------------------------
 
-    @staticmethod
-    def _impairment_of(values: dict) -> Impairment:
-        return Impairment(delay=values['network.delay'], jitter=values['network.jitter'],
-                          distribution=values['network.distribution'], loss=values['network.loss'],
-                          reorder=values['network.reorder'], seed=values['network.seed'])
+    def _config_of(self, values: dict) -> '_Config':
+        """The parameters checked together; a mode or operator setting changes only at rest."""
+        impairment = Impairment(delay=values['network.delay'], jitter=values['network.jitter'],
+                                distribution=values['network.distribution'], loss=values['network.loss'],
+                                reorder=values['network.reorder'], seed=values['network.seed'])
+        model = CraneParams(**{name: values[name] for name in PARAMETER_NAMES})
+        check_choice('mode', values['mode'], MODES)
+        check_choice('operator_shaper', values['operator_shaper'], OPERATOR_SHAPERS)
+        shortest, longest = (list(values['operator.hoist_range']) + [0.0, 0.0])[:2]
+        if len(values['operator.hoist_range']) != 2 or not 0.0 < shortest < longest:
+            raise ParameterError('operator.hoist_range must be [shortest, longest] with 0 < shortest < longest (m)')
+        limits = (AxisLimits(values['operator.max_velocity'], values['operator.max_acceleration'],
+                             values['operator.max_jerk']),
+                  AxisLimits(values['operator.max_hoist_velocity'], values['operator.max_hoist_acceleration'],
+                             values['operator.max_hoist_jerk']))
+        operator = (values['operator_shaper'], values['cmd_timeout'], limits, (shortest, longest), model)
+        if hasattr(self, '_stream'):  # a change (not the start-up values)
+            changed = values['mode'] != self._mode or (self._mode == 'operator' and operator != self._operator_config)
+            if changed and not self._at_rest():
+                raise ParameterError('mode and the operator settings change only with the crane at rest (no '
+                                     'motion streaming, the operator\'s command played out)')
+        return _Config(impairment, model, values['mode'], operator)
 
-    def _apply(self, impairment: Impairment, values, changes):
+    def _operator_of(self, config: '_Config', hold) -> OperatorStream:
+        shaper, timeout, limits, hoist_range, model = config.operator
+        start = hold if isinstance(hold, tuple) else (hold,)
+        return OperatorStream(self._period_ns * 1e-9, start, limits[:len(start)], shaper, model, timeout,
+                              hoist_range)
+
+    def _at_rest(self) -> bool:
+        if self._operator is not None:
+            return self._operator.at_rest
+        return not self._stream.streaming and not self._stream.queued
+
+    def _apply(self, config: '_Config', values, changes):
         self._stream.start_tolerance = values['start_tolerance']
         self._busy_wait_ns = round(values['busy_wait'] * 1e9)
-        if impairment != self._impairment:
-            self._impairment = impairment  # the loop picks it up at its next tick
-            self.get_logger().info(f'network impairment: {impairment}')
+        self._model = config.model
+        if config.impairment != self._impairment:
+            self._impairment = config.impairment  # the loop picks it up at its next tick
+            self.get_logger().info(f'network impairment: {config.impairment}')
+        if config.mode != self._mode or (config.mode == 'operator' and config.operator != self._operator_config):
+            if self._operator is not None:  # (at rest: the stream holds where the operator left the axes)
+                position = self._operator.position
+                self._stream.hold_at(position if len(position) > 1 else position[0])
+            self._operator = self._operator_of(config, self._stream.hold) if config.mode == 'operator' else None
+            self.get_logger().info(f'mode {config.mode}' + (f': following {self.resolve_topic_name(CMD_VEL_TOPIC)}, '
+                                                            f'shaper {config.operator[0]}' if self._operator else ''))
+        self._mode, self._operator_config = config.mode, config.operator
+
+    # -- operator mode and stops (executor thread) ------------------------------
+
+    def _on_cmd_vel(self, msg: Twist):
+        operator = self._operator
+        self.commands += 1
+        if operator is None:
+            return
+        if self._stop_at_rest:  # stopping: commands wait for ~/start
+            return
+        # the hoist's position is the rope's length: + up (linear.z) shortens it
+        operator.command(msg.linear.x, -msg.linear.z)
+
+    def _build_stopper(self):
+        """Build the NVF solvers a ~/stop during a motion plans with, in the background at low priority."""
+        import os
+
+        from crane_planner.planning.continuation import MotionState, problem_start
+        from crane_planner.planning.dispatch import PlanOptions, SolverCache, VariationalRequest
+        try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 10)  # this thread only (Linux)
+        except (AttributeError, OSError):
+            pass
+        cache = SolverCache()
+        hoist = HOIST_JOINT in self._joints
+        model = self._model
+        state = MotionState((0.0, 0.1, 0.0), hoist=(model.L1, 0.0, 0.0) if hoist else None)
+        start, model = problem_start(state, model)
+        try:
+            cache(VariationalRequest('plan', 'nvf', (0.1, 0.0) if hoist else 0.1, 1.5, model, PlanOptions(), start,
+                                     True))
+        except Exception as exc:  # the solvers are built on first use then
+            self.get_logger().warn(f'building the stop solver failed: {exc}')
+        self._stopper = cache
+
+    def _stop_motion(self) -> str:
+        """Hand the streaming motion over to an NVF stop from its state; what is done (ValueError: why not)."""
+        from crane_planner.planning.dispatch import PlanOptions, SolverCache
+        from crane_planner.serving import transitions
+        from crane_planner.serving.moves import axis_samples
+        from crane_planner.streaming.knots import knot_times
+        motion = self._stream.last_motion
+        if motion is None or not self._stream.streaming:
+            raise ValueError('no motion is streaming')
+        running = transitions.Running.of_interps(self._joints, motion.interps, motion.origin_ns)
+        handover = self.get_clock().now().nanoseconds + round(STOP_LEAD * 1e9)
+        if handover >= running.end_ns:
+            raise ValueError('the motion ends before a stop could take over')
+        state = transitions.handover_state(running, handover, None, self._model)
+        plan = transitions.stop(self._stopper or SolverCache(), running, handover, state, 'nvf', self._model,
+                                PlanOptions())
+        times = knot_times(plan)
+        samples = axis_samples(plan, times)
+        starts = [state.cart[0]] + ([transitions.hoist_start(plan, state)] if len(self._joints) > 1 else [])
+        columns = [np.column_stack([s0 + s.position if k == 0 else s.velocity if k == 1 else s.acceleration
+                                    for s, s0 in zip(samples, starts)]) for k in range(3)]
+        if len(self._joints) == 1:
+            columns = [c[:, 0] for c in columns]
+        self._stream.accept(times, *columns, handover, self.get_clock().now().nanoseconds)
+        where = state.cart[0] + plan.displacement
+        return f'stopping without swing at {where:.6g} m in {plan.duration:.3g} s (nvf), then stopped'
 
     # -- trajectories (executor thread) -------------------------------------
 
@@ -166,6 +329,11 @@ class StreamerNode(Node):
         try:
             if info.get('source_timestamp', now_ns) < self._created_ns:
                 raise ValueError('published before this streamer started (a latched old plan is not replayed)')
+            if self._operator is not None:
+                raise ValueError('the streamer is in operator mode (it follows cmd_vel); set mode to trajectory '
+                                 'at rest to stream trajectories')
+            if self._stop_at_rest:
+                raise ValueError('the streamer is stopping (~/stop)')
             motion = self._stream.accept(*self._arrays(msg), start_ns, now_ns)
         except ValueError as exc:
             self.refused += 1
@@ -201,7 +369,10 @@ class StreamerNode(Node):
 
     def _on_start(self, request, response):
         response.success = True
-        if self._running.is_set():
+        if self._stop_at_rest:
+            response.success = False
+            response.message = 'stopping (~/stop): start again once stopped'
+        elif self._running.is_set():
             response.message = 'already streaming'
         else:
             self._stream.resume()
@@ -211,16 +382,38 @@ class StreamerNode(Node):
         return response
 
     def _on_stop(self, request, response):
+        """Stop without swing: at rest at once; in operator mode the command zeroed; during a motion an
+        NVF stop from its state. The stream stops (refusing trajectories until ~/start) once at rest."""
         response.success = True
         if not self._running.is_set():
             response.message = 'already stopped'
+        elif self._stop_at_rest:
+            response.message = 'already stopping'
+        elif self._operator is not None and not self._operator.at_rest:
+            self._operator.stop()
+            self._stop_at_rest = True
+            response.message = (f'stopping: the command set to zero, braked and shaped (at rest within '
+                                f'{self._operator.delay():.3g} s of the braking), then stopped')
+        elif self._operator is None and self._stream.streaming:
+            try:
+                response.message = self._stop_motion()
+                self._stop_at_rest = True
+            except ValueError as exc:  # no stop without swing: hold where the stream is (a hard stop)
+                self._halt()
+                response.message = f'stopped during a motion, holding {self._hold_text()} m: no stop without ' \
+                                   f'swing could be planned ({exc})'
+                self.get_logger().warn(response.message)
         else:
-            self._running.clear()
-            if self._stream.stop() is not None:  # dropped where it was
-                self.get_logger().warn(f'stopped during a motion; holding {self._hold_text()} m')
+            self._halt()
             response.message = 'stopped'
         self.get_logger().info(response.message)
         return response
+
+    def _halt(self):
+        """Stop streaming now (the loop holds nothing: it waits for ~/start)."""
+        self._stop_at_rest = False
+        self._running.clear()
+        self._stream.stop()
 
     # -- the loop (its own thread) -----------------------------------------
 
@@ -253,7 +446,17 @@ class StreamerNode(Node):
             now = self._wait(deadline, line)
             lateness.add(now - deadline)
             self.ticks += 1
-            position, velocity, acceleration = sample(k)
+            operator = self._operator
+            if operator is None:
+                position, velocity, acceleration = sample(k)
+            else:
+                position, velocity, acceleration = operator.sample()
+            if self._stop_at_rest and self._at_rest():  # a ~/stop's motion has ended: stop here
+                self._stop_at_rest = False
+                self._running.clear()
+                if operator is not None:
+                    stream.hold_at(operator.position if len(operator.position) > 1 else operator.position[0])
+                stream.stop()
             stamp = epoch_ros + k * ticker.period
             if k % self._state_every == 0:
                 self._publish_state(stamp, position, velocity, acceleration)
@@ -271,7 +474,9 @@ class StreamerNode(Node):
     def _publish_state(self, stamp: int, position: float, velocity: float, acceleration: float):
         stream = self._stream
         motion = stream.last_motion
-        fill_stream_state(self._state_msg, stamp, stream.streaming, position, velocity, acceleration,
+        operator = self._operator
+        streaming = stream.streaming if operator is None else not operator.at_rest
+        fill_stream_state(self._state_msg, stamp, streaming, position, velocity, acceleration,
                           motion.start_ns if motion else 0, motion.duration if motion else 0.0)
         try:
             self._state_pub.publish(self._state_msg)
@@ -312,7 +517,10 @@ class StreamerNode(Node):
         self._ticks_window, self._window_start = ticks, now
         summary = lateness_summary_us(self._lateness.take())
         running = self._running.is_set()
-        state = ('streaming' if self._stream.streaming else 'holding') if running else 'stopped'
+        moving = self._stream.streaming if self._operator is None else not self._operator.at_rest
+        state = ('streaming' if moving else 'holding') if running else 'stopped'
+        if self._operator is not None and running:
+            state = f'operator, {state}'
         error = self._loop_thread.error
         level = ERROR if error else WARN if self.skipped else OK
         message = f'the loop stopped: {error}' if error else f'{state} at {rate:.1f} Hz'
@@ -321,7 +529,8 @@ class StreamerNode(Node):
             STREAM_TASK, level, message, state=state, rate_hz=rate,
             target_rate_hz=1e9 / self._period_ns, **summary, ticks=self.ticks, sent=self.sent, dropped=self.dropped,
             reordered=self.reordered, skipped=self.skipped, hold_position=self._hold_text(),
-            trajectories_accepted=self.accepted, trajectories_refused=self.refused,
+            trajectories_accepted=self.accepted, trajectories_refused=self.refused, mode=self._mode,
+            commands=self.commands,
             network_delay=imp.delay, network_jitter=imp.jitter, network_distribution=imp.distribution,
             network_loss=imp.loss, network_reorder=imp.reorder)
 

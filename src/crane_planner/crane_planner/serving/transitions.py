@@ -120,6 +120,13 @@ class Running:
         self.method = plan.method if plan is not None else ''
 
     @classmethod
+    def of_interps(cls, joints, interps, origin_ns: int, plan: Plan | None = None) -> 'Running':
+        """The motion of the streamer's interpolants (``reference_stream.Motion.interps``), first knot at
+        ``origin_ns``."""
+        columns = [np.column_stack([getattr(i, k) for i in interps]) for k in ('position', 'velocity', 'acceleration')]
+        return cls(joints, interps[0].t, *columns, origin_ns, plan)
+
+    @classmethod
     def holding(cls, joints, positions, now_ns: int) -> 'Running':
         """The axes held at ``positions`` (at rest) from ``now_ns`` on: what a settle starts from."""
         n = len(positions)

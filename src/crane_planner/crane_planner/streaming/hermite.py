@@ -13,6 +13,28 @@ from __future__ import annotations
 import numpy as np
 
 
+def segment(p0, p1, v0, v1, a0, a1, h) -> tuple:
+    """The quintic on one segment of length ``h`` (s) matching p, v, a at both ends, as coefficients of
+    p(s) = sum c_i s^i with s = (t - t_k) / h in [0, 1] (the quintic Hermite basis); scalars or arrays."""
+    dp = p1 - p0
+    v0, v1 = h * v0, h * v1
+    a0, a1 = h * h * a0, h * h * a1
+    return (p0, v0, 0.5 * a0,
+            10.0 * dp - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1,
+            -15.0 * dp + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1,
+            6.0 * dp - 3.0 * (v0 + v1) - 0.5 * (a0 - a1))
+
+
+def segment_values(c, s, h) -> tuple:
+    """Position, velocity, acceleration and jerk of the ``segment`` coefficients ``c`` at fractions ``s``."""
+    c0, c1, c2, c3, c4, c5 = c
+    p = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
+    v = (c1 + s * (2.0 * c2 + s * (3.0 * c3 + s * (4.0 * c4 + s * 5.0 * c5)))) / h
+    a = (2.0 * c2 + s * (6.0 * c3 + s * (12.0 * c4 + s * 20.0 * c5))) / (h * h)
+    j = (6.0 * c3 + s * (24.0 * c4 + s * 60.0 * c5)) / (h * h * h)
+    return p, v, a, j
+
+
 class QuinticHermite:
     """Interpolant through knots ``t`` (s, strictly increasing) with p, v, a at each.
 
@@ -30,21 +52,8 @@ class QuinticHermite:
         if np.any(np.diff(t) <= 0.0):
             raise ValueError('knot times must increase strictly')
         self.t, self.position, self.velocity, self.acceleration = t, p, v, a
-        # Per segment, p(s) = sum c_i s^i with s = (t - t_k) / h in [0, 1]
-        # matching p, h p', h^2 p'' at both ends (the quintic Hermite basis).
-        h = np.diff(t)
-        dp = np.diff(p)
-        v0, v1 = h * v[:-1], h * v[1:]
-        a0, a1 = h * h * a[:-1], h * h * a[1:]
-        self._h = h
-        self._c = np.stack([
-            p[:-1],
-            v0,
-            0.5 * a0,
-            10.0 * dp - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1,
-            -15.0 * dp + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1,
-            6.0 * dp - 3.0 * (v0 + v1) - 0.5 * (a0 - a1),
-        ])
+        self._h = np.diff(t)
+        self._c = np.stack(segment(p[:-1], p[1:], v[:-1], v[1:], a[:-1], a[1:], self._h))
 
     def __call__(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration at times ``t`` (array-like)."""
@@ -60,13 +69,8 @@ class QuinticHermite:
         tc = np.clip(t, self.t[0], self.t[-1])
         k = np.clip(np.searchsorted(self.t, tc, side='right') - 1, 0, self._h.size - 1)
         h = self._h[k]
-        s = (tc - self.t[k]) / h
-        c0, c1, c2, c3, c4, c5 = self._c[:, k]
-        p = c0 + s * (c1 + s * (c2 + s * (c3 + s * (c4 + s * c5))))
-        v = (c1 + s * (2.0 * c2 + s * (3.0 * c3 + s * (4.0 * c4 + s * 5.0 * c5)))) / h
-        a = (2.0 * c2 + s * (6.0 * c3 + s * (12.0 * c4 + s * 20.0 * c5))) / (h * h)
-        j = np.where((t < self.t[0]) | (t >= self.t[-1]), 0.0,
-                     (6.0 * c3 + s * (24.0 * c4 + s * 60.0 * c5)) / (h * h * h))
+        p, v, a, j = segment_values(self._c[:, k], (tc - self.t[k]) / h, h)
+        j = np.where((t < self.t[0]) | (t >= self.t[-1]), 0.0, j)
         # knots are met exactly at s = 0; the last one (s = 1) would carry rounding
         end = tc >= self.t[-1]
         if end.any():

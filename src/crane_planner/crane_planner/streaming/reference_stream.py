@@ -139,6 +139,19 @@ class ReferenceStream:
         return self._motion is not None
 
     @property
+    def queued(self) -> bool:
+        """Whether a motion (or a handover) is accepted and waits for its first tick."""
+        return self._incoming is not None
+
+    def hold_at(self, position) -> None:
+        """Hold ``position`` (m; a tuple with several joints) from now on: the axes were moved by something
+        else (the operator mode); ValueError during a motion."""
+        with self._lock:
+            if self._motion is not None or self._incoming is not None:
+                raise ValueError('a motion is streaming: the hold follows it')
+            self._hold = tuple(float(x) for x in position) if self.joints > 1 else float(position)
+
+    @property
     def last_motion(self) -> Motion | None:
         """The motion streaming now, else the last one streamed (None before the first)."""
         return self._last

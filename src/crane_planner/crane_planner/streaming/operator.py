@@ -1,0 +1,213 @@
+"""The streamer's operator mode: a joystick's velocity command, jerk-limited and shaped online at every tick.
+
+Each tick the newest command (cart velocity; hoist velocity, + = the rope
+longer) goes to ruckig's velocity interface, which gives every axis a
+jerk-limited time-optimal profile within its limits: the *base*. A command
+older than ``cmd_timeout`` counts as zero, so a lost joystick stops the
+crane. The cart's base is then shaped online: the published reference is
+sum_i A_i b(t - t_i) over the impulses of ``design(shaper, omegas)``, read
+from a buffer of the base's past ticks (quintic Hermite between two ticks,
+so a delay need not be a whole number of ticks). The shaper follows the
+rope: its frequencies are the linearized crane's at the hoist's length
+every tick (length-adaptive), and the hoist's own base is not shaped (at
+rest, hoisting does not excite the swing of the linear model). A shaper
+whose first impulse is at 0 changes the reference on the tick after the
+command arrives.
+
+``OperatorStream.sample`` is called by the streamer's loop; ``command``
+from its executor (a tuple assignment: no lock). Pure Python, no ROS import.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from crane_msgs_py.params import CraneParams
+
+from ..planning.model import modal_properties
+from ..planning.plan import PlanError
+from ..planning.shapers import SHAPERS, design
+from .hermite import segment, segment_values
+
+#: ``operator_shaper`` values: a shaper of ``planning.shapers``, or ``none`` (rate limits only).
+OPERATOR_SHAPERS = ('none', *SHAPERS)
+#: Seconds of base history kept: more than any shaper of a rope up to 100 m long needs.
+HISTORY = 60.0
+#: The rope length (m) is redesigned for when it has changed by more than this.
+LENGTH_STEP = 1e-4
+
+
+@dataclass(frozen=True)
+class AxisLimits:
+    """An axis's limits on its reference: velocity (m/s), acceleration (m/s^2), jerk (m/s^3, inf = none)."""
+
+    velocity: float
+    acceleration: float
+    jerk: float = math.inf
+
+    def __post_init__(self):
+        for name in ('velocity', 'acceleration'):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise PlanError(f'operator mode needs a finite {name} limit > 0, got {value}')
+        if not self.jerk > 0.0:
+            raise PlanError(f'the jerk limit must be > 0, got {self.jerk}')
+
+
+class OperatorStream:
+    """Velocity commands to a shaped, jerk-limited reference, one tick at a time.
+
+    Args:
+        period: tick period (s).
+        start: the axes' positions (m) to start from at rest: (cart,) or (cart, hoist length).
+        limits: an ``AxisLimits`` per axis.
+        shaper: one of ``OPERATOR_SHAPERS``.
+        params: the crane model the shaper is designed on (L1 = the rope length without a hoist).
+        cmd_timeout: a command older than this (s) counts as zero.
+        hoist_range: (shortest, longest) rope length (m) the hoist may reach.
+        clock: the time (s) commands are stamped with (monotonic by default).
+    """
+
+    def __init__(self, period: float, start, limits, shaper: str, params: CraneParams, cmd_timeout: float = 0.5,
+                 hoist_range: tuple = (0.05, math.inf), clock=time.monotonic):
+        from ruckig import ControlInterface, InputParameter, OutputParameter, Ruckig
+        if shaper not in OPERATOR_SHAPERS:
+            raise PlanError(f'operator_shaper must be one of {", ".join(OPERATOR_SHAPERS)}, got {shaper!r}')
+        self.period, self.shaper, self.params, self.cmd_timeout = float(period), shaper, params, float(cmd_timeout)
+        self.clock, self.hoist_range = clock, hoist_range
+        start = tuple(float(x) for x in start)
+        self.axes = len(start)
+        if len(limits) != self.axes:
+            raise PlanError(f'{self.axes} axes need {self.axes} limits')
+        self.limits = tuple(limits)
+        self._otg = Ruckig(self.axes, self.period)
+        inp = self._input = InputParameter(self.axes)
+        inp.control_interface = ControlInterface.Velocity
+        inp.current_position, inp.current_velocity, inp.current_acceleration = list(start), [0.0] * self.axes, \
+            [0.0] * self.axes
+        inp.target_velocity, inp.target_acceleration = [0.0] * self.axes, [0.0] * self.axes
+        inp.max_velocity = [lim.velocity for lim in self.limits]
+        inp.max_acceleration = [lim.acceleration for lim in self.limits]
+        inp.max_jerk = [lim.jerk for lim in self.limits]
+        self._output = OutputParameter(self.axes)
+        self._command = (0.0, (0.0,) * self.axes)  # (time s, velocity per axis)
+        n = int(math.ceil(HISTORY / self.period)) + 2
+        self._base = np.empty((n, 3))  # the cart's base (p, v, a) per tick, a ring
+        self._base[:] = (start[0], 0.0, 0.0)
+        self._n, self._k = n, 0  # ring size, ticks sampled
+        self._length = None
+        self._impulses = (np.ones(1), np.zeros(1))  # amplitudes, delays (ticks)
+        self._blocked = 0  # the direction the hoist is stopped in at a bound of its range (-1, 0, 1)
+        self.position = start
+
+    # -- inputs (the executor) ---------------------------------------------------------------
+
+    def command(self, *velocity: float, now: float | None = None) -> None:
+        """The joystick's velocity per axis (m/s): the cart's, then the hoist's (its length's rate)."""
+        v = tuple(float(x) if math.isfinite(float(x)) else 0.0 for x in velocity)[:self.axes]
+        self._command = (self.clock() if now is None else now, v + (0.0,) * (self.axes - len(v)))
+
+    def stop(self) -> None:
+        """Zero velocity from now on (until the next command)."""
+        self._command = (self.clock(), (0.0,) * self.axes)
+
+    # -- the loop ---------------------------------------------------------------------------------
+
+    def target(self, now: float) -> list:
+        """The velocity each axis is steered to: the command, zero once stale; the hoist kept in its range."""
+        stamp, velocity = self._command
+        if now - stamp > self.cmd_timeout:
+            return [0.0] * self.axes
+        target = [max(-lim.velocity, min(lim.velocity, v)) for v, lim in zip(velocity, self.limits)]
+        if self.axes > 1:  # stop the rope where braking from its rate ends at the range's bound
+            inp = self._input
+            length, rate = inp.current_position[1], abs(inp.current_velocity[1])
+            limit = self.limits[1]
+            # braking from the rate at the acceleration limit, reached at the jerk limit; once braking for a
+            # bound, the hoist stays stopped until the stick points away from it (else it would creep on)
+            margin = rate * (rate / limit.acceleration + limit.acceleration / limit.jerk) / 2 + rate * self.period * 2
+            direction = (target[1] > 0.0) - (target[1] < 0.0)
+            at_bound = (direction < 0 and length - margin <= self.hoist_range[0]) or (
+                direction > 0 and length + margin >= self.hoist_range[1])
+            if direction and (at_bound or direction == self._blocked):
+                target[1], self._blocked = 0.0, direction
+            else:
+                self._blocked = 0
+        return target
+
+    def sample(self, now: float | None = None) -> tuple:
+        """The next tick's reference: (position, velocity, acceleration), floats with one axis, tuples with two."""
+        inp, out = self._input, self._output
+        inp.target_velocity = self.target(self.clock() if now is None else now)
+        self._otg.update(inp, out)
+        out.pass_to_input(inp)
+        p, v, a = out.new_position, out.new_velocity, out.new_acceleration
+        k = self._k = self._k + 1
+        self._base[k % self._n] = (p[0], v[0], a[0])
+        if self.axes > 1:
+            self._redesign(p[1])
+        cart = self._shaped(k)
+        if self.axes == 1:
+            self.position = (cart[0],)
+            return cart
+        self.position = (cart[0], p[1])
+        return (cart[0], p[1]), (cart[1], v[1]), (cart[2], a[1])
+
+    @property
+    def at_rest(self) -> bool:
+        """Whether the base is at rest and the shaper has played it out (the reference is still)."""
+        inp = self._input
+        if any(abs(x) > 1e-12 for x in (*inp.current_velocity, *inp.current_acceleration)):
+            return False
+        delays = self._impulses[1]
+        last = int(math.ceil(delays[-1])) + 2
+        recent = self._base[[(self._k - j) % self._n for j in range(min(last, self._n))]]
+        return bool(np.all(np.abs(recent[:, 1:]) < 1e-12) and np.ptp(recent[:, 0]) < 1e-12)
+
+    def delay(self) -> float:
+        """The shaper's length now (s): how long after the base the reference comes to rest."""
+        return float(self._impulses[1][-1]) * self.period
+
+    # -- the shaper ---------------------------------------------------------------------------------
+
+    def design_for(self, length: float) -> None:
+        """Design the shaper for the rope length ``length`` (m) (done every tick with a hoist)."""
+        self._length = length
+        if self.shaper == 'none':
+            self._impulses = (np.ones(1), np.zeros(1))
+            return
+        omegas, zetas = modal_properties(self.params.replace(L1=length))
+        s = design(self.shaper, omegas, zetas)
+        self._impulses = (np.array(s.amplitudes), np.array(s.times) / self.period)
+
+    def _redesign(self, length: float) -> None:
+        if self._length is None or abs(length - self._length) > LENGTH_STEP:
+            self.design_for(length)
+
+    def _shaped(self, k: int) -> tuple:
+        if self._length is None:
+            self.design_for(self.params.L1)
+        amplitudes, delays = self._impulses
+        p = v = a = 0.0
+        base, n, h = self._base, self._n, self.period
+        first = k - n + 2  # the oldest tick kept
+        for A, d in zip(amplitudes, delays):
+            t = k - d  # the base's time (ticks) this impulse reads
+            j = math.floor(t)
+            if j < first:  # before what is kept: the oldest (the base was at rest there)
+                x = base[first % n]
+                p, v, a = p + A * x[0], v + A * x[1], a + A * x[2]
+                continue
+            s = t - j
+            x0 = base[j % n]
+            if s < 1e-9:
+                p, v, a = p + A * x0[0], v + A * x0[1], a + A * x0[2]
+                continue
+            x1 = base[(j + 1) % n]
+            hp, hv, ha, _ = segment_values(segment(x0[0], x1[0], x0[1], x1[1], x0[2], x1[2], h), s, h)
+            p, v, a = p + A * hp, v + A * hv, a + A * ha
+        return p, v, a
+
