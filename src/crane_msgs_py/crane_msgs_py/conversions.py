@@ -305,15 +305,17 @@ def stream_state_message(joints=(CART_JOINT,), frame_id: str = DEFAULT_FRAME_ID)
 
 
 STREAMING, HOLDING = 'streaming', 'holding'
+#: ``StreamState.state`` of a streamer in operator mode (it follows cmd_vel, not trajectories).
+OPERATOR = 'operator'
 
 
 def fill_stream_state(msg: StreamState, stamp: int, streaming: bool, position, velocity,
-                      acceleration, motion_start_ns: int, motion_duration: float):
+                      acceleration, motion_start_ns: int, motion_duration: float, operator: bool = False):
     """One tick's state of a stream into a message from ``stream_state_message``, in place (floats for one
-    joint, tuples for several)."""
+    joint, tuples for several); ``operator``: the state is ``operator`` (the streamer follows cmd_vel)."""
     s = msg.header.stamp
     s.sec, s.nanosec = divmod(stamp, NS)
-    msg.state = STREAMING if streaming else HOLDING
+    msg.state = OPERATOR if operator else STREAMING if streaming else HOLDING
     if type(position) is tuple:
         msg.position[:] = array.array('d', position)
         msg.velocity[:] = array.array('d', velocity)
@@ -325,7 +327,8 @@ def fill_stream_state(msg: StreamState, stamp: int, streaming: bool, position, v
     msg.motion_duration = motion_duration
 
 
-def read_stream_state(msg: StreamState) -> tuple[int, bool, dict, int, float]:
-    """(stamp ns, streaming, {joint: position}, motion start ns, motion duration s) of a ``StreamState``."""
-    return (stamp_ns(msg.header.stamp), msg.state == STREAMING, dict(zip(msg.joint_names, msg.position)),
+def read_stream_state(msg: StreamState) -> tuple[int, str, dict, int, float]:
+    """(stamp ns, state: streaming/holding/operator, {joint: position}, motion start ns, motion duration s)
+    of a ``StreamState``."""
+    return (stamp_ns(msg.header.stamp), msg.state, dict(zip(msg.joint_names, msg.position)),
             stamp_ns(msg.motion_start), msg.motion_duration)

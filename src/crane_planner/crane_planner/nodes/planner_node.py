@@ -38,6 +38,7 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.conversions import (
+    OPERATOR,
     joint_state_to_arrays,
     joint_trajectory_to_arrays,
     read_stream_state,
@@ -409,13 +410,18 @@ class PlannerNode(Node):
         for execution in executions:
             execution.on_joint_state(stamp, position[1], position[2], length)
 
-    def _hold(self) -> dict | None:
-        """Where the streamer holds each joint (m), if it was heard within ``STREAM_FRESH`` s."""
+    def _heard(self) -> tuple | None:
+        """The streamer's newest state (``read_stream_state``) if it was heard within ``STREAM_FRESH`` s."""
         with self._lock:
             stream = self._stream
         if stream is None or self.get_clock().now().nanoseconds - stream[0] > STREAM_FRESH * 1e9:
             return None
-        return stream[1][2]
+        return stream[1]
+
+    def _hold(self) -> dict | None:
+        """Where the streamer holds each joint (m), if it was heard within ``STREAM_FRESH`` s."""
+        heard = self._heard()
+        return None if heard is None else heard[2]
 
     # -- planning (PlanMove, and each ExecuteMove goal) --------------------------------
 
@@ -436,7 +442,8 @@ class PlannerNode(Node):
                 values.update(hoist_start=checked.hoist_start, hoist_goal=checked.hoist_goal)
             plan = plan_move(self._planner, checked, config.bounds, config.params, config.options)
             if execute:  # after planning: a preview and a goal of the same bad move give the same reason
-                self._check_executable(checked, hold)
+                heard = self._heard()
+                self._check_executable(checked, hold, heard is not None and heard[1] == OPERATOR)
         except ValueError as exc:
             exc.values = values
             raise
@@ -445,11 +452,14 @@ class PlannerNode(Node):
         return checked, plan, axis_samples(plan, times), values
 
     @staticmethod
-    def _check_executable(move: CheckedMove, hold: dict | None):
+    def _check_executable(move: CheckedMove, hold: dict | None, operator: bool = False):
         """What the streamer would refuse, refused before anything is sent."""
         if hold is None:
             raise MoveError('goal', f'no streamer heard on {STREAM_STATE_TOPIC} within {STREAM_FRESH:g} s: nothing '
                                     'would stream the motion (is crane_streamer running and started?)')
+        if operator:
+            raise MoveError('goal', 'the streamer is in operator mode (it follows cmd_vel): set its mode to '
+                                    'trajectory, at rest, to execute moves')
         for joint, start in zip(move.joints, move.starts):
             if joint not in hold:
                 raise MoveError('joint_names', f'the streamer does not stream {joint} (it streams '
@@ -542,10 +552,16 @@ class PlannerNode(Node):
                 self._goals.remove(goal)
 
     def _in_motion(self) -> Running | None:
-        """The motion the streamer is streaming (or about to), if any."""
+        """The motion the streamer is streaming (or about to), if any: the last one sent, unless it has
+        ended, or the streamer says it holds though the motion should have started 0.1 s ago (refused)."""
         with self._lock:
             running = self._running
-        if running is None or self.get_clock().now().nanoseconds >= running.end_ns:
+        now = self.get_clock().now().nanoseconds
+        if running is None or now >= running.end_ns:
+            return None
+        heard = self._heard()
+        if heard is not None and heard[1] != 'streaming' and running.origin_ns and \
+                heard[0] > running.origin_ns + 100_000_000:
             return None
         return running
 

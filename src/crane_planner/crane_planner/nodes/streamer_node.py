@@ -267,7 +267,7 @@ class StreamerNode(Node):
         self.commands += 1
         if operator is None:
             return
-        if self._stop_at_rest:  # stopping: commands wait for ~/start
+        if self._stop_at_rest or not self._running.is_set():  # stopping or stopped: commands wait for ~/start
             return
         # the hoist's position is the rope's length: + up (linear.z) shortens it
         operator.command(msg.linear.x, -msg.linear.z)
@@ -375,6 +375,8 @@ class StreamerNode(Node):
         elif self._running.is_set():
             response.message = 'already streaming'
         else:
+            if self._operator is not None:  # a stick held before the stop does not move the crane now
+                self._operator.stop()
             self._stream.resume()
             self._running.set()
             response.message = f'streaming, hold {self._hold_text()} m'
@@ -477,7 +479,7 @@ class StreamerNode(Node):
         operator = self._operator
         streaming = stream.streaming if operator is None else not operator.at_rest
         fill_stream_state(self._state_msg, stamp, streaming, position, velocity, acceleration,
-                          motion.start_ns if motion else 0, motion.duration if motion else 0.0)
+                          motion.start_ns if motion else 0, motion.duration if motion else 0.0, operator is not None)
         try:
             self._state_pub.publish(self._state_msg)
         except Exception:  # the context is shut down (SIGINT): the reference's publish ends the loop

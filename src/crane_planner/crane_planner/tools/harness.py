@@ -90,6 +90,8 @@ class CraneHarness:
                                              ('streamer', STREAMER_NODE))}
         self._reset = self.node.create_client(Trigger, service_of(SIM_NODE, RESET_SERVICE), callback_group=group)
         self._push = self.node.create_client(Trigger, service_of(SIM_NODE, PUSH_SERVICE), callback_group=group)
+        self._streamer_services = {name: self.node.create_client(Trigger, service_of(STREAMER_NODE, f'~/{name}'),
+                                                                 callback_group=group) for name in ('start', 'stop')}
         self._settle = self.node.create_client(Trigger, service_of(PLANNER_NODE, SETTLE_SERVICE),
                                                callback_group=group)
         self._lock = threading.Lock()
@@ -289,6 +291,11 @@ class CraneHarness:
             handle = self._goals.pop(start_ns)
         response = self._wait(handle.get_result_async(), timeout, 'the goal\'s result')
         return response.status, response.result
+
+    def call_streamer(self, name: str):
+        """Call the streamer's ``~/start`` or ``~/stop``: its response (success, message)."""
+        return self._wait(self._streamer_services[name].call_async(Trigger.Request()), 5.0,
+                          f'streamer {name} service')
 
     def push_sim(self):
         """Set the load swinging (the sim's ``~/push``, ``push_swing`` m aside)."""

@@ -134,6 +134,13 @@ class NodeGroup:
     log_dir: Path
     processes: list = field(default_factory=list)
 
+    def run_tool(self, executable: str, *args: str) -> subprocess.Popen:
+        """Start one of crane_planner's command-line tools (``crane-teleop``, say) on this graph; the
+        caller waits for or kills it (it also dies with this process)."""
+        return subprocess.Popen([find_executable('crane_planner', executable), *args],
+                                env={**self.env, DIE_WITH_PARENT: '1'}, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
+
     def start(self, package: str, executable: str, *, name: str | None = None, namespace: str | None = None,
               params: dict | None = None, params_file=None) -> NodeProcess:
         self.log_dir.mkdir(parents=True, exist_ok=True)

@@ -9,10 +9,11 @@ next key. When the tool stops publishing, the streamer counts the command
 as zero after its ``cmd_timeout`` and brings the crane to rest, shaped.
 
 Script: segments ``VX[,VZ]:SECONDS`` separated by spaces, e.g.
-``"0.2:1 0.2,0.05:2 0:3"`` (forward, forward while lifting, release).
+``"0.2:1 0.2,0.05:2 0:3"`` (forward, forward while lifting, release); a script starting with a minus
+sign is given as ``--script=-0.2:3``.
 Keys: a/d or left/right move the cart by --speed, w/s or up/down raise or
 lower the load by --hoist-speed, space releases the stick, q quits.
-Exit 0; 2 on bad options (one line on stderr).
+Exit 0; 1 if nothing subscribes to cmd_vel within ``--wait``; 2 on bad options (one line on stderr).
 """
 from __future__ import annotations
 
@@ -22,6 +23,8 @@ import sys
 import time
 
 PROG = 'crane-teleop'
+#: Seconds of a released stick a script starts with, once the streamer subscribes.
+PRIME = 0.5
 
 #: Keys (and arrow-key escape sequences) -> (cart, load) stick directions; None releases.
 KEYS = {'a': (-1, 0), 'd': (1, 0), 'w': (0, 1), 's': (0, -1), '\x1b[D': (-1, 0), '\x1b[C': (1, 0),
@@ -54,6 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--script', metavar='"VX[,VZ]:S ..."', help='play these stick positions and exit (default: '
                                                                 'the keyboard)')
     p.add_argument('--rate', type=float, default=20.0, help='publishing rate (Hz, default 20)')
+    p.add_argument('--wait', type=float, default=10.0, metavar='S',
+                   help='seconds to wait for the streamer to subscribe before a script plays (default 10)')
     p.add_argument('--speed', type=float, default=0.2, help='keyboard: the cart speed of a key (m/s, default 0.2)')
     p.add_argument('--hoist-speed', type=float, default=0.1,
                    help='keyboard: the load speed of a key (m/s, default 0.1)')
@@ -90,6 +95,20 @@ def main(argv=None) -> int:
 
     try:
         if segments is not None:
+            # a script plays from the moment the streamer hears it: its durations are the crane's
+            deadline = time.monotonic() + args.wait
+            while publisher.get_subscription_count() == 0:
+                if time.monotonic() > deadline:
+                    print(f'{PROG}: error: nothing subscribes to {node.resolve_topic_name(CMD_VEL_TOPIC)} within '
+                          f'{args.wait:g} s (is the streamer running in this namespace?)', file=sys.stderr)
+                    return 1
+                time.sleep(0.01)
+            # a released stick first, until the subscriber has surely matched too (a few hundred ms
+            # after the publisher sees it): the first segment is then heard from its start
+            end = time.monotonic() + PRIME
+            while time.monotonic() < end:
+                publish(0.0, 0.0)
+                time.sleep(period)
             print(f'{PROG}: playing {len(segments)} segment(s) on {node.resolve_topic_name(CMD_VEL_TOPIC)}',
                   file=sys.stderr)
             for cart, load, seconds in segments:
