@@ -22,7 +22,6 @@ def crane(ros_domain, tmp_path_factory):
         start_crane_nodes(nodes, NS, streamer_params={'mode': 'operator'})
         driver = CraneHarness(NS, nodes)
         driver.wait_until_up(90.0)
-        driver.nodes = nodes
         yield driver
         nodes.check_alive()
     finally:
@@ -33,7 +32,7 @@ def crane(ros_domain, tmp_path_factory):
 
 def teleop(driver, script: str):
     """crane-teleop playing ``script`` in the test's namespace (a process, running)."""
-    return driver.nodes.run_tool('crane-teleop', '--namespace', NS, f'--script={script}')  # (= : it may start with -)
+    return driver.run_tool('crane-teleop', '--namespace', NS, f'--script={script}')  # (= : it may start with -)
 
 
 def record(driver, seconds: float) -> np.ndarray:

@@ -40,6 +40,14 @@ NETWORK = {'network.delay': 0.002, 'network.jitter': 0.0005, 'network.distributi
 NETWORK_OFF = {'network.delay': 0.0, 'network.jitter': 0.0, 'network.loss': 0.0}
 
 
+#: The operator case's stick (crane-teleop --script): forward 0.2 m/s, then lifting 0.05 m/s while
+#: travelling, released; run with the streamer's operator_shaper zv, and none (rate limits only).
+OPERATOR_SCRIPT, OPERATOR_SHAPERS = '0.2:1 0.2,0.05:2', ('zv', 'none')
+#: The retarget case's new goal: this much beyond the move's, at this fraction of its duration.
+RETARGET_EXTRA, RETARGET_AT, STOP_AT = 0.2, 0.4, 0.5
+#: The settle case: how long the pushed load swings before ~/settle, and when after it the residual counts.
+SETTLE_AFTER_PUSH, SETTLE_WITHIN = 1.0, 3.0
+
 #: The hoisting cases: the upper cable from 0.47 to 0.27 m (m) while the cart travels, in this long (s),
 #: and the move back: the hoisting NLP does not converge at 1.25 s (see the README), at 1.5 s in 5 iterations.
 HOIST, HOIST_DURATION, HOIST_RETURN = (0.47, 0.27), 3.0, 1.5
@@ -61,6 +69,11 @@ class Case:
     network: bool
     commission: bool = False  # first plan with the planner's model, identify, then plan again
     hoist: tuple | None = None  # (L1 start, L1 goal) m: the rope moves during the motion (nodes with a hoist)
+    #: what is measured (issue 22 beside the plain move): 'move', 'retarget', 'stop', 'settle', 'operator'
+    kind: str = 'move'
+    #: the methods this case runs (of --methods), None = all; the operator case's are operator_shaper values
+    methods: tuple | None = None
+    hoisting_nodes: bool = False  # runs on the nodes with a hoist (the operator case's stick lifts the load)
 
     @property
     def L1(self) -> float:
@@ -76,10 +89,18 @@ CASES = {
     # issue 21: 0.3 m of travel while lifting the load by 0.2 m, on the model's plant and on one whose
     # payload hangs 20 % lower than the model says
     'hoist': Case('hoist', CraneParams(), False, hoist=HOIST),
-    'hoist+L2': Case('hoist+L2', CraneParams(L2=0.391 * 1.2), False, hoist=HOIST),
+    'hoist+L2': Case('hoist+L2', CraneParams(L2=0.391 * 1.2), False, hoist=HOIST, methods=('rvf', 'zv')),
+    # issue 22: a new goal (0.2 m further) at 40 % of the move, a cancel at 50 % (the stop is NVF's), a
+    # 30 mm push damped by ~/settle, and a scripted stick (forward, lifting while travelling, release)
+    'retarget': Case('retarget', CraneParams(), False, kind='retarget', methods=('rvf', 'nvf', 'zv')),
+    'stop': Case('stop', CraneParams(), False, kind='stop', methods=('rvf', 'zv')),
+    'settle': Case('settle', CraneParams(), False, kind='settle', methods=('nvf',)),
+    'operator': Case('operator', CraneParams(), False, kind='operator', methods=OPERATOR_SHAPERS,
+                     hoisting_nodes=True),
 }
 #: What runs without --cases: every case but perturbed+net (nothing perturbed and nominal+net do not show
-#: between them), so that make demo, hoisting included, stays under 5 minutes; --cases all runs every one.
+#: between them), so that make demo, hoisting and motion from any state included, stays under 5 minutes;
+#: --cases all runs every one, with every method.
 DEFAULT_CASES = tuple(name for name in CASES if name != 'perturbed+net')
 #: Table columns of the commission case: before and after identification.
 BEFORE, AFTER = 'commission:model', 'commission:identified'
@@ -205,6 +226,108 @@ def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: s
                rope=None if case.hoist is None else rec[:, 4])
 
 
+def case_methods(case: Case, methods) -> list[str]:
+    """The methods ``case`` runs: its own of ``methods`` (its own always for the operator case)."""
+    if case.kind == 'operator':
+        return list(case.methods)
+    return [m for m in methods if case.methods is None or m in case.methods]
+
+
+def _window_residual(driver: CraneHarness, case: Case, begin_ns: int, origin_ns: int, after_ns: int, end_ns: int):
+    """(t from ``origin_ns`` s, load mm, rope or None, residual mm over [after, end]) of joint_states in
+    [begin, end]."""
+    from crane_sim.dynamics import load_excursion
+    from crane_sim.metrics import residual_load_mm
+    rec = driver.states_between(begin_ns, end_ns + 50_000_000, timeout=10.0)  # a 50 Hz sample past the window
+    if len(rec) < 10:
+        raise HarnessError(f'only {len(rec)} joint_states in the {case.name} case: is the sim publishing?')
+    t = (rec[:, 0] - origin_ns) * 1e-9
+    L1 = rec[:, 4] if np.isfinite(rec[:, 4]).all() else case.plant.L1
+    residual = float(residual_load_mm(t, rec[:, 1], rec[:, 2], L1, case.plant.L2, after=(after_ns - origin_ns) * 1e-9,
+                                      until=(end_ns - origin_ns) * 1e-9))
+    rope = rec[:, 4] if np.isfinite(rec[:, 4]).all() else None
+    return t, 1e3 * load_excursion(rec[:, 1], rec[:, 2], L1, case.plant.L2), rope, residual
+
+
+def _served(driver: CraneHarness, stamp_ns: int):
+    """(t, v, a) of the trajectory stamped ``stamp_ns`` as the streamer plays it, and its peak |a|."""
+    from crane_msgs_py.conversions import joint_trajectory_to_arrays
+    t, p, v, a = _dense(*joint_trajectory_to_arrays(driver.trajectory(stamp_ns)))
+    return t, v, a, float(np.max(np.abs(a)))
+
+
+def _end_of(driver: CraneHarness, stamp_ns: int) -> int:
+    end = driver.trajectory(stamp_ns).points[-1].time_from_start
+    return stamp_ns + end.sec * 1_000_000_000 + end.nanosec
+
+
+def _home(driver: CraneHarness, args, hoist: float | None = None, duration: float | None = None):
+    """Back to the cart at 0 (and the rope at ``hoist``) from wherever the streamer holds them, then the
+    sim reset (no damping to wait for)."""
+    duration = duration or (max(args.return_duration, HOIST_RETURN) if hoist is not None else args.return_duration)
+    back, _, _ = driver.move('nvf', None, 0.0, duration, hoist=None if hoist is None else (None, hoist))
+    driver.move_result(back)
+    driver.reset_sim()
+
+
+def run_any_state(driver: CraneHarness, case: Case, method: str, args) -> Run:
+    """One run of a motion-from-any-state case (issue 22): the residual after the new goal's motion, the
+    stop, the settle, or the released stick."""
+    D, T, settle = args.displacement, args.duration, args.settle
+    if case.kind in ('retarget', 'stop'):
+        start, _, _ = driver.move(method, 0.0, D, T, settle=settle)
+        at = RETARGET_AT if case.kind == 'retarget' else STOP_AT
+        driver.sleep(max(0.0, (start + round(at * T * 1e9) - driver.now_ns()) * 1e-9))
+        asked = driver.now_ns()
+        if case.kind == 'retarget':
+            event = driver.retarget(method, D + RETARGET_EXTRA, T, settle=settle)
+            driver.outcome(start)  # preempted
+            action = driver.move_result(event).residual_swing
+        else:
+            _, result = driver.cancel(start)  # after the stop and its settle window
+            event = [s for s in driver.sent_trajectories() if s > start][-1]
+            action = result.residual_swing
+        plan_time = (event - asked) * 1e-9  # from the request to the handover
+        end = _end_of(driver, event)
+        t, load, rope, residual = _window_residual(driver, case, start, start, end, end + round(settle * 1e9))
+        plan_t, plan_v, plan_a, peak = _served(driver, event)
+        plan_t = plan_t + (event - start) * 1e-9
+        _home(driver, args)
+    elif case.kind == 'settle':
+        driver.push_sim()
+        driver.sleep(SETTLE_AFTER_PUSH)
+        called = driver.now_ns()
+        event, _ = driver.settle()
+        plan_time = (event - called) * 1e-9
+        end = called + round((SETTLE_WITHIN + settle) * 1e9)
+        driver.sleep(max(0.0, (end - driver.now_ns()) * 1e-9))
+        t, load, rope, residual = _window_residual(driver, case, called - round(SETTLE_AFTER_PUSH * 1e9), called,
+                                                   called + round(SETTLE_WITHIN * 1e9), end)
+        plan_t, plan_v, plan_a, peak = _served(driver, event)
+        plan_t = plan_t + (event - called) * 1e-9
+        action = float('nan')
+        driver.reset_sim()
+    else:  # the operator's stick, shaped online by the streamer (method: its operator_shaper)
+        driver.set_parameters('streamer', {'mode': 'operator', 'operator_shaper': method})
+        driver.sleep(0.2)
+        begin = driver.now_ns()
+        tool = driver.run_tool('crane-teleop', '--namespace', args.namespace, f'--script={OPERATOR_SCRIPT}')
+        if tool.wait(timeout=30.0) != 0:
+            raise HarnessError(f'crane-teleop failed: {tool.stderr.read().strip()}')
+        released = driver.now_ns()
+        plan_time = 0.0
+        after = released + round(2.5e9)  # braking (0.5 s) and the shaper (1.2 s) played out
+        end = after + round(settle * 1e9)
+        driver.sleep(max(0.0, (end - driver.now_ns()) * 1e-9 + 0.3))
+        t, load, rope, residual = _window_residual(driver, case, begin, begin, after, end)
+        plan_t = plan_v = plan_a = np.zeros(0)
+        peak, action = float('nan'), float('nan')
+        driver.set_parameters('streamer', {'mode': 'trajectory'})
+        driver.sleep(0.2)
+        _home(driver, args, hoist=HOIST[0], duration=3.0)  # 0.6 m back with the rope: 1.5 s is too short
+    return Run(case.name, method, plan_time, peak, residual, 1e3 * action, t, load, plan_t, plan_v, plan_a, rope=rope)
+
+
 def _dense(t, p, v, a, step: float = 2e-4):
     """The served trajectory sampled every ``step`` s by the streamer's quintic Hermite interpolation."""
     from crane_planner.streaming.hermite import QuinticHermite
@@ -258,9 +381,12 @@ def _describe(identified) -> str:
 def print_table(runs: list[Run], cases, methods):
     width = 32
     print('cells: peak reference acceleration (m/s^2) | residual load swing (mm) measured by the demo | '
-          'as the ExecuteMove result reports it (mm) | plan round trip (ms)')
+          'as the ExecuteMove result reports it (mm) | plan round trip (ms); retarget/stop: after the new goal\'s or '
+          "the stop's motion, the time from the request to the handover, settle: 3 s after ~/settle, operator: the "
+          "streamer's operator_shaper, 2.5 s after the stick is released")
     print(f'{"method":<8}' + ''.join(f'{c:>{width}}' for c in columns(cases)))
     by_key = {(r.case, r.method): r for r in runs}
+    methods = list(methods) + [m for m in dict.fromkeys(r.method for r in runs) if m not in methods]
     for m in methods:
         cells = []
         for c in columns(cases):
@@ -276,7 +402,8 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
 
     out = Path(args.out)
     written = []
-    first_case = columns(args.cases)[0]
+    moves = [c for c in args.cases if c.kind == 'move'] or list(args.cases)
+    first_case = columns(moves)[0]
     fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     for r in runs:
         if r.case == first_case:
@@ -291,30 +418,53 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
         ax.legend(ncol=5, fontsize=8)
     written.append(save_figure(fig, out / 'demo_plans.png'))
 
-    panels = [(name, case) for case in args.cases
+    panels = [(name, case) for case in args.cases if case.kind == 'move'
               for name in ((BEFORE, AFTER) if case.commission else (case.name,))]
-    n = len(panels)
-    fig, axes = plt.subplots(n, 1, figsize=(9, 2.6 * n + 0.6), sharex=True, squeeze=False)
-    for ax, (name, case) in zip(axes[:, 0], panels):
-        for r in runs:
-            if r.case == name:
-                ax.plot(r.t, r.load_mm, label=f'{r.method.upper()} ({r.residual_mm:.2f} mm)')
-        ax.axvline(HOIST_DURATION if case.hoist else args.duration, color='k', lw=0.6, ls=':')
-        ax.set_ylabel('load (mm)')
-        if case.commission:
-            title = (f'{name}: unknown crane (L1 {case.plant.L1:.3f}, L2 {case.plant.L2:.3f} m), planned with '
-                     + ('the Table 1 model' if name == BEFORE else 'the identified model'))
-        elif case.hoist:
-            title = (f'{name}: hoisting L1 {case.hoist[0]:g} -> {case.hoist[1]:g} m while travelling, L2 '
-                     f'{case.plant.L2:.3f} m' + (' (the model: 0.391 m)' if case.plant.L2 != 0.391 else ''))
-        else:
-            title = f'{name}: L1 = {case.L1:g} m' + (', network impairment' if case.network else '')
-        ax.set_title(title, fontsize=10)
-        ax.set_ylim(-12, 12)
-        ax.grid(True, alpha=0.3)
-        ax.legend(ncol=3, fontsize=7)
-    axes[-1, 0].set_xlabel('time from motion start (s); measured at 50 Hz (paper Figs. 6-15)')
-    written.append(save_figure(fig, out / 'demo_swing.png'))
+    if panels:
+        n = len(panels)
+        fig, axes = plt.subplots(n, 1, figsize=(9, 2.6 * n + 0.6), sharex=True, squeeze=False)
+        for ax, (name, case) in zip(axes[:, 0], panels):
+            for r in runs:
+                if r.case == name:
+                    ax.plot(r.t, r.load_mm, label=f'{r.method.upper()} ({r.residual_mm:.2f} mm)')
+            ax.axvline(HOIST_DURATION if case.hoist else args.duration, color='k', lw=0.6, ls=':')
+            ax.set_ylabel('load (mm)')
+            if case.commission:
+                title = (f'{name}: unknown crane (L1 {case.plant.L1:.3f}, L2 {case.plant.L2:.3f} m), planned with '
+                         + ('the Table 1 model' if name == BEFORE else 'the identified model'))
+            elif case.hoist:
+                title = (f'{name}: hoisting L1 {case.hoist[0]:g} -> {case.hoist[1]:g} m while travelling, L2 '
+                         f'{case.plant.L2:.3f} m' + (' (the model: 0.391 m)' if case.plant.L2 != 0.391 else ''))
+            else:
+                title = f'{name}: L1 = {case.L1:g} m' + (', network impairment' if case.network else '')
+            ax.set_title(title, fontsize=10)
+            ax.set_ylim(-12, 12)
+            ax.grid(True, alpha=0.3)
+            ax.legend(ncol=3, fontsize=7)
+        axes[-1, 0].set_xlabel('time from motion start (s); measured at 50 Hz (paper Figs. 6-15)')
+        written.append(save_figure(fig, out / 'demo_swing.png'))
+
+    any_state = [case for case in args.cases if case.kind != 'move']
+    if any_state:  # issue 22: the swing around the event (the handover, the cancel, ~/settle, the stick)
+        fig, axes = plt.subplots(len(any_state), 1, figsize=(9, 2.7 * len(any_state) + 0.6), squeeze=False)
+        titles = {'retarget': f'retarget: {args.displacement:g} m, a goal {RETARGET_EXTRA:g} m further at '
+                              f'{100 * RETARGET_AT:g} % (dotted: the handover)',
+                  'stop': f'stop: the goal canceled at {100 * STOP_AT:g} % (dotted: the stop takes over)',
+                  'settle': f'settle: a {1e3 * 0.03:g} mm push, ~/settle {SETTLE_AFTER_PUSH:g} s later (t = 0)',
+                  'operator': f'operator: crane-teleop --script "{OPERATOR_SCRIPT}" (lifting while travelling), '
+                              'shaped online vs rate limits only'}
+        for ax, case in zip(axes[:, 0], any_state):
+            for r in runs:
+                if r.case == case.name:
+                    ax.plot(r.t, r.load_mm, label=f'{r.method.upper()} ({r.residual_mm:.2f} mm)')
+                    if r.plan_t.size:
+                        ax.axvline(r.plan_t[0], color='k', lw=0.6, ls=':')
+            ax.set_title(titles[case.kind], fontsize=10)
+            ax.set_ylabel('load (mm)')
+            ax.grid(True, alpha=0.3)
+            ax.legend(ncol=3, fontsize=7)
+        axes[-1, 0].set_xlabel('time (s), measured at 50 Hz')
+        written.append(save_figure(fig, out / 'demo_any_state.png'))
 
     hoisting = [case for case in args.cases if case.hoist]
     if hoisting:  # swing and rope length over time, per hoisting case
@@ -422,10 +572,11 @@ def _run(args, env: dict, t_start: float) -> int:
     written_bag = None
     try:
         model = CraneParams()  # the planner's
-        total, k = len(columns(args.cases)) * len(args.methods), 0
+        total = sum(len(case_methods(c, args.methods)) * (2 if c.commission else 1) for c in args.cases)
+        k = 0
         # the cart-only cases on nodes with the joint [cart], then the hoisting ones on nodes with
         # [cart, hoist] (the joints are fixed at a node's start-up)
-        setups = [(hoisting, [c for c in args.cases if (c.hoist is not None) == hoisting])
+        setups = [(hoisting, [c for c in args.cases if (c.hoist is not None or c.hoisting_nodes) == hoisting])
                   for hoisting in (False, True)]
         setups = [(hoisting, cases) for hoisting, cases in setups if cases]
         for i, (hoisting, cases) in enumerate(setups):
@@ -451,9 +602,10 @@ def _run(args, env: dict, t_start: float) -> int:
                             identification = (recording, identified)
                             progress(f'identified {_describe(identified)} in {identified.fit_time_s:.2f} s')
                         driver.set_parameters('planner', {n: getattr(planner_model, n) for n in PARAMETER_NAMES})
-                        for method in args.methods:
+                        for method in case_methods(case, args.methods):
                             k += 1
-                            run = run_case_method(driver, case, method, args, name)
+                            run = (run_case_method(driver, case, method, args, name) if case.kind == 'move'
+                                   else run_any_state(driver, case, method, args))
                             runs.append(run)
                             progress(f'[{k:2d}/{total}] {name:<22} {method:<4} residual {run.residual_mm:6.2f} mm, '
                                      f'peak a_ref {run.peak_acceleration:.3f} m/s^2, '

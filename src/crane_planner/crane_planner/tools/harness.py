@@ -217,7 +217,8 @@ class CraneHarness:
              settle: float = 0.0, hoist: tuple[float, float] | None = None):
         """Execute a move starting at ``start_ns`` (default :meth:`lead` from now) through the planner's
         ``~/execute_move``; (the stamp the motion starts, plan round trip s, served trajectory).
-        ``hoist`` = (start, goal) of the rope length (m) moves the hoist too (a planner with joints [cart, hoist]).
+        ``hoist`` = (start, goal) of the rope length (m) moves the hoist too (a planner with joints [cart, hoist]);
+        ``start`` None starts every joint where the streamer holds it.
 
         The round trip lasts until the goal's first feedback (sent once it is
         planned); a refused plan raises PlanError with the planner's reason.
@@ -229,7 +230,8 @@ class CraneHarness:
         mark = self.planner.diagnostics.mark()
         planned = threading.Event()
         t0 = time.perf_counter()
-        move = None if hoist is None else move_message([goal, hoist[1]], duration, [start, hoist[0]], method,
+        starts = [] if start is None else [start, hoist[0]] if hoist is not None else []
+        move = None if hoist is None else move_message([goal, hoist[1]], duration, starts, method,
                                                        ['cart', HOIST_JOINT], start_ns)
         handle = self.planner.send_execute(method, start, goal, duration, start_ns, settle,
                                            feedback=lambda _: planned.set(), timeout=30.0, move=move)
@@ -291,6 +293,10 @@ class CraneHarness:
             handle = self._goals.pop(start_ns)
         response = self._wait(handle.get_result_async(), timeout, 'the goal\'s result')
         return response.status, response.result
+
+    def run_tool(self, executable: str, *args: str):
+        """A command-line tool (``crane-teleop``, say) on this graph, running (``NodeGroup.run_tool``)."""
+        return self._nodes.run_tool(executable, *args)
 
     def call_streamer(self, name: str):
         """Call the streamer's ``~/start`` or ``~/stop``: its response (success, message)."""
