@@ -173,7 +173,7 @@ PARAMETERS = {
     'handover_lead': (0.05, 'a new NVF/RVF goal during a motion takes over this long (s) after it arrives, from '
                             'the state the motion is in then (a plan taking longer is planned again further ahead)',
                       float_range(0.001, 1.0)),
-    'shaper_handover_lead': (0.025, 'the same for a shaper (its change is planned in about a millisecond; the '
+    'shaper_handover_lead': (0.005, 'the same for a shaper (its change is planned in about a millisecond; the '
                                     'rest is the trajectory\'s transport to the streamer)',
                              float_range(0.001, 1.0)),
     'settle_method': ('nvf', '~/settle plans with this method: nvf or rvf (a shaper cannot damp a swing it did not '
@@ -208,7 +208,7 @@ class Config:
     joints: tuple
     publish_lead: float
     handover_lead: float = 0.05
-    shaper_handover_lead: float = 0.025
+    shaper_handover_lead: float = 0.005
     settle_method: str = 'nvf'
 
     @property
@@ -573,42 +573,33 @@ class PlannerNode(Node):
                              f'{DEFAULT_SETTLE:g} s), got {request.settle}')
         settle = request.settle or DEFAULT_SETTLE
         running = self._in_motion()
+        if running is not None:  # a new goal during a motion: it takes over (preemption)
+            return self._take_over(goal, request, result, running, settle, t0)
         try:
-            if running is not None:  # a new goal during a motion: it takes over (preemption)
-                self.get_logger().info('execute_move: a goal during a motion: planning the handover')
-                checked, plan, trajectory, values, handover = self._preempting(request.move, running)
-                samples = None
-            else:
-                checked, plan, samples, values = self._plan(request.move, 'execute_move', execute=True)
-                handover = None
+            checked, plan, samples, values = self._plan(request.move, 'execute_move', execute=True)
         except ValueError as exc:
             self._report_plan({'service': 'execute_move', 'method': '', **getattr(exc, 'values', {})},
                               None, 0, t0, t0, error=str(exc))
             return self._end(goal_handle, result, 'abort', str(exc))
         solved = time.perf_counter()
-        self._report_plan(values, plan, len(samples[0].t) if samples else len(trajectory.points), t0, solved)
+        self._report_plan(values, plan, len(samples[0].t), t0, solved)
         result.info = self._info(plan, checked, solved - t0)
         feedback = ExecuteMove.Feedback(progress=0.0, time_remaining=plan.duration, swing=math.nan)
         goal_handle.publish_feedback(feedback)  # planned: the caller knows at once
-        if handover is None:
-            # hold the trajectory until publish_lead before its start: a cancel before then streams nothing
-            send_at = checked.start_ns - round(config.publish_lead * 1e9) if checked.start_ns else 0
-            while self.get_clock().now().nanoseconds < send_at and not (goal.cancel or
-                                                                         goal_handle.is_cancel_requested):
-                time.sleep(min(FEEDBACK_PERIOD, max(0.0, (send_at - self.get_clock().now().nanoseconds) * 1e-9)))
-            trajectory = self._trajectory_of(checked, samples)
+        # hold the trajectory until publish_lead before its start: a cancel before then streams nothing
+        send_at = checked.start_ns - round(config.publish_lead * 1e9) if checked.start_ns else 0
+        while self.get_clock().now().nanoseconds < send_at and not (goal.cancel or goal_handle.is_cancel_requested):
+            time.sleep(min(FEEDBACK_PERIOD, max(0.0, (send_at - self.get_clock().now().nanoseconds) * 1e-9)))
+        trajectory = self._trajectory_of(checked, samples)
         with self._lock:
-            canceled = goal.cancel or (goal_handle.is_cancel_requested and handover is None)
+            canceled = goal.cancel or goal_handle.is_cancel_requested
             if not canceled:
                 goal.sent = True
-                sent_ns = self.get_clock().now().nanoseconds
-                start_ns = handover or checked.start_ns or sent_ns
+                start_ns = checked.start_ns or self.get_clock().now().nanoseconds
                 for other in self._goals:  # settling goals observe until this motion starts at the latest
                     if other is not goal and other.execution is not None:
                         other.execution.cut(start_ns)
-                        if other.sent and other.execution.phase(0) in (WAITING, MOVING):
-                            other.preempted = True  # its motion is handed over to this goal's
-                goal.running = self._running = self._running_of(trajectory, handover or checked.start_ns, plan)
+                goal.running = self._running = self._running_of(trajectory, checked.start_ns, plan)
         if canceled:  # (ended outside the lock: _end may wait for the server's canceling state)
             if goal.preempted:
                 return self._end(goal_handle, result, 'abort', 'preempted by a newer goal before its motion '
@@ -617,9 +608,64 @@ class PlannerNode(Node):
                              'was streamed')
         goal.execution = Execution(plan.duration, settle, start_ns, config.params.L1, config.params.L2)
         self._trajectory.publish(trajectory)
-        what = f'{checked.method}: ' + (f'from {checked.start:g} m (taking over the motion) ' if handover else
-                                        f'{checked.start:g} ') + f'-> {checked.goal:g} m in {plan.duration:.4g} s'
+        what = f'{checked.method}: {checked.start:g} -> {checked.goal:g} m in {plan.duration:.4g} s'
         return self._follow(goal, result, feedback, settle, what)
+
+    def _take_over(self, goal: '_Goal', request, result, running: Running, settle: float, t0: float):
+        """A goal during a motion: plan from the state at the handover, send, and once the streamer has
+        taken it over (its stream_state), end the preempted goal and follow this one. A handover the
+        streamer did not take (it came late on a busy machine) is planned again further ahead."""
+        goal_handle, config = goal.goal_handle, self._config
+        self.get_logger().info('execute_move: a goal during a motion: planning the handover')
+        lead_scale, feedback = 1.0, None
+        for attempt in range(HANDOVER_ATTEMPTS):
+            try:
+                checked, plan, trajectory, values, handover = self._preempting(request.move, running, lead_scale)
+            except ValueError as exc:
+                self._report_plan({'service': 'execute_move', 'method': '', **getattr(exc, 'values', {})},
+                                  None, 0, t0, t0, error=str(exc))
+                return self._end(goal_handle, result, 'abort', str(exc))
+            if feedback is None:
+                solved = time.perf_counter()
+                self._report_plan(values, plan, len(trajectory.points), t0, solved)
+                result.info = self._info(plan, checked, solved - t0)
+                feedback = ExecuteMove.Feedback(progress=0.0, time_remaining=plan.duration, swing=math.nan)
+                goal_handle.publish_feedback(feedback)
+            with self._lock:
+                goal.sent = True
+                goal.execution = Execution(plan.duration, settle, handover, config.params.L1, config.params.L2)
+            self._trajectory.publish(trajectory)
+            if self._taken(goal.execution, handover):
+                break
+            goal.execution = None
+            lead_scale *= 4.0
+            self.get_logger().warn(f'execute_move: the streamer did not take the handover (late on arrival?): '
+                                   f'planning it again {lead_scale:g} times further ahead')
+        else:
+            return self._end(goal_handle, result, 'abort', f'the streamer took none of {HANDOVER_ATTEMPTS} handovers '
+                             '(see its /diagnostics); the running motion goes on')
+        with self._lock:
+            for other in self._goals:  # the motion is this goal's now
+                if other is not goal and other.execution is not None:
+                    other.execution.cut(handover)
+                    if other.sent and other.execution.phase(0) in (WAITING, MOVING):
+                        other.preempted = True
+            goal.running = self._running = self._running_of(trajectory, handover, plan)
+        what = (f'{checked.method}: from {checked.start:g} m (taking over the motion) -> {checked.goal:g} m in '
+                f'{plan.duration:.4g} s')
+        return self._follow(goal, result, feedback, settle, what)
+
+    def _taken(self, execution: Execution, handover_ns: int, wait: float = 0.5) -> bool:
+        """Whether the streamer streams the handover at ``handover_ns`` (stream_state says so), waiting until
+        its clock is 50 ms past the handover, or ``wait`` s."""
+        deadline = time.monotonic() + wait
+        while time.monotonic() < deadline:
+            if execution.motion_start_ns is not None:
+                return True
+            if execution.stream_ns is not None and execution.stream_ns > handover_ns + 50_000_000:
+                return False
+            time.sleep(0.002)
+        return False
 
     def _follow(self, goal: '_Goal', result, feedback, settle: float, what: str):
         """Follow the goal's motion to its result: done, preempted by a newer goal, or stopped on a cancel."""
@@ -708,7 +754,9 @@ class PlannerNode(Node):
                 t1 = time.perf_counter()
                 plan = make_plan(handover, state)
                 took = time.perf_counter() - t0
-                if self.get_clock().now().nanoseconds < handover - TRANSPORT_MARGIN * 1e9:
+                # the transport's share of the lead: TRANSPORT_MARGIN, or with a short lead (a shaper's) 40 % of
+                # it; a handover arriving late all the same is refused by the streamer and planned again
+                if self.get_clock().now().nanoseconds < handover - min(TRANSPORT_MARGIN, 0.4 * lead) * 1e9:
                     return plan, handover, state
                 self.get_logger().warn(f'handover: planning took {1e3 * took:.1f} ms (the state {1e3 * (t1 - t0):.1f} '
                                        f'ms), beyond the lead {1e3 * lead:.1f} ms: planning again further ahead')
@@ -723,8 +771,9 @@ class PlannerNode(Node):
         return samples_to_joint_trajectory(axis_samples(plan, times), starts, handover_ns, config.frame_id,
                                            joint=list(joints))
 
-    def _preempting(self, move_msg, running: Running):
-        """(checked, plan, trajectory, values, handover ns) of a goal arriving during ``running``."""
+    def _preempting(self, move_msg, running: Running, lead_scale: float = 1.0):
+        """(checked, plan, trajectory, values, handover ns) of a goal arriving during ``running``, handed over
+        ``lead_scale`` times the configured lead from now."""
         config = self._config
         move = Move(move_msg.method, tuple(move_msg.joint_names), tuple(move_msg.start), tuple(move_msg.goal),
                     move_msg.duration, stamp_ns(move_msg.start_time))
@@ -745,7 +794,7 @@ class PlannerNode(Node):
             if checked.hoist_goal is not None:
                 goal['hoist'] = checked.hoist_goal
             shaper = checked.method not in VARIATIONAL_METHODS
-            lead = config.shaper_handover_lead if shaper else config.handover_lead
+            lead = (config.shaper_handover_lead if shaper else config.handover_lead) * lead_scale
 
             def make(handover_ns, state):
                 return transitions.retarget(self._planner.variational, running, handover_ns, state, checked.method,
