@@ -63,11 +63,12 @@ def home(driver):
 
 
 def steps_at(references: np.ndarray, stamp_ns: int) -> tuple:
-    """The tick-to-tick changes of position, velocity and acceleration at the tick taking over at
-    ``stamp_ns``, and their largest values over the 20 ticks before it (the motion's own rates)."""
+    """The tick-to-tick changes of position, velocity and acceleration into the tick taking over at
+    ``stamp_ns``, and their largest values over the 20 ticks before and the 20 after it (the old and the new
+    motion's own rates: a tick's worth)."""
     k = int(np.searchsorted(references[:, 0], stamp_ns))
     d = np.abs(np.diff(references[:, 1:], axis=0))
-    return d[k - 1], d[k - 21:k - 1].max(axis=0)
+    return d[k - 1], np.vstack([d[k - 21:k - 1], d[k:k + 20]]).max(axis=0)
 
 
 @pytest.mark.parametrize('method', ['rvf', 'nvf', 'zv'])
@@ -86,8 +87,8 @@ def test_a_new_goal_at_40_percent_takes_over_without_a_step_and_leaves_no_swing(
     assert rec[-1, 3] == pytest.approx(0.5, abs=1e-4)  # the cart at the new goal
     step, own = steps_at(references, handover)
     # no step: the change over the handover tick is what the motion's own rates give over a tick
-    assert step[0] <= own[0] * 1.5 + 1e-9 and step[1] <= own[1] * 1.5 + 1e-7, (step, own)
-    assert step[2] <= own[2] * 3.0 + 2e-4, (step, own)
+    assert step[0] <= own[0] * 1.1 + 1e-9 and step[1] <= own[1] * 1.1 + 1e-9, (step, own)
+    assert step[2] <= own[2] * 1.1 + 1e-6, (step, own)
     status, result = driver.outcome(start)
     assert status == STATUS_ABORTED and 'preempted by a newer goal' in result.message, result.message
     new = driver.move_result(handover)
