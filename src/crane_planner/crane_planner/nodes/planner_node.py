@@ -103,9 +103,10 @@ DEFAULT_SETTLE = 2.0
 STREAM_FRESH = 1.0
 #: Feedback period (s): 20 Hz, above the contract's 10 Hz.
 FEEDBACK_PERIOD = 0.05
-#: A handover's trajectory must be sent at least this long (s) before the handover, for its transport
-#: to the streamer and the streamer's check (a busy two-core machine has taken 13 ms).
-TRANSPORT_MARGIN = 0.02
+#: A handover's trajectory must be sent at least this long (s) before the handover, for its transport to
+#: the streamer and the streamer's check (1-3 ms on a busy two-core machine); one that arrives late all the
+#: same is refused by the streamer and planned again further ahead (``_take_over``).
+TRANSPORT_MARGIN = 0.008
 #: Attempts at a handover whose plan took longer than its lead (the lead doubles each time).
 HANDOVER_ATTEMPTS = 3
 #: The lead (s) of a stop's handover: a stop is planned once, from further ahead.
@@ -170,11 +171,11 @@ PARAMETERS = {
     'shaper_base': ('quintic', "the motion shapers shape: 'quintic' (the paper's) or 'limits' (the jerk-limited "
                                'time-optimal profile under the axis limits; needs max_velocity or max_acceleration)',
                     {'additional_constraints': f'one of {", ".join(BASES)}'}),
-    'handover_lead': (0.05, 'a new NVF/RVF goal during a motion takes over this long (s) after it arrives, from '
+    'handover_lead': (0.042, 'a new NVF/RVF goal during a motion takes over this long (s) after it arrives, from '
                             'the state the motion is in then (a plan taking longer is planned again further ahead)',
                       float_range(0.001, 1.0)),
-    'shaper_handover_lead': (0.005, 'the same for a shaper (its change is planned in about a millisecond; the '
-                                    'rest is the trajectory\'s transport to the streamer)',
+    'shaper_handover_lead': (0.008, 'the same for a shaper (its change is planned in 1-4 ms; the rest is the '
+                                    'trajectory\'s transport to the streamer)',
                              float_range(0.001, 1.0)),
     'settle_method': ('nvf', '~/settle plans with this method: nvf or rvf (a shaper cannot damp a swing it did not '
                              'cause)', {'additional_constraints': 'nvf or rvf'}),
@@ -207,8 +208,8 @@ class Config:
     solver_processes: int
     joints: tuple
     publish_lead: float
-    handover_lead: float = 0.05
-    shaper_handover_lead: float = 0.005
+    handover_lead: float = 0.042
+    shaper_handover_lead: float = 0.008
     settle_method: str = 'nvf'
 
     @property
@@ -625,16 +626,16 @@ class PlannerNode(Node):
                 self._report_plan({'service': 'execute_move', 'method': '', **getattr(exc, 'values', {})},
                                   None, 0, t0, t0, error=str(exc))
                 return self._end(goal_handle, result, 'abort', str(exc))
+            with self._lock:  # (before it is sent: the first stream_state of it finds it)
+                goal.sent = True
+                goal.execution = Execution(plan.duration, settle, handover, config.params.L1, config.params.L2)
+            self._trajectory.publish(trajectory)  # first: the handover is due in milliseconds
             if feedback is None:
                 solved = time.perf_counter()
                 self._report_plan(values, plan, len(trajectory.points), t0, solved)
                 result.info = self._info(plan, checked, solved - t0)
                 feedback = ExecuteMove.Feedback(progress=0.0, time_remaining=plan.duration, swing=math.nan)
                 goal_handle.publish_feedback(feedback)
-            with self._lock:
-                goal.sent = True
-                goal.execution = Execution(plan.duration, settle, handover, config.params.L1, config.params.L2)
-            self._trajectory.publish(trajectory)
             if self._taken(goal.execution, handover):
                 break
             goal.execution = None

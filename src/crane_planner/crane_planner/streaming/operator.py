@@ -101,6 +101,7 @@ class OperatorStream:
         self._length = None
         self._impulses = (np.ones(1), np.zeros(1))  # amplitudes, delays (ticks)
         self._blocked = 0  # the direction the hoist is stopped in at a bound of its range (-1, 0, 1)
+        self._moved = -(10 ** 9)  # the last tick the cart's base moved (never yet)
         self.position = start
 
     # -- inputs (the executor) ---------------------------------------------------------------
@@ -147,6 +148,8 @@ class OperatorStream:
         p, v, a = out.new_position, out.new_velocity, out.new_acceleration
         k = self._k = self._k + 1
         self._base[k % self._n] = (p[0], v[0], a[0])
+        if abs(v[0]) > 1e-12 or abs(a[0]) > 1e-12:
+            self._moved = k  # the last tick the cart's base moved
         if self.axes > 1:
             self._redesign(p[1])
         cart = self._shaped(k)
@@ -158,14 +161,12 @@ class OperatorStream:
 
     @property
     def at_rest(self) -> bool:
-        """Whether the base is at rest and the shaper has played it out (the reference is still)."""
+        """Whether the base is at rest and the shaper has played it out (the reference is still); O(1), the
+        loop asks it every state tick."""
         inp = self._input
         if any(abs(x) > 1e-12 for x in (*inp.current_velocity, *inp.current_acceleration)):
             return False
-        delays = self._impulses[1]
-        last = int(math.ceil(delays[-1])) + 2
-        recent = self._base[[(self._k - j) % self._n for j in range(min(last, self._n))]]
-        return bool(np.all(np.abs(recent[:, 1:]) < 1e-12) and np.ptp(recent[:, 0]) < 1e-12)
+        return self._k - self._moved > self._impulses[1][-1] + 2
 
     def delay(self) -> float:
         """The shaper's length now (s): how long after the base the reference comes to rest."""

@@ -281,7 +281,9 @@ class ReferenceStream:
             into = (due - running.first_tick) * period * 1e-9
             raise ValueError(f'its start is outside the streaming motion ({into:.3f} s from its start, which lasts '
                              f'{running.duration:.3f} s)')
-        first = self._tick() + 2
+        # the next tick will do: were the loop to sample it before the hand-over below, it would stream the old
+        # motion there and the handover from its second sample on, both on the same smooth path (no jump)
+        first = self._tick() + 1
         if due < first:
             raise ValueError(f'it came {(first - due) * period * 1e-9:.3f} s too late for its handover (the stream '
                              'is past its start): a handover is never shifted')

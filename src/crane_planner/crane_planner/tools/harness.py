@@ -118,9 +118,14 @@ class CraneHarness:
         with self._lock:
             self._states.append((stamp_ns(msg.header.stamp), pos[1], pos[2], pos[0], hoist))
 
+    def references(self) -> list:
+        """The references kept so far (``keep_references``): rows of (stamp ns, position, velocity,
+        acceleration, received ns)."""
+        return list(self._reference_sub[2]) if self._reference_sub is not None else []
+
     def keep_references(self, keep: bool = True) -> np.ndarray | None:
         """Start (``keep``: once they flow) or stop keeping the streamed references at 1 kHz; stopping
-        returns the cart's as rows of (stamp ns, position, velocity, acceleration).
+        returns the cart's as rows of (stamp ns, position, velocity, acceleration, received ns of system time).
 
         On a node of their own spun by an EventsExecutor: the harness's executor would spend a core on them.
         """
@@ -131,7 +136,7 @@ class CraneHarness:
             rows: list = []
             node = rclpy.create_node(f'{self.node.get_name()}_references', namespace=self.node.get_namespace())
             node.create_subscription(JointTrajectory, REFERENCE_TOPIC,
-                                     lambda m: rows.append(read_reference(m)),
+                                     lambda m: rows.append((*read_reference(m), time.time_ns())),
                                      recording(REFERENCE_EVERY_SAMPLE_QOS, 10.0, 1000.0))
             executor = EventsExecutor()
             executor.add_node(node)
@@ -146,7 +151,7 @@ class CraneHarness:
         self._reference_sub = None
         spin.__exit__(None, None, None)
         node.destroy_node()
-        return np.array([(r[0], r[1], r[2], r[3]) for r in rows], dtype=float).reshape(-1, 4)
+        return np.array([(r[0], r[1], r[2], r[3], r[4]) for r in rows], dtype=float).reshape(-1, 5)
 
     def _on_trajectory(self, msg):
         with self._lock:
