@@ -189,13 +189,15 @@ def first_period(params: CraneParams, length: float | None = None) -> float:
     return 2.0 * math.pi / modal_frequencies(model)[0]
 
 
-def braking_time(velocity: float, acceleration: float, max_acceleration: float, max_jerk: float | None) -> float:
-    """Shortest time (s) to bring a reference moving at (v, a) to rest within |a| <= max_acceleration and
-    |jerk| <= max_jerk (ruckig's velocity interface, the jerk-limited time-optimal profile)."""
+def _braking(position: float, velocity: float, acceleration: float, max_acceleration: float,
+             max_jerk: float | None):
+    """Ruckig's ``Trajectory`` bringing a reference at (p, v, a) to rest as fast as |a| <= max_acceleration
+    (or the acceleration it has) and |jerk| <= max_jerk allow: its velocity interface, jerk-limited and
+    time-optimal."""
     from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
     inp = InputParameter(1)
     inp.control_interface = ControlInterface.Velocity
-    inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [velocity], [acceleration]
+    inp.current_position, inp.current_velocity, inp.current_acceleration = [position], [velocity], [acceleration]
     inp.target_velocity, inp.target_acceleration = [0.0], [0.0]
     inp.max_velocity = [1e9]
     inp.max_acceleration = [max(max_acceleration, abs(acceleration))]
@@ -204,7 +206,13 @@ def braking_time(velocity: float, acceleration: float, max_acceleration: float, 
     result = Ruckig(1).calculate(inp, trajectory)
     if result not in (Result.Working, Result.Finished):
         raise PlanError(f'no stop profile from v={velocity:g} m/s, a={acceleration:g} m/s^2 (ruckig: {result})')
-    return float(trajectory.duration)
+    return trajectory
+
+
+def braking_time(velocity: float, acceleration: float, max_acceleration: float, max_jerk: float | None) -> float:
+    """Shortest time (s) to bring a reference moving at (v, a) to rest within |a| <= max_acceleration and
+    |jerk| <= max_jerk (``_braking``)."""
+    return float(_braking(0.0, velocity, acceleration, max_acceleration, max_jerk).duration)
 
 
 # -- shapers: shaping a change ---------------------------------------------------------------------------
@@ -258,24 +266,12 @@ def shaped_stop(running: ShapedPlan, t0: float, max_acceleration: float, max_jer
     leaves no swing on the linear model; it is returned in ``running``'s time
     (``Continuation`` shifts it to the handover).
     """
-    from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
     base = running.base
     if t0 >= base.duration:  # the base has arrived: the shaper finishes by itself
         return running
     k = int(base.piece(np.array([t0]))[0])
     c = base.taylor(np.array([t0]), np.array([k]))[0]  # position Taylor coefficients at t0 (with 1/k!)
-    p, v, a = c[0], c[1], 2.0 * c[2]
-    inp = InputParameter(1)
-    inp.control_interface = ControlInterface.Velocity
-    inp.current_position, inp.current_velocity, inp.current_acceleration = [p], [v], [a]
-    inp.target_velocity, inp.target_acceleration = [0.0], [0.0]
-    inp.max_velocity = [1e9]
-    inp.max_acceleration = [max(max_acceleration, abs(a))]
-    inp.max_jerk = [max_jerk if max_jerk is not None else math.inf]
-    trajectory = Trajectory(1)
-    result = Ruckig(1).calculate(inp, trajectory)
-    if result not in (Result.Working, Result.Finished):
-        raise PlanError(f'no stop of the shaped base from v={v:g} m/s (ruckig: {result})')
+    trajectory = _braking(c[0], c[1], 2.0 * c[2], max_acceleration, max_jerk)
     prof = trajectory.profiles[0][0]
     steps = np.asarray(prof.t, dtype=float)
     keep = steps > 0.0
