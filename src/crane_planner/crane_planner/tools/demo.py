@@ -271,8 +271,8 @@ def _home(driver: CraneHarness, args, hoist: float | None = None, duration: floa
     """Back to the cart at 0 (and the rope at ``hoist``) from wherever the streamer holds them, then the
     sim reset (no damping to wait for)."""
     duration = duration or (max(args.return_duration, HOIST_RETURN) if hoist is not None else args.return_duration)
-    back, _, _ = driver.move('nvf', None, 0.0, duration, hoist=None if hoist is None else (None, hoist))
-    driver.move_result(back)
+    back, _, _ = driver.move('nvf', None, 0.0, duration, settle=0.05, hoist=None if hoist is None else (None, hoist))
+    driver.move_result(back)  # (its result after 50 ms of watching, not the default 2 s: nothing is measured)
     driver.reset_sim()
 
 
