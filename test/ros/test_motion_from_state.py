@@ -8,7 +8,7 @@ from crane_msgs_py.params import CraneParams
 
 NS = '/crane_any_state'
 T = 3.0
-SETTLE = 2.0
+SETTLE = 1.0  # s of residual window: more than half the slow mode's 1.73 s period, so its peak shows
 NOMINAL = CraneParams()
 STATUS_ABORTED, STATUS_CANCELED = 6, 5  # action_msgs/GoalStatus
 
@@ -57,7 +57,7 @@ def home(driver):
         driver.sleep(max(0.0, (sent[-1] + end.sec * 1e9 + end.nanosec - driver.now_ns()) * 1e-9 + 0.3))
     last = driver.last_state()
     if last is None or abs(last[3]) > 1e-6:
-        start, _, _ = driver.move('zv', None, 0.0, 3.0, settle=0.5)  # from where the streamer holds it
+        start, _, _ = driver.move('nvf', None, 0.0, 1.5, settle=0.05)  # from where the streamer holds it
         driver.move_result(start)
     driver.reset_sim()
 

@@ -167,8 +167,9 @@ def _parse(argv) -> argparse.Namespace:
     given = args.methods is not None
     methods = [m.strip() for m in (args.methods if given else ','.join(DEMO_METHODS)).split(',') if m.strip()]
     cases = [c.strip() for c in args.cases.split(',') if c.strip()]
-    args.every = cases == ['all'] or given  # every method in every case (settle: nvf/rvf only)
-    cases = list(CASES) if args.every else cases
+    every_case = cases == ['all']
+    args.every = every_case or given  # every method in every case (settle: nvf/rvf only)
+    cases = list(CASES) if every_case else cases
     bad = [m for m in methods if m not in METHODS] + [c for c in cases if c not in CASES]
     if bad or not methods or not cases:
         parser.exit(2, f'{PROG}: error: unknown method or case {", ".join(bad) or "(none given)"}\n')
