@@ -12,8 +12,19 @@ NOMINAL = CraneParams()
 PLAYOUT = 0.2  # s: the sim's joint_states are stamped with plant time, this far behind the clock
 
 
+@pytest.fixture
+def crane(operator_crane):
+    """The nodes, back in operator mode at rest after the test (whatever its outcome)."""
+    yield operator_crane
+    driver = operator_crane
+    driver.call_streamer('start')
+    driver.sleep(3.0)  # a stick still moving the crane comes to rest (cmd_timeout, braking, the shaper)
+    driver.set_parameters('streamer', {'mode': 'operator', 'operator_shaper': 'zv'})
+    driver.reset_sim()
+
+
 @pytest.fixture(scope='module')
-def crane(ros_domain, tmp_path_factory):
+def operator_crane(ros_domain, tmp_path_factory):
     from crane_planner.tools.harness import CraneHarness, start_crane_nodes
     from crane_planner.tools.processes import NodeGroup
     nodes = NodeGroup(ros_domain, tmp_path_factory.mktemp('operator-node-logs'))
@@ -80,7 +91,8 @@ def test_a_lost_stick_stops_the_crane_within_the_timeout_and_the_stop(crane):
     from crane_planner.tools.harness import HarnessError
     driver = crane
     tool = teleop(driver, '0.2:30')
-    driver.sleep(1.5)
+    before = driver.last_state()[3]
+    driver.wait_until(lambda: abs(driver.last_state()[3] - before) > 0.05, 10.0, 'the stick never moved the cart')
     # mid-travel the mode cannot change
     with pytest.raises(HarnessError, match='only with the crane at rest'):
         driver.set_parameters('streamer', {'mode': 'trajectory'})
