@@ -211,17 +211,15 @@ def test_the_demo_records_a_rosbag2_mcap_that_an_independent_reader_reads(tmp_pa
                                                                       'report_crane.png'}
 
 
-def test_the_demo_settles_a_push_and_retargets_a_zv_move(tmp_path):
-    """The demo's motion-from-any-state cases measure what they say: a 30 mm push settled below 1 mm, a ZV
-    move retargeted mid-way with no residual swing (the figure of them written)."""
-    r = subprocess.run([str(BIN / 'crane-demo'), '--cases', 'settle,retarget', '--methods', 'nvf,zv',
+def test_the_demo_settles_a_push(tmp_path):
+    """The demo's motion-from-any-state cases measure what they say (the others share its code, and the
+    ROS tests of test_motion_from_state and test_operator hold what they show): a 30 mm push settled
+    below 1 mm, its figure written; a shaper is not asked to settle."""
+    r = subprocess.run([str(BIN / 'crane-demo'), '--cases', 'settle', '--methods', 'nvf,zv',
                         '--out', str(tmp_path), '--no-record', '--sweep-points', '0'],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     rows = {(row['case'], row['method']): row for row in json.loads((tmp_path / 'results.json').read_text())}
-    assert set(rows) == {('settle', 'nvf'), ('retarget', 'nvf'), ('retarget', 'zv')}, rows  # a shaper cannot settle
+    assert set(rows) == {('settle', 'nvf')}, rows
     assert rows[('settle', 'nvf')]['residual_mm'] < 1.0
-    for method in ('nvf', 'zv'):
-        assert rows[('retarget', method)]['residual_mm'] < 0.5, rows
-        assert rows[('retarget', method)]['plan_time_s'] < 0.5  # the request to the handover
     assert (tmp_path / 'demo_any_state.png').stat().st_size > 10_000
