@@ -235,3 +235,13 @@ def test_braking_time_matches_the_closed_form():
     """From v with a = 0 and no jerk limit: v / a_max; with a jerk limit: v / a_max + a_max / j_max."""
     assert braking_time(0.2, 0.0, 0.5, None) == pytest.approx(0.4, rel=1e-9)
     assert braking_time(0.2, 0.0, 0.5, 5.0) == pytest.approx(0.4 + 0.1, rel=1e-6)
+
+
+def test_only_plans_from_a_state_say_so_and_a_refusal_still_probes_the_limits(solvers, running):
+    """The start state is not confused with the solver's start points: a rest-to-rest plan carries no
+    from_state, and an infeasible pair of limits is probed (one solve per limit) and named."""
+    assert 'from_state' not in running.info
+    start, model = problem_start(MotionState((0.0, 0.1, 0.0)), PARAMS)
+    assert solvers(VariationalRequest('plan', 'nvf', 0.2, 3.0, model, PlanOptions(), start)).info['from_state']
+    with pytest.raises(PlanError, match='within max_acceleration 0.14 and max_jerk 0.5 .*infeasible'):
+        plan('nvf', 0.3, 3.0, PARAMS, PlanOptions(max_acceleration=0.14, max_jerk=0.5), variational=SolverCache())

@@ -197,12 +197,12 @@ class DirectSolver(VariationalSolver):
 
         kept = getattr(inst, slot, None)
         warm = self.warm_start(kept, displacement) if kept is not None else None
-        starts = ([lambda: warm] if warm is not None else []) + [cold]
-        for k, start in enumerate(starts):
+        attempts = ([lambda: warm] if warm is not None else []) + [cold]
+        for k, initial in enumerate(attempts):
             if k and not self._may_retry(t0):
                 break
             with inst.callback.solving(self.deadline):
-                sol = solver(**args, **start())
+                sol = solver(**args, **initial())
             stats = solver.stats()
             if stats['success'] or stats['return_status'] == 'Maximum_WallTime_Exceeded':
                 break
