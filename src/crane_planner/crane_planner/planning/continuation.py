@@ -35,7 +35,7 @@ from .dynamics import PARAMETERS, crane_ode
 from .model import modal_frequencies
 from .plan import Plan, PlanError
 from .problem import Form
-from .profiles import ORDER, BaseProfile
+from .profiles import BaseProfile, ruckig_pieces
 from .shaped import ShapedPlan
 
 
@@ -272,17 +272,11 @@ def shaped_stop(running: ShapedPlan, t0: float, max_acceleration: float, max_jer
     k = int(base.piece(np.array([t0]))[0])
     c = base.taylor(np.array([t0]), np.array([k]))[0]  # position Taylor coefficients at t0 (with 1/k!)
     trajectory = _braking(c[0], c[1], 2.0 * c[2], max_acceleration, max_jerk)
-    prof = trajectory.profiles[0][0]
-    steps = np.asarray(prof.t, dtype=float)
-    keep = steps > 0.0
-    starts = t0 + np.concatenate(([0.0], np.cumsum(steps)[:-1]))[keep]
-    stop = np.zeros((int(keep.sum()), ORDER + 1))
-    pp, vv, aa, jj = (np.asarray(x, dtype=float)[:7][keep] for x in (prof.p, prof.v, prof.a, prof.j))
-    stop[:, 0], stop[:, 1], stop[:, 2], stop[:, 3] = pp, vv, aa / 2.0, jj / 6.0
+    starts, stop = ruckig_pieces(trajectory)
     before = base.breaks < t0
     end = float(trajectory.at_time(trajectory.duration)[0][0])
-    duration = t0 + float(np.sum(steps))
-    breaks = np.concatenate([base.breaks[before], starts])
+    duration = t0 + float(trajectory.duration)
+    breaks = np.concatenate([base.breaks[before], t0 + starts])
     coefficients = np.concatenate([base.coefficients[before], stop]) if stop.size else base.coefficients[before]
     if breaks.size == 0 or breaks[0] != 0.0:
         raise PlanError('the shaped base has no piece before the stop')

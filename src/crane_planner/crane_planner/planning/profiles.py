@@ -114,6 +114,19 @@ def quintic_duration(displacement: float, max_velocity=None, max_acceleration=No
     return max(need)
 
 
+def ruckig_pieces(trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """(start times s, position coefficients (pieces, 6)) of a one-axis ruckig ``Trajectory``: its
+    constant-jerk phases as cubic pieces in powers of the time since each starts (empty phases dropped)."""
+    profile = trajectory.profiles[0][0]
+    t = np.asarray(profile.t, dtype=float)
+    starts = np.concatenate(([0.0], np.cumsum(t)[:-1]))
+    keep = t > 0.0
+    coefficients = np.zeros((int(keep.sum()), ORDER + 1))
+    p, v, a, j = (np.asarray(x, dtype=float)[:7][keep] for x in (profile.p, profile.v, profile.a, profile.j))
+    coefficients[:, 0], coefficients[:, 1], coefficients[:, 2], coefficients[:, 3] = p, v, a / 2.0, j / 6.0
+    return starts[keep], coefficients
+
+
 def limited_base(displacement: float, max_velocity=None, max_acceleration=None, max_jerk=None,
                  duration: float | None = None) -> BaseProfile:
     """The jerk-limited time-optimal rest-to-rest profile under the limits (ruckig), optionally slowed to ``duration``.
@@ -143,12 +156,6 @@ def limited_base(displacement: float, max_velocity=None, max_acceleration=None, 
         raise PlanError(f'no jerk-limited profile for D={D:g} m under the limits (ruckig: {exc})') from None
     if result not in (Result.Working, Result.Finished):
         raise PlanError(f'no jerk-limited profile for D={D:g} m under the limits (ruckig: {result.name})')
-    profile = trajectory.profiles[0][0]
-    t = np.asarray(profile.t, dtype=float)
-    starts = np.concatenate(([0.0], np.cumsum(t)[:-1]))
-    keep = t > 0.0
-    coefficients = np.zeros((int(keep.sum()), ORDER + 1))
-    p, v, a, j = (np.asarray(x, dtype=float)[:7][keep] for x in (profile.p, profile.v, profile.a, profile.j))
-    coefficients[:, 0], coefficients[:, 1], coefficients[:, 2], coefficients[:, 3] = p, v, a / 2.0, j / 6.0
-    fastest = BaseProfile('limits', D, float(np.sum(t)), starts[keep], coefficients)
+    starts, coefficients = ruckig_pieces(trajectory)
+    fastest = BaseProfile('limits', D, float(trajectory.duration), starts, coefficients)
     return fastest if duration is None else fastest.stretched(duration)
