@@ -290,7 +290,10 @@ def shaped_stop(running: ShapedPlan, t0: float, max_acceleration: float, max_jer
 def shaped_change(plan_change, running: Plan, t0: float, change: float, duration: float,
                   info: dict | None = None) -> Continuation:
     """``running`` continued from ``t0`` plus the shaped change of the goal by ``change`` (m) over
-    ``duration`` (s): ``plan_change(change, duration)`` makes the shaped rest-to-rest plan of the change."""
+    ``duration`` (s): ``plan_change(change, duration)`` makes the shaped rest-to-rest plan of the change, whose
+    info (the shaper's design) the continuation carries with ``info``."""
     shaped = plan_change(change, duration) if change != 0.0 else None
-    return Continuation.of(shaped.method if shaped is not None else running.method, running, t0, shaped, info)
+    if shaped is None:
+        return Continuation.of(running.method, running, t0, None, info)
+    return Continuation.of(shaped.method, running, t0, shaped, dict(shaped.info, **(info or {})))
 

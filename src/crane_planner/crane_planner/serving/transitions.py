@@ -53,7 +53,7 @@ from ..planning.continuation import (
     shaped_change,
     shaped_stop,
 )
-from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options, plan, shaper_design
+from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options, plan
 from ..planning.limits import hoist_limits_of, limits_of
 from ..planning.methods import SHAPER_METHODS
 from ..planning.model import modal_frequencies
@@ -216,9 +216,6 @@ def _variational(variational, method: str, state: MotionState, goal: dict, durat
         hoist = (goal.get(HOIST_JOINT, state.hoist[0]) - model.L1 if not free_end
                  else state.hoist[1] * duration / 2)
         displacement, opts = (cart, hoist), hoisting_options(options)
-    if not free_end and duration <= 0.0:
-        raise PlanError('a new goal during a motion needs a duration (> 0 s): the fastest plan is planned '
-                        'from rest only')
     return variational(VariationalRequest('plan', method, displacement, duration, model, opts, start,
                                                   free_end))
 
@@ -227,16 +224,16 @@ def retarget(variational, running: Running, handover_ns: int, state: MotionState
              duration: float, params: CraneParams, options: PlanOptions) -> Plan:
     """The plan from the handover (relative to the cart reference there) to rest at ``goal`` (per joint,
     absolute) in ``duration`` s from the handover; see the module docstring for what each method does."""
+    if not duration > 0.0:
+        raise PlanError('a goal during a motion needs a duration (> 0 s): the fastest plan is planned from rest '
+                        'only')
     if method not in SHAPER_METHODS:
         return _variational(variational, method, state, goal, duration, params, options)
     if running.hoist_moves or (state.hoist is not None and abs(goal.get(HOIST_JOINT, state.hoist[0])
                                                               - state.hoist[0]) > 1e-9):
         raise PlanError(f'{method}: a shaper cannot retarget a motion while the rope length changes (its '
                         'delays follow the rope); use nvf or rvf')
-    if duration <= 0.0:
-        raise PlanError(f'{method}: a new goal during a motion needs a duration (> 0 s)')
     model = _model(params, state)
-    omegas, zetas = shaper_design(model, options)
     knots = running.knot_plan(CART_JOINT)
     t0 = float(running.time_of(handover_ns))
     change = goal.get(CART_JOINT, knots.displacement) - knots.displacement  # from where the running one ends
@@ -244,8 +241,7 @@ def retarget(variational, running: Running, handover_ns: int, state: MotionState
     def plan_change(d, T):
         return plan(method, d, T, model, options)
 
-    new = shaped_change(plan_change, knots, t0, change, duration,
-                        info={'shaper_change_m': change, 'design_omegas': list(omegas), 'design_zetas': zetas})
+    new = shaped_change(plan_change, knots, t0, change, duration, info={'shaper_change_m': change})
     return _with_held_hoist(new, state)
 
 
