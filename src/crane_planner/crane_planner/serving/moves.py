@@ -173,12 +173,19 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
     if move.duration is None and plan.duration > bounds.max_duration:
         raise MoveError('duration', f'the fastest {move.method} plan lasts {plan.duration:g} s, beyond '
                                     f'max_duration {bounds.max_duration:g} s')
-    if move.hoist_start is not None and not isinstance(plan, AxesPlan):  # the hoist held where it is
-        held = QuinticPlan(method='hold', displacement=0.0, duration=plan.duration)
-        plan = AxesPlan(method=plan.method, displacement=plan.displacement, duration=plan.duration, info=plan.info,
-                        axes={CART_JOINT: plan, HOIST_JOINT: held},
-                        starts={CART_JOINT: 0.0, HOIST_JOINT: move.hoist_start})
+    if not isinstance(plan, AxesPlan):  # with a hoist, held where it is
+        plan = with_hoist_held(plan, move.hoist_start)
     return plan
+
+
+def with_hoist_held(plan: Plan, length: float | None) -> Plan:
+    """``plan`` of the cart with the hoist held at ``length`` (m) beside it; ``plan`` itself without a hoist
+    (``length`` None)."""
+    if length is None:
+        return plan
+    held = QuinticPlan(method='hold', displacement=0.0, duration=plan.duration)
+    return AxesPlan(method=plan.method, displacement=plan.displacement, duration=plan.duration, info=plan.info,
+                    axes={CART_JOINT: plan, HOIST_JOINT: held}, starts={CART_JOINT: 0.0, HOIST_JOINT: length})
 
 
 def axis_samples(plan: Plan, times) -> list:

@@ -60,6 +60,7 @@ from ..planning.model import modal_frequencies
 from ..planning.plan import AxesPlan, Plan, PlanError
 from ..planning.shaped import ShapedPlan
 from ..streaming.hermite import QuinticHermite
+from .moves import with_hoist_held
 
 #: How many times a settle is lengthened by ``LENGTHEN`` when it does not solve within the limits.
 ATTEMPTS = 4
@@ -242,7 +243,7 @@ def retarget(variational, running: Running, handover_ns: int, state: MotionState
         return plan(method, d, T, model, options)
 
     new = shaped_change(plan_change, knots, t0, change, duration, info={'shaper_change_m': change})
-    return _with_held_hoist(new, state)
+    return with_hoist_held(new, state.hoist and state.hoist[0])
 
 
 def stop(variational, running: Running, handover_ns: int, state: MotionState, method: str, params: CraneParams,
@@ -253,12 +254,10 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
     if method in SHAPER_METHODS and shaped is not None:
         accel, jerk = amax or shaped.peaks()[1], jmax or shaped.peaks()[2]
         t0 = float(running.time_of(handover_ns))
-        knots = running.knot_plan(CART_JOINT)
-        # in the knots' absolute positions: the shaped plan is relative to the motion's start
-        stopped = shaped_stop(shaped, t0, accel, jerk)
-        new = Continuation.of(method, _Shifted(stopped, float(knots.evaluate(0.0).position[0])), t0, None,
-                              info={'stop': 'shaped'})
-        return _with_held_hoist(new, state)
+        # (the shaped plan is relative to the motion's start, the knots absolute: the continuation, relative to
+        # the reference at t0, is the same of both)
+        new = Continuation.of(method, shaped_stop(shaped, t0, accel, jerk), t0, None, info={'stop': 'shaped'})
+        return with_hoist_held(new, state.hoist and state.hoist[0])
     # NVF: RVF's sensitivities forced to zero at a free end make it wander (metres past the goal)
     method = 'nvf'
     period = first_period(_model(params, state))
@@ -310,32 +309,6 @@ def _lengthened(solve, duration: float) -> Plan:
                 raise
             duration *= LENGTHEN
     raise AssertionError('unreachable')
-
-
-class _Shifted(Plan):
-    """A relative plan moved to absolute positions (+ ``origin`` m), so it continues absolute knots."""
-
-    def __init__(self, plan: Plan, origin: float):
-        super().__init__(method=plan.method, displacement=plan.displacement + origin, duration=plan.duration,
-                         info=plan.info)
-        self.plan, self.origin = plan, origin
-
-    def breakpoints(self) -> np.ndarray:
-        return self.plan.breakpoints()
-
-    def _evaluate(self, t):
-        s = self.plan.evaluate(t)
-        return s.position + self.origin, s.velocity, s.acceleration, s.jerk
-
-
-def _with_held_hoist(plan: Plan, state: MotionState) -> Plan:
-    """``plan`` of the cart, with the hoist held where it is when the planner has one."""
-    if state.hoist is None:
-        return plan
-    from ..planning.hoisting import QuinticPlan
-    held = QuinticPlan(method='hold', displacement=0.0, duration=plan.duration)
-    return AxesPlan(method=plan.method, displacement=plan.displacement, duration=plan.duration, info=plan.info,
-                    axes={CART_JOINT: plan, HOIST_JOINT: held}, starts={CART_JOINT: 0.0, HOIST_JOINT: state.hoist[0]})
 
 
 def hoist_start(plan: Plan, state: MotionState) -> float | None:
