@@ -11,7 +11,7 @@ from crane_planner.serving.transitions import (
     Measurement,
     Running,
     handover_state,
-    hoist_start,
+    joint_starts,
     retarget,
     settle,
     stop,
@@ -160,7 +160,7 @@ def test_shapers_refuse_a_new_goal_while_hoisting_and_nvf_serves_it(variational)
     assert isinstance(new, AxesPlan)
     h = new.evaluate_axis('hoist', [0.0, new.duration])
     assert h.position[0] == pytest.approx(state.hoist[0], abs=1e-12) and h.position[1] == pytest.approx(0.3)
-    assert hoist_start(new, state) == new.starts['hoist']
+    assert joint_starts(new, state) == [state.cart[0], new.starts['hoist']]
 
 
 def test_a_new_goal_needs_a_duration(variational):

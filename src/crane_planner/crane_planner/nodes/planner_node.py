@@ -448,7 +448,7 @@ class PlannerNode(Node):
         except ValueError as exc:
             exc.values = values
             raise
-        times = knot_times(plan) if config.sample_period == 0.0 else time_grid(plan.duration, config.sample_period)
+        times = self._knot_times(plan, config)
         values['duration'] = plan.duration
         return checked, plan, axis_samples(plan, times), values
 
@@ -765,10 +765,16 @@ class PlannerNode(Node):
         raise MoveError('duration', f'planning took longer than the handover lead {HANDOVER_ATTEMPTS} times '
                                     f'(last lead {lead / 2:.3f} s); raise handover_lead')
 
+    @staticmethod
+    def _knot_times(plan, config: Config):
+        """Where a plan is sampled for its trajectory: where it needs knots, or every ``sample_period``."""
+        period = config.sample_period
+        return knot_times(plan) if period == 0.0 else time_grid(plan.duration, period)
+
     def _trajectory_from(self, plan, state, joints, handover_ns: int) -> JointTrajectory:
         config = self._config
-        times = knot_times(plan) if config.sample_period == 0.0 else time_grid(plan.duration, config.sample_period)
-        starts = [state.cart[0]] + ([transitions.hoist_start(plan, state)] if len(joints) > 1 else [])
+        times = self._knot_times(plan, config)
+        starts = transitions.joint_starts(plan, state)
         return samples_to_joint_trajectory(axis_samples(plan, times), starts, handover_ns, config.frame_id,
                                            joint=list(joints))
 

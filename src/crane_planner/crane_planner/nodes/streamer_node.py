@@ -312,9 +312,9 @@ class StreamerNode(Node):
                                 PlanOptions())
         times = knot_times(plan)
         samples = axis_samples(plan, times)
-        starts = [state.cart[0]] + ([transitions.hoist_start(plan, state)] if len(self._joints) > 1 else [])
-        columns = [np.column_stack([s0 + s.position if k == 0 else s.velocity if k == 1 else s.acceleration
-                                    for s, s0 in zip(samples, starts)]) for k in range(3)]
+        starts = transitions.joint_starts(plan, state)
+        columns = [np.column_stack([s0 + s.position for s, s0 in zip(samples, starts)]),
+                   np.column_stack([s.velocity for s in samples]), np.column_stack([s.acceleration for s in samples])]
         if len(self._joints) == 1:
             columns = [c[:, 0] for c in columns]
         self._stream.accept(times, *columns, handover, self.get_clock().now().nanoseconds)

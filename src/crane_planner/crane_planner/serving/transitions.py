@@ -311,9 +311,10 @@ def _lengthened(solve, duration: float) -> Plan:
     raise AssertionError('unreachable')
 
 
-def hoist_start(plan: Plan, state: MotionState) -> float | None:
-    """Where the trajectory's hoist positions start from (``AxesPlan.starts``), None without a hoist."""
+def joint_starts(plan: Plan, state: MotionState) -> list:
+    """Where the handover trajectory's positions start from, per joint: the cart reference at the handover,
+    and with a hoist the plan's hoist start (``AxesPlan.starts``: the actual rope length then)."""
     if state.hoist is None:
-        return None
-    return plan.starts.get(HOIST_JOINT, state.hoist[0]) if isinstance(plan, AxesPlan) else state.hoist[0]
-
+        return [state.cart[0]]
+    return [state.cart[0], plan.starts.get(HOIST_JOINT, state.hoist[0]) if isinstance(plan, AxesPlan)
+            else state.hoist[0]]
