@@ -194,40 +194,27 @@ def request_back(driver: CraneHarness, motion_end_ns: int, back_start_ns: int):
 
 
 def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: str | None = None) -> Run:
-    from crane_msgs_py.conversions import joint_trajectory_to_arrays
-    from crane_sim.dynamics import load_excursion
-    from crane_sim.metrics import residual_load_mm
-
     D, T = args.displacement, (HOIST_DURATION if case.hoist else args.duration)
     back_hoist = None if case.hoist is None else case.hoist[::-1]
-    start_ns, plan_time, traj = driver.move(method, 0.0, D, T, settle=args.settle, hoist=case.hoist)
-    # One 50 Hz sample beyond the window, so the record covers all of it.
-    end_ns = start_ns + round((T + args.settle + 0.05) * 1e9)
+    start_ns, plan_time, _ = driver.move(method, 0.0, D, T, settle=args.settle, hoist=case.hoist)
+    end_ns = start_ns + round((T + args.settle) * 1e9)
+    back_start_ns = end_ns + 50_000_000  # after the window and the 50 Hz sample past it (_window_residual)
     # The move back is requested during the observation and starts as it ends: the streamer
     # holds the goal until then, and the sim, playing the stream out by its stamps, shows the
     # window untouched.
-    request_back(driver, start_ns + round(T * 1e9), end_ns)
+    request_back(driver, start_ns + round(T * 1e9), back_start_ns)
     back_duration = args.return_duration if case.hoist is None else max(args.return_duration, HOIST_RETURN)
-    back_ns, _, _ = driver.move('nvf', D, 0.0, back_duration, start_ns=end_ns, hoist=back_hoist)
-    rec = driver.states_between(start_ns, end_ns)
+    back_ns, _, _ = driver.move('nvf', D, 0.0, back_duration, start_ns=back_start_ns, hoist=back_hoist)
+    t, load, rope, residual = _window_residual(driver, case, start_ns, start_ns, start_ns + round(T * 1e9), end_ns)
     action_residual = driver.move_result(start_ns).residual_swing  # what the caller of the action is told
-    if len(rec) < 10:
-        raise HarnessError(f'only {len(rec)} joint_states during the {method} motion: is the sim publishing?')
-    t = (rec[:, 0] - start_ns) * 1e-9
-    L1, L2 = (case.plant.L1 if case.hoist is None else rec[:, 4]), case.plant.L2  # hoisting: the measured rope
-    residual = float(residual_load_mm(t, rec[:, 1], rec[:, 2], L1, L2, after=T, until=T + args.settle))
-    plan_t, plan_p, plan_v, plan_a = joint_trajectory_to_arrays(traj)
-    # the served plan as the streamer plays it: its peaks lie between knots (a ZVD base
-    # motion of 76 ms starts and ends at rest, so its knots carry no acceleration at all)
-    plan_t, plan_p, plan_v, plan_a = _dense(plan_t, plan_p, plan_v, plan_a)
+    plan_t, plan_v, plan_a, peak = _served(driver, start_ns)
     # After the move back, zero the swing: the simulated crane has no damping to wait for.
     back_end_ns = back_ns + round((back_duration + 0.05) * 1e9)
     driver.sleep((back_end_ns - driver.now_ns()) * 1e-9)
     driver.wait_for_state_after(back_end_ns)
     driver.reset_sim()
-    return Run(name or case.name, method, plan_time, float(np.max(np.abs(plan_a))), residual, 1e3 * action_residual, t,
-               1e3 * load_excursion(rec[:, 1], rec[:, 2], L1, L2), plan_t, plan_v, plan_a,
-               rope=None if case.hoist is None else rec[:, 4])
+    return Run(name or case.name, method, plan_time, peak, residual, 1e3 * action_residual, t, load, plan_t, plan_v,
+               plan_a, rope=rope)
 
 
 def case_methods(case: Case, methods, every: bool = False) -> list[str]:
@@ -242,7 +229,7 @@ def case_methods(case: Case, methods, every: bool = False) -> list[str]:
 
 def _window_residual(driver: CraneHarness, case: Case, begin_ns: int, origin_ns: int, after_ns: int, end_ns: int):
     """(t from ``origin_ns`` s, load mm, rope or None, residual mm over [after, end]) of joint_states in
-    [begin, end]."""
+    [begin, end], the load's excursion with the rope length they carry (a hoist), else the plant's L1."""
     from crane_sim.dynamics import load_excursion
     from crane_sim.metrics import residual_load_mm
     rec = driver.states_between(begin_ns, end_ns + 50_000_000, timeout=10.0)  # a 50 Hz sample past the window
@@ -257,7 +244,8 @@ def _window_residual(driver: CraneHarness, case: Case, begin_ns: int, origin_ns:
 
 
 def _served(driver: CraneHarness, stamp_ns: int):
-    """(t, v, a) of the trajectory stamped ``stamp_ns`` as the streamer plays it, and its peak |a|."""
+    """(t, v, a) of the trajectory stamped ``stamp_ns`` as the streamer plays it, and its peak |a|: the peaks
+    lie between knots (a ZVD base motion of 76 ms starts and ends at rest: its knots carry no acceleration)."""
     from crane_msgs_py.conversions import joint_trajectory_to_arrays
     t, p, v, a = _dense(*joint_trajectory_to_arrays(driver.trajectory(stamp_ns)))
     return t, v, a, float(np.max(np.abs(a)))
