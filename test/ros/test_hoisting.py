@@ -17,21 +17,9 @@ NOMINAL = CraneParams()  # the planner's model and the sim's plant: tau 0.01 s, 
 
 
 @pytest.fixture(scope='module')
-def hoist_crane(ros_domain, tmp_path_factory):
-    from crane_planner.tools.harness import CraneHarness, start_crane_nodes
-    from crane_planner.tools.processes import NodeGroup
-    nodes = NodeGroup(ros_domain, tmp_path_factory.mktemp('hoist-node-logs'))
-    driver = None
-    try:
-        start_crane_nodes(nodes, NS, hoist=True)
-        driver = CraneHarness(NS, nodes)
-        driver.wait_until_up(90.0)
+def hoist_crane(start_crane):
+    with start_crane(NS, hoist=True) as driver:
         yield driver
-        nodes.check_alive()
-    finally:
-        if driver is not None:
-            driver.close()
-        nodes.stop(timeout=10.0)
 
 
 def measured_residual_mm(driver, start_ns: int) -> tuple[float, np.ndarray]:

@@ -22,21 +22,9 @@ def crane(crane_nodes):
 
 
 @pytest.fixture(scope='module')
-def crane_nodes(ros_domain, tmp_path_factory):
-    from crane_planner.tools.harness import CraneHarness, start_crane_nodes
-    from crane_planner.tools.processes import NodeGroup
-    nodes = NodeGroup(ros_domain, tmp_path_factory.mktemp('any-state-node-logs'))
-    driver = None
-    try:
-        start_crane_nodes(nodes, NS)
-        driver = CraneHarness(NS, nodes)
-        driver.wait_until_up(90.0)
+def crane_nodes(start_crane):
+    with start_crane(NS) as driver:
         yield driver
-        nodes.check_alive()
-    finally:
-        if driver is not None:
-            driver.close()
-        nodes.stop(timeout=10.0)
 
 
 def residual_mm(driver, begin_ns: int, end_ns: int) -> tuple[float, np.ndarray]:

@@ -24,21 +24,9 @@ def crane(operator_crane):
 
 
 @pytest.fixture(scope='module')
-def operator_crane(ros_domain, tmp_path_factory):
-    from crane_planner.tools.harness import CraneHarness, start_crane_nodes
-    from crane_planner.tools.processes import NodeGroup
-    nodes = NodeGroup(ros_domain, tmp_path_factory.mktemp('operator-node-logs'))
-    driver = None
-    try:
-        start_crane_nodes(nodes, NS, streamer_params={'mode': 'operator'})
-        driver = CraneHarness(NS, nodes)
-        driver.wait_until_up(90.0)
+def operator_crane(start_crane):
+    with start_crane(NS, streamer_params={'mode': 'operator'}) as driver:
         yield driver
-        nodes.check_alive()
-    finally:
-        if driver is not None:
-            driver.close()
-        nodes.stop(timeout=10.0)
 
 
 def teleop(driver, script: str):
