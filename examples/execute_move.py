@@ -9,7 +9,12 @@ The move starts where the streamer holds the cart (``start`` left empty);
 ``--duration 0`` asks for the fastest move within the planner's axis limits.
 ``--json`` prints one JSON object per line (the preview, each feedback, the
 result) instead of text. The test suite runs this file as it is
-(test/ros/test_execute_move.py).
+(test/ros/test_integration.py).
+
+Both clients find their servers first, and only then is ``--delay`` counted:
+discovering a node takes a new process a few hundred milliseconds (more on a
+busy machine), and a start time taken before it would be partly spent by the
+time the goal arrives.
 """
 import argparse
 import json
@@ -41,15 +46,19 @@ def main(argv=None) -> int:
     rclpy.init(args=argv)
     node = rclpy.create_node('execute_move_example')
     try:
+        preview = node.create_client(PlanMove, f'{args.planner}/plan_move')
+        action = ActionClient(node, ExecuteMove, f'{args.planner}/execute_move')
+        if not preview.wait_for_service(timeout_sec=10.0):
+            say('error', 'no plan_move service', message='no plan_move service')
+            return 1
+        if not action.wait_for_server(timeout_sec=10.0):
+            say('error', 'no execute_move action', message='no execute_move action')
+            return 1
         move = Move(method=args.method, goal=[args.goal], duration=args.duration)
         if args.delay > 0.0:  # a start time on the ROS clock (zero: as soon as possible)
             move.start_time = (node.get_clock().now() + Duration(seconds=args.delay)).to_msg()
 
         # 1. A preview: the plan and its facts; nothing moves.
-        preview = node.create_client(PlanMove, f'{args.planner}/plan_move')
-        if not preview.wait_for_service(timeout_sec=10.0):
-            say('error', 'no plan_move service', message='no plan_move service')
-            return 1
         future = preview.call_async(PlanMove.Request(move=move))
         rclpy.spin_until_future_complete(node, future, timeout_sec=30.0)
         response = future.result()
@@ -64,11 +73,6 @@ def main(argv=None) -> int:
             peak_velocity=list(info.peak_velocity), peak_acceleration=list(info.peak_acceleration))
 
         # 2. Execute it: accepted, feedback while it moves and settles, then the result.
-        action = ActionClient(node, ExecuteMove, f'{args.planner}/execute_move')
-        if not action.wait_for_server(timeout_sec=10.0):
-            say('error', 'no execute_move action', message='no execute_move action')
-            return 1
-
         def on_feedback(msg):
             fb = msg.feedback
             say('feedback', f'{100 * fb.progress:5.1f} %, {fb.time_remaining:.2f} s left, swing '

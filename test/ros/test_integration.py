@@ -358,6 +358,31 @@ def test_a_goal_canceled_before_its_start_streams_nothing_and_ends_canceled(cran
     assert np.ptp(states[:, 3]) < 1e-9 and states[0, 3] == pytest.approx(hold, abs=1e-4), 'the cart moved'
 
 
+def test_a_goal_whose_start_time_has_passed_is_streamed_from_now_and_followed_to_its_result(crane):
+    """A goal arriving after its own start_time (a client slow to discover the planner, a clock behind): the
+    streamer streams it whole from its next tick, and the planner follows that motion to its result. (It used
+    to abort the goal at once, "not streamed within 1 s of its start", while the crane moved: every next goal
+    then met a motion the planner did not know of.) The next goal starts where this one ended."""
+    from crane_sim.metrics import residual_load_mm
+    crane.driver.reset_sim()
+    crane.driver.sleep(0.3)
+    hold, goal, T = crane.hold, crane.next_goal(), 3.0
+    sent = crane.now()
+    result = crane.planner.execute('zv', hold, goal, T, start_ns=sent - 2_000_000_000, settle=SETTLE)
+    assert result.success, result.message
+    states = crane.driver.states_between(sent, crane.now(), timeout=5.0)
+    moving = np.nonzero(np.abs(states[:, 3] - hold) > 1e-6)[0]
+    started = states[moving[0], 0]  # the first joint_states that saw the cart move (plant time)
+    assert sent < started < sent + 500_000_000, 'not streamed from when it was sent'
+    assert states[-1, 3] == pytest.approx(goal, abs=1e-4)
+    t = (states[:, 0] - started) * 1e-9
+    measured = residual_load_mm(t, states[:, 1], states[:, 2], NOMINAL.L1, NOMINAL.L2, after=T, until=T + SETTLE)
+    assert measured < 1.0 and abs(1e3 * result.residual_swing - measured) < 0.2, (result.residual_swing, measured)
+    crane.hold = goal
+    plan, start_ns, end_ns = crane.move('zv', crane.next_goal(), 3.0)  # from where it ended: not refused
+    assert crane.driver.move_result(start_ns).success
+
+
 def test_a_goal_during_a_motion_that_names_its_start_is_refused_saying_why_and_the_motion_goes_on(crane):
     """A goal during a motion takes it over from where it is (test_motion_from_state): one naming a start
     of its own cannot, and is refused without touching the motion."""

@@ -557,8 +557,15 @@ class PlannerNode(Node):
         ended, or the streamer says it holds though the motion should have started 0.1 s ago (refused)."""
         with self._lock:
             running = self._running
+        if running is None:
+            return None
+        # one sent to start as soon as possible (or late) has started once its goal's stream_state says so
+        if running.origin_ns == 0 and not self._origin(running, wait=0.0):
+            with self._lock:
+                if not any(g.running is running for g in self._goals):
+                    return None  # its goal ended before the streamer started it: nothing is in motion
         now = self.get_clock().now().nanoseconds
-        if running is None or now >= running.end_ns:
+        if running.origin_ns and now >= running.end_ns:
             return None
         heard = self._heard()
         if heard is not None and heard[1] != 'streaming' and running.origin_ns and \
@@ -596,11 +603,16 @@ class PlannerNode(Node):
             canceled = goal.cancel or goal_handle.is_cancel_requested
             if not canceled:
                 goal.sent = True
-                start_ns = checked.start_ns or self.get_clock().now().nanoseconds
+                now = self.get_clock().now().nanoseconds
+                # A start already past (the goal came late, or planning outlasted its lead) is streamed whole from
+                # the streamer's next tick, like one as soon as possible: its origin comes from stream_state, and
+                # the streamer's time to start it counts from now, not from a start it could never have met.
+                origin = checked.start_ns if checked.start_ns > now else 0
+                start_ns = origin or now
                 for other in self._goals:  # settling goals observe until this motion starts at the latest
                     if other is not goal and other.execution is not None:
                         other.execution.cut(start_ns)
-                goal.running = self._running = self._running_of(trajectory, checked.start_ns, plan)
+                goal.running = self._running = self._running_of(trajectory, origin, plan)
         if canceled:  # (ended outside the lock: _end may wait for the server's canceling state)
             if goal.preempted:
                 return self._end(goal_handle, result, 'abort', 'preempted by a newer goal before its motion '
@@ -609,6 +621,9 @@ class PlannerNode(Node):
                              'was streamed')
         goal.execution = Execution(plan.duration, settle, start_ns, config.params.L1, config.params.L2)
         self._trajectory.publish(trajectory)
+        if checked.start_ns and not origin:
+            self.get_logger().warn(f'execute_move: its start_time had passed {(now - checked.start_ns) * 1e-9:.3f} s '
+                                   'before its trajectory was sent: the streamer streams it from its next tick')
         what = f'{checked.method}: {checked.start:g} -> {checked.goal:g} m in {plan.duration:.4g} s'
         return self._follow(goal, result, feedback, settle, what)
 
@@ -675,6 +690,8 @@ class PlannerNode(Node):
         while True:
             execution = goal.execution
             phase = execution.phase(self.get_clock().now().nanoseconds)
+            if goal.running is not None and goal.running.origin_ns == 0 and execution.motion_start_ns is not None:
+                goal.running.origin_ns = execution.motion_start_ns  # (kept once this goal has ended too)
             feedback.progress, feedback.time_remaining = execution.progress, execution.time_remaining
             feedback.swing = execution.swing
             goal_handle.publish_feedback(feedback)
