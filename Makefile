@@ -76,8 +76,10 @@ demo: install
 	$(VENV)/bin/crane-demo --out $(OUT)
 
 # The linter first: a finding fails the suite before any test runs (ruff.toml says which rules).
+# Two workers: one runs the ROS tests in order (one node set at a time, real time, mostly waiting),
+# the other the pure tests meanwhile, at a lower CPU priority (test/conftest.py).
 test: lint
-	$(PY) -m pytest -q test
+	$(PY) -m pytest -q -n 2 --dist loadgroup test
 
 # Every test that starts no ROS node (pytest marker ros, see test/conftest.py): under 2 minutes.
 test-pure: install

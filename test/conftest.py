@@ -48,7 +48,29 @@ def start_crane(ros_domain, tmp_path_factory):
 
 def pytest_collection_modifyitems(config, items):
     """Mark ``ros`` every test under test/ros/ and every test that needs ``ros_domain`` (directly or
-    through another fixture), so ``-m "not ros"`` leaves exactly the tests that run without DDS."""
+    through another fixture), so ``-m "not ros"`` leaves exactly the tests that run without DDS.
+
+    The ROS tests also form one xdist group, run first: ``make test`` (``pytest -n 2 --dist loadgroup``)
+    runs them in order on one worker, one node set at a time, while the other worker runs the pure tests.
+    """
     for item in items:
         if 'ros_domain' in item.fixturenames or ROS_TESTS in Path(item.fspath).parents:
             item.add_marker(pytest.mark.ros)
+            item.add_marker(pytest.mark.xdist_group('ros'))
+    items.sort(key=lambda item: item.get_closest_marker('ros') is None)  # stable: each kind keeps its order
+
+
+#: Niceness of the pure tests: beside the ROS tests (``make test`` runs both at once) they take the CPU the
+#: real-time nodes leave, so the nodes' timing is what it would be beside one ordinary busy process.
+PURE_NICENESS = 10
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    """Pure tests at ``PURE_NICENESS``, ROS tests at the usual priority (of this thread, which the node
+    subprocesses and solver processes a test starts inherit)."""
+    import os
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, 0 if item.get_closest_marker('ros') else PURE_NICENESS)
+    except OSError:  # lowering it again needs CAP_SYS_NICE: an unprivileged run keeps the pure tests' value
+        pass
