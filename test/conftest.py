@@ -48,16 +48,29 @@ def start_crane(ros_domain, tmp_path_factory):
 
 def pytest_collection_modifyitems(config, items):
     """Mark ``ros`` every test under test/ros/ and every test that needs ``ros_domain`` (directly or
-    through another fixture), so ``-m "not ros"`` leaves exactly the tests that run without DDS.
-
-    The ROS tests also form one xdist group, run first: ``make test`` (``pytest -n 2 --dist loadgroup``)
-    runs them in order on one worker, one node set at a time, while the other worker runs the pure tests.
-    """
+    through another fixture), so ``-m "not ros"`` leaves exactly the tests that run without DDS; and run
+    them first (each kind keeps its order): with two workers the longest-running unit starts at once."""
     for item in items:
         if 'ros_domain' in item.fixturenames or ROS_TESTS in Path(item.fspath).parents:
             item.add_marker(pytest.mark.ros)
-            item.add_marker(pytest.mark.xdist_group('ros'))
-    items.sort(key=lambda item: item.get_closest_marker('ros') is None)  # stable: each kind keeps its order
+    items.sort(key=lambda item: item.get_closest_marker('ros') is None)
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """``make test`` runs ``pytest -n 2 --dist loadgroup``: every test under test/ros/ in one unit, in order on
+    one worker (one node set at a time: two on 2 cores starve each other's 1 kHz threads), the pure tests on
+    the other meanwhile. (xdist's own ``xdist_group`` marks do nothing under pytest 9: the group it appends to
+    a test's nodeid no longer reaches the scheduler.)"""
+    if config.getvalue('dist') != 'loadgroup':
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class RosTestsTogether(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return 'ros' if nodeid.startswith('test/ros/') else nodeid
+
+    return RosTestsTogether(config, log)
 
 
 #: Niceness of the pure tests: beside the ROS tests (``make test`` runs both at once) they take the CPU the
@@ -74,3 +87,4 @@ def pytest_runtest_setup(item):
         os.setpriority(os.PRIO_PROCESS, 0, 0 if item.get_closest_marker('ros') else PURE_NICENESS)
     except OSError:  # lowering it again needs CAP_SYS_NICE: an unprivileged run keeps the pure tests' value
         pass
+
