@@ -61,12 +61,12 @@ def offline_residual(method: str, duration: float) -> float:
 class Crane:
     """The test's handle on the running nodes (rclpy node of a CraneHarness plus extras)."""
 
-    def __init__(self, driver, nodes):
+    def __init__(self, driver):
         from rclpy.parameter_client import AsyncParameterClient
 
         from crane_msgs_py.names import PLANNER_NODE
 
-        self.driver, self.nodes = driver, nodes  # the driver records joint_states and the plans
+        self.driver, self.nodes = driver, driver.nodes  # the driver records joint_states and the plans
         self.node = driver.node
         self.planner = driver.planner
         self.diagnostics = driver.planner.diagnostics
@@ -177,23 +177,11 @@ class Crane:
 
 
 @pytest.fixture(scope='module')
-def crane(ros_domain, tmp_path_factory):
-    from crane_planner.tools.harness import CraneHarness, start_crane_nodes
-    from crane_planner.tools.processes import NodeGroup
-    nodes = NodeGroup(ros_domain, tmp_path_factory.mktemp('node-logs'))
-    driver = None
-    try:
-        start_crane_nodes(nodes, NS)
-        driver = CraneHarness(NS, nodes)
-        driver.wait_until_up(60.0)
-        crane = Crane(driver, nodes)
+def crane(start_crane):
+    with start_crane(NS, startup=60.0) as driver:
+        crane = Crane(driver)
         crane.status('crane_planner', 'solvers', timeout=60.0)  # warm: first requests are not slowed down
         yield crane
-        nodes.check_alive()  # every node survived the whole module
-    finally:
-        if driver is not None:
-            driver.close()
-        nodes.stop(timeout=10.0)
 
 
 def quintic_trajectory(start: float, goal: float, duration: float, stamp_ns: int = 0):

@@ -690,8 +690,8 @@ class PlannerNode(Node):
         while True:
             execution = goal.execution
             phase = execution.phase(self.get_clock().now().nanoseconds)
-            if goal.running is not None and goal.running.origin_ns == 0 and execution.motion_start_ns is not None:
-                goal.running.origin_ns = execution.motion_start_ns  # (kept once this goal has ended too)
+            if goal.running is not None:  # a pending motion's origin, kept once this goal has ended too
+                self._origin(goal.running, wait=0.0)
             feedback.progress, feedback.time_remaining = execution.progress, execution.time_remaining
             feedback.swing = execution.swing
             goal_handle.publish_feedback(feedback)

@@ -78,7 +78,7 @@ class CraneHarness:
     def __init__(self, namespace: str, nodes: NodeGroup, log: Callable[[str], None] | None = None,
                  node_name: str = 'crane_harness'):
         """``log`` receives notable events (a trajectory that reached the streamer late)."""
-        self._nodes = nodes
+        self.nodes = nodes
         self._log = log or (lambda text: None)
         self._namespace = '/' + namespace.strip('/') if namespace.strip('/') else ''
         rclpy.init()
@@ -165,7 +165,7 @@ class CraneHarness:
         """Poll ``ready()`` until true while watching the nodes; HarnessError ``failure`` after ``timeout`` s."""
         deadline = time.monotonic() + timeout
         while not ready():
-            self._nodes.check_alive()
+            self.nodes.check_alive()
             if time.monotonic() > deadline:
                 raise HarnessError(failure)
             time.sleep(interval)
@@ -178,7 +178,7 @@ class CraneHarness:
         """Sleep while watching the nodes: a node that dies ends the sleep at once (NodeDied)."""
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
-            self._nodes.check_alive()
+            self.nodes.check_alive()
             time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
 
     def wait_until_up(self, timeout: float):
@@ -312,7 +312,7 @@ class CraneHarness:
 
     def run_tool(self, executable: str, *args: str):
         """A command-line tool (``crane-teleop``, say) on this graph, running (``NodeGroup.run_tool``)."""
-        return self._nodes.run_tool(executable, *args)
+        return self.nodes.run_tool(executable, *args)
 
     def call_streamer(self, name: str):
         """Call the streamer's ``~/start`` or ``~/stop``: its response (success, message)."""
