@@ -203,7 +203,8 @@ class StreamerNode(Node):
         if p['auto_start']:
             self._running.set()
         self._loop_thread = LoopThread(self, self._loop, 'reference-loop', p['sched_priority'])
-        threading.Thread(target=self._build_stopper, name='stop-solver', daemon=True).start()
+        self._stopper_build = threading.Thread(target=self._build_stopper, name='stop-solver', daemon=True)
+        self._stopper_build.start()
         self.get_logger().info(f'streaming {p["output"]} on {self.resolve_topic_name(REFERENCE_TOPIC)} at '
                                f'{p["rate"]:g} Hz, {", ".join(self._joints)} held at {self._hold_text()} m'
                                + ('' if p['auto_start'] else ' (waiting for ~/start)'))
@@ -538,6 +539,11 @@ class StreamerNode(Node):
 
     def destroy_node(self):
         self._loop_thread.stop()
+        # CasADi must not be building in that thread while the interpreter exits: a SIGSEGV (a streamer
+        # stopped within seconds of its start, as test_workspace does, died so about once in ten)
+        if self._stopper_build.is_alive():
+            self.get_logger().info('waiting for the stop solver to be built')
+            self._stopper_build.join()
         if self._timing_log and self._lateness.all is not None:
             with open(self._timing_log, 'w') as f:
                 json.dump({'rate_hz': 1e9 / self._period_ns, 'first_tick_ns': self._first_tick_ns,
