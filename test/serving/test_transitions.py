@@ -15,6 +15,7 @@ from crane_planner.serving.transitions import (
     retarget,
     settle,
     stop,
+    taken_over,
 )
 from crane_planner.streaming.knots import knot_times
 from crane_sim.simulator import simulate
@@ -81,6 +82,29 @@ def test_a_new_goal_at_40_percent_ends_at_it_without_swing(variational, method):
     assert state.cart[0] + new.displacement == pytest.approx(START + 0.5, abs=1e-9)
     t, r = simulated(old, new, handover, state.cart[0])
     assert np.abs(r.load_excursion[0, t > 1.2 + new.duration]).max() < 0.1e-3
+
+
+@pytest.mark.parametrize('method', ['zv', 'nvf'])
+def test_a_new_goal_taken_over_late_with_its_change_delayed_still_leaves_no_swing(variational, method):
+    """What the streamer streams when the handover reaches it 7.3 ms after its stamp (taken_over, the
+    streamer's own rule), played on crane_sim: continuous at the late tick, no swing left at the goal."""
+    old = running_of(plan(method, 0.3, 3.0, PARAMS, variational=variational))
+    handover = ORIGIN + 1_200_000_000
+    state = handover_state(old, handover, measure(old, handover - 30_000_000), PARAMS)
+    new = retarget(variational, old, handover, state, method, {'cart': START + 0.5}, 3.0, PARAMS, PlanOptions())
+    sent = running_of(new, start=state.cart[0])
+    sent.origin_ns = handover
+    at = handover + 7_300_000
+    joined = taken_over(old, sent, at)
+    assert joined.origin_ns == at and joined.duration == pytest.approx(new.duration, abs=1e-12)
+    for x, y in zip(old.at(at)[0][:3], joined.at(at)[0][:3]):  # no step where it takes over
+        assert y[0] == pytest.approx(x[0], abs=1e-9)
+    tt = np.arange(0.0, (at - ORIGIN) * 1e-9 + new.duration + 4.0, DT)
+    stamps = ORIGIN + np.round(tt * 1e9).astype(np.int64)
+    acc = np.where(stamps < at, old.at(stamps)[0][2], joined.at(stamps)[0][2])
+    r = simulate(tt, acc, PARAMS)
+    assert START + r.y[0, -1] == pytest.approx(START + 0.5, abs=1e-5)  # (NVF: 1.4 um without a delay too)
+    assert np.abs(r.load_excursion[0, stamps > joined.end_ns]).max() < 0.1e-3
 
 
 def test_the_swing_is_predicted_from_the_measurement_or_else_the_model(variational):

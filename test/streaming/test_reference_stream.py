@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from crane_planner.streaming.hermite import QuinticHermite
-from crane_planner.streaming.reference_stream import ReferenceStream
+from crane_planner.streaming.reference_stream import MAX_HANDOVER_SHIFT, ReferenceStream
 
 PERIOD = 1_000_000                   # ns: 1 kHz
 EPOCH = 1_700_000_000_000_000_000    # ns of ROS time at tick 0
@@ -121,6 +121,43 @@ def test_a_handover_replaces_the_rest_of_the_motion_without_a_jump(stream):
     i = np.searchsorted(rows[:, 0], handover.first_tick) - 1  # the step into the handover tick
     assert dp[i] < 1e-3 * 0.6 and dv[i] < 1e-3 * 3.0 and da[i] < 1e-3 * 30.0
     assert dv[i] < 2 * np.median(dv[i - 5:i]) + 1e-6 and da[i] < 2 * np.median(da[i - 5:i]) + 1e-4
+
+
+def test_a_late_handover_is_taken_at_the_next_tick_with_its_change_delayed(stream):
+    loop = Loop(stream)
+    motion = stream.accept(*quintic_knots(), EPOCH + 100 * MS, EPOCH)
+    before = loop.run_to(motion.first_tick + 407)  # the loop is 7 ms past the handover's stamp
+    t_h = 0.4
+    knots = continuation_knots(t_h, HOLD + 0.5)
+    handover = stream.accept(*knots, EPOCH + 100 * MS + round(t_h * 1e9), EPOCH + 507 * MS)
+    assert handover.handover and handover.first_tick == loop.tick + 1
+    assert handover.late == pytest.approx(0.008, abs=1e-12) and handover.duration == pytest.approx(1.0)
+    rows = np.vstack([before, loop.run(1100)])
+    # the old motion until the handover tick, then old + (continuation - old) 8 ms later: closed forms
+    old = QuinticHermite(*quintic_knots())
+    change = QuinticHermite(*knots)
+    tau = (rows[:, 0] - handover.first_tick) * 1e-3
+    t_old = (rows[:, 0] - motion.first_tick) * 1e-3
+    expected = np.where(tau < 0, old(t_old)[0], old(t_old)[0] + change(tau)[0] - old(t_h + tau)[0])
+    assert np.abs(rows[:, 1] - expected).max() < 1e-12
+    assert rows[-1, 1] == pytest.approx(HOLD + 0.5, abs=1e-12)
+    dp, dv, da = (np.abs(np.diff(rows[:, k])) for k in (1, 2, 3))
+    i = np.searchsorted(rows[:, 0], handover.first_tick) - 1  # the step into the handover tick
+    assert dv[i] < 2 * np.median(dv[i - 5:i]) + 1e-6 and da[i] < 2 * np.median(da[i - 5:i]) + 1e-4
+
+
+def test_a_handover_later_than_the_shift_allowed_or_a_late_stop_is_refused(stream):
+    loop = Loop(stream)
+    motion = stream.accept(*quintic_knots(), EPOCH + 100 * MS, EPOCH)
+    late = round(MAX_HANDOVER_SHIFT * 1e3) + 1  # ms
+    loop.run_to(motion.first_tick + 400 + late)
+    with pytest.raises(ValueError, match=f'too late for its handover .*at most {MAX_HANDOVER_SHIFT:g} s'):
+        stream.accept(*continuation_knots(0.4, HOLD + 0.5), EPOCH + 500 * MS, EPOCH + (500 + late) * MS)
+    # a stop (ending before the motion would have) is never delayed: it would creep on until the old end
+    with pytest.raises(ValueError, match=r'ends before the motion it replaces would have \(a stop\)'):
+        stream.accept(*continuation_knots(0.4, HOLD + 0.25, duration=0.3), EPOCH + 500 * MS,
+                      EPOCH + (500 + late) * MS)
+    assert stream.last_motion is motion and stream.streaming  # nothing changed
 
 
 def test_a_handover_that_does_not_continue_the_motion_is_refused_naming_the_gap(stream):

@@ -93,6 +93,7 @@ from crane_planner.serving.moves import (
 )
 from crane_planner.serving.transitions import Measurement, Running
 from crane_planner.streaming.knots import knot_times
+from crane_planner.streaming.reference_stream import MAX_HANDOVER_SHIFT
 
 #: The planner's per-request diagnostic task (status ``<planner>: plan``), and the executions'.
 PLAN_TASK = 'plan'
@@ -174,8 +175,9 @@ PARAMETERS = {
     'handover_lead': (0.042, 'a new NVF/RVF goal during a motion takes over this long (s) after it arrives, from '
                             'the state the motion is in then (a plan taking longer is planned again further ahead)',
                       float_range(0.001, 1.0)),
-    'shaper_handover_lead': (0.008, 'the same for a shaper (its change is planned in 1-4 ms; the rest is the '
-                                    'trajectory\'s transport to the streamer)',
+    'shaper_handover_lead': (0.001, 'the same for a shaper; shorter than its planning and transport on purpose: '
+                                    'a change reaching the streamer after its tick starts at the next one, '
+                                    'delayed (up to 20 ms, no swing added): the earliest handover possible',
                              float_range(0.001, 1.0)),
     'settle_method': ('nvf', '~/settle plans with this method: nvf or rvf (a shaper cannot damp a swing it did not '
                              'cause)', {'additional_constraints': 'nvf or rvf'}),
@@ -209,7 +211,7 @@ class Config:
     joints: tuple
     publish_lead: float
     handover_lead: float = 0.042
-    shaper_handover_lead: float = 0.008
+    shaper_handover_lead: float = 0.001
     settle_method: str = 'nvf'
 
     @property
@@ -318,7 +320,8 @@ class PlannerNode(Node):
         self.create_service(PlanMove, PLAN_MOVE_SERVICE, self._on_plan_move, qos_profile=PLAN_MOVE_QOS,
                             callback_group=group)
         self._action = ActionServer(self, ExecuteMove, EXECUTE_MOVE_ACTION, self._execute,
-                                    cancel_callback=self._on_cancel, callback_group=group)
+                                    handle_accepted_callback=self._on_accepted, cancel_callback=self._on_cancel,
+                                    callback_group=group)
         self.create_service(Trigger, SETTLE_SERVICE, self._on_settle, callback_group=group)
         self.get_logger().info(f'serving {", ".join(METHODS)} on {self.get_fully_qualified_name()}/plan_move '
                                '(PlanMove: a preview) and .../execute_move (ExecuteMove: plan, stream, settle)')
@@ -531,17 +534,37 @@ class PlannerNode(Node):
                 goal.cancel = True  # seen by _run under this lock before it sends anything
         return CancelResponse.ACCEPT
 
-    def _execute(self, goal_handle):
-        request = goal_handle.request
-        result = ExecuteMove.Result()
-        result.residual_swing = math.nan
+    def _on_accepted(self, goal_handle):
+        """A goal accepted: registered, and one during a motion handed over at once, in the executor's pass
+        that accepted it (the next pass runs ``_execute``: milliseconds a shaper's handover has not got)."""
         goal = _Goal(goal_handle)
         with self._lock:
             for other in self._goals:  # one not sent yet gives way: it never streams
                 if not other.sent:
                     other.cancel = other.preempted = True
             self._goals.append(goal)
+        request, t0 = goal_handle.request, time.perf_counter()
         try:
+            running = self._in_motion()
+            if running is not None and math.isfinite(request.settle) and request.settle >= 0.0:  # (else _run)
+                goal.take_over = (running, t0, None)
+                handover = self._send_handover(goal, request, running, request.settle or DEFAULT_SETTLE)
+                goal.take_over = (running, t0, handover)
+        except Exception as exc:  # a refusal (ValueError), reported by _take_over; a bug's, by _execute
+            goal.take_over = (goal.take_over or (None, t0))[:2] + (exc,)
+        finally:
+            goal_handle.execute()
+
+    def _execute(self, goal_handle):
+        request = goal_handle.request
+        result = ExecuteMove.Result()
+        result.residual_swing = math.nan
+        with self._lock:
+            goal = next(g for g in self._goals if g.goal_handle is goal_handle)
+        try:
+            if isinstance(goal.take_over and goal.take_over[2], Exception) and \
+                    not isinstance(goal.take_over[2], ValueError):
+                raise goal.take_over[2]
             return self._run(goal, request, result)
         except Exception as exc:  # a bug must not leave the caller waiting forever
             self.get_logger().error(f'execute_move: unexpected {type(exc).__name__}: {exc}')
@@ -580,8 +603,8 @@ class PlannerNode(Node):
             return self._end(goal_handle, result, 'abort', f'settle: must be finite and >= 0 s (0 = '
                              f'{DEFAULT_SETTLE:g} s), got {request.settle}')
         settle = request.settle or DEFAULT_SETTLE
-        running = self._in_motion()
-        if running is not None:  # a new goal during a motion: it takes over (preemption)
+        if goal.take_over is not None:  # a new goal during a motion: it takes over (preemption)
+            running, t0, _ = goal.take_over
             return self._take_over(goal, request, result, running, settle, t0)
         try:
             checked, plan, samples, values = self._plan(request.move, 'execute_move', execute=True)
@@ -631,20 +654,23 @@ class PlannerNode(Node):
         """A goal during a motion: plan from the state at the handover, send, and once the streamer has
         taken it over (its stream_state), end the preempted goal and follow this one. A handover the
         streamer did not take (it came late on a busy machine) is planned again further ahead."""
-        goal_handle, config = goal.goal_handle, self._config
-        self.get_logger().info('execute_move: a goal during a motion: planning the handover')
+        goal_handle = goal.goal_handle
+        self.get_logger().info('execute_move: a goal during a motion: handed over on arrival'
+                               if isinstance(goal.take_over[2], tuple) else
+                               'execute_move: a goal during a motion: planning the handover')
         lead_scale, feedback = 1.0, None
         for attempt in range(HANDOVER_ATTEMPTS):
             try:
-                checked, plan, trajectory, values, handover = self._preempting(request.move, running, lead_scale)
+                sent = goal.take_over[2] if attempt == 0 else None  # (planned on arrival, _on_accepted)
+                if isinstance(sent, ValueError):
+                    raise sent
+                if sent is None:
+                    sent = self._send_handover(goal, request, running, settle, lead_scale)
             except ValueError as exc:
                 self._report_plan({'service': 'execute_move', 'method': '', **getattr(exc, 'values', {})},
                                   None, 0, t0, t0, error=str(exc))
                 return self._end(goal_handle, result, 'abort', str(exc))
-            with self._lock:  # (before it is sent: the first stream_state of it finds it)
-                goal.sent = True
-                goal.execution = Execution(plan.duration, settle, handover, config.params.L1, config.params.L2)
-            self._trajectory.publish(trajectory)  # first: the handover is due in milliseconds
+            checked, plan, trajectory, values, handover = sent
             if feedback is None:
                 solved = time.perf_counter()
                 self._report_plan(values, plan, len(trajectory.points), t0, solved)
@@ -666,10 +692,22 @@ class PlannerNode(Node):
                     other.execution.cut(handover)
                     if other.sent and other.execution.phase(0) in (WAITING, MOVING):
                         other.preempted = True
-            goal.running = self._running = self._running_of(trajectory, handover, plan)
+            goal.running = self._running = transitions.taken_over(
+                running, self._running_of(trajectory, handover, plan), goal.execution.motion_start_ns)
         what = (f'{checked.method}: from {checked.start:g} m (taking over the motion) -> {checked.goal:g} m in '
                 f'{plan.duration:.4g} s')
         return self._follow(goal, result, feedback, settle, what)
+
+    def _send_handover(self, goal: '_Goal', request, running: Running, settle: float, lead_scale: float = 1.0):
+        """Plan ``goal``'s handover of ``running`` (``_preempting``) and send it: (checked, plan, trajectory,
+        values, handover ns); ValueError says why not."""
+        checked, plan, trajectory, values, handover = self._preempting(request.move, running, lead_scale)
+        config = self._config
+        with self._lock:  # (before it is sent: the first stream_state of it finds it)
+            goal.sent = True
+            goal.execution = Execution(plan.duration, settle, handover, config.params.L1, config.params.L2)
+        self._trajectory.publish(trajectory)  # first: the handover is due in milliseconds
+        return checked, plan, trajectory, values, handover
 
     def _taken(self, execution: Execution, handover_ns: int, wait: float = 0.5) -> bool:
         """Whether the streamer streams the handover at ``handover_ns`` (stream_state says so), waiting until
@@ -773,8 +811,12 @@ class PlannerNode(Node):
                 plan = make_plan(handover, state)
                 took = time.perf_counter() - t0
                 # the transport's share of the lead: TRANSPORT_MARGIN, or with a short lead (a shaper's) 40 % of
-                # it; a handover arriving late all the same is refused by the streamer and planned again
-                if self.get_clock().now().nanoseconds < handover - min(TRANSPORT_MARGIN, 0.4 * lead) * 1e9:
+                # it. A plan ending no earlier than the running motion (a new goal's) may even arrive late: the
+                # streamer delays its change to its next tick, up to MAX_HANDOVER_SHIFT (half of it kept for the
+                # transport). A handover arriving too late all the same is refused and planned again.
+                slack = (0.5 * MAX_HANDOVER_SHIFT if handover + round(plan.duration * 1e9) >= running.end_ns
+                         else -min(TRANSPORT_MARGIN, 0.4 * lead))
+                if self.get_clock().now().nanoseconds < handover + slack * 1e9:
                     return plan, handover, state
                 self.get_logger().warn(f'handover: planning took {1e3 * took:.1f} ms (the state {1e3 * (t1 - t0):.1f} '
                                        f'ms), beyond the lead {1e3 * lead:.1f} ms: planning again further ahead')
@@ -856,10 +898,18 @@ class PlannerNode(Node):
             return float(running.interps[0].position[-1])
         plan, handover, state = done
         trajectory = self._trajectory_from(plan, state, running.joints, handover)
+        stop = self._running_of(trajectory, handover, plan)
         with self._lock:
-            goal.running = self._running = self._running_of(trajectory, handover, plan)
+            goal.running = self._running = stop
         goal.execution = Execution(plan.duration, settle, handover, config.params.L1, config.params.L2)
         self._trajectory.publish(trajectory)
+        # a stop ending after the motion would have (one near its end) is streamed with its change delayed to
+        # the tick at or after its stamp: what a next handover must continue
+        if self._taken(goal.execution, handover, wait=STOP_LEAD + 0.2):
+            with self._lock:
+                if self._running is stop:
+                    goal.running = self._running = transitions.taken_over(running, stop,
+                                                                          goal.execution.motion_start_ns)
         where = state.cart[0] + plan.displacement
         self.get_logger().info(f'execute_move: canceled during its motion: stopping at {where:.6g} m in '
                                f'{plan.duration:.4g} s ({plan.method})')
@@ -950,6 +1000,9 @@ class _Goal:
         self.execution: Execution | None = None
         self.preempted = False  # a newer goal took over (or, before it was sent, replaced it)
         self.running: Running | None = None  # its motion as sent (a stop's once canceled)
+        # arriving during a motion: (that motion, perf_counter at arrival, its handover as sent by _on_accepted
+        # or why not: a ValueError, or a bug's exception)
+        self.take_over: tuple | None = None
 
     @property
     def phase(self) -> str:

@@ -59,7 +59,7 @@ from ..planning.methods import SHAPER_METHODS
 from ..planning.model import modal_frequencies
 from ..planning.plan import AxesPlan, Plan, PlanError
 from ..planning.shaped import ShapedPlan
-from ..streaming.hermite import QuinticHermite
+from ..streaming.hermite import QuinticHermite, extends, splice
 from .moves import with_hoist_held
 
 #: How many times a settle is lengthened by ``LENGTHEN`` when it does not solve within the limits.
@@ -161,6 +161,18 @@ class Running:
             return False
         interp = self.interps[self.joints.index(HOIST_JOINT)]
         return bool(np.ptp(interp.position) > 1e-9 or np.abs(interp.velocity).max() > 1e-9)
+
+
+def taken_over(running: Running, new: Running, start_ns: int) -> Running:
+    """The motion the streamer streams once it takes the handover ``new`` of ``running`` over at its tick
+    ``start_ns`` (``stream_state``'s motion start): a handover ending no earlier than ``running`` is
+    ``running`` plus its change delayed to that tick (``hermite.splice``), one ending earlier ``new`` itself
+    (the streamer's rules, ``reference_stream``)."""
+    if not extends(running.interps[0], running.origin_ns, new.interps[0], new.origin_ns):
+        return new
+    interps = [splice(old, running.origin_ns, change, new.origin_ns, start_ns)
+               for old, change in zip(running.interps, new.interps)]
+    return Running.of_interps(new.joints, interps, start_ns, new.plan)
 
 
 def handover_state(running: Running, handover_ns: int, measured: Measurement | None,

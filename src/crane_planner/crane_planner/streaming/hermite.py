@@ -76,3 +76,38 @@ class QuinticHermite:
         if end.any():
             p[end], v[end], a[end] = self.position[-1], self.velocity[-1], self.acceleration[-1]
         return p, v, a, j
+
+
+def extends(old: QuinticHermite, old_origin_ns: int, new: QuinticHermite, new_origin_ns: int) -> bool:
+    """Whether ``new`` (first knot streamed at ``new_origin_ns``) ends no earlier than ``old``: a handover
+    that ``splice`` may delay (one ending earlier, a stop, would go on creeping until old's end)."""
+    def end(interp, origin_ns):
+        return origin_ns + round((interp.t[-1] - interp.t[0]) * 1e9)
+    return end(new, new_origin_ns) >= end(old, old_origin_ns)
+
+
+def splice(old: QuinticHermite, old_origin_ns: int, new: QuinticHermite, new_origin_ns: int,
+           at_ns: int) -> QuinticHermite:
+    """``old`` with the change that ``new`` makes to it added from ``at_ns`` instead of ``new_origin_ns``.
+
+    A handover ``new`` continues ``old`` from ``new_origin_ns`` (its first knot is old's state there); its
+    change ``d(t) = new(t) - old(t)`` (old held at its end after it) starts at rest. Delayed by
+    ``shift = at_ns - new_origin_ns`` >= 0 the motion is ``old(t) + d(t - shift)``: continuous with old at
+    ``at_ns`` in position, velocity and acceleration, at ``new``'s end state ``shift`` later than new.
+    By superposition it leaves no swing on the linear crane when old and new leave none (``d`` is the
+    difference of two such references, and a delayed input's response is the delayed response): a late
+    handover is delayed this way instead of refused. With ``new`` ending no earlier than ``old`` the result
+    lasts exactly as long as ``new``; the sum of piecewise quintics is one between the union of the three
+    knot sets, so the result is exact on those knots. Times: each interpolant's first knot is streamed at its
+    origin (ROS time, ns); the result's knot times run from 0 (at ``at_ns``) to new's duration.
+    """
+    shift = (at_ns - new_origin_ns) * 1e-9
+    into_old = old.t[0] + (at_ns - old_origin_ns) * 1e-9  # old's own time at at_ns
+    duration = float(new.t[-1] - new.t[0])
+    knots = np.sort(np.concatenate(([0.0, duration], old.t - into_old, old.t - into_old + shift, new.t - new.t[0])))
+    knots = knots[(knots >= 0.0) & (knots <= duration)]
+    # a knot met twice (new's knots after the handover are old's) counts once
+    knots = knots[np.concatenate(([True], np.diff(knots) > 1e-9))]
+    knots[-1] = duration
+    now, changed, before = old(into_old + knots), new(new.t[0] + knots), old(into_old - shift + knots)
+    return QuinticHermite(knots, *(x + y - z for x, y, z in zip(now, changed, before)))

@@ -17,6 +17,14 @@ can be streamed without one:
   ``HANDOVER_VELOCITY`` and ``HANDOVER_ACCELERATION``), replaces the rest of
   it from that tick on (contract "Motion from any state": a new goal or a
   stop mid-move). Anything else would be a jump, and is refused.
+- a handover ending no earlier than the motion it replaces (a new goal) is
+  streamed as that motion plus the handover's change to it, the change
+  starting at the first tick at or after the stamp (``hermite.splice``:
+  delayed by less than a tick), or, when it arrives after its stamp, at the
+  next tick the loop has not reached, up to ``MAX_HANDOVER_SHIFT`` late:
+  continuous there, and by superposition still without swing on the linear
+  crane. A handover ending earlier (a stop) starts at its stamp exactly and
+  is refused if late: delayed, it would creep on until the old motion's end.
 
 A motion starts at its start stamp plus its first knot's time (a zero stamp:
 at once), from the first tick at or after that moment, and is sampled at
@@ -48,7 +56,7 @@ from typing import Callable
 
 import numpy as np
 
-from .hermite import QuinticHermite
+from .hermite import QuinticHermite, extends, splice
 
 # The stream's states: stopped (~/stop; waits for resume), starting (resumed or
 # never stopped, waits for the loop's start), running (ticks have an epoch).
@@ -58,6 +66,9 @@ STOPPED, STARTING, RUNNING = 'stopped', 'starting', 'running'
 #: acceleration (m/s^2). The planner evaluates the same interpolant, so they agree to rounding.
 HANDOVER_VELOCITY = 1e-6
 HANDOVER_ACCELERATION = 1e-5
+#: How late (s) a handover may reach the stream and still be taken, its change delayed (``hermite.splice``).
+#: Exact on the linear crane whatever the delay; bounded because the goal's timing moves with it.
+MAX_HANDOVER_SHIFT = 0.02
 
 
 @dataclass(frozen=True)
@@ -281,12 +292,6 @@ class ReferenceStream:
             into = (due - running.first_tick) * period * 1e-9
             raise ValueError(f'its start is outside the streaming motion ({into:.3f} s from its start, which lasts '
                              f'{running.duration:.3f} s)')
-        # the next tick will do: were the loop to sample it before the hand-over below, it would stream the old
-        # motion there and the handover from its second sample on, both on the same smooth path (no jump)
-        first = self._tick() + 1
-        if due < first:
-            raise ValueError(f'it came {(first - due) * period * 1e-9:.3f} s too late for its handover (the stream '
-                             'is past its start): a handover is never shifted')
         here = running.state_at(start_ns)  # rows p, v, a; a column per joint
         new = np.array([[i.position[0] for i in interps], [i.velocity[0] for i in interps],
                         [i.acceleration[0] for i in interps]])
@@ -298,7 +303,27 @@ class ReferenceStream:
                 raise ValueError(f'its first knot is not the streaming motion\'s state at its start: the {what} '
                                  f'differs by {gap:.3g} {unit} (> {tolerance:g}); a handover must continue the '
                                  'motion without a jump')
-        self._incoming = self._sampled(interps, due, epoch + due * period - start_ns, duration_ns, 0, several,
+        # the next tick will do: were the loop to sample it before the hand-over below, it would stream the old
+        # motion there and the handover from its second sample on, both on the same smooth path (no jump)
+        first = self._tick() + 1
+        if not extends(running.interps[0], running.origin_ns, interps[0], start_ns):
+            if due < first:
+                raise ValueError(f'it came {(first - due) * period * 1e-9:.3f} s too late for its handover (the '
+                                 'stream is past its start), and it ends before the motion it replaces would have '
+                                 '(a stop): it is not delayed')
+            self._incoming = self._sampled(interps, due, epoch + due * period - start_ns, duration_ns, 0, several,
+                                           handover=True)
+            return self._incoming
+        at = max(due, first)
+        shift = epoch + at * period - start_ns
+        if shift > MAX_HANDOVER_SHIFT * 1e9:
+            raise ValueError(f'it came {shift * 1e-9:.3f} s too late for its handover (the stream is past its '
+                             f'start; at most {MAX_HANDOVER_SHIFT:g} s is made up by delaying its change)')
+        if incoming is not None and due < incoming.first_tick <= at:
+            raise ValueError('a handover is queued where this one would start; it cannot be handed over to')
+        joined = [splice(old, running.origin_ns, change, start_ns, epoch + at * period)
+                  for old, change in zip(running.interps, interps)]
+        self._incoming = self._sampled(joined, at, 0, duration_ns, shift if at > due else 0, several,
                                        handover=True)
         return self._incoming
 

@@ -259,7 +259,8 @@ class CraneHarness:
     def retarget(self, method: str, goal: float, duration: float, settle: float = 0.0,
                  hoist_goal: float | None = None) -> int:
         """Send a new goal during a motion (as soon as possible, from where the motion is): the stamp the
-        planner hands the motion over at. PlanError (the planner's reason) if it was refused."""
+        streamer hands the motion over at (the planner's, or the tick it delayed a late handover's change to).
+        PlanError (the planner's reason) if it was refused."""
         before = set(self.sent_trajectories())
         mark = self.planner.diagnostics.mark()
         planned = threading.Event()
@@ -286,8 +287,7 @@ class CraneHarness:
             stamp = new_stamps()[tried]
             tried += 1
             try:
-                self.streamed_start(stamp, mark, f'the {method} handover')
-                handover = stamp
+                handover = self.streamed_start(stamp, mark, f'the {method} handover')
             except HarnessError:
                 if outcome.done() or time.monotonic() > deadline:
                     raise
