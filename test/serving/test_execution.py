@@ -35,6 +35,17 @@ def test_progress_follows_the_streamers_clock_from_the_motions_first_tick():
     assert ex.phase(0) == SETTLING
 
 
+def test_the_streamers_origin_of_the_motion_is_kept_with_its_start():
+    on_time, late = execution(), execution()
+    on_time.on_stream_state(START + 400_000, START + 400_000, 3.0, START)  # first tick 0.4 ms after the stamp
+    late.on_stream_state(START + 8 * 1_000_000, START + 8 * 1_000_000, 3.0, START + 8 * 1_000_000)
+    assert (on_time.motion_start_ns, on_time.motion_origin_ns) == (START + 400_000, START)
+    assert late.motion_origin_ns == START + 8 * 1_000_000  # it came late: its time counts from its first tick
+    unsaid = execution()
+    unsaid.on_stream_state(START, START, 3.0)
+    assert unsaid.motion_origin_ns == START
+
+
 def test_another_motion_on_the_stream_is_not_taken_for_this_one():
     ex = execution()
     ex.on_stream_state(START - S, START - 5 * S, 3.0)  # an earlier motion, still the last one

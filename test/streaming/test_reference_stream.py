@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from crane_planner.streaming.hermite import QuinticHermite
-from crane_planner.streaming.reference_stream import MAX_HANDOVER_SHIFT, ReferenceStream
+from crane_planner.streaming.reference_stream import FIRST_SAMPLES, MAX_HANDOVER_SHIFT, ReferenceStream
 
 PERIOD = 1_000_000                   # ns: 1 kHz
 EPOCH = 1_700_000_000_000_000_000    # ns of ROS time at tick 0
@@ -158,6 +158,23 @@ def test_a_handover_later_than_the_shift_allowed_or_a_late_stop_is_refused(strea
         stream.accept(*continuation_knots(0.4, HOLD + 0.25, duration=0.3), EPOCH + 500 * MS,
                       EPOCH + (500 + late) * MS)
     assert stream.last_motion is motion and stream.streaming  # nothing changed
+
+
+def test_a_motion_is_queued_with_its_first_samples_and_the_loop_never_misses_the_rest(monkeypatch):
+    """accept queues a motion with FIRST_SAMPLES samples (the loop may start it at once) and samples the
+    rest outside the lock; a loop getting past them first evaluates its ticks itself, the same values."""
+    whole = ReferenceStream(PERIOD, hold=HOLD)
+    loop = Loop(whole)
+    motion = whole.accept(*quintic_knots(), 0, EPOCH)
+    assert len(motion.position) == motion.ticks == 1001 > FIRST_SAMPLES
+    expected = loop.run(1010)
+    monkeypatch.setattr(ReferenceStream, '_filled', lambda self, motion: motion)  # the rest never comes
+    cut = ReferenceStream(PERIOD, hold=HOLD)
+    loop = Loop(cut)
+    motion = cut.accept(*quintic_knots(), 0, EPOCH)
+    assert len(motion.position) == FIRST_SAMPLES
+    rows = loop.run(1010)
+    assert np.array_equal(rows, expected) and cut.hold == HOLD + 0.3 and not cut.streaming
 
 
 def test_a_handover_that_does_not_continue_the_motion_is_refused_naming_the_gap(stream):

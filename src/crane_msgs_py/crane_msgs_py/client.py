@@ -68,6 +68,7 @@ class PlannerClient:
         self._execute = ActionClient(node, ExecuteMove, service_of(planner, EXECUTE_MOVE_ACTION),
                                      callback_group=self._group)
         self.diagnostics = DiagnosticsReader(node, callback_group=self._group)
+        self.last_sent_ns = 0  # ROS time the newest ExecuteMove goal was handed to rclpy to send
 
     def wait_for_service(self, timeout: float = 10.0) -> bool:
         """Whether ``~/plan_move`` and ``~/execute_move`` are both up within ``timeout`` s."""
@@ -131,6 +132,7 @@ class PlannerClient:
             move = move_message([goal], duration, [] if start is None else [start], method or '', start_ns=start_ns)
         goal_msg = ExecuteMove.Goal(move=move, settle=float(settle))
         callback = None if feedback is None else (lambda msg: feedback(msg.feedback))
+        self.last_sent_ns = self._node.get_clock().now().nanoseconds
         handle = self._wait(self._execute.send_goal_async(goal_msg, feedback_callback=callback), timeout,
                             'the execute_move action server')
         if not handle.accepted:  # the planner accepts every goal; a refused plan is aborted with its reason

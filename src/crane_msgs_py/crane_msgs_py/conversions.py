@@ -310,9 +310,11 @@ OPERATOR = 'operator'
 
 
 def fill_stream_state(msg: StreamState, stamp: int, streaming: bool, position, velocity,
-                      acceleration, motion_start_ns: int, motion_duration: float, operator: bool = False):
+                      acceleration, motion_start_ns: int, motion_duration: float, operator: bool = False,
+                      motion_origin_ns: int | None = None):
     """One tick's state of a stream into a message from ``stream_state_message``, in place (floats for one
-    joint, tuples for several); ``operator``: the state is ``operator`` (the streamer follows cmd_vel)."""
+    joint, tuples for several); ``operator``: the state is ``operator`` (the streamer follows cmd_vel);
+    ``motion_origin_ns``: when the motion's first knot is streamed (default: its first tick)."""
     s = msg.header.stamp
     s.sec, s.nanosec = divmod(stamp, NS)
     msg.state = OPERATOR if operator else STREAMING if streaming else HOLDING
@@ -325,10 +327,12 @@ def fill_stream_state(msg: StreamState, stamp: int, streaming: bool, position, v
     m = msg.motion_start
     m.sec, m.nanosec = divmod(motion_start_ns, NS)
     msg.motion_duration = motion_duration
+    o = msg.motion_origin
+    o.sec, o.nanosec = divmod(motion_start_ns if motion_origin_ns is None else motion_origin_ns, NS)
 
 
-def read_stream_state(msg: StreamState) -> tuple[int, str, dict, int, float]:
-    """(stamp ns, state: streaming/holding/operator, {joint: position}, motion start ns, motion duration s)
-    of a ``StreamState``."""
+def read_stream_state(msg: StreamState) -> tuple[int, str, dict, int, float, int]:
+    """(stamp ns, state: streaming/holding/operator, {joint: position}, motion start ns, motion duration s,
+    motion origin ns) of a ``StreamState``."""
     return (stamp_ns(msg.header.stamp), msg.state, dict(zip(msg.joint_names, msg.position)),
-            stamp_ns(msg.motion_start), msg.motion_duration)
+            stamp_ns(msg.motion_start), msg.motion_duration, stamp_ns(msg.motion_origin))

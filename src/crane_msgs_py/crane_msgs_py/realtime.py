@@ -12,6 +12,7 @@ import os
 import signal
 import sys
 import time
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -66,6 +67,25 @@ def tune_thread(priority: int = 0) -> list[str]:
         except (OSError, AttributeError) as exc:
             warnings.append(f'SCHED_FIFO priority {priority} refused: {exc}')
     return warnings
+
+
+@contextmanager
+def fifo(priority: int):
+    """Run the block on the calling thread at SCHED_FIFO ``priority`` (1..99; 0: unchanged), then at the
+    policy it had. Yields '' or why the priority was refused (it needs CAP_SYS_NICE or an rtprio limit)."""
+    if priority <= 0:
+        yield ''
+        return
+    try:
+        before = os.sched_getscheduler(0), os.sched_getparam(0)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (OSError, AttributeError) as exc:
+        yield f'SCHED_FIFO priority {priority} refused: {exc}'
+        return
+    try:
+        yield ''
+    finally:
+        os.sched_setscheduler(0, *before)
 
 
 #: mallopt parameter (malloc.h) and the fixed threshold (bytes) set by ``fix_mmap_threshold``.

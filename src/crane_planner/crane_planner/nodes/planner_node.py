@@ -71,7 +71,7 @@ from crane_msgs_py.params import (
     check_positive,
 )
 from crane_msgs_py.qos import JOINT_STATES_QOS, PLAN_MOVE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
-from crane_msgs_py.realtime import fix_mmap_threshold
+from crane_msgs_py.realtime import fifo, fix_mmap_threshold
 from crane_msgs_py.runner import run, spinning
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOptions
 from crane_planner.planning.continuation import MotionState, problem_start
@@ -179,6 +179,10 @@ PARAMETERS = {
                                     'a change reaching the streamer after its tick starts at the next one, '
                                     'delayed (up to 20 ms, no swing added): the earliest handover possible',
                              float_range(0.001, 1.0)),
+    'handover_priority': (40, 'SCHED_FIFO priority (1..99) a shaper\'s handover is planned and sent at: 1-2 ms of '
+                              'Python that, at normal priority beside the 1 kHz nodes, waits as long again for a '
+                              'core; 0 = normal scheduling (also without the privilege: a warning)',
+                          int_range(0, 99)),
     'settle_method': ('nvf', '~/settle plans with this method: nvf or rvf (a shaper cannot damp a swing it did not '
                              'cause)', {'additional_constraints': 'nvf or rvf'}),
     'max_solve_time': (1.0, 'budget of one NVF/RVF solve (s), > 0: a request not solved within it is '
@@ -213,6 +217,7 @@ class Config:
     handover_lead: float = 0.042
     shaper_handover_lead: float = 0.001
     settle_method: str = 'nvf'
+    handover_priority: int = 40
 
     @property
     def bounds(self) -> MoveBounds:
@@ -244,7 +249,8 @@ class Config:
                    check_positive('max_displacement', v['max_displacement']), int(v['solver_pool_size']),
                    int(v['solver_processes']), joints, check_nonnegative('publish_lead', v['publish_lead']),
                    check_positive('handover_lead', v['handover_lead']),
-                   check_positive('shaper_handover_lead', v['shaper_handover_lead']), v['settle_method'])
+                   check_positive('shaper_handover_lead', v['shaper_handover_lead']), v['settle_method'],
+                   int(v['handover_priority']))
 
     def warmups(self) -> list[VariationalRequest]:
         """Requests that build the NVF/RVF solvers of this configuration.
@@ -304,6 +310,7 @@ class PlannerNode(Node):
         self._measured: Measurement | None = None  # the newest joint_states
         self._running: Running | None = None  # the last motion sent to the streamer (a goal's or a settle's)
         self._handing_over = threading.Lock()  # one handover (goal, stop, settle) planned at a time
+        self._fifo_refused = False  # handover_priority was refused once (warned)
         # The two 50 Hz inputs go to a node of their own on a SingleThreadedExecutor thread: through the
         # services' MultiThreadedExecutor their 100 messages a second kept the node at a whole core (4 %
         # this way). Not the EventsExecutor: after 900 previews it ran the inputs about once a second
@@ -390,9 +397,9 @@ class PlannerNode(Node):
         with self._lock:
             self._stream = (self.get_clock().now().nanoseconds, state)
             executions = [g.execution for g in self._goals if g.execution is not None]
-        stamp, _, _, motion_start, motion_duration = state
+        stamp, _, _, motion_start, motion_duration, motion_origin = state
         for execution in executions:
-            execution.on_stream_state(stamp, motion_start, motion_duration)
+            execution.on_stream_state(stamp, motion_start, motion_duration, motion_origin)
 
     def _on_joint_state(self, msg: JointState):
         try:
@@ -548,7 +555,13 @@ class PlannerNode(Node):
             running = self._in_motion()
             if running is not None and math.isfinite(request.settle) and request.settle >= 0.0:  # (else _run)
                 goal.take_over = (running, t0, None)
-                handover = self._send_handover(goal, request, running, request.settle or DEFAULT_SETTLE)
+                shaper = (request.move.method or self._config.method) not in VARIATIONAL_METHODS
+                with fifo(self._config.handover_priority if shaper else 0) as refused:
+                    handover = self._send_handover(goal, request, running, request.settle or DEFAULT_SETTLE)
+                if refused and not self._fifo_refused:
+                    self._fifo_refused = True
+                    self.get_logger().warn(f'handover_priority: {refused}; shapers\' handovers are planned at '
+                                           'normal priority')
                 goal.take_over = (running, t0, handover)
         except Exception as exc:  # a refusal (ValueError), reported by _take_over; a bug's, by _execute
             goal.take_over = (goal.take_over or (None, t0))[:2] + (exc,)
@@ -775,18 +788,19 @@ class PlannerNode(Node):
                        origin_ns, plan)
 
     def _origin(self, running: Running, wait: float = 0.2) -> bool:
-        """Whether ``running``'s origin is known; one sent as soon as possible learns it from stream_state
-        (the motion's first tick), waited for up to ``wait`` s."""
+        """Whether ``running``'s origin is known: the streamer's once stream_state tells it (a trajectory that
+        reached it after its stamp starts at its next tick), until then the stamp it was sent with; one sent
+        as soon as possible (no stamp) waits up to ``wait`` s for the streamer's."""
         deadline = time.monotonic() + wait
-        while running.origin_ns == 0:
+        while not running.confirmed:
             with self._lock:
                 goal = next((g for g in self._goals if g.running is running), None)
-            start = goal.execution.motion_start_ns if goal is not None and goal.execution is not None else None
-            if start is not None:
-                running.origin_ns = start
+            origin = goal.execution.motion_origin_ns if goal is not None and goal.execution is not None else None
+            if origin is not None:
+                running.origin_ns, running.confirmed = origin, True
                 break
-            if time.monotonic() > deadline:
-                return False
+            if running.origin_ns or time.monotonic() > deadline:
+                return running.origin_ns != 0
             time.sleep(0.002)
         return True
 
@@ -899,9 +913,9 @@ class PlannerNode(Node):
         plan, handover, state = done
         trajectory = self._trajectory_from(plan, state, running.joints, handover)
         stop = self._running_of(trajectory, handover, plan)
-        with self._lock:
+        with self._lock:  # together: the stop's origin is learned from its execution (_origin)
             goal.running = self._running = stop
-        goal.execution = Execution(plan.duration, settle, handover, config.params.L1, config.params.L2)
+            goal.execution = Execution(plan.duration, settle, handover, config.params.L1, config.params.L2)
         self._trajectory.publish(trajectory)
         # a stop ending after the motion would have (one near its end) is streamed with its change delayed to
         # the tick at or after its stamp: what a next handover must continue

@@ -480,7 +480,8 @@ class StreamerNode(Node):
         operator = self._operator
         streaming = stream.streaming if operator is None else not operator.at_rest
         fill_stream_state(self._state_msg, stamp, streaming, position, velocity, acceleration,
-                          motion.start_ns if motion else 0, motion.duration if motion else 0.0, operator is not None)
+                          motion.start_ns if motion else 0, motion.duration if motion else 0.0, operator is not None,
+                          motion.origin_ns if motion else 0)
         try:
             self._state_pub.publish(self._state_msg)
         except Exception:  # the context is shut down (SIGINT): the reference's publish ends the loop

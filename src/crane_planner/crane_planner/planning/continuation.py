@@ -249,6 +249,10 @@ class Continuation(Plan):
         b = np.concatenate(b + [[0.0, self.duration]])
         return np.unique(b[(b >= 0.0) & (b <= self.duration)])
 
+    @property
+    def quintic_pieces(self) -> bool:
+        return self.running.quintic_pieces and (self.change is None or self.change.quintic_pieces)
+
     def _evaluate(self, t):
         r = self.running.evaluate(t + self.t0)
         out = [r.position - self._origin, r.velocity, r.acceleration, r.jerk]

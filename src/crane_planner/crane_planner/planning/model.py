@@ -8,6 +8,8 @@ one*; the input is the cart acceleration. The nonlinear equations live in
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from crane_msgs_py.params import CraneParams
@@ -41,6 +43,7 @@ def damping_matrix(p: CraneParams) -> np.ndarray:
                      [0.0, p.c2 / (p.m2 * p.L2)]])
 
 
+@lru_cache(maxsize=64)  # (CraneParams is frozen; the result tuples)
 def modal_properties(p: CraneParams) -> tuple[tuple[float, float], tuple[float, float]]:
     """Natural frequencies (rad/s) and damping ratios of the linearized crane's two modes, slow mode first.
 

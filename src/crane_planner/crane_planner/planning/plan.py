@@ -69,6 +69,12 @@ class Plan(ABC):
         """
         return np.array([0.0, self.duration])
 
+    @property
+    def quintic_pieces(self) -> bool:
+        """Whether the plan is a polynomial of degree <= 5 between its breakpoints: then the quintic Hermite
+        interpolant of its breakpoints' states is the plan itself (``streaming.knots`` needs no other knot)."""
+        return False
+
     def evaluate(self, t) -> Samples:
         """Exact reference at arbitrary times; at rest at 0 before 0 and at D after T."""
         t = np.atleast_1d(np.asarray(t, dtype=float))

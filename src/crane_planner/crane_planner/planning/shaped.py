@@ -103,6 +103,10 @@ class ShapedPlan(Plan):
     def breakpoints(self) -> np.ndarray:
         return self._breaks[self._breaks <= self.duration]
 
+    @property
+    def quintic_pieces(self) -> bool:
+        return ORDER <= 5  # shifted copies of the base's pieces, summed
+
     def _evaluate(self, t):
         piece = np.searchsorted(self._breaks, t, side='right') - 1
         x = t - self._breaks[piece]

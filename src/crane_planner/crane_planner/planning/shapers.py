@@ -296,4 +296,10 @@ def design(method: str, omegas, zeta=0.0) -> Shaper:
     if omegas.ndim != 1 or omegas.size == 0:
         raise ParameterError('omegas needs at least one frequency')
     zetas = np.broadcast_to(np.asarray(zeta, dtype=float), omegas.shape)
-    return cascade(*(make(float(w), float(z)) for w, z in zip(omegas, zetas)))
+    return _designed(make, tuple(omegas.tolist()), tuple(zetas.tolist()))
+
+
+@lru_cache(maxsize=256)
+def _designed(make, omegas: tuple, zetas: tuple) -> Shaper:
+    # kept: a Shaper is immutable, and a handover designs the running motion's shaper again, in milliseconds
+    return cascade(*(make(w, z) for w, z in zip(omegas, zetas)))

@@ -50,6 +50,7 @@ class Execution:
 
     def __post_init__(self):
         self.motion_start_ns: int | None = None  # the streamer's first tick of this motion
+        self.motion_origin_ns: int | None = None  # when the streamer streams its first knot
         self.stream_ns: int | None = None  # the newest stream_state stamp
         self.swing = math.nan  # m, the newest load excursion
         self._state_ns: int | None = None  # the newest joint_states stamp
@@ -59,12 +60,15 @@ class Execution:
 
     # -- inputs -------------------------------------------------------------------
 
-    def on_stream_state(self, stamp_ns: int, motion_start_ns: int, motion_duration: float) -> None:
-        """A ``stream_state``: its tick's stamp and the current (or last) motion's start and duration."""
+    def on_stream_state(self, stamp_ns: int, motion_start_ns: int, motion_duration: float,
+                        motion_origin_ns: int | None = None) -> None:
+        """A ``stream_state``: its tick's stamp and the current (or last) motion's start, duration and origin
+        (when its first knot is streamed; default its start)."""
         self.stream_ns = stamp_ns
         if (self.motion_start_ns is None and motion_start_ns >= self.start_ns - 1_000_000
                 and abs(motion_duration - self.duration) < 1e-6):
             self.motion_start_ns = motion_start_ns  # ours: started at or after its start, as long as planned
+            self.motion_origin_ns = motion_start_ns if motion_origin_ns is None else motion_origin_ns
 
     def on_joint_state(self, stamp_ns: int, theta1: float, theta2: float, L1: float | None = None) -> None:
         """A ``joint_states`` sample (plant time): the swing now, and the residual once past the end

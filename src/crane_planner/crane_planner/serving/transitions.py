@@ -99,6 +99,10 @@ class KnotPlan(Plan):
     def breakpoints(self) -> np.ndarray:
         return self.interp.t - self.interp.t[0]
 
+    @property
+    def quintic_pieces(self) -> bool:
+        return True
+
     def _evaluate(self, t):
         return self.interp.evaluate(t + self.interp.t[0])
 
@@ -119,6 +123,7 @@ class Running:
         self.interps = [QuinticHermite(t, *(c[:, j] for c in columns)) for j in range(len(self.joints))]
         self.origin_ns, self.plan = int(origin_ns), plan
         self.method = plan.method if plan is not None else ''
+        self.confirmed = False  # origin_ns is the streamer's own (stream_state's motion_origin), not the stamp
 
     @classmethod
     def of_interps(cls, joints, interps, origin_ns: int, plan: Plan | None = None) -> 'Running':

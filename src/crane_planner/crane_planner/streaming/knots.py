@@ -8,7 +8,8 @@ ends of the shifted base profiles, collocation interval ends), plus, on a
 piece that is not such a polynomial, as few more as keep the interpolation
 within ``position_tol`` in position and ``acceleration_tol`` times the
 plan's peak in acceleration. A shaped plan needs its breakpoints only
-(8 knots for ZV at 3 s); NVF/RVF, of degree 6 in position per collocation
+(8 knots for ZV at 3 s), and says so (``Plan.quintic_pieces``: it is not
+checked then, which a shaper's handover, due in milliseconds, needs); NVF/RVF, of degree 6 in position per collocation
 interval, about one knot per interval. Messages stay short (rclpy turns
 every knot into Python objects) and the stream is the plan itself, not a
 10 ms approximation of it.
@@ -60,6 +61,8 @@ def knot_times(plan, position_tol: float = POSITION_TOL, acceleration_tol: float
     # a breakpoint at the end rounds to the grid up to half a step below T: it is the end knot
     # (two knots closer than a stamp's resolution would carry the same stamp)
     t = np.union1d(t[(t >= resolution) & (t <= plan.duration - resolution)], [0.0, plan.duration])
+    if plan.quintic_pieces:  # the breakpoints reproduce it exactly: nothing to check (a shaped plan)
+        return t
     inner = (np.arange(_CHECKS) + 0.5) / _CHECKS
     a_peak = 0.0
     while True:

@@ -66,6 +66,8 @@ STOPPED, STARTING, RUNNING = 'stopped', 'starting', 'running'
 #: acceleration (m/s^2). The planner evaluates the same interpolant, so they agree to rounding.
 HANDOVER_VELOCITY = 1e-6
 HANDOVER_ACCELERATION = 1e-5
+#: Samples a new motion is queued with; the rest are taken right after, while its first ticks wait.
+FIRST_SAMPLES = 50
 #: How late (s) a handover may reach the stream and still be taken, its change delayed (``hermite.splice``).
 #: Exact on the linear crane whatever the delay; bounded because the goal's timing moves with it.
 MAX_HANDOVER_SHIFT = 0.02
@@ -85,20 +87,33 @@ class Motion:
     origin_ns: int = 0  # ROS time (ns) of the first knot (start_ns less the offset into the motion)
     interps: tuple = ()  # the knots' interpolants, one per joint (a handover is checked on them)
     handover: bool = False  # it replaces the running motion from its first tick
+    ticks: int = 0  # samples in all (the lists hold its first ones until ``accept`` has sampled the rest)
+    several: bool = False  # a tuple per tick (the stream's joints), not a float
 
     def state_at(self, time_ns: int) -> np.ndarray:
         """(position, velocity, acceleration) rows, a column per joint, of the motion at ROS time ``time_ns``."""
         t = self.interps[0].t[0] + (time_ns - self.origin_ns) * 1e-9
         return np.array([[x[0] for x in interp(t)] for interp in self.interps]).T
 
+    def samples(self, begin: int, end: int, period_ns: int) -> tuple[list, list, list]:
+        """Samples ``begin`` to ``end`` (excluded): positions, velocities, accelerations at those ticks."""
+        times = self.interps[0].t[0] + (self.start_ns - self.origin_ns + period_ns * np.arange(begin, end)) * 1e-9
+        if self.several:  # per tick a tuple per joint
+            return tuple(list(zip(*(x.tolist() for x in col))) for col in zip(*(j(times) for j in self.interps)))
+        return tuple(x.tolist() for x in self.interps[0](times))
+
     @property
-    def end_position(self) -> float:
-        return self.position[-1]
+    def end_position(self):
+        """Where it ends (m; a tuple with several joints): its last sample, at or past the last knot."""
+        if len(self.position) == self.ticks:
+            return self.position[-1]
+        ends = tuple(float(i.position[-1]) for i in self.interps)  # (held there past the knots)
+        return ends if self.several else ends[0]
 
     @property
     def summary(self) -> str:
         return (f'{position_text(self.position[0])} -> {position_text(self.end_position)} m in {self.duration:.3f} s, '
-                f'{len(self.position)} ticks' + (f', started {self.late:.3f} s late' if self.late else ''))
+                f'{self.ticks} ticks' + (f', started {self.late:.3f} s late' if self.late else ''))
 
 
 def position_text(position) -> str:
@@ -240,7 +255,7 @@ class ReferenceStream:
             if self._state is not RUNNING:
                 raise ValueError('the stream has not started yet')
             if self._motion is not None or self._incoming is not None:
-                return self._handover(interps, start_ns, duration_ns, several)
+                return self._filled(self._handover(interps, start_ns, duration_ns))
             hold = np.atleast_1d(self._hold)
             if np.max(np.abs(p - hold)) > self.start_tolerance:
                 jump = p - hold
@@ -256,24 +271,32 @@ class ReferenceStream:
                     first, offset = due, epoch + due * period - start_ns
                 else:
                     late = epoch + first * period - start_ns
-            self._incoming = self._sampled(interps, first, offset, duration_ns, late, several)
-            return self._incoming
+            self._incoming = self._sampled(interps, first, offset, duration_ns, late)
+        return self._filled(self._incoming)
 
-    def _sampled(self, interps, first: int, offset: int, duration_ns: int, late: int, several: bool,
+    def _sampled(self, interps, first: int, offset: int, duration_ns: int, late: int,
                  handover: bool = False) -> Motion:
-        """The motion of ``interps`` from tick ``first``, ``offset`` ns into it then, to its end."""
+        """The motion of ``interps`` from tick ``first``, ``offset`` ns into it then, to its end: its first
+        ``FIRST_SAMPLES`` samples (``_filled`` adds the rest)."""
         period = self.period_ns
         n = max(0, -(-(duration_ns - offset) // period)) + 1  # the last sample at or past the end
-        times = interps[0].t[0] + (offset + period * np.arange(n)) * 1e-9
-        if several:  # per tick a tuple per joint
-            pos, vel, acc = (list(zip(*(x.tolist() for x in col))) for col in zip(*(i(times) for i in interps)))
-        else:
-            pos, vel, acc = (x.tolist() for x in interps[0](times))
         start = self._epoch_ns + first * period
-        return Motion(first, pos, vel, acc, duration_ns * 1e-9, late * 1e-9, start, start - offset, tuple(interps),
-                      handover)
+        motion = Motion(first, [], [], [], duration_ns * 1e-9, late * 1e-9, start, start - offset, tuple(interps),
+                        handover, n, isinstance(self._hold, tuple))
+        for column, values in zip((motion.position, motion.velocity, motion.acceleration),
+                                  motion.samples(0, min(n, FIRST_SAMPLES), period)):
+            column.extend(values)
+        return motion
 
-    def _handover(self, interps, start_ns: int, duration_ns: int, several: bool) -> Motion:
+    def _filled(self, motion: Motion) -> Motion:
+        """``motion`` (queued: the loop may be streaming it already) with the rest of its samples, taken
+        outside the lock; the loop evaluates a tick itself should it get there first."""
+        rest = motion.samples(len(motion.position), motion.ticks, self.period_ns)
+        for column, values in zip((motion.position, motion.velocity, motion.acceleration), rest):
+            column.extend(values)  # (one list operation: the loop sees a sample whole or not at all)
+        return motion
+
+    def _handover(self, interps, start_ns: int, duration_ns: int) -> Motion:
         """A trajectory arriving during a motion: the rest of that motion replaced from ``start_ns`` on
         (see the module docstring); ValueError says why not. Called under the lock."""
         if not start_ns:
@@ -287,7 +310,7 @@ class ReferenceStream:
         if running is None:  # queued, not started by then: the new one would start before it
             raise ValueError('a motion is queued and starts after this trajectory would; it cannot be '
                              'handed over to')
-        end_tick = running.first_tick + len(running.position) - 1
+        end_tick = running.first_tick + running.ticks - 1
         if not running.first_tick <= due < end_tick:
             into = (due - running.first_tick) * period * 1e-9
             raise ValueError(f'its start is outside the streaming motion ({into:.3f} s from its start, which lasts '
@@ -311,7 +334,7 @@ class ReferenceStream:
                 raise ValueError(f'it came {(first - due) * period * 1e-9:.3f} s too late for its handover (the '
                                  'stream is past its start), and it ends before the motion it replaces would have '
                                  '(a stop): it is not delayed')
-            self._incoming = self._sampled(interps, due, epoch + due * period - start_ns, duration_ns, 0, several,
+            self._incoming = self._sampled(interps, due, epoch + due * period - start_ns, duration_ns, 0,
                                            handover=True)
             return self._incoming
         at = max(due, first)
@@ -323,8 +346,7 @@ class ReferenceStream:
             raise ValueError('a handover is queued where this one would start; it cannot be handed over to')
         joined = [splice(old, running.origin_ns, change, start_ns, epoch + at * period)
                   for old, change in zip(running.interps, interps)]
-        self._incoming = self._sampled(joined, at, 0, duration_ns, shift if at > due else 0, several,
-                                       handover=True)
+        self._incoming = self._sampled(joined, at, 0, duration_ns, shift if at > due else 0, handover=True)
         return self._incoming
 
     # -- the loop -------------------------------------------------------------------
@@ -344,7 +366,11 @@ class ReferenceStream:
         if motion is None:
             return self._hold, self._rest, self._rest
         i = tick - motion.first_tick
-        if i < len(motion.position):
+        if i < motion.ticks:
+            if i >= len(motion.acceleration):  # not sampled yet (accept is filling it in): evaluated here
+                sample = tuple(x[0] for x in motion.samples(i, i + 1, self.period_ns))
+                self._hold = sample[0]
+                return sample
             self._hold = motion.position[i]
             return motion.position[i], motion.velocity[i], motion.acceleration[i]
         with self._lock:
