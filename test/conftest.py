@@ -87,4 +87,3 @@ def pytest_runtest_setup(item):
         os.setpriority(os.PRIO_PROCESS, 0, 0 if item.get_closest_marker('ros') else PURE_NICENESS)
     except OSError:  # lowering it again needs CAP_SYS_NICE: an unprivileged run keeps the pure tests' value
         pass
-

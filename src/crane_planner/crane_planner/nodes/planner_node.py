@@ -550,7 +550,7 @@ class PlannerNode(Node):
                 if not other.sent:
                     other.cancel = other.preempted = True
             self._goals.append(goal)
-        request, t0 = goal_handle.request, time.perf_counter()
+        request, t0, running = goal_handle.request, time.perf_counter(), None
         try:
             running = self._in_motion()
             if running is not None and math.isfinite(request.settle) and request.settle >= 0.0:  # (else _run)
@@ -563,8 +563,8 @@ class PlannerNode(Node):
                     self.get_logger().warn(f'handover_priority: {refused}; shapers\' handovers are planned at '
                                            'normal priority')
                 goal.take_over = (running, t0, handover)
-        except Exception as exc:  # a refusal (ValueError), reported by _take_over; a bug's, by _execute
-            goal.take_over = (goal.take_over or (None, t0))[:2] + (exc,)
+        except Exception as exc:  # raised again by _take_over: a refusal (ValueError) or a bug's
+            goal.take_over = (running, t0, exc)
         finally:
             goal_handle.execute()
 
@@ -575,9 +575,6 @@ class PlannerNode(Node):
         with self._lock:
             goal = next(g for g in self._goals if g.goal_handle is goal_handle)
         try:
-            if isinstance(goal.take_over and goal.take_over[2], Exception) and \
-                    not isinstance(goal.take_over[2], ValueError):
-                raise goal.take_over[2]
             return self._run(goal, request, result)
         except Exception as exc:  # a bug must not leave the caller waiting forever
             self.get_logger().error(f'execute_move: unexpected {type(exc).__name__}: {exc}')
@@ -675,7 +672,7 @@ class PlannerNode(Node):
         for attempt in range(HANDOVER_ATTEMPTS):
             try:
                 sent = goal.take_over[2] if attempt == 0 else None  # (planned on arrival, _on_accepted)
-                if isinstance(sent, ValueError):
+                if isinstance(sent, Exception):  # a refusal, or a bug's (for _execute)
                     raise sent
                 if sent is None:
                     sent = self._send_handover(goal, request, running, settle, lead_scale)

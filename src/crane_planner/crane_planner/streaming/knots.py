@@ -9,10 +9,10 @@ piece that is not such a polynomial, as few more as keep the interpolation
 within ``position_tol`` in position and ``acceleration_tol`` times the
 plan's peak in acceleration. A shaped plan needs its breakpoints only
 (8 knots for ZV at 3 s), and says so (``Plan.quintic_pieces``: it is not
-checked then, which a shaper's handover, due in milliseconds, needs); NVF/RVF, of degree 6 in position per collocation
-interval, about one knot per interval. Messages stay short (rclpy turns
-every knot into Python objects) and the stream is the plan itself, not a
-10 ms approximation of it.
+checked then, which a shaper's handover, due in milliseconds, needs);
+NVF/RVF, of degree 6 in position per collocation interval, about one knot
+per interval. Messages stay short (rclpy turns every knot into Python
+objects) and the stream is the plan itself, not a 10 ms approximation of it.
 
 Knot times are multiples of ``resolution`` (1 ns, the resolution of ROS
 stamps), and the plan is sampled at exactly those times: on a 1 ms segment,
