@@ -65,3 +65,27 @@ def test_fifo_runs_a_block_at_that_priority_and_restores_the_policy():
         assert refused.startswith('SCHED_FIFO priority 10 refused') and inside == before
     else:
         assert inside == (os.SCHED_FIFO, 10)
+
+
+def test_set_fifo_sets_and_clears_the_priority_of_the_calling_thread_only():
+    import threading
+
+    from crane_msgs_py.realtime import set_fifo
+    seen = {}
+
+    def thread():
+        seen['refused'] = set_fifo(10)
+        seen['inside'] = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+        seen['cleared'] = set_fifo(0)
+        seen['after'] = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+
+    before = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    worker = threading.Thread(target=thread)
+    worker.start()
+    worker.join()
+    assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == before  # this thread's untouched
+    assert seen['cleared'] == '' and seen['after'] == (os.SCHED_OTHER, 0)
+    if seen['refused']:  # no CAP_SYS_NICE: said, and nothing changed
+        assert seen['refused'].startswith('SCHED_FIFO priority 10 refused') and seen['inside'] == (os.SCHED_OTHER, 0)
+    else:
+        assert seen['inside'] == (os.SCHED_FIFO, 10)

@@ -283,6 +283,16 @@ def test_plan_calls_move_nothing_and_one_execute_moves_the_cart(crane):
 # --------------------------------------------------------------------------- the action
 
 
+def test_execute_move_is_served_by_the_planner_node_though_waited_for_on_a_thread_of_its_own(crane):
+    """The action's requests are waited for on a helper node's executor (PlannerNode.__init__), but the
+    server is the planner's: the graph (what `ros2 action info` reads) names crane_planner, not the helper."""
+    from rclpy.action import get_action_server_names_and_types_by_node
+    node = crane.driver.node
+    served = dict(get_action_server_names_and_types_by_node(node, 'crane_planner', NS))
+    assert served.get(f'{NS}/crane_planner/execute_move') == ['crane_interfaces/action/ExecuteMove']
+    assert not get_action_server_names_and_types_by_node(node, 'crane_planner_goals', NS)
+
+
 def test_an_independent_client_previews_and_executes_a_move_with_feedback_and_the_measured_residual(
         crane, ros_domain):
     """examples/execute_move.py (the README's client: rclpy and crane_interfaces only) previews with

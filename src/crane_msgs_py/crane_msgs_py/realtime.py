@@ -69,23 +69,33 @@ def tune_thread(priority: int = 0) -> list[str]:
     return warnings
 
 
+def set_fifo(priority: int) -> str:
+    """Run the calling thread at SCHED_FIFO ``priority`` (1..99), or 0: normal scheduling (SCHED_OTHER).
+    Returns '' or why the priority was refused (it needs CAP_SYS_NICE or an rtprio limit)."""
+    try:
+        if priority > 0:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        else:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except (OSError, AttributeError) as exc:
+        return f'SCHED_FIFO priority {priority} refused: {exc}' if priority > 0 else f'normal scheduling refused: {exc}'
+    return ''
+
+
 @contextmanager
 def fifo(priority: int):
     """Run the block on the calling thread at SCHED_FIFO ``priority`` (1..99; 0: unchanged), then at the
-    policy it had. Yields '' or why the priority was refused (it needs CAP_SYS_NICE or an rtprio limit)."""
+    policy it had. Yields '' or why the priority was refused (``set_fifo``)."""
     if priority <= 0:
         yield ''
         return
+    before = os.sched_getscheduler(0), os.sched_getparam(0)
+    refused = set_fifo(priority)
     try:
-        before = os.sched_getscheduler(0), os.sched_getparam(0)
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except (OSError, AttributeError) as exc:
-        yield f'SCHED_FIFO priority {priority} refused: {exc}'
-        return
-    try:
-        yield ''
+        yield refused
     finally:
-        os.sched_setscheduler(0, *before)
+        if not refused:
+            os.sched_setscheduler(0, *before)
 
 
 #: mallopt parameter (malloc.h) and the fixed threshold (bytes) set by ``fix_mmap_threshold``.

@@ -15,6 +15,7 @@ from __future__ import annotations
 import signal
 import sys
 import threading
+from collections.abc import Callable
 from contextlib import contextmanager
 
 import rclpy
@@ -22,7 +23,7 @@ from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValu
 from rclpy.signals import SignalHandlerOptions
 
 from .params import ParameterError
-from .realtime import die_with_parent, tune_thread
+from .realtime import die_with_parent, set_fifo, tune_thread
 
 
 def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
@@ -106,19 +107,27 @@ class LoopThread:
 
 
 @contextmanager
-def spinning(executor):
+def spinning(executor, priority: Callable[[], int] | None = None, refused: Callable[[str], None] | None = None):
     """Spin ``executor`` on a background thread for the duration of the block.
 
     Short ``spin_once`` calls until the block ends, then the thread is joined
     before the executor is shut down: an executor's own ``spin()`` shut down
     from another thread can abort the process (rclpy) or deadlock (the
     EventsExecutor, which also takes no new entities while spinning: add
-    everything first).
+    everything first). ``priority``: the thread's SCHED_FIFO priority (0:
+    normal), read before every ``spin_once`` and applied when it changes
+    (``realtime.set_fifo``); ``refused`` is told why it could not be.
     """
     stop = threading.Event()
 
     def spin():
+        applied = 0
         while not stop.is_set():
+            if priority is not None and priority() != applied:
+                applied = priority()
+                reason = set_fifo(applied)
+                if reason and refused is not None:
+                    refused(reason)
             executor.spin_once(timeout_sec=0.05)
 
     thread = threading.Thread(target=spin, daemon=True)

@@ -71,7 +71,7 @@ from crane_msgs_py.params import (
     check_positive,
 )
 from crane_msgs_py.qos import JOINT_STATES_QOS, PLAN_MOVE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
-from crane_msgs_py.realtime import fifo, fix_mmap_threshold
+from crane_msgs_py.realtime import fix_mmap_threshold
 from crane_msgs_py.runner import run, spinning
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOptions
 from crane_planner.planning.continuation import MotionState, problem_start
@@ -179,9 +179,10 @@ PARAMETERS = {
                                     'a change reaching the streamer after its tick starts at the next one, '
                                     'delayed (up to 20 ms, no swing added): the earliest handover possible',
                              float_range(0.001, 1.0)),
-    'handover_priority': (40, 'SCHED_FIFO priority (1..99) a shaper\'s handover is planned and sent at: 1-2 ms of '
-                              'Python that, at normal priority beside the 1 kHz nodes, waits as long again for a '
-                              'core; 0 = normal scheduling (also without the privilege: a warning)',
+    'handover_priority': (40, 'SCHED_FIFO priority (1..99) of the thread that takes ExecuteMove requests and plans '
+                              'and sends a shaper\'s handover: 1-2 ms of Python that, at normal priority beside the '
+                              '1 kHz nodes, waits as long again for a core; 0 = normal scheduling (also without the '
+                              'privilege: a warning)',
                           int_range(0, 99)),
     'settle_method': ('nvf', '~/settle plans with this method: nvf or rvf (a shaper cannot damp a swing it did not '
                              'cause)', {'additional_constraints': 'nvf or rvf'}),
@@ -310,7 +311,6 @@ class PlannerNode(Node):
         self._measured: Measurement | None = None  # the newest joint_states
         self._running: Running | None = None  # the last motion sent to the streamer (a goal's or a settle's)
         self._handing_over = threading.Lock()  # one handover (goal, stop, settle) planned at a time
-        self._fifo_refused = False  # handover_priority was refused once (warned)
         # The two 50 Hz inputs go to a node of their own on a SingleThreadedExecutor thread: through the
         # services' MultiThreadedExecutor their 100 messages a second kept the node at a whole core (4 %
         # this way). Not the EventsExecutor: after 900 previews it ran the inputs about once a second
@@ -329,6 +329,23 @@ class PlannerNode(Node):
         self._action = ActionServer(self, ExecuteMove, EXECUTE_MOVE_ACTION, self._execute,
                                     handle_accepted_callback=self._on_accepted, cancel_callback=self._on_cancel,
                                     callback_group=group)
+        # The action's requests (goal, cancel, result) are waited for on a thread of their own: through the
+        # MultiThreadedExecutor a goal reached _on_accepted 2-4 ms after it arrived (its wait set rebuilt
+        # for every entity, the handler handed to a pool thread), the whole of a shaper's handover budget.
+        # The server stays the planner's (its rcl handle is this node's: `ros2 action info` names it); only
+        # the waiting moves, to a node without entities of its own. Every callback there returns at once or
+        # within a shaper's handover (_on_accepted), and the goals still execute on this node's executor.
+        self._goals_node = rclpy.create_node(f'{self.get_name()}_goals', namespace=self.get_namespace(),
+                                             start_parameter_services=False)
+        self.remove_waitable(self._action)
+        self._goals_node.add_waitable(self._action)
+        goals_executor = SingleThreadedExecutor()
+        goals_executor.add_node(self._goals_node)
+        # at handover_priority: that thread is a shaper's handover from the goal's arrival to its trajectory
+        # sent, and at normal priority beside the 1 kHz nodes it waits for a core as long again as it works
+        self._goals_spinning = spinning(goals_executor, priority=lambda: self._config.handover_priority,
+                                        refused=self._priority_refused)
+        self._goals_spinning.__enter__()
         self.create_service(Trigger, SETTLE_SERVICE, self._on_settle, callback_group=group)
         self.get_logger().info(f'serving {", ".join(METHODS)} on {self.get_fully_qualified_name()}/plan_move '
                                '(PlanMove: a preview) and .../execute_move (ExecuteMove: plan, stream, settle)')
@@ -542,8 +559,10 @@ class PlannerNode(Node):
         return CancelResponse.ACCEPT
 
     def _on_accepted(self, goal_handle):
-        """A goal accepted: registered, and one during a motion handed over at once, in the executor's pass
-        that accepted it (the next pass runs ``_execute``: milliseconds a shaper's handover has not got)."""
+        """A goal accepted: registered, and a shaper's during a motion handed over at once, on the goals'
+        thread (the executor's next pass runs ``_execute``: milliseconds that handover has not got). A
+        variational one (its lead is 42 ms) plans in ``_execute``: the goals' thread never waits on a solver
+        process, so a cancel or another goal is not held up behind it."""
         goal = _Goal(goal_handle)
         with self._lock:
             for other in self._goals:  # one not sent yet gives way: it never streams
@@ -556,17 +575,19 @@ class PlannerNode(Node):
             if running is not None and math.isfinite(request.settle) and request.settle >= 0.0:  # (else _run)
                 goal.take_over = (running, t0, None)
                 shaper = (request.move.method or self._config.method) not in VARIATIONAL_METHODS
-                with fifo(self._config.handover_priority if shaper else 0) as refused:
-                    handover = self._send_handover(goal, request, running, request.settle or DEFAULT_SETTLE)
-                if refused and not self._fifo_refused:
-                    self._fifo_refused = True
-                    self.get_logger().warn(f'handover_priority: {refused}; shapers\' handovers are planned at '
-                                           'normal priority')
+                # not when planning would wait: for the running motion's start on the streamer (_origin) or
+                # behind a stop or settle being planned (_handing_over)
+                if not shaper or not running.origin_ns or self._handing_over.locked():
+                    return
+                handover = self._send_handover(goal, request, running, request.settle or DEFAULT_SETTLE)
                 goal.take_over = (running, t0, handover)
         except Exception as exc:  # raised again by _take_over: a refusal (ValueError) or a bug's
             goal.take_over = (running, t0, exc)
         finally:
             goal_handle.execute()
+
+    def _priority_refused(self, reason: str):
+        self.get_logger().warn(f'handover_priority: {reason}; shapers\' handovers are planned at normal priority')
 
     def _execute(self, goal_handle):
         request = goal_handle.request
@@ -989,6 +1010,9 @@ class PlannerNode(Node):
     def destroy_node(self):
         self._inputs_spinning.__exit__(None, None, None)
         self._inputs.destroy_node()
+        self._goals_spinning.__exit__(None, None, None)
+        self._goals_node.remove_waitable(self._action)
+        self._goals_node.destroy_node()
         # CasADi must not be building in the warm-up thread while the interpreter exits
         if self._warmup.is_alive():
             self.get_logger().info('waiting for the solver warm-up to finish')
