@@ -130,10 +130,10 @@ def test_a_late_handover_is_taken_at_the_next_tick_with_its_change_delayed(strea
     t_h = 0.4
     knots = continuation_knots(t_h, HOLD + 0.5)
     handover = stream.accept(*knots, EPOCH + 100 * MS + round(t_h * 1e9), EPOCH + 507 * MS)
-    assert handover.handover and handover.first_tick == loop.tick + 1
-    assert handover.late == pytest.approx(0.008, abs=1e-12) and handover.duration == pytest.approx(1.0)
+    assert handover.handover and handover.first_tick == loop.tick  # the next tick the loop samples
+    assert handover.late == pytest.approx(0.007, abs=1e-12) and handover.duration == pytest.approx(1.0)
     rows = np.vstack([before, loop.run(1100)])
-    # the old motion until the handover tick, then old + (continuation - old) 8 ms later: closed forms
+    # the old motion until the handover tick, then old + (continuation - old) 7 ms later: closed forms
     old = QuinticHermite(*quintic_knots())
     change = QuinticHermite(*knots)
     tau = (rows[:, 0] - handover.first_tick) * 1e-3
@@ -144,6 +144,36 @@ def test_a_late_handover_is_taken_at_the_next_tick_with_its_change_delayed(strea
     dp, dv, da = (np.abs(np.diff(rows[:, k])) for k in (1, 2, 3))
     i = np.searchsorted(rows[:, 0], handover.first_tick) - 1  # the step into the handover tick
     assert dv[i] < 2 * np.median(dv[i - 5:i]) + 1e-6 and da[i] < 2 * np.median(da[i - 5:i]) + 1e-4
+
+
+def test_a_handover_the_loop_samples_past_while_it_is_made_is_made_again_at_the_next_tick(stream, monkeypatch):
+    """The loop goes on while a handover is made: should it sample past the handover's first tick (the
+    machine stalled the maker), that handover is not handed over (its change would start a tick late, a
+    step) but made again from the loop's next tick; streamed, it is the closed form from there."""
+    import crane_planner.streaming.reference_stream as module
+    loop = Loop(stream)
+    motion = stream.accept(*quintic_knots(), EPOCH + 100 * MS, EPOCH)
+    before = loop.run_to(motion.first_tick + 407)
+    stalled = []
+    real_splice = module.splice
+
+    def stalling_splice(*args):
+        if not stalled:  # the first attempt: the loop samples three ticks meanwhile
+            stalled.append(loop.run(3))
+        return real_splice(*args)
+
+    monkeypatch.setattr(module, 'splice', stalling_splice)
+    t_h = 0.4
+    knots = continuation_knots(t_h, HOLD + 0.5)
+    handover = stream.accept(*knots, EPOCH + 100 * MS + round(t_h * 1e9), EPOCH + 507 * MS)
+    assert handover.first_tick == motion.first_tick + 410 == loop.tick  # not 407: the loop sampled 407-409
+    assert handover.late == pytest.approx(0.010, abs=1e-12)
+    rows = np.vstack([before, stalled[0], loop.run(1100)])
+    old, change = QuinticHermite(*quintic_knots()), QuinticHermite(*knots)
+    tau = (rows[:, 0] - handover.first_tick) * 1e-3
+    t_old = (rows[:, 0] - motion.first_tick) * 1e-3
+    expected = np.where(tau < 0, old(t_old)[0], old(t_old)[0] + change(tau)[0] - old(t_h + tau)[0])
+    assert np.abs(rows[:, 1] - expected).max() < 1e-12
 
 
 def test_a_handover_later_than_the_shift_allowed_or_a_late_stop_is_refused(stream):

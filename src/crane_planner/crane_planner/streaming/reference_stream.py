@@ -153,6 +153,10 @@ class ReferenceStream:
         self._state = STOPPED if stopped else STARTING
         self._epoch_ns = 0  # ROS time (ns) of tick 0 while running
         self._tick: Callable[[], int] | None = None
+        # The tick the loop sampled last, and the lock under which it is recorded with the hand-over it saw
+        # (sample) or checked before one is handed over (_install): a few bytecodes on either side.
+        self._last_tick = -1
+        self._sampling = threading.Lock()
 
     @property
     def hold(self):
@@ -201,6 +205,7 @@ class ReferenceStream:
             if self._state is STOPPED:
                 return False
             self._epoch_ns, self._tick, self._state = int(epoch_ns), tick, RUNNING
+            self._last_tick = -1
             return True
 
     def stop(self) -> Motion | None:
@@ -234,6 +239,7 @@ class ReferenceStream:
                 ``start_ns + t``; 0 starts the motion at once.
             now_ns: the time (ROS, ns) the trajectory arrived.
         """
+        sampled = self._last_tick  # a handover takes over right after it, if made before the loop goes on
         columns = [np.asarray(x, dtype=float) for x in (position, velocity, acceleration)]
         several = isinstance(self._hold, tuple)
         if several and any(c.ndim != 2 or c.shape[1] != self.joints for c in columns):
@@ -255,7 +261,7 @@ class ReferenceStream:
             if self._state is not RUNNING:
                 raise ValueError('the stream has not started yet')
             if self._motion is not None or self._incoming is not None:
-                return self._filled(self._handover(interps, start_ns, duration_ns))
+                return self._filled(self._handover(interps, start_ns, duration_ns, sampled))
             hold = np.atleast_1d(self._hold)
             if np.max(np.abs(p - hold)) > self.start_tolerance:
                 jump = p - hold
@@ -296,9 +302,10 @@ class ReferenceStream:
             column.extend(values)  # (one list operation: the loop sees a sample whole or not at all)
         return motion
 
-    def _handover(self, interps, start_ns: int, duration_ns: int) -> Motion:
+    def _handover(self, interps, start_ns: int, duration_ns: int, sampled: int) -> Motion:
         """A trajectory arriving during a motion: the rest of that motion replaced from ``start_ns`` on
-        (see the module docstring); ValueError says why not. Called under the lock."""
+        (see the module docstring); ValueError says why not. ``sampled``: the tick the loop had sampled last
+        when it arrived. Called under the lock."""
         if not start_ns:
             raise ValueError('a motion is streaming: a trajectory during it must start at a time within it '
                              '(header stamp), where it continues the motion without a jump')
@@ -326,28 +333,43 @@ class ReferenceStream:
                 raise ValueError(f'its first knot is not the streaming motion\'s state at its start: the {what} '
                                  f'differs by {gap:.3g} {unit} (> {tolerance:g}); a handover must continue the '
                                  'motion without a jump')
-        # the next tick will do: were the loop to sample it before the hand-over below, it would stream the old
-        # motion there and the handover from its second sample on, both on the same smooth path (no jump)
-        first = self._tick() + 1
-        if not extends(running.interps[0], running.origin_ns, interps[0], start_ns):
-            if due < first:
-                raise ValueError(f'it came {(first - due) * period * 1e-9:.3f} s too late for its handover (the '
-                                 'stream is past its start), and it ends before the motion it replaces would have '
-                                 '(a stop): it is not delayed')
-            self._incoming = self._sampled(interps, due, epoch + due * period - start_ns, duration_ns, 0,
-                                           handover=True)
-            return self._incoming
-        at = max(due, first)
-        shift = epoch + at * period - start_ns
-        if shift > MAX_HANDOVER_SHIFT * 1e9:
-            raise ValueError(f'it came {shift * 1e-9:.3f} s too late for its handover (the stream is past its '
-                             f'start; at most {MAX_HANDOVER_SHIFT:g} s is made up by delaying its change)')
-        if incoming is not None and due < incoming.first_tick <= at:
-            raise ValueError('a handover is queued where this one would start; it cannot be handed over to')
-        joined = [splice(old, running.origin_ns, change, start_ns, epoch + at * period)
-                  for old, change in zip(running.interps, interps)]
-        self._incoming = self._sampled(joined, at, 0, duration_ns, shift if at > due else 0, handover=True)
-        return self._incoming
+        delayable = extends(running.interps[0], running.origin_ns, interps[0], start_ns)
+        while True:
+            # The tick after the one the loop had sampled when the trajectory arrived will do, even should the
+            # loop sample it before the hand-over: a handover's first sample is the old motion's state there,
+            # so the old motion is streamed there and the handover from its second sample on, on the same
+            # smooth path. _install hands it over only if the loop has not sampled past it meanwhile; else it
+            # is made again from the loop's next tick.
+            first = sampled + 1
+            if not delayable:
+                if due < first:
+                    raise ValueError(f'it came {(first - due) * period * 1e-9:.3f} s too late for its handover '
+                                     '(the stream is past its start), and it ends before the motion it replaces '
+                                     'would have (a stop): it is not delayed')
+                motion = self._sampled(interps, due, epoch + due * period - start_ns, duration_ns, 0, handover=True)
+            else:
+                at = max(due, first)
+                shift = epoch + at * period - start_ns
+                if shift > MAX_HANDOVER_SHIFT * 1e9:
+                    raise ValueError(f'it came {shift * 1e-9:.3f} s too late for its handover (the stream is past '
+                                     f'its start; at most {MAX_HANDOVER_SHIFT:g} s is made up by delaying its '
+                                     'change)')
+                if incoming is not None and due < incoming.first_tick <= at:
+                    raise ValueError('a handover is queued where this one would start; it cannot be handed over to')
+                joined = [splice(old, running.origin_ns, change, start_ns, epoch + at * period)
+                          for old, change in zip(running.interps, interps)]
+                motion = self._sampled(joined, at, 0, duration_ns, shift if at > due else 0, handover=True)
+            if self._install(motion):
+                return motion
+            sampled = self._last_tick
+
+    def _install(self, handover: Motion) -> bool:
+        """Hand ``handover`` to the loop unless it has sampled past the handover's first tick meanwhile."""
+        with self._sampling:
+            if self._last_tick > handover.first_tick:
+                return False
+            self._incoming = handover
+            return True
 
     # -- the loop -------------------------------------------------------------------
 
@@ -357,7 +379,9 @@ class ReferenceStream:
         Takes the queued motion over at its first tick, ends a motion after
         its last sample and holds its end position at rest.
         """
-        motion, incoming = self._motion, self._incoming
+        with self._sampling:
+            self._last_tick = tick
+            motion, incoming = self._motion, self._incoming
         if incoming is not None and tick >= incoming.first_tick:  # a new motion, or a handover
             with self._lock:
                 if self._incoming is incoming:  # (else dropped by stop() or replaced meanwhile)
