@@ -176,6 +176,27 @@ def test_a_handover_the_loop_samples_past_while_it_is_made_is_made_again_at_the_
     assert np.abs(rows[:, 1] - expected).max() < 1e-12
 
 
+def test_a_handover_takes_over_at_the_tick_after_the_one_sampled_when_it_arrived(stream):
+    """Arrived after tick 506 was sampled, made after 507 was (sampled from the old motion, which the
+    handover continues there): it takes over at 507, the change from rest there, the stream the closed form."""
+    loop = Loop(stream)
+    motion = stream.accept(*quintic_knots(), EPOCH + 100 * MS, EPOCH)
+    before = loop.run_to(motion.first_tick + 407)
+    arrived = stream.last_tick
+    assert arrived == motion.first_tick + 406
+    before = np.vstack([before, loop.run(1)])  # the loop samples 507 meanwhile
+    t_h = 0.4
+    knots = continuation_knots(t_h, HOLD + 0.5)
+    handover = stream.accept(*knots, EPOCH + 100 * MS + round(t_h * 1e9), EPOCH + 508 * MS, arrived)
+    assert handover.first_tick == arrived + 1 == loop.tick - 1
+    rows = np.vstack([before, loop.run(1100)])
+    old, change = QuinticHermite(*quintic_knots()), QuinticHermite(*knots)
+    tau = (rows[:, 0] - handover.first_tick) * 1e-3
+    t_old = (rows[:, 0] - motion.first_tick) * 1e-3
+    expected = np.where(tau < 0, old(t_old)[0], old(t_old)[0] + change(tau)[0] - old(t_h + tau)[0])
+    assert np.abs(rows[:, 1] - expected).max() < 1e-12
+
+
 def test_a_handover_later_than_the_shift_allowed_or_a_late_stop_is_refused(stream):
     loop = Loop(stream)
     motion = stream.accept(*quintic_knots(), EPOCH + 100 * MS, EPOCH)

@@ -325,6 +325,7 @@ class StreamerNode(Node):
     # -- trajectories (executor thread) -------------------------------------
 
     def _on_trajectory(self, msg: JointTrajectory, info: dict):
+        sampled = self._stream.last_tick  # first: a handover takes over at the tick after it
         now_ns = self.get_clock().now().nanoseconds
         start_ns = stamp_ns(msg.header.stamp)
         try:
@@ -335,7 +336,7 @@ class StreamerNode(Node):
                                  'at rest to stream trajectories')
             if self._stop_at_rest:
                 raise ValueError('the streamer is stopping (~/stop)')
-            motion = self._stream.accept(*self._arrays(msg), start_ns, now_ns)
+            motion = self._stream.accept(*self._arrays(msg), start_ns, now_ns, sampled)
         except ValueError as exc:
             self.refused += 1
             self.get_logger().error(f'trajectory refused: {exc}')

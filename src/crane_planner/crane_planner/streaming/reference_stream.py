@@ -182,6 +182,11 @@ class ReferenceStream:
             self._hold = tuple(float(x) for x in position) if self.joints > 1 else float(position)
 
     @property
+    def last_tick(self) -> int:
+        """The tick the loop sampled last (-1 before its first since ``start``)."""
+        return self._last_tick
+
+    @property
     def last_motion(self) -> Motion | None:
         """The motion streaming now, else the last one streamed (None before the first)."""
         return self._last
@@ -228,7 +233,8 @@ class ReferenceStream:
 
     # -- trajectories -------------------------------------------------------------
 
-    def accept(self, t, position, velocity, acceleration, start_ns: int, now_ns: int) -> Motion:
+    def accept(self, t, position, velocity, acceleration, start_ns: int, now_ns: int,
+               sampled: int | None = None) -> Motion:
         """Queue a trajectory as the next motion; ValueError says why not.
 
         Args:
@@ -238,8 +244,10 @@ class ReferenceStream:
             start_ns: the start stamp (ns of ROS time): knot time t is due at
                 ``start_ns + t``; 0 starts the motion at once.
             now_ns: the time (ROS, ns) the trajectory arrived.
+            sampled: the tick the loop had sampled last when it arrived (``last_tick`` then; default: now).
+                A handover takes over at the tick after it, if made before the loop samples past that.
         """
-        sampled = self._last_tick  # a handover takes over right after it, if made before the loop goes on
+        sampled = self._last_tick if sampled is None else sampled
         columns = [np.asarray(x, dtype=float) for x in (position, velocity, acceleration)]
         several = isinstance(self._hold, tuple)
         if several and any(c.ndim != 2 or c.shape[1] != self.joints for c in columns):
