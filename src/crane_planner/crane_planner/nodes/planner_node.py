@@ -696,7 +696,10 @@ class PlannerNode(Node):
                 if isinstance(sent, Exception):  # a refusal, or a bug's (for _execute)
                     raise sent
                 if sent is None:
-                    sent = self._send_handover(goal, request, running, settle, lead_scale)
+                    # the first one from the goal's arrival, as if planned then (a variational goal's is
+                    # planned here, after the goals' thread accepted it)
+                    sent = self._send_handover(goal, request, running, settle, lead_scale,
+                                               arrived=t0 if attempt == 0 else None)
             except ValueError as exc:
                 self._report_plan({'service': 'execute_move', 'method': '', **getattr(exc, 'values', {})},
                                   None, 0, t0, t0, error=str(exc))
@@ -729,10 +732,11 @@ class PlannerNode(Node):
                 f'{plan.duration:.4g} s')
         return self._follow(goal, result, feedback, settle, what)
 
-    def _send_handover(self, goal: '_Goal', request, running: Running, settle: float, lead_scale: float = 1.0):
+    def _send_handover(self, goal: '_Goal', request, running: Running, settle: float, lead_scale: float = 1.0,
+                       arrived: float | None = None):
         """Plan ``goal``'s handover of ``running`` (``_preempting``) and send it: (checked, plan, trajectory,
         values, handover ns); ValueError says why not."""
-        checked, plan, trajectory, values, handover = self._preempting(request.move, running, lead_scale)
+        checked, plan, trajectory, values, handover = self._preempting(request.move, running, lead_scale, arrived)
         config = self._config
         with self._lock:  # (before it is sent: the first stream_state of it finds it)
             goal.sent = True
@@ -869,9 +873,10 @@ class PlannerNode(Node):
         return samples_to_joint_trajectory(axis_samples(plan, times), starts, handover_ns, config.frame_id,
                                            joint=list(joints))
 
-    def _preempting(self, move_msg, running: Running, lead_scale: float = 1.0):
+    def _preempting(self, move_msg, running: Running, lead_scale: float = 1.0, arrived: float | None = None):
         """(checked, plan, trajectory, values, handover ns) of a goal arriving during ``running``, handed over
-        ``lead_scale`` times the configured lead from now."""
+        ``lead_scale`` times the configured lead from now, or from ``arrived`` (time.perf_counter) if given
+        (at least half the lead from now)."""
         config = self._config
         move = Move(move_msg.method, tuple(move_msg.joint_names), tuple(move_msg.start), tuple(move_msg.goal),
                     move_msg.duration, stamp_ns(move_msg.start_time))
@@ -893,6 +898,8 @@ class PlannerNode(Node):
                 goal['hoist'] = checked.hoist_goal
             shaper = checked.method not in VARIATIONAL_METHODS
             lead = (config.shaper_handover_lead if shaper else config.handover_lead) * lead_scale
+            if arrived is not None:
+                lead = max(0.5 * lead, lead - (time.perf_counter() - arrived))
 
             def make(handover_ns, state):
                 return transitions.retarget(self._planner.variational, running, handover_ns, state, checked.method,
