@@ -194,17 +194,17 @@ def test_the_demo_records_a_rosbag2_mcap_that_an_independent_reader_reads(tmp_pa
     assert n1 - n0 > 2000 and recorded >= 0.99 * (n1 - n0), (recorded, n1 - n0)
     # stamped with the receive time: within 50 ms of the sample's own stamp (the streamer's tick)
     assert np.percentile(np.abs(np.subtract(log_times, references)), 99) < 50e6
-    # the demo's two moves: 0.3 m in 2.5 s with ZV, and back in 1.0 s with NVF (the default --return-duration)
+    # the demo's two moves: 0.3 m in 2.5 s with ZV, and back in 1.5 s with NVF (the default --return-duration)
     ends = sorted((round(tr.points[-1].positions[0], 9), tr.points[-1].time_from_start.sec
                    + 1e-9 * tr.points[-1].time_from_start.nanosec) for tr in trajectories)
-    assert ends[0] == (0.0, pytest.approx(1.0)) and ends[-1] == (0.3, pytest.approx(2.5))
+    assert ends[0] == (0.0, pytest.approx(1.5)) and ends[-1] == (0.3, pytest.approx(2.5))
     # crane-plan report reads the same recording: the motions, and the demo's residual for the ZV move
     rep = subprocess.run([str(BIN / 'crane-plan'), 'report', str(bag), '--out', str(tmp_path / 'report'),
                           '--json'], capture_output=True, text=True, timeout=120)
     assert rep.returncode == 0, rep.stderr
     report = json.loads(rep.stdout)
     assert report['L1'] == pytest.approx(0.47, abs=1e-9) and report['L2'] == pytest.approx(0.391, abs=1e-9)
-    assert [round(m['duration_s'], 6) for m in report['motions']] == [2.5, 1.0]
+    assert [round(m['duration_s'], 6) for m in report['motions']] == [2.5, 1.5]
     demo = json.loads((tmp_path / 'results.json').read_text())[0]['residual_mm']
     assert report['motions'][0]['residual_mm'] == pytest.approx(demo, abs=0.02)
     assert {p.name for p in (tmp_path / 'report').glob('*.png')} == {'report_motion.png', 'report_timing.png',

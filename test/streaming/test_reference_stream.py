@@ -123,6 +123,16 @@ def test_a_handover_replaces_the_rest_of_the_motion_without_a_jump(stream):
     assert dv[i] < 2 * np.median(dv[i - 5:i]) + 1e-6 and da[i] < 2 * np.median(da[i - 5:i]) + 1e-4
 
 
+def assert_streamed_as_spliced(rows, motion, handover, knots, t_h):
+    """The streamed positions are the closed form of a handover at t_h (s into ``motion``) taken over at
+    ``handover.first_tick``: the old motion until then, old + (continuation - old) delayed to it after."""
+    old, change = QuinticHermite(*quintic_knots()), QuinticHermite(*knots)
+    tau = (rows[:, 0] - handover.first_tick) * 1e-3
+    t_old = (rows[:, 0] - motion.first_tick) * 1e-3
+    expected = np.where(tau < 0, old(t_old)[0], old(t_old)[0] + change(tau)[0] - old(t_h + tau)[0])
+    assert np.abs(rows[:, 1] - expected).max() < 1e-12
+
+
 def test_a_late_handover_is_taken_at_the_next_tick_with_its_change_delayed(stream):
     loop = Loop(stream)
     motion = stream.accept(*quintic_knots(), EPOCH + 100 * MS, EPOCH)
@@ -134,12 +144,7 @@ def test_a_late_handover_is_taken_at_the_next_tick_with_its_change_delayed(strea
     assert handover.late == pytest.approx(0.007, abs=1e-12) and handover.duration == pytest.approx(1.0)
     rows = np.vstack([before, loop.run(1100)])
     # the old motion until the handover tick, then old + (continuation - old) 7 ms later: closed forms
-    old = QuinticHermite(*quintic_knots())
-    change = QuinticHermite(*knots)
-    tau = (rows[:, 0] - handover.first_tick) * 1e-3
-    t_old = (rows[:, 0] - motion.first_tick) * 1e-3
-    expected = np.where(tau < 0, old(t_old)[0], old(t_old)[0] + change(tau)[0] - old(t_h + tau)[0])
-    assert np.abs(rows[:, 1] - expected).max() < 1e-12
+    assert_streamed_as_spliced(rows, motion, handover, knots, t_h)
     assert rows[-1, 1] == pytest.approx(HOLD + 0.5, abs=1e-12)
     dp, dv, da = (np.abs(np.diff(rows[:, k])) for k in (1, 2, 3))
     i = np.searchsorted(rows[:, 0], handover.first_tick) - 1  # the step into the handover tick
@@ -169,11 +174,7 @@ def test_a_handover_the_loop_samples_past_while_it_is_made_is_made_again_at_the_
     assert handover.first_tick == motion.first_tick + 410 == loop.tick  # not 407: the loop sampled 407-409
     assert handover.late == pytest.approx(0.010, abs=1e-12)
     rows = np.vstack([before, stalled[0], loop.run(1100)])
-    old, change = QuinticHermite(*quintic_knots()), QuinticHermite(*knots)
-    tau = (rows[:, 0] - handover.first_tick) * 1e-3
-    t_old = (rows[:, 0] - motion.first_tick) * 1e-3
-    expected = np.where(tau < 0, old(t_old)[0], old(t_old)[0] + change(tau)[0] - old(t_h + tau)[0])
-    assert np.abs(rows[:, 1] - expected).max() < 1e-12
+    assert_streamed_as_spliced(rows, motion, handover, knots, t_h)
 
 
 def test_a_handover_takes_over_at_the_tick_after_the_one_sampled_when_it_arrived(stream):
@@ -190,11 +191,7 @@ def test_a_handover_takes_over_at_the_tick_after_the_one_sampled_when_it_arrived
     handover = stream.accept(*knots, EPOCH + 100 * MS + round(t_h * 1e9), EPOCH + 508 * MS, arrived)
     assert handover.first_tick == arrived + 1 == loop.tick - 1
     rows = np.vstack([before, loop.run(1100)])
-    old, change = QuinticHermite(*quintic_knots()), QuinticHermite(*knots)
-    tau = (rows[:, 0] - handover.first_tick) * 1e-3
-    t_old = (rows[:, 0] - motion.first_tick) * 1e-3
-    expected = np.where(tau < 0, old(t_old)[0], old(t_old)[0] + change(tau)[0] - old(t_h + tau)[0])
-    assert np.abs(rows[:, 1] - expected).max() < 1e-12
+    assert_streamed_as_spliced(rows, motion, handover, knots, t_h)
 
 
 def test_a_handover_later_than_the_shift_allowed_or_a_late_stop_is_refused(stream):
