@@ -5,8 +5,8 @@ Starts the planner, streamer and sim executables in a private ROS graph and meas
 - **goal-to-handover latency**: a 0.3 m move in 3 s, and at 40 % of it a new goal 0.2 m further
   (as soon as possible, from where the motion is): the time from sending the goal (handing it to
   rclpy's ``send_goal_async``) to the handover tick (the tick the streamer takes it over at: a change
-  arriving after its stamp is delayed to the streamer's next tick), ``--repeats`` times per method
-  (nvf, rvf, zv). Targets: median <= 50 ms for NVF/RVF, <= 5 ms for a shaper.
+  arriving after its stamp is delayed to the tick after the one the streamer had sampled when it
+  arrived), ``--repeats`` times per method (nvf, rvf, zv). Targets: median <= 50 ms for NVF/RVF, <= 5 ms for a shaper.
 - **operator command latency**: in operator mode (operator_shaper zv, whose first impulse is at 0),
   a cmd_vel published here, then the first 1 kHz reference sample that differs from the one before:
   its stamp (the tick it is due) less the publish time. Target: <= 2 ms plus the shaper's delay (0).

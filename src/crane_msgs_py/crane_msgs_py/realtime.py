@@ -12,7 +12,6 @@ import os
 import signal
 import sys
 import time
-from contextlib import contextmanager
 
 import numpy as np
 
@@ -80,22 +79,6 @@ def set_fifo(priority: int) -> str:
     except (OSError, AttributeError) as exc:
         return f'SCHED_FIFO priority {priority} refused: {exc}' if priority > 0 else f'normal scheduling refused: {exc}'
     return ''
-
-
-@contextmanager
-def fifo(priority: int):
-    """Run the block on the calling thread at SCHED_FIFO ``priority`` (1..99; 0: unchanged), then at the
-    policy it had. Yields '' or why the priority was refused (``set_fifo``)."""
-    if priority <= 0:
-        yield ''
-        return
-    before = os.sched_getscheduler(0), os.sched_getparam(0)
-    refused = set_fifo(priority)
-    try:
-        yield refused
-    finally:
-        if not refused:
-            os.sched_setscheduler(0, *before)
 
 
 #: mallopt parameter (malloc.h) and the fixed threshold (bytes) set by ``fix_mmap_threshold``.

@@ -123,8 +123,9 @@ def spinning(executor, priority: Callable[[], int] | None = None, refused: Calla
     def spin():
         applied = 0
         while not stop.is_set():
-            if priority is not None and priority() != applied:
-                applied = priority()
+            wanted = applied if priority is None else priority()
+            if wanted != applied:
+                applied = wanted
                 reason = set_fifo(applied)
                 if reason and refused is not None:
                     refused(reason)

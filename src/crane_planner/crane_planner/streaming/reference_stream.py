@@ -21,9 +21,10 @@ can be streamed without one:
   streamed as that motion plus the handover's change to it, the change
   starting at the first tick at or after the stamp (``hermite.splice``:
   delayed by less than a tick), or, when it arrives after its stamp, at the
-  next tick the loop has not reached, up to ``MAX_HANDOVER_SHIFT`` late:
-  continuous there, and by superposition still without swing on the linear
-  crane. A handover ending earlier (a stop) starts at its stamp exactly and
+  tick after the one the loop had sampled when it arrived (made again a tick
+  later should the loop sample past that meanwhile), up to
+  ``MAX_HANDOVER_SHIFT`` late: continuous there, and by superposition still
+  without swing on the linear crane. A handover ending earlier (a stop) starts at its stamp exactly and
   is refused if late: delayed, it would creep on until the old motion's end.
 
 A motion starts at its start stamp plus its first knot's time (a zero stamp:
