@@ -381,6 +381,21 @@ def test_a_goal_whose_start_time_has_passed_is_streamed_from_now_and_followed_to
     assert crane.driver.move_result(start_ns).success
 
 
+def test_the_harness_finds_a_late_motion_s_trajectory_by_the_start_it_was_streamed_from(crane):
+    """A move whose start had passed when it reached the streamer starts at the streamer's next tick, the
+    start CraneHarness.move returns; CraneHarness.trajectory of that start is the trajectory the planner
+    published, stamped with the start asked for (crane-demo read a late plan so, and failed once under load)."""
+    from crane_msgs_py.conversions import stamp_ns
+    crane.driver.reset_sim()
+    hold, goal = crane.hold, crane.next_goal()
+    asked = crane.now() - 300_000_000
+    streamed, _, traj = crane.driver.move('zv', hold, goal, 3.0, start_ns=asked, settle=0.05)
+    assert streamed > asked and stamp_ns(traj.header.stamp) == asked
+    assert crane.driver.trajectory(streamed) is traj and crane.driver.trajectory(asked) is traj
+    assert crane.driver.move_result(streamed).success
+    crane.hold = goal
+
+
 def test_a_goal_during_a_motion_that_names_its_start_is_refused_saying_why_and_the_motion_goes_on(crane):
     """A goal during a motion takes it over from where it is (test_motion_from_state): one naming a start
     of its own cannot, and is refused without touching the motion."""

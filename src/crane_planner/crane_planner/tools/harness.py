@@ -98,6 +98,7 @@ class CraneHarness:
         self._slowest_plan = 0.0
         self._states: list = []  # (stamp ns, theta1, theta2, cart, hoist: the rope length, NaN without one)
         self._trajectories: dict = {}  # start stamp ns -> JointTrajectory
+        self._stamps: dict = {}  # a late motion's streamed start ns -> its trajectory's stamp (streamed_start)
         self._goals: dict = {}  # start stamp ns -> ExecuteMove goal handle, until its result is read
         # every sample counts (the residuals are computed from them): 10 s of queue for this process's stalls
         self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state,
@@ -365,7 +366,10 @@ class CraneHarness:
             return list(self._trajectories)
 
     def trajectory(self, start_ns: int, what: str = 'the', timeout: float = 5.0):
-        """The JointTrajectory the planner published for a motion stamped ``start_ns``."""
+        """The JointTrajectory the planner published for a motion stamped ``start_ns``, or streamed from it
+        (a late one: the start :meth:`move` and :meth:`retarget` return)."""
+        with self._lock:
+            start_ns = self._stamps.get(start_ns, start_ns)
         self.wait_until(lambda: start_ns in self._trajectories, timeout,
                         f'{what} plan never appeared on the trajectory topic')
         with self._lock:
@@ -389,6 +393,8 @@ class CraneHarness:
         late = float(status_values(status)['late_start'])
         if late > 0.0:
             self._log(f'{what} trajectory reached the streamer late: motion starts {late:.3f} s after its stamp')
+            with self._lock:
+                self._stamps[start_ns + round(late * 1e9)] = start_ns
         return start_ns + round(late * 1e9)
 
     def wait_for_state_after(self, stamp_ns: int, timeout: float = 3.0):
