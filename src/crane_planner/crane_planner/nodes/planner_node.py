@@ -29,7 +29,7 @@ import rclpy
 from crane_interfaces.action import ExecuteMove
 from crane_interfaces.msg import PlanInfo, StreamState
 from crane_interfaces.srv import PlanMove
-from rclpy.action import ActionServer, CancelResponse
+from rclpy.action import CancelResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
@@ -37,6 +37,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
+from crane_msgs_py.action_server import ActionServer
 from crane_msgs_py.conversions import (
     OPERATOR,
     joint_state_to_arrays,
