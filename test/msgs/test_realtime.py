@@ -75,3 +75,39 @@ def test_set_fifo_sets_and_clears_the_priority_of_the_calling_thread_only():
         assert seen['refused'].startswith('SCHED_FIFO priority 10 refused') and seen['inside'] == (os.SCHED_OTHER, 0)
     else:
         assert seen['inside'] == (os.SCHED_FIFO, 10)
+
+
+def test_set_threads_fifo_raises_the_threads_so_named_and_no_other():
+    import threading
+
+    from crane_msgs_py.realtime import set_threads_fifo
+    ready, done, tids = threading.Barrier(3), threading.Event(), {}
+
+    def thread(name):
+        tid = threading.get_native_id()
+        with open(f'/proc/self/task/{tid}/comm', 'w') as comm:  # (names no middleware thread here has)
+            comm.write(name)
+        tids[name] = tid
+        ready.wait()
+        done.wait(10.0)
+
+    workers = [threading.Thread(target=thread, args=(name,)) for name in ('rt.rx.7411', 'rt.ev.0')]
+    for worker in workers:
+        worker.start()
+    ready.wait()
+    try:
+        count, refused = set_threads_fifo(('rt.rx.', 'rt.shm.'), 10)
+        raised = os.sched_getscheduler(tids['rt.rx.7411']), os.sched_getparam(tids['rt.rx.7411']).sched_priority
+        other = os.sched_getscheduler(tids['rt.ev.0'])
+        cleared = set_threads_fifo(('rt.rx.',), 0)
+        after = os.sched_getscheduler(tids['rt.rx.7411'])
+    finally:
+        done.set()
+        for worker in workers:
+            worker.join()
+    assert other == os.SCHED_OTHER and os.sched_getscheduler(0) == os.SCHED_OTHER  # only the ones named
+    assert cleared == (1, '') and after == os.SCHED_OTHER
+    if refused:  # no CAP_SYS_NICE: said, and nothing changed
+        assert count == 0 and refused.startswith('SCHED_FIFO priority 10 refused') and raised[0] == os.SCHED_OTHER
+    else:
+        assert count == 1 and raised == (os.SCHED_FIFO, 10)

@@ -8,6 +8,7 @@ the nodes over their ROS surface only: services, topics, parameters and
 import math
 import time
 from contextlib import contextmanager
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -291,6 +292,26 @@ def test_execute_move_is_served_by_the_planner_node_though_waited_for_on_a_threa
     served = dict(get_action_server_names_and_types_by_node(node, 'crane_planner', NS))
     assert served.get(f'{NS}/crane_planner/execute_move') == ['crane_interfaces/action/ExecuteMove']
     assert not get_action_server_names_and_types_by_node(node, 'crane_planner_goals', NS)
+
+
+def test_the_middleware_s_receive_threads_run_just_below_the_threads_they_feed(crane):
+    """A goal or a trajectory reaches the executor only through Fast DDS's receive threads: at SCHED_FIFO one
+    below the planner's goals' thread (handover_priority 40) and two below the streamer's loop (sched_priority
+    50), or at normal priority with a warning where the privilege is missing. Read from /proc, not the nodes."""
+    import os
+    expected = {'planner': 39, 'streamer': 48}
+    for proc in crane.driver.nodes.processes:
+        if proc.name not in expected:
+            continue
+        tasks = Path(f'/proc/{proc.popen.pid}/task')
+        receiving = [int(t.name) for t in tasks.iterdir()
+                     if (t / 'comm').read_text().startswith(('dds.udp.', 'dds.shm.'))]
+        assert receiving, f'{proc.name}: no Fast DDS receive thread among {len(list(tasks.iterdir()))} threads'
+        policies = {(os.sched_getscheduler(tid), os.sched_getparam(tid).sched_priority) for tid in receiving}
+        if 'receive threads' in proc.log_path.read_text():  # refused: said so, and left at normal priority
+            assert policies == {(os.SCHED_OTHER, 0)}
+        else:
+            assert policies == {(os.SCHED_FIFO, expected[proc.name])}, proc.name
 
 
 def test_an_independent_client_previews_and_executes_a_move_with_feedback_and_the_measured_residual(

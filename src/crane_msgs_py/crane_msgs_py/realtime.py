@@ -71,11 +71,43 @@ def tune_thread(priority: int = 0) -> list[str]:
 def set_fifo(priority: int) -> str:
     """Run the calling thread at SCHED_FIFO ``priority`` (1..99), or 0: normal scheduling (SCHED_OTHER).
     Returns '' or why the priority was refused (it needs CAP_SYS_NICE or an rtprio limit)."""
+    return _schedule(0, priority)
+
+
+#: Fast DDS's receive threads (its UDP and shared-memory listeners), by the names it gives them: a message
+#: reaches the executor only once one of them has run, at normal priority behind whatever else wants a core.
+MIDDLEWARE_RECEIVE_THREADS = ('dds.udp.', 'dds.shm.')
+
+
+def set_threads_fifo(prefixes, priority: int) -> tuple[int, str]:
+    """Run this process's threads named with one of ``prefixes`` at SCHED_FIFO ``priority`` (0: normal
+    scheduling), as ``set_fifo`` does the calling thread: (how many, '' or why one was refused). Threads
+    started later keep their creator's policy. Linux (/proc); elsewhere none."""
+    try:
+        tasks = os.listdir('/proc/self/task')
+    except OSError as exc:
+        return 0, f'threads not listed: {exc}'
+    count, refused = 0, ''
+    for tid in tasks:
+        try:
+            with open(f'/proc/self/task/{tid}/comm') as comm:
+                if not comm.read().startswith(tuple(prefixes)):
+                    continue
+        except OSError:  # it ended meanwhile
+            continue
+        reason = _schedule(int(tid), priority)
+        count += not reason
+        refused = refused or reason
+    return count, refused
+
+
+def _schedule(tid: int, priority: int) -> str:
+    """Thread ``tid`` (0: the calling one) at SCHED_FIFO ``priority``, or normal scheduling: '' or why not."""
     try:
         if priority > 0:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
         else:
-            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+            os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
     except (OSError, AttributeError) as exc:
         return f'SCHED_FIFO priority {priority} refused: {exc}' if priority > 0 else f'normal scheduling refused: {exc}'
     return ''

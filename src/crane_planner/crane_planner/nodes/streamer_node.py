@@ -110,7 +110,8 @@ PARAMETERS = {
     'busy_wait': (1e-4, 'the last part (s) of each tick period spent spinning instead of sleeping, for '
                   'wake-up precision at the cost of CPU', float_range(0.0, 1e-3)),
     'sched_priority': (50, 'SCHED_FIFO priority of the loop thread, 1..99 (as ros2_control\'s controller '
-                       'manager; without the privilege a warning and normal scheduling); 0 = normal scheduling',
+                       'manager; without the privilege a warning and normal scheduling), the executor thread one '
+                       'below, the middleware\'s receive threads two below; 0 = normal scheduling',
                        {**int_range(0, 99), 'read_only': True}),
     'timing_log': ('', 'file to write every tick lateness to at shutdown, JSON {rate_hz, first_tick_ns (ROS '
                    'time of the first tick), lateness_us: [...]}, ticks of later ~/start runs appended; '

@@ -113,7 +113,8 @@ PARAMETERS = {
     'push_swing': (0.03, '~/push displaces the load this far (m) horizontally, cables in line, and lets go: a '
                          'swing for tests and the demo (the planner\'s ~/settle damps it)', float_range(-1.0, 1.0)),
     'sched_priority': (0, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
-                       'feeds it one below (without the privilege a warning and normal scheduling); '
+                       'feeds it one below, the middleware\'s receive threads two below (without the privilege a '
+                       'warning and normal scheduling); '
                        '0 = normal scheduling, enough: the playout delay absorbs late steps',
                        {**int_range(0, 99), 'read_only': True}),
 }
