@@ -29,7 +29,7 @@ import rclpy
 from crane_interfaces.action import ExecuteMove
 from crane_interfaces.msg import PlanInfo, StreamState
 from crane_interfaces.srv import PlanMove
-from rclpy.action import CancelResponse
+from rclpy.action import CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
@@ -111,6 +111,8 @@ FEEDBACK_PERIOD = 0.05
 TRANSPORT_MARGIN = 0.008
 #: Attempts at a handover whose plan took longer than its lead (the lead doubles each time).
 HANDOVER_ATTEMPTS = 3
+#: A goal registered on arrival (``_on_goal``) but not accepted this long after (s) is forgotten.
+UNACCEPTED_AFTER = 10.0
 #: The lead (s) of a stop's handover: a stop is planned once, from further ahead.
 STOP_LEAD = 0.1
 
@@ -327,15 +329,16 @@ class PlannerNode(Node):
         group = ReentrantCallbackGroup()
         self.create_service(PlanMove, PLAN_MOVE_SERVICE, self._on_plan_move, qos_profile=PLAN_MOVE_QOS,
                             callback_group=group)
-        self._action = ActionServer(self, ExecuteMove, EXECUTE_MOVE_ACTION, self._execute,
+        self._arriving: dict = {}  # id(goal request): (_Goal, perf_counter at arrival) until accepted
+        self._action = ActionServer(self, ExecuteMove, EXECUTE_MOVE_ACTION, self._execute, goal_callback=self._on_goal,
                                     handle_accepted_callback=self._on_accepted, cancel_callback=self._on_cancel,
                                     callback_group=group)
         # The action's requests (goal, cancel, result) are waited for on a thread of their own: through the
-        # MultiThreadedExecutor a goal reached _on_accepted 2-4 ms after it arrived (its wait set rebuilt
+        # MultiThreadedExecutor a goal reached its callback 2-4 ms after it arrived (its wait set rebuilt
         # for every entity, the handler handed to a pool thread), the whole of a shaper's handover budget.
         # The server stays the planner's (its rcl handle is this node's: `ros2 action info` names it); only
         # the waiting moves, to a node without entities of its own. Every callback there returns at once or
-        # within a shaper's handover (_on_accepted), and the goals still execute on this node's executor.
+        # within a shaper's handover (_on_goal), and the goals still execute on this node's executor.
         self._goals_node = rclpy.create_node(f'{self.get_name()}_goals', namespace=self.get_namespace(),
                                              start_parameter_services=False)
         self.remove_waitable(self._action)
@@ -562,18 +565,21 @@ class PlannerNode(Node):
                 goal.cancel = True  # seen by _run under this lock before it sends anything
         return CancelResponse.ACCEPT
 
-    def _on_accepted(self, goal_handle):
-        """A goal accepted: registered, and a shaper's during a motion handed over at once, on the goals'
-        thread (the executor's next pass runs ``_execute``: milliseconds that handover has not got). A
+    def _on_goal(self, request) -> GoalResponse:
+        """Every goal is accepted (a refusal is its result's reason) and registered here, on the goals'
+        thread, and a shaper's during a motion handed over at once: before rclpy's acceptance of it (its goal
+        handle, response and status, 0.3 ms of that handover's 5 ms; rclpy fails to accept a goal only on an
+        internal error, which it logs), and before the executor's next pass runs ``_execute``. A
         variational one (its lead is 42 ms) plans in ``_execute``: the goals' thread never waits on a solver
         process, so a cancel or another goal is not held up behind it."""
-        goal = _Goal(goal_handle)
+        goal, t0, running = _Goal(None), time.perf_counter(), None
         with self._lock:
             for other in self._goals:  # one not sent yet gives way: it never streams
                 if not other.sent:
                     other.cancel = other.preempted = True
             self._goals.append(goal)
-        request, t0, running = goal_handle.request, time.perf_counter(), None
+        self._forget_unaccepted(t0)
+        self._arriving[id(request)] = goal, t0
         try:
             running = self._in_motion()
             if running is not None and math.isfinite(request.settle) and request.settle >= 0.0:  # (else _run)
@@ -581,14 +587,28 @@ class PlannerNode(Node):
                 shaper = (request.move.method or self._config.method) not in VARIATIONAL_METHODS
                 # not when planning would wait: for the running motion's start on the streamer (_origin) or
                 # behind a stop or settle being planned (_handing_over)
-                if not shaper or not running.origin_ns or self._handing_over.locked():
-                    return
-                handover = self._send_handover(goal, request, running, request.settle or DEFAULT_SETTLE)
-                goal.take_over = (running, t0, handover)
+                if shaper and running.origin_ns and not self._handing_over.locked():
+                    handover = self._send_handover(goal, request, running, request.settle or DEFAULT_SETTLE)
+                    goal.take_over = (running, t0, handover)
         except Exception as exc:  # raised again by _take_over: a refusal (ValueError) or a bug's
             goal.take_over = (running, t0, exc)
-        finally:
-            goal_handle.execute()
+        return GoalResponse.ACCEPT
+
+    def _on_accepted(self, goal_handle):
+        """A goal accepted (``_on_goal`` registered it): executed (``_execute``)."""
+        goal, _ = self._arriving.pop(id(goal_handle.request))
+        goal.goal_handle = goal_handle
+        goal_handle.execute()
+
+    def _forget_unaccepted(self, now: float):
+        """Drop goals rclpy never accepted after ``_on_goal`` (an internal error, logged by rclpy)."""
+        for key, (goal, arrived) in list(self._arriving.items()):
+            if now - arrived > UNACCEPTED_AFTER:
+                del self._arriving[key]
+                with self._lock:
+                    self._goals.remove(goal)
+                self.get_logger().error(f'execute_move: a goal was never accepted by the action server '
+                                        f'(sent: {goal.sent}); forgotten')
 
     def _prioritize_receiving(self, handover_priority: int):
         """The middleware's receive threads one below the goals' thread: a goal reaches it through them, and
@@ -703,7 +723,7 @@ class PlannerNode(Node):
         lead_scale, feedback = 1.0, None
         for attempt in range(HANDOVER_ATTEMPTS):
             try:
-                sent = goal.take_over[2] if attempt == 0 else None  # (planned on arrival, _on_accepted)
+                sent = goal.take_over[2] if attempt == 0 else None  # (planned on arrival, _on_goal)
                 if isinstance(sent, Exception):  # a refusal, or a bug's (for _execute)
                     raise sent
                 if sent is None:
@@ -1053,7 +1073,7 @@ class _Goal:
         self.execution: Execution | None = None
         self.preempted = False  # a newer goal took over (or, before it was sent, replaced it)
         self.running: Running | None = None  # its motion as sent (a stop's once canceled)
-        # arriving during a motion: (that motion, perf_counter at arrival, its handover as sent by _on_accepted
+        # arriving during a motion: (that motion, perf_counter at arrival, its handover as sent by _on_goal
         # or why not: a ValueError, or a bug's exception)
         self.take_over: tuple | None = None
 
