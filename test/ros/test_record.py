@@ -81,6 +81,7 @@ def test_every_message_of_a_500_hz_publisher_is_recorded_with_its_receive_time(r
 @pytest.mark.parametrize('args, message', [
     (['--duration', '0'], '--duration must be > 0'),
     (['--topics', ' , '], '--topics names no topic'),
+    (['--priority', '120'], '--priority must be 0..99, got 120'),
 ])
 def test_bad_options_are_one_line_and_exit_2(ros_domain, tmp_path, args, message):
     r = _record(ros_domain, '--out', str(tmp_path / 'bag'), *args)

@@ -15,7 +15,8 @@ the 1 kHz ``reference`` (``bench/recorder.py``). The recorder instead drains
 each subscription's queue in batches every ``DRAIN_PERIOD`` (one wake-up per
 period, however many messages arrived): 8 % of a core, the same messages. Each
 is stamped with the middleware's own reception time, so batching does not
-blur the receive times.
+blur the receive times; the middleware's receive threads, which take those
+times, run at SCHED_FIFO ``--priority`` so a busy machine does not delay them.
 """
 from __future__ import annotations
 
@@ -33,13 +34,16 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from rclpy.type_support import check_for_type_support
 
-from crane_msgs_py.realtime import die_with_parent
+from crane_msgs_py.realtime import MIDDLEWARE_RECEIVE_THREADS, die_with_parent, set_threads_fifo
 
 PROG = 'crane-record'
 #: What ``crane-demo --record`` records (relative names resolve in the nodes' namespace).
 DEFAULT_TOPICS = ('reference', 'joint_states', 'trajectory', '/diagnostics', 'crane_markers')
 #: Seconds between two drains of the subscriptions' queues: 10 messages of a 1 kHz topic per drain.
 DRAIN_PERIOD = 0.01
+#: SCHED_FIFO priority of the middleware's receive threads by default: they stamp each message's receive
+#: time, and at normal priority a busy machine delays them (5-12 ms behind two niced busy processes here).
+PRIORITY = 30
 #: Queue depth of every recorded subscription: 2 s of a 1 kHz topic, so a recorder that is
 #: descheduled for a while (a busy machine) still finds every message when it drains.
 QUEUE_DEPTH = 2000
@@ -199,6 +203,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--duration', type=float, metavar='S', help='stop after S seconds (default: at Ctrl-C)')
     p.add_argument('--wait', type=float, default=10.0, metavar='S',
                    help='seconds to wait for every topic to have a publisher (default 10)')
+    p.add_argument('--priority', type=int, default=PRIORITY, metavar='P',
+                   help='SCHED_FIFO priority 1..99 of the middleware\'s receive threads, which stamp each message\'s '
+                        f'receive time (default {PRIORITY}; 0 = normal scheduling; without the privilege a warning)')
     return p
 
 
@@ -211,6 +218,9 @@ def main(argv=None) -> int:
     if args.duration is not None and not args.duration > 0:
         print(f'{PROG}: error: --duration must be > 0, got {args.duration}', file=sys.stderr)
         return 2
+    if not 0 <= args.priority <= 99:
+        print(f'{PROG}: error: --priority must be 0..99, got {args.priority}', file=sys.stderr)
+        return 2
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
@@ -218,6 +228,10 @@ def main(argv=None) -> int:
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     # never spun (see the module doc), so it offers no parameter services that could not answer
     node = rclpy.create_node('crane_record', namespace=args.namespace, start_parameter_services=False)
+    _, refused = set_threads_fifo(MIDDLEWARE_RECEIVE_THREADS, args.priority)
+    if refused:
+        print(f'{PROG}: warning: the middleware\'s receive threads: {refused}; receive times may lag on a busy '
+              'machine', file=sys.stderr)
     recorder = None
     try:
         try:
