@@ -7,6 +7,9 @@ Starts the planner, streamer and sim executables in a private ROS graph and meas
   rclpy's ``send_goal_async``) to the handover tick (the tick the streamer takes it over at: a change
   arriving after its stamp is delayed to the tick after the one the streamer had sampled when it
   arrived), ``--repeats`` times per method (nvf, rvf, zv). Targets: median <= 50 ms for NVF/RVF, <= 5 ms for a shaper.
+  A shaper's handovers alternate with the planner's ``handover_warmup`` on (its default, 0.02 s) and off,
+  so what the warm-up gains and costs (the planner's CPU share over each move, retarget and return) is a
+  ratio measured in the same run.
 - **operator command latency**: in operator mode (operator_shaper zv, whose first impulse is at 0),
   a cmd_vel published here, then the first 1 kHz reference sample that differs from the one before:
   its stamp (the tick it is due) less the publish time. Target: <= 2 ms plus the shaper's delay (0).
@@ -40,6 +43,14 @@ def main() -> int:
         return measure(args, env)
 
 
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU time (s) of process ``pid`` so far (/proc/<pid>/stat)."""
+    import os
+    with open(f'/proc/{pid}/stat') as f:
+        fields = f.read().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
 def _at_rest(driver) -> bool:
     """Whether the streamer reports holding (its newest stream status)."""
     from crane_msgs_py.diagnostics import status_values
@@ -67,27 +78,52 @@ def measure(args, env) -> int:
         try:
             driver.wait_until_up(120.0)
             # -- goal-to-handover latency
-            latency = {}
-            for method in args.methods:
-                samples = []
-                for _ in range(args.repeats):
-                    start, _, _ = driver.move(method, None, 0.3, 3.0, settle=0.3)
-                    driver.sleep(max(0.0, (start + 1_200_000_000 - driver.now_ns()) * 1e-9))
-                    handover = driver.retarget(method, 0.5, 3.0, settle=0.3)
-                    sent = driver.planner.last_sent_ns
-                    samples.append((handover - sent) * 1e-6)
-                    driver.outcome(start)
-                    driver.move_result(handover)
-                    back, _, _ = driver.move('zv', None, 0.0, 3.0, settle=0.3)
-                    driver.move_result(back)
-                    driver.reset_sim()
-                latency[method] = {'median_ms': round(float(np.median(samples)), 2),
-                                   'p90_ms': round(float(np.percentile(samples, 90)), 2),
-                                   'max_ms': round(float(np.max(samples)), 2), 'n': len(samples)}
-            result['goal_to_handover'] = latency
+            from crane_planner.nodes.planner_node import PARAMETERS
             from crane_planner.planning import VARIATIONAL_METHODS
+            warmup = PARAMETERS['handover_warmup'][0]  # the default, restored after each handover timed without
+            planner_pid = next(p.popen.pid for p in nodes.processes if p.name == 'planner')
+
+            def handover(method):
+                """One move, retargeted at 40 %, and back: (goal to handover ms, the planner's CPU share)."""
+                wall, cpu = time.monotonic(), _cpu_seconds(planner_pid)
+                start, _, _ = driver.move(method, None, 0.3, 3.0, settle=0.3)
+                driver.sleep(max(0.0, (start + 1_200_000_000 - driver.now_ns()) * 1e-9))
+                taken = driver.retarget(method, 0.5, 3.0, settle=0.3)
+                sent = driver.planner.last_sent_ns
+                driver.outcome(start)
+                driver.move_result(taken)
+                back, _, _ = driver.move('zv', None, 0.0, 3.0, settle=0.3)
+                driver.move_result(back)
+                driver.reset_sim()
+                return (taken - sent) * 1e-6, (_cpu_seconds(planner_pid) - cpu) / (time.monotonic() - wall)
+
+            def summary(samples):
+                ms, share = np.array(samples).T
+                return {'median_ms': round(float(np.median(ms)), 2), 'p90_ms': round(float(np.percentile(ms, 90)), 2),
+                        'max_ms': round(float(np.max(ms)), 2), 'n': len(ms),
+                        'planner_cpu_share': round(float(np.mean(share)), 3)}
+
+            latency, cold = {}, {}
+            for method in args.methods:
+                samples, without = [], []
+                for _ in range(args.repeats):
+                    samples.append(handover(method))
+                    if method not in VARIATIONAL_METHODS:  # the same with the warm-up off, in turn
+                        driver.set_parameters('planner', {'handover_warmup': 0.0})
+                        try:
+                            without.append(handover(method))
+                        finally:
+                            driver.set_parameters('planner', {'handover_warmup': warmup})
+                latency[method] = summary(samples)
+                if without:
+                    cold[method] = summary(without)
+            result['goal_to_handover'] = latency
             result['goal_to_handover_targets_met'] = all(
                 v['median_ms'] <= (50.0 if m in VARIATIONAL_METHODS else 5.0) for m, v in latency.items())
+            if cold:
+                result['goal_to_handover_without_warmup'] = cold
+                result['warmup_latency_ratio'] = {m: round(latency[m]['median_ms'] / v['median_ms'], 2)
+                                                  for m, v in cold.items()}
 
             # -- tick lateness holding (trajectory mode)
             def p99s(seconds):

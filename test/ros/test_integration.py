@@ -642,7 +642,8 @@ def test_bad_request_is_refused_naming_the_field_moves_nothing_and_a_good_one_su
 
 @pytest.mark.parametrize('name, value, words', [('L1', -1.0, 'L1'), ('method', 'zz', 'method'),
                                                 ('shaper_damping', 1.0, 'damping'),
-                                                ('robust_parameters', ['L3'], 'L3')])
+                                                ('robust_parameters', ['L3'], 'L3'),
+                                                ('handover_warmup', -0.01, 'handover_warmup')])
 def test_bad_planner_parameter_is_refused_with_reason_and_planning_goes_on(crane, name, value, words):
     from rclpy.parameter import Parameter
 

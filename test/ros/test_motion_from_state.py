@@ -83,6 +83,39 @@ def test_a_new_goal_at_40_percent_takes_over_without_a_step_and_leaves_no_swing(
     assert new.success and abs(1e3 * new.residual_swing - residual) < 0.05
 
 
+def test_the_handover_warm_up_rehearses_during_a_motion_and_sends_nothing(crane):
+    """While a motion streams, the planner's goals' thread plans a shaper's handover of it (back to its start)
+    every ``handover_warmup`` (0.02 s) and serializes its trajectory, sending nothing: the goal's status on
+    /diagnostics counts the rehearsals from its trajectory sent to its end, each shorter than the period; the
+    topic carried the goal's own trajectory only, and the crane ends at its goal, not where the rehearsals
+    went. 0 turns it off."""
+    from crane_msgs_py.diagnostics import status_float
+    driver = crane
+    mark = driver.planner.diagnostics.mark()
+    before = driver.sent_trajectories()
+    start, _, _ = driver.move('zv', 0.0, 0.3, T, settle=0.2)
+    assert driver.move_result(start).success
+    assert driver.sent_trajectories()[len(before):] == [start]
+    status = driver.planner.diagnostics.wait_for(after=mark, name='crane_planner: execute', timeout=3.0)
+    assert status is not None
+    count, each = status_float(status, 'handover_warmups'), status_float(status, 'handover_warmup_ms')
+    motion = T + 0.3  # from its trajectory sent (publish_lead, 0.3 s before its start) to its end
+    assert 0.5 * motion / 0.02 <= count <= motion / 0.02 + 1, count
+    assert 0.0 < each < 20.0, each
+    driver.wait_for_state_after(start + round((T + 0.3) * 1e9))
+    assert driver.last_state()[3] == pytest.approx(0.3, abs=1e-4)
+    # 0 turns it off (at once: the next motion has none)
+    driver.set_parameters('planner', {'handover_warmup': 0.0})
+    try:
+        mark = driver.planner.diagnostics.mark()
+        start, _, _ = driver.move('zv', 0.3, 0.0, T, settle=0.2)
+        assert driver.move_result(start).success
+        status = driver.planner.diagnostics.wait_for(after=mark, name='crane_planner: execute', timeout=3.0)
+        assert status_float(status, 'handover_warmups') == 0.0
+    finally:
+        driver.set_parameters('planner', {'handover_warmup': 0.02})
+
+
 def test_cancel_at_half_way_stops_the_crane_without_swing(crane):
     from crane_sim.simulator import simulate
     driver = crane

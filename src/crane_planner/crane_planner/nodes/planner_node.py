@@ -19,6 +19,7 @@ serving facade's worker processes (``solver_processes``), each bounded by
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 import time
@@ -27,12 +28,14 @@ from dataclasses import dataclass
 import numpy as np
 import rclpy
 from crane_interfaces.action import ExecuteMove
+from crane_interfaces.msg import Move as MoveMessage
 from crane_interfaces.msg import PlanInfo, StreamState
 from crane_interfaces.srv import PlanMove
 from rclpy.action import CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
@@ -74,7 +77,7 @@ from crane_msgs_py.params import (
 from crane_msgs_py.qos import JOINT_STATES_QOS, PLAN_MOVE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import MIDDLEWARE_RECEIVE_THREADS, fix_mmap_threshold, set_threads_fifo
 from crane_msgs_py.runner import run, spinning
-from crane_planner.planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOptions
+from crane_planner.planning import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS, VARIATIONAL_METHODS, PlanOptions
 from crane_planner.planning.continuation import MotionState, problem_start
 from crane_planner.planning.dispatch import VariationalRequest, hoisting_options
 from crane_planner.planning.hoisting import HOIST_SHAPER_DESIGNS
@@ -187,6 +190,11 @@ PARAMETERS = {
                               '1 kHz nodes, waits as long again for a core; the middleware\'s receive threads run one '
                               'below; 0 = normal scheduling (also without the privilege: a warning)',
                           int_range(0, 99)),
+    'handover_warmup': (0.02, 'while a motion streams, every this many s the goals\' thread plans a shaper\'s '
+                              'handover of it and serializes its trajectory without sending it (0.5-1 ms each), so '
+                              'that a real goal\'s handover runs on warm caches: after 50-250 ms untouched the same '
+                              'Python took 3-22 times as long on a shared host; 0 = off',
+                        float_range(0.0, 10.0)),
     'settle_method': ('nvf', '~/settle plans with this method: nvf or rvf (a shaper cannot damp a swing it did not '
                              'cause)', {'additional_constraints': 'nvf or rvf'}),
     'max_solve_time': (1.0, 'budget of one NVF/RVF solve (s), > 0: a request not solved within it is '
@@ -222,6 +230,7 @@ class Config:
     shaper_handover_lead: float = 0.001
     settle_method: str = 'nvf'
     handover_priority: int = 40
+    handover_warmup: float = 0.02
 
     @property
     def bounds(self) -> MoveBounds:
@@ -254,7 +263,7 @@ class Config:
                    int(v['solver_processes']), joints, check_nonnegative('publish_lead', v['publish_lead']),
                    check_positive('handover_lead', v['handover_lead']),
                    check_positive('shaper_handover_lead', v['shaper_handover_lead']), v['settle_method'],
-                   int(v['handover_priority']))
+                   int(v['handover_priority']), check_nonnegative('handover_warmup', v['handover_warmup']))
 
     def warmups(self) -> list[VariationalRequest]:
         """Requests that build the NVF/RVF solvers of this configuration.
@@ -345,6 +354,10 @@ class PlannerNode(Node):
         self._goals_node.add_waitable(self._action)
         goals_executor = SingleThreadedExecutor()
         goals_executor.add_node(self._goals_node)
+        # the same thread keeps a shaper's handover warm while a motion streams (_warm_handover)
+        self._warm_timer = self._goals_node.create_timer(self._config.handover_warmup or 1.0, self._warm_handover)
+        if not self._config.handover_warmup:
+            self._warm_timer.cancel()
         # at handover_priority: that thread is a shaper's handover from the goal's arrival to its trajectory
         # sent, and at normal priority beside the 1 kHz nodes it waits for a core as long again as it works
         self._goals_spinning = spinning(goals_executor, priority=lambda: self._config.handover_priority,
@@ -360,6 +373,12 @@ class PlannerNode(Node):
     def _apply(self, config: Config, values, changes):
         if config.handover_priority != self._config.handover_priority:
             self._prioritize_receiving(config.handover_priority)
+        if config.handover_warmup != self._config.handover_warmup:
+            if config.handover_warmup:
+                self._warm_timer.timer_period_ns = round(config.handover_warmup * 1e9)
+                self._warm_timer.reset()
+            else:
+                self._warm_timer.cancel()
         self._planner.pool_size = config.solver_pool_size
         self._planner.warmups = config.warmups()  # what a replaced worker builds first
         self._config = config  # applies to the next request
@@ -775,6 +794,30 @@ class PlannerNode(Node):
         self._trajectory.publish(trajectory)  # first: the handover is due in milliseconds
         return checked, plan, trajectory, values, handover
 
+    def _warm_handover(self):
+        """Plan a shaper's handover of the running motion as ``_on_goal`` would (back to where the motion
+        started) and serialize its trajectory as publishing would, sending nothing, every ``handover_warmup``
+        s while a motion streams: a real goal's handover is 1-2 ms of Python that, left untouched for 50-250
+        ms beside the 1 kHz nodes, took 3-22 times as long (measured on a shared two-core host: caches, not
+        page faults). Runs on the goals' thread, between its requests, so it never holds one up by more than
+        one rehearsal."""
+        t0, running = time.perf_counter(), self._in_motion()
+        if running is None or not running.origin_ns or running.hoist_moves:  # (a shaper cannot retarget then)
+            return
+        method = next((m for m in (running.method, self._config.method) if m in SHAPER_METHODS), SHAPER_METHODS[0])
+        move = MoveMessage(method=method, goal=[float(running.interps[0].position[0])], duration=running.duration)
+        try:
+            serialize_message(self._preempting(move, running, rehearse=True)[2])
+        except ValueError:  # (a stop's remainder too short for the shaper, the motion ended meanwhile, ...)
+            pass
+        except Exception as exc:  # a bug: the goals' thread goes on
+            self.get_logger().error(f'handover warm-up: {type(exc).__name__}: {exc}', throttle_duration_sec=10.0)
+        took = time.perf_counter() - t0
+        with self._lock:  # counted for the goal whose motion it is (its status on /diagnostics)
+            goal = next((g for g in self._goals if g.running is running), None)
+            if goal is not None:
+                goal.warmups, goal.warmup_s = goal.warmups + 1, goal.warmup_s + took
+
     def _taken(self, execution: Execution, handover_ns: int, wait: float = 0.5) -> bool:
         """Whether the streamer streams the handover at ``handover_ns`` (stream_state says so), waiting until
         its clock is 50 ms past the handover, or ``wait`` s."""
@@ -857,14 +900,15 @@ class PlannerNode(Node):
             time.sleep(0.002)
         return True
 
-    def _handover(self, running: Running, lead: float, make_plan, swing: bool = True):
+    def _handover(self, running: Running, lead: float, make_plan, swing: bool = True, rehearse: bool = False):
         """(plan, handover ns, state): ``make_plan(handover_ns, state)`` planned from the state ``running``
         will be in ``lead`` s from now, planned again further ahead if it took longer than that (None if the
-        motion ends first). ``swing``: predict the swing there (not needed by a shaper's change)."""
+        motion ends first). ``swing``: predict the swing there (not needed by a shaper's change).
+        ``rehearse``: planned once, however long it took, for nothing to be sent (``_warm_handover``)."""
         if not self._origin(running):
             raise MoveError('goal', 'the running motion has not started on the streamer yet (no stream_state '
                                     'of it): a goal during it is accepted once it streams')
-        with self._handing_over:
+        with contextlib.nullcontext() if rehearse else self._handing_over:
             for attempt in range(HANDOVER_ATTEMPTS):
                 now = self.get_clock().now().nanoseconds
                 handover = max(now + round(lead * 1e9), running.origin_ns)
@@ -883,7 +927,7 @@ class PlannerNode(Node):
                 # transport). A handover arriving too late all the same is refused and planned again.
                 slack = (0.5 * MAX_HANDOVER_SHIFT if handover + round(plan.duration * 1e9) >= running.end_ns
                          else -min(TRANSPORT_MARGIN, 0.4 * lead))
-                if self.get_clock().now().nanoseconds < handover + slack * 1e9:
+                if rehearse or self.get_clock().now().nanoseconds < handover + slack * 1e9:
                     return plan, handover, state
                 self.get_logger().warn(f'handover: planning took {1e3 * took:.1f} ms (the state {1e3 * (t1 - t0):.1f} '
                                        f'ms), beyond the lead {1e3 * lead:.1f} ms: planning again further ahead')
@@ -904,10 +948,11 @@ class PlannerNode(Node):
         return samples_to_joint_trajectory(axis_samples(plan, times), starts, handover_ns, config.frame_id,
                                            joint=list(joints))
 
-    def _preempting(self, move_msg, running: Running, lead_scale: float = 1.0, arrived: float | None = None):
+    def _preempting(self, move_msg, running: Running, lead_scale: float = 1.0, arrived: float | None = None,
+                    rehearse: bool = False):
         """(checked, plan, trajectory, values, handover ns) of a goal arriving during ``running``, handed over
         ``lead_scale`` times the configured lead from now, or from ``arrived`` (time.perf_counter) if given
-        (at least half the lead from now)."""
+        (at least half the lead from now); ``rehearse``: see ``_handover``."""
         config = self._config
         move = Move(move_msg.method, tuple(move_msg.joint_names), tuple(move_msg.start), tuple(move_msg.goal),
                     move_msg.duration, stamp_ns(move_msg.start_time))
@@ -937,7 +982,7 @@ class PlannerNode(Node):
                                             goal, checked.duration, config.params, config.options)
 
             try:
-                done = self._handover(running, lead, make, swing=not shaper)
+                done = self._handover(running, lead, make, swing=not shaper, rehearse=rehearse)
             except MoveError:
                 raise
             except ValueError as exc:
@@ -1037,12 +1082,16 @@ class PlannerNode(Node):
                 time.sleep(0.001)
         getattr(goal_handle, {'succeed': 'succeed', 'abort': 'abort', 'cancel': 'canceled'}[how])()
         level = OK if success else WARN if how == 'cancel' else ERROR
+        with self._lock:
+            goal = next((g for g in self._goals if g.goal_handle is goal_handle), None)
+        warmups, warmup_s = (goal.warmups, goal.warmup_s) if goal is not None else (0, 0.0)
         if level == OK:  # (one call site per severity: rclpy refuses a site whose severity changes)
             self.get_logger().info(f'execute_move: {message}')
         else:
             self.get_logger().warn(f'execute_move: {message}')
         self._diagnostics.report(EXECUTE_TASK, level, message, outcome=how, residual_swing=result.residual_swing,
-                                 error='' if success else message)
+                                 error='' if success else message, handover_warmups=warmups,
+                                 handover_warmup_ms=1e3 * warmup_s / warmups if warmups else 0.0)
         return result
 
     def destroy_node(self):
@@ -1076,6 +1125,7 @@ class _Goal:
         # arriving during a motion: (that motion, perf_counter at arrival, its handover as sent by _on_goal
         # or why not: a ValueError, or a bug's exception)
         self.take_over: tuple | None = None
+        self.warmups, self.warmup_s = 0, 0.0  # handover warm-ups during its motion (_warm_handover): count, s
 
     @property
     def phase(self) -> str:
