@@ -21,7 +21,8 @@ PACKAGES = ('crane_msgs_py', 'crane_sim', 'crane_planner')
 ROS_MODULES = {
     'crane_planner.tools.demo', 'crane_planner.tools.harness', 'crane_planner.tools.record',
     'crane_planner.tools.teleop',
-    'crane_msgs_py.action_server', 'crane_msgs_py.client', 'crane_msgs_py.conversions', 'crane_msgs_py.diagnostics',
+    'crane_msgs_py.action_client', 'crane_msgs_py.action_server', 'crane_msgs_py.client', 'crane_msgs_py.conversions',
+    'crane_msgs_py.diagnostics',
     'crane_msgs_py.node_parameters', 'crane_msgs_py.qos', 'crane_msgs_py.runner',
 }
 #: ROS distributions' Python packages that are not named *_msgs, *_srvs or *_interfaces.

@@ -22,10 +22,10 @@ import rclpy
 from crane_interfaces.action import ExecuteMove
 from crane_interfaces.msg import PlanInfo
 from crane_interfaces.srv import PlanMove
-from rclpy.action import ActionClient
 from rclpy.callback_groups import ReentrantCallbackGroup
 from trajectory_msgs.msg import JointTrajectory
 
+from .action_client import ActionClient
 from .conversions import joint_trajectory_to_arrays, move_message, stamp_ns
 from .diagnostics import DiagnosticsReader
 from .errors import PlanError
