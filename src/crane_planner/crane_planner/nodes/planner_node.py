@@ -800,7 +800,10 @@ class PlannerNode(Node):
         s while a motion streams: a real goal's handover is 1-2 ms of Python that, left untouched for 50-250
         ms beside the 1 kHz nodes, took 3-22 times as long (measured on a shared two-core host: caches, not
         page faults). Runs on the goals' thread, between its requests, so it never holds one up by more than
-        one rehearsal."""
+        one rehearsal; not while a handover is being planned (at this thread's priority it would take the
+        core from an NVF/RVF handover's solver process, whose lead is tight)."""
+        if self._handing_over.locked():
+            return
         t0, running = time.perf_counter(), self._in_motion()
         if running is None or not running.origin_ns or running.hoist_moves:  # (a shaper cannot retarget then)
             return
