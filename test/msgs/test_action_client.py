@@ -3,6 +3,8 @@ lost (ros2/rclpy#1123), over real DDS with the executor spinning on a thread of 
 import threading
 import time
 
+from .action_graph import served, wait
+
 
 class _SlowToRegister:
     """The client's rcl handle, which pauses after sending each request: the window in which rclpy 7.1's
@@ -30,66 +32,36 @@ class _SlowToRegister:
 
 
 def test_goal_cancel_and_result_responses_arriving_before_registration_complete_their_futures(ros_domain):
-    import rclpy
     from crane_interfaces.action import ExecuteMove
     from rclpy.action import CancelResponse, GoalResponse
     from rclpy.executors import MultiThreadedExecutor
 
     from crane_msgs_py.action_client import ActionClient
     from crane_msgs_py.action_server import ActionServer
+    release = threading.Event()
 
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    try:
-        server_node = rclpy.create_node('register_server', context=context)
-        client_node = rclpy.create_node('register_client', context=context)
-        release = threading.Event()
+    def execute(handle):
+        release.wait(10.0)
+        if handle.is_cancel_requested:
+            handle.canceled()
+            return ExecuteMove.Result(success=False, message='canceled')
+        handle.succeed()
+        return ExecuteMove.Result(success=True, message=handle.request.move.method)
 
-        def execute(handle):
-            release.wait(10.0)
-            if handle.is_cancel_requested:
-                handle.canceled()
-                return ExecuteMove.Result(success=False, message='canceled')
-            handle.succeed()
-            return ExecuteMove.Result(success=True, message=handle.request.move.method)
-
-        server = ActionServer(server_node, ExecuteMove, 'register_test', execute,
-                              goal_callback=lambda goal: GoalResponse.ACCEPT,
-                              cancel_callback=lambda handle: CancelResponse.ACCEPT)
-        client = ActionClient(client_node, ExecuteMove, 'register_test')
-        executor = MultiThreadedExecutor(num_threads=4, context=context)
-        executor.add_node(server_node)
-        executor.add_node(client_node)
-        stop = threading.Event()
-        spin = threading.Thread(target=lambda: [executor.spin_once(0.05) for _ in iter(stop.is_set, True)])
-        spin.start()
+    with served(ActionServer, ActionClient, 'register', execute, lambda context: MultiThreadedExecutor(
+            num_threads=4, context=context), goal_callback=lambda goal: GoalResponse.ACCEPT,
+            cancel_callback=lambda handle: CancelResponse.ACCEPT) as (_, client):
+        client._client_handle = _SlowToRegister(client._client_handle)
+        goal = ExecuteMove.Goal()
+        goal.move.method = 'zv'
         try:
-            assert client.wait_for_server(timeout_sec=20.0)
-            client._client_handle = _SlowToRegister(client._client_handle)
-            goal = ExecuteMove.Goal()
-            goal.move.method = 'zv'
-            first = _wait(client.send_goal_async(goal))  # its response came within the pause
+            first = wait(client.send_goal_async(goal))  # its response came within the pause
             assert first.accepted
             result = first.get_result_async()  # sent while the goal still runs
-            second = _wait(client.send_goal_async(goal))
-            canceled = _wait(second.cancel_goal_async())
+            second = wait(client.send_goal_async(goal))
+            canceled = wait(second.cancel_goal_async())
             assert len(canceled.goals_canceling) == 1
-            release.set()
-            assert _wait(result).result.success
-            assert _wait(second.get_result_async()).result.message == 'canceled'
         finally:
-            release.set()
-            stop.set()
-            spin.join()
-            server.destroy()
-            client.destroy()
-            executor.shutdown()
-    finally:
-        rclpy.shutdown(context=context)
-
-
-def _wait(future, timeout: float = 10.0):
-    event = threading.Event()
-    future.add_done_callback(lambda _: event.set())
-    assert event.wait(timeout), 'the future never completed (its response was dropped)'
-    return future.result()
+            release.set()  # (also before the executor's shutdown waits for the goals)
+        assert wait(result).result.success
+        assert wait(second.get_result_async()).result.message == 'canceled'
