@@ -8,8 +8,8 @@ Starts the planner, streamer and sim executables in a private ROS graph and meas
   arriving after its stamp is delayed to the tick after the one the streamer had sampled when it
   arrived), ``--repeats`` times per method (nvf, rvf, zv). Targets: median <= 50 ms for NVF/RVF, <= 5 ms for a shaper.
   A shaper's handovers alternate with the planner's ``handover_warmup`` on (its default, 0.02 s) and off,
-  so what the warm-up gains and costs (the planner's CPU share over each move, retarget and return) is a
-  ratio measured in the same run.
+  so what the warm-up gains and costs (the CPU share of the planner and its solver processes over each
+  move, retarget and return) is a ratio measured in the same run.
 - **operator command latency**: in operator mode (operator_shaper zv, whose first impulse is at 0),
   a cmd_vel published here, then the first 1 kHz reference sample that differs from the one before:
   its stamp (the tick it is due) less the publish time. Target: <= 2 ms plus the shaper's delay (0).
@@ -43,14 +43,6 @@ def main() -> int:
         return measure(args, env)
 
 
-def _cpu_seconds(pid: int) -> float:
-    """User + system CPU time (s) of process ``pid`` so far (/proc/<pid>/stat)."""
-    import os
-    with open(f'/proc/{pid}/stat') as f:
-        fields = f.read().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
-
-
 def _at_rest(driver) -> bool:
     """Whether the streamer reports holding (its newest stream status)."""
     from crane_msgs_py.diagnostics import status_values
@@ -78,6 +70,8 @@ def measure(args, env) -> int:
         try:
             driver.wait_until_up(120.0)
             # -- goal-to-handover latency
+            from service_load import cpu_s  # (bench/: the planner and its solver processes)
+
             from crane_planner.nodes.planner_node import PARAMETERS
             from crane_planner.planning import VARIATIONAL_METHODS
             warmup = PARAMETERS['handover_warmup'][0]  # the default, restored after each handover timed without
@@ -85,7 +79,7 @@ def measure(args, env) -> int:
 
             def handover(method):
                 """One move, retargeted at 40 %, and back: (goal to handover ms, the planner's CPU share)."""
-                wall, cpu = time.monotonic(), _cpu_seconds(planner_pid)
+                wall, cpu = time.monotonic(), cpu_s(planner_pid)
                 start, _, _ = driver.move(method, None, 0.3, 3.0, settle=0.3)
                 driver.sleep(max(0.0, (start + 1_200_000_000 - driver.now_ns()) * 1e-9))
                 taken = driver.retarget(method, 0.5, 3.0, settle=0.3)
@@ -95,7 +89,7 @@ def measure(args, env) -> int:
                 back, _, _ = driver.move('zv', None, 0.0, 3.0, settle=0.3)
                 driver.move_result(back)
                 driver.reset_sim()
-                return (taken - sent) * 1e-6, (_cpu_seconds(planner_pid) - cpu) / (time.monotonic() - wall)
+                return (taken - sent) * 1e-6, (cpu_s(planner_pid) - cpu) / (time.monotonic() - wall)
 
             def summary(samples):
                 ms, share = np.array(samples).T
