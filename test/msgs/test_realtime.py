@@ -96,10 +96,10 @@ def test_set_threads_fifo_raises_the_threads_so_named_and_no_other():
         worker.start()
     ready.wait()
     try:
-        count, refused = set_threads_fifo(('rt.rx.', 'rt.shm.'), 10)
+        count, refused = set_threads_fifo(10, ('rt.rx.', 'rt.shm.'))
         raised = os.sched_getscheduler(tids['rt.rx.7411']), os.sched_getparam(tids['rt.rx.7411']).sched_priority
         other = os.sched_getscheduler(tids['rt.ev.0'])
-        cleared = set_threads_fifo(('rt.rx.',), 0)
+        cleared = set_threads_fifo(0, ('rt.rx.',))
         after = os.sched_getscheduler(tids['rt.rx.7411'])
     finally:
         done.set()

@@ -79,10 +79,11 @@ def set_fifo(priority: int) -> str:
 MIDDLEWARE_RECEIVE_THREADS = ('dds.udp.', 'dds.shm.')
 
 
-def set_threads_fifo(prefixes, priority: int) -> tuple[int, str]:
-    """Run this process's threads named with one of ``prefixes`` at SCHED_FIFO ``priority`` (0: normal
-    scheduling), as ``set_fifo`` does the calling thread: (how many, '' or why one was refused). Threads
-    started later keep their creator's policy. Linux (/proc); elsewhere none."""
+def set_threads_fifo(priority: int, prefixes=MIDDLEWARE_RECEIVE_THREADS) -> tuple[int, str]:
+    """Run this process's threads named with one of ``prefixes`` (by default the middleware's receive
+    threads) at SCHED_FIFO ``priority`` (0: normal scheduling), as ``set_fifo`` does the calling thread:
+    (how many, '' or why one was refused). Threads started later keep their creator's policy. Linux
+    (/proc); elsewhere none."""
     try:
         tasks = os.listdir('/proc/self/task')
     except OSError as exc:

@@ -23,7 +23,7 @@ from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValu
 from rclpy.signals import SignalHandlerOptions
 
 from .params import ParameterError
-from .realtime import MIDDLEWARE_RECEIVE_THREADS, die_with_parent, set_fifo, set_threads_fifo, tune_thread
+from .realtime import die_with_parent, set_fifo, set_threads_fifo, tune_thread
 
 
 def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
@@ -93,7 +93,7 @@ class LoopThread:
                 for warning in tune_thread(self.priority - 1):
                     self._node.get_logger().warn(f'executor thread: {warning}')
             if self.priority > 2:
-                _, refused = set_threads_fifo(MIDDLEWARE_RECEIVE_THREADS, self.priority - 2)
+                _, refused = set_threads_fifo(self.priority - 2)
                 if refused:
                     self._node.get_logger().warn(f'middleware receive threads: {refused}')
             self._thread.start()

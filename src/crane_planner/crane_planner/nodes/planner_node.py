@@ -75,7 +75,7 @@ from crane_msgs_py.params import (
     check_positive,
 )
 from crane_msgs_py.qos import JOINT_STATES_QOS, PLAN_MOVE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
-from crane_msgs_py.realtime import MIDDLEWARE_RECEIVE_THREADS, fix_mmap_threshold, set_threads_fifo
+from crane_msgs_py.realtime import fix_mmap_threshold, set_threads_fifo
 from crane_msgs_py.runner import run, spinning
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS, VARIATIONAL_METHODS, PlanOptions
 from crane_planner.planning.continuation import MotionState, problem_start
@@ -632,7 +632,7 @@ class PlannerNode(Node):
     def _prioritize_receiving(self, handover_priority: int):
         """The middleware's receive threads one below the goals' thread: a goal reaches it through them, and
         at normal priority waits for a core there first (0.2-0.4 ms on a loaded machine)."""
-        _, refused = set_threads_fifo(MIDDLEWARE_RECEIVE_THREADS, max(0, handover_priority - 1))
+        _, refused = set_threads_fifo(max(0, handover_priority - 1))
         if refused:
             self.get_logger().warn(f'handover_priority: the middleware\'s receive threads: {refused}')
 

@@ -34,7 +34,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from rclpy.type_support import check_for_type_support
 
-from crane_msgs_py.realtime import MIDDLEWARE_RECEIVE_THREADS, die_with_parent, set_threads_fifo
+from crane_msgs_py.realtime import die_with_parent, set_threads_fifo
 
 PROG = 'crane-record'
 #: What ``crane-demo --record`` records (relative names resolve in the nodes' namespace).
@@ -228,7 +228,7 @@ def main(argv=None) -> int:
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     # never spun (see the module doc), so it offers no parameter services that could not answer
     node = rclpy.create_node('crane_record', namespace=args.namespace, start_parameter_services=False)
-    _, refused = set_threads_fifo(MIDDLEWARE_RECEIVE_THREADS, args.priority)
+    _, refused = set_threads_fifo(args.priority)
     if refused:
         print(f'{PROG}: warning: the middleware\'s receive threads: {refused}; receive times may lag on a busy '
               'machine', file=sys.stderr)
