@@ -7,6 +7,8 @@ Topics are relative so that a whole setup runs in one namespace
 """
 from __future__ import annotations
 
+from .axes import AXIS_NAMES, CART, HOIST, check_axes
+
 #: Default node names.
 PLANNER_NODE = 'crane_planner'
 STREAMER_NODE = 'crane_streamer'
@@ -32,23 +34,19 @@ SETTLE_SERVICE = '~/settle'  # planner: damp the swing measured now (std_srvs/Tr
 PUSH_SERVICE = '~/push'  # sim: set the load swinging (std_srvs/Trigger), for tests and the demo
 CMD_VEL_TOPIC = 'cmd_vel'  # streamer in operator mode: geometry_msgs/Twist
 
-#: The cart's joint in trajectories and joint states; the swing angles follow it.
-CART_JOINT = 'cart'
-SIM_JOINTS = (CART_JOINT, 'theta1', 'theta2')
-#: The hoist's joint: its position is the upper cable's length L1 (m; larger = load lower).
-HOIST_JOINT = 'hoist'
+#: The actuated joints, named by their axes (``axes.AXES``, the one registry): the cart's, the swing angles
+#: the sim publishes after it, the hoist's (its position is the upper cable's length L1; larger = load lower).
+CART_JOINT = CART.name
+SIM_JOINTS = (CART.sim_joint, 'theta1', 'theta2')
+HOIST_JOINT = HOIST.name
 #: The actuated joints a setup may have, in their order in every array (contract "Joints and hoisting").
-ACTUATED_JOINTS = (CART_JOINT, HOIST_JOINT)
+ACTUATED_JOINTS = AXIS_NAMES
 
 
 def check_joints(joints, name: str = 'joints') -> tuple:
-    """``joints`` as a tuple if it is the cart, optionally with the hoist, in ``ACTUATED_JOINTS`` order;
+    """``joints`` as a tuple if they are the cart and any of the other axes in ``ACTUATED_JOINTS`` order;
     else ParameterError naming ``name``."""
-    from .params import ParameterError
-    joints = tuple(joints)
-    if joints not in ((CART_JOINT,), ACTUATED_JOINTS):
-        raise ParameterError(f'{name} must be [cart] or [cart, hoist], got {list(joints)}')
-    return joints
+    return check_axes(joints, name)
 
 #: Frame of returned trajectories and markers.
 DEFAULT_FRAME_ID = 'crane_base'
