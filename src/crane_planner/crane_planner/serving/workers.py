@@ -62,7 +62,8 @@ def _serve(conn, warmups) -> None:
             if request is None:
                 return
             try:
-                reply = ('plan', solvers(request))
+                # a callable request (``stops.StopRequest``) runs on the worker's solvers and answers itself
+                reply = ('plan', request(solvers) if callable(request) else solvers(request))
             except (PlanError, ParameterError) as exc:
                 reply = (type(exc).__name__, str(exc))
             except Exception as exc:  # a solver bug: the caller reports it, the worker lives on
@@ -102,6 +103,10 @@ class SolverProcess:
     @property
     def pid(self) -> int:
         return self._process.pid
+
+    @property
+    def alive(self) -> bool:
+        return not self.closed and self._process.is_alive()
 
     def solve(self, request, timeout: float | None):
         """A ``dispatch.VariationalRequest`` run in the worker: its plan, or its PlanError/ParameterError
