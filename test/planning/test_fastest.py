@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from crane_msgs_py.axes import AxisLimits
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import METHODS, SHAPER_METHODS, PlanError, PlanOptions
 from crane_planner.planning.model import modal_frequencies
@@ -103,7 +104,7 @@ def test_the_limits_base_is_never_slower_and_needs_no_check_with_positive_impuls
     """Property: on the jerk-limited time-optimal base the fastest shaped move is no slower than the
     shaper on the shortest quintic base within the same limits, and stays within them by construction."""
     omegas = modal_frequencies(CraneParams())
-    limits = (v, a, j)
+    limits = AxisLimits(v, a, j)
     plan = fastest_shaped(method, sign * D, omegas, 0.0, limits, base='limits')
     shaper = design(method, omegas, 0.0)
     assert plan.duration <= shaper.duration + quintic_duration(D, v, a, j) + 1e-9

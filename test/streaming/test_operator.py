@@ -53,7 +53,7 @@ def test_a_stick_held_3_s_then_released_leaves_under_5_percent_of_the_rate_limit
     assert unshaped > 10.0  # the rate limits alone leave a swing of centimetres
     assert shaped <= 0.05 * unshaped, (shaped, unshaped)
     assert p[-1, 0] == pytest.approx(0.6, abs=1e-9)  # 0.2 m/s for 3 s, wherever it is shaped
-    assert np.abs(v).max() <= CART.velocity + 1e-9 and np.abs(a).max() <= CART.acceleration + 1e-9
+    assert np.abs(v).max() <= CART.max_velocity + 1e-9 and np.abs(a).max() <= CART.max_acceleration + 1e-9
     assert op.at_rest
 
 
@@ -70,7 +70,7 @@ def test_a_lost_stick_counts_as_zero_after_the_timeout_and_stops_without_swing()
     last_message = 1.45
     moving = np.nonzero(np.abs(v[:, 0]) > 1e-9)[0]
     stopped_at = t[moving[-1]] + DT
-    braking = 0.2 / CART.acceleration + CART.acceleration / CART.jerk
+    braking = 0.2 / CART.max_acceleration + CART.max_acceleration / CART.max_jerk
     assert stopped_at <= last_message + 0.5 + braking + op.delay() + 2 * DT
     assert stopped_at > last_message + 0.5  # not before the timeout
 
@@ -116,9 +116,11 @@ def test_the_hoist_stops_short_of_its_range():
 
 
 def test_operator_limits_must_be_finite_and_positive():
-    with pytest.raises(PlanError, match='velocity limit'):
-        AxisLimits(math.inf, 1.0)
-    with pytest.raises(PlanError, match='acceleration limit'):
-        AxisLimits(1.0, 0.0)
+    with pytest.raises(PlanError, match='operator mode needs a finite max_velocity'):
+        OperatorStream(DT, (0.0,), (AxisLimits(math.inf, 1.0),), 'zv', PARAMS)
+    with pytest.raises(PlanError, match='operator mode needs a finite max_hoist_acceleration'):
+        OperatorStream(DT, (0.0, 0.47), (CART, AxisLimits(1.0, 0.0)), 'zv', PARAMS)
+    with pytest.raises(ValueError, match='max_jerk must be > 0'):
+        AxisLimits(1.0, 1.0, -1.0)
     with pytest.raises(PlanError, match='operator_shaper'):
         OperatorStream(DT, (0.0,), (CART,), 'fast', PARAMS)

@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from crane_msgs_py.axes import AxisLimits
 from crane_msgs_py.params import CraneParams
 
 from .collocation import CollocationPlan, Transcription
@@ -285,24 +286,20 @@ class DirectSolver(VariationalSolver):
         if not self.has_limits:
             return f'{self.method} solver did not converge for {where} (IPOPT status {status})'
         # Name the limit: the ones that fail on their own, else all of them.
-        names = ('max_velocity', 'max_acceleration', 'max_jerk')
-        present = [n for n in names if getattr(self, n) is not None]
-        failing = []
-        if Dh is not None:  # not probed one by one: every limit of both axes is named
-            present += [f'max_hoist_{q}' for q, v in zip(('velocity', 'acceleration', 'jerk'), self.hoist_limits)
-                        if v is not None]
-        elif len(present) > 1:
+        values = {n: v for limits in self.axis_limits(Dh is not None) for n, v in zip(limits.names, limits)
+                  if v is not None}
+        present, failing = list(values), []
+        if Dh is None and len(present) > 1:  # with a hoist not probed one by one: every limit of both is named
             for name in present:
                 if not self._may_retry(t0):
                     break
-                alone = tuple(getattr(self, n) if n == name else None for n in names)
+                alone = AxisLimits.named(self.limits.names, (v if n == name else None
+                                                             for n, v in zip(self.limits.names, self.limits)))
                 with inst.callback.solving(self.deadline):  # counted and timed like every solve
                     solver(p=pvec, **self.bounds(tr, displacement, duration, sx, [alone], start, free_end), **cold)
                 if not solver.stats()['success']:
                     failing.append(name)
         culprits = failing or present
-        values = dict(zip(names, self.limits), **{f'max_hoist_{q}': v for q, v in zip(('velocity', 'acceleration',
-                                                                                         'jerk'), self.hoist_limits)})
         named = ' and '.join(f'{n} {values[n]:g}' for n in culprits)
         return (f'{self.method}: no plan for {where} within {named} (IPOPT status {status}); '
                 f'the limit{"s are" if len(culprits) > 1 else " is"} infeasible or too tight to solve')

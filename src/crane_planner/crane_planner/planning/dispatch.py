@@ -12,13 +12,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Callable
 
+from crane_msgs_py.axes import AXES, AXIS_NAMES, AxisLimits, axis
+from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams, ParameterError, check_choice, check_nonnegative, check_positive
 
 from .hoisting import HOIST_SHAPER_DESIGNS, check_hoist, shaped_hoisting_plan
-from .limits import axis_limit_error, check_fastest_request, hoist_limits_of, limits_of
+from .limits import axis_limit_error, check_fastest_request
 from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
 from .model import modal_properties
 from .plan import Plan, PlanError
@@ -40,9 +43,9 @@ class PlanOptions:
         intervals: collocation intervals for NVF/RVF; None = solver default.
         solver: ``direct`` (CasADi collocation + IPOPT) or ``indirect``
             (the paper's TPBVP, scipy solve_bvp).
-        max_velocity: axis limit |v| (m/s), None = no limit.
-        max_acceleration: axis limit |a_ref| (m/s^2), None = no limit.
-        max_jerk: axis limit on the reference's jerk (m/s^3), None = no limit.
+        max_velocity: the cart's limit |v| (m/s), None (or 0) = no limit.
+        max_acceleration: the cart's limit |a_ref| (m/s^2), None = no limit.
+        max_jerk: the cart's limit on the reference's jerk (m/s^3), None = no limit.
         base: the motion shapers shape: ``quintic`` (the paper's) or
             ``limits`` (the jerk-limited time-optimal profile under the limits,
             ``profiles.limited_base``).
@@ -52,6 +55,10 @@ class PlanOptions:
             the caller's wait on a worker process); None = the route's own cap.
         max_hoist_velocity, max_hoist_acceleration, max_hoist_jerk: the hoist
             axis's limits on its reference (m/s, m/s^2, m/s^3), None = no limit.
+        limits: the axes' limits as ``AxisLimits`` by axis name, in place of (or agreeing with) the
+            flat keywords above, which remain how the cart's and the hoist's are given; after
+            construction the ``AxisLimits`` of every axis in ``crane_msgs_py.axes.AXES`` order (read
+            them with ``limits_of``), the flat fields the same values.
         hoist_robust: the parameters RVF is made insensitive to while
             hoisting (it replaces ``robust`` then): the payload's cable ``L2``
             by default, since the upper cable's length is what the hoist sets.
@@ -75,8 +82,10 @@ class PlanOptions:
     max_hoist_jerk: float | None = None
     hoist_robust: tuple[str, ...] = ('L2',)
     hoist_shaper: str = 'adaptive'
+    limits: Mapping[str, AxisLimits] | tuple[AxisLimits, ...] = ()
 
     def __post_init__(self):
+        self._set_limits()
         if self.omega is not None:
             omega = tuple(check_positive('omega', w) for w in self.omega)
             if len(omega) == 0:
@@ -103,14 +112,36 @@ class PlanOptions:
         if self.solver not in ('direct', 'indirect'):
             raise ParameterError(f"solver must be 'direct' or 'indirect', got {self.solver!r}")
         check_choice('base', self.base, BASES)
-        if self.base == 'limits' and self.max_velocity is None and self.max_acceleration is None:
+        if self.base == 'limits' and not self.limits_of(CART_JOINT).bounds_speed:
             raise ParameterError('the limits base needs max_velocity or max_acceleration (or both)')
         check_choice('hoist_shaper', self.hoist_shaper, HOIST_SHAPER_DESIGNS)
-        for name in ('max_velocity', 'max_acceleration', 'max_jerk', 'max_solve_time', 'max_hoist_velocity',
-                     'max_hoist_acceleration', 'max_hoist_jerk'):
-            v = getattr(self, name)
-            if v is not None:
-                object.__setattr__(self, name, check_positive(name, v))
+        if self.max_solve_time is not None:
+            object.__setattr__(self, 'max_solve_time', check_positive('max_solve_time', self.max_solve_time))
+
+    def _set_limits(self):
+        """``limits`` as a tuple of every axis's checked ``AxisLimits``, from the mapping and the flat keywords."""
+        given = self.limits if isinstance(self.limits, Mapping) else dict(zip(AXIS_NAMES, self.limits))
+        for name in given:
+            axis(name)  # ParameterError for an unknown one
+        limits = []
+        for a in AXES:
+            flat = [getattr(self, n, None) for n in a.limit_names]  # the axes with keywords of their own
+            mine = a.limits(*flat)
+            if a.name in given:
+                theirs = a.limits(*given[a.name])
+                if mine.any and mine != theirs:
+                    raise ParameterError(f'the {a.name} limits are given twice, differently: '
+                                         f'{", ".join(a.limit_names)} and limits[{a.name!r}]')
+                mine = theirs
+            for n, v in zip(a.limit_names, mine):
+                if hasattr(self, n):
+                    object.__setattr__(self, n, v)
+            limits.append(mine)
+        object.__setattr__(self, 'limits', tuple(limits))
+
+    def limits_of(self, axis_name: str) -> AxisLimits:
+        """The ``AxisLimits`` of the axis ``axis_name``."""
+        return self.limits[AXIS_NAMES.index(axis_name)]
 
 
 def check_request(method: str, displacement, duration) -> tuple[float, float]:
@@ -131,23 +162,19 @@ def check_request(method: str, displacement, duration) -> tuple[float, float]:
     return displacement, duration
 
 
-LIMITS = (('max_velocity', 'm/s'), ('max_acceleration', 'm/s^2'), ('max_jerk', 'm/s^3'))
-
-
-def check_axis_limits(plan, options: PlanOptions, axis: str = '') -> None:
-    """PlanError naming the limit if the shaped plan's |v|, |a_ref| or |jerk| peak exceeds it
-    (``axis`` 'hoist': the hoist's limits, named so).
+def check_axis_limits(plan, options: PlanOptions, axis_name: str = CART_JOINT) -> None:
+    """PlanError naming the limit if the shaped plan's |v|, |a_ref| or |jerk| peak exceeds the options' limit
+    of its axis ``axis_name``.
 
     A shaper cannot trade time for peaks: the shaped profile is fixed by the
     method and the duration, so an exceeded limit is an error, not a constraint.
     """
-    limits = hoist_limits_of(options) if axis == 'hoist' else limits_of(options)
-    if all(limit is None for limit in limits):
+    limits = options.limits_of(axis_name)
+    if not limits.any:
         return
-    for (name, unit), limit, peak in zip(LIMITS, limits, plan.peaks()):
+    units = axis(axis_name).limit_units
+    for name, unit, limit, peak in zip(limits.names, units, limits, plan.peaks()):
         if limit is not None and peak > limit * (1.0 + 1e-6):
-            if axis:
-                name = name.replace('max_', f'max_{axis}_')
             raise PlanError(f'{plan.method} plan exceeds {name} {limit:g} {unit} (peak {peak:.4g}); '
                             'lengthen the duration or raise the limit')
 
@@ -204,19 +231,20 @@ def plan(method: str, displacement: float, duration: float, params: CraneParams 
         if method in SHAPER_METHODS:
             if options.base != 'quintic':
                 raise PlanError('while hoisting the shapers shape the quintic base only (base quintic)')
-            err = axis_limit_error(hoist_displacement, duration, *hoist_limits_of(options), axis='hoist')
+            err = axis_limit_error(hoist_displacement, duration, options.limits_of(HOIST_JOINT))
             if err is not None:
                 raise err
             zeta = options.damping
             both = shaped_hoisting_plan(method, displacement, hoist_displacement, duration, params, zeta,
                                         options.hoist_shaper)
-            check_axis_limits(both.axes['cart'], options)
-            check_axis_limits(both.axes['hoist'], options, 'hoist')
+            for name, one in both.axes.items():
+                check_axis_limits(one, options, name)
             return both
         displacement, options = (displacement, hoist_displacement), hoisting_options(options)
     elif method in SHAPER_METHODS:
         omegas, zetas = shaper_design(params, options)
-        shaped = shaped_plan(method, displacement, duration, omegas, zetas, options.base, limits_of(options))
+        shaped = shaped_plan(method, displacement, duration, omegas, zetas, options.base,
+                             options.limits_of(CART_JOINT))
         check_axis_limits(shaped, options)
         return shaped
     # the variational solvers bound v and a_ref everywhere as path constraints
@@ -241,7 +269,7 @@ def fastest(method: str, displacement: float, params: CraneParams | None = None,
             raise PlanError('the fastest shaped plan with a hoist is not offered: give a duration, or use nvf/rvf')
         displacement, options = (float(displacement), hoist_displacement), hoisting_options(options)
     else:
-        limits = limits_of(options)
+        limits = options.limits_of(CART_JOINT)
         displacement = check_fastest_request(displacement, limits)  # before a solver is asked
         if method in SHAPER_METHODS:
             return fastest_shaped(method, displacement, *shaper_design(params, options), limits, options.base)

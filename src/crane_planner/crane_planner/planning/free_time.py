@@ -49,9 +49,9 @@ class FreeTimeSearch:
         D, Dh = displacements(displacement)
         hoisting = Dh is not None
         if hoisting:
-            if solver.hoist_limits[0] is None and solver.hoist_limits[1] is None:
-                raise PlanError('the fastest plan with a hoist needs max_hoist_velocity or max_hoist_acceleration '
-                                '(or both)')
+            limits = solver.hoist_limits
+            if not limits.bounds_speed:
+                raise PlanError(f'the fastest plan with a hoist needs {limits.names[0]} or {limits.names[1]} (or both)')
             if D == 0.0 and Dh == 0.0:
                 raise PlanError('the fastest plan needs a nonzero displacement')
             displacement = (D, Dh)
@@ -82,7 +82,7 @@ class FreeTimeSearch:
                 T0 = inst.T0
                 start = warm
             else:
-                quintic = max(quintic_duration(d, *limits) if any(x is not None for x in limits[:2]) else 0.0
+                quintic = max(quintic_duration(d, *limits) if limits.bounds_speed else 0.0
                               for d, limits in zip(displacements(displacement), solver.axis_limits(form.hoist)))
                 T0 = max(self.quintic_margin * quintic, 1.5 * bound)
                 if attempt == 0:  # first: from the quintic's guess, no fixed NLP needed

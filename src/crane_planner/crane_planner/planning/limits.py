@@ -9,25 +9,28 @@ from __future__ import annotations
 
 import math
 
+from crane_msgs_py.axes import AxisLimits
+from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
+
 from .plan import PlanError
 
 
-def limits_of(options) -> tuple:
-    """(max_velocity, max_acceleration, max_jerk) of ``options`` (a ``dispatch.PlanOptions``), None for none."""
-    return options.max_velocity, options.max_acceleration, options.max_jerk
+def limits_of(options, axis: str = CART_JOINT) -> AxisLimits:
+    """The ``AxisLimits`` of ``axis`` in ``options`` (a ``dispatch.PlanOptions``)."""
+    return options.limits_of(axis)
 
 
-def hoist_limits_of(options) -> tuple:
-    """(max_hoist_velocity, max_hoist_acceleration, max_hoist_jerk) of ``options``, None for none."""
-    return options.max_hoist_velocity, options.max_hoist_acceleration, options.max_hoist_jerk
+def hoist_limits_of(options) -> AxisLimits:
+    """The hoist's ``AxisLimits`` in ``options`` (``limits_of(options, 'hoist')``, as serving/ reads them)."""
+    return options.limits_of(HOIST_JOINT)
 
 
-def check_fastest_request(displacement: float, limits) -> float:
-    """``displacement`` as float if a fastest plan of it within ``limits`` = (v, a, j) is a question at
-    all, else PlanError: without a velocity or acceleration limit a motion could be arbitrarily fast,
-    and a motion of 0 m takes no time."""
-    if limits[0] is None and limits[1] is None:
-        raise PlanError('the fastest plan needs max_velocity or max_acceleration (or both)')
+def check_fastest_request(displacement: float, limits: AxisLimits) -> float:
+    """``displacement`` as float if a fastest plan of it within ``limits`` is a question at all, else
+    PlanError: without a velocity or acceleration limit a motion could be arbitrarily fast, and a motion of
+    0 m takes no time."""
+    if not limits.bounds_speed:
+        raise PlanError(f'the fastest plan needs {limits.names[0]} or {limits.names[1]} (or both)')
     displacement = float(displacement)
     if displacement == 0.0:
         raise PlanError('the fastest plan needs a nonzero displacement')
@@ -35,7 +38,7 @@ def check_fastest_request(displacement: float, limits) -> float:
 
 
 def shortest_duration_bound(displacement: float, limits) -> float:
-    """A lower bound (s) on any rest-to-rest motion of ``displacement`` within ``limits`` = (v, a, j).
+    """A lower bound (s) on any rest-to-rest motion of ``displacement`` within ``limits`` (``AxisLimits``).
 
     |D| / v_max (velocity), 2 sqrt(|D| / a_max) (bang-bang acceleration),
     (32 |D| / j_max)^(1/3) (bang-bang jerk) and, with both velocity and
@@ -55,11 +58,10 @@ def shortest_duration_bound(displacement: float, limits) -> float:
     return max(bounds)
 
 
-def axis_limit_error(displacement: float, duration: float, max_velocity, max_acceleration, max_jerk=None,
-                     axis: str = ''):
-    """A PlanError if no rest-to-rest motion of D in T can respect the limits, else None.
+def axis_limit_error(displacement: float, duration: float, limits: AxisLimits):
+    """A PlanError if no rest-to-rest motion of D in T can respect ``limits``, else None.
 
-    The message names the limits ``max_velocity``... or, for ``axis`` 'hoist', ``max_hoist_velocity``...
+    The message names each limit as its axis does (``AxisLimits.names``: ``max_velocity``, ``max_hoist_velocity``...).
 
     Necessary conditions (exact bounds of the bang-bang motion; a smooth
     reference needs strictly more): peak velocity > |D|/T, peak acceleration
@@ -67,20 +69,21 @@ def axis_limit_error(displacement: float, duration: float, max_velocity, max_acc
     limits, T > |D|/v_max + v_max/a_max when the velocity limit is reached.
     """
     D, T = abs(displacement), duration
-    axis = f'{axis}_' if axis else ''
+    max_velocity, max_acceleration, max_jerk = limits
+    v_name, a_name, j_name = limits.names
     D_ = D * (1 + 1e-12)  # 0.1 m/s * 3 s is 0.30000000000000004 m
     if max_velocity is not None and max_velocity * T <= D_:
-        return PlanError(f'infeasible: max_{axis}velocity {max_velocity:g} m/s is too low to move {D:g} m in '
+        return PlanError(f'infeasible: {v_name} {max_velocity:g} m/s is too low to move {D:g} m in '
                          f'{T:g} s (needs more than {D / T:g} m/s)')
     if max_acceleration is not None and max_acceleration * T ** 2 <= 4 * D_:
-        return PlanError(f'infeasible: max_{axis}acceleration {max_acceleration:g} m/s^2 is too low to move {D:g} m '
+        return PlanError(f'infeasible: {a_name} {max_acceleration:g} m/s^2 is too low to move {D:g} m '
                          f'in {T:g} s (needs more than {4 * D / T ** 2:g} m/s^2)')
     if max_jerk is not None and max_jerk * T ** 3 <= 32 * D_:
-        return PlanError(f'infeasible: max_{axis}jerk {max_jerk:g} m/s^3 is too low to move {D:g} m in {T:g} s '
+        return PlanError(f'infeasible: {j_name} {max_jerk:g} m/s^3 is too low to move {D:g} m in {T:g} s '
                          f'(needs more than {32 * D / T ** 3:g} m/s^3)')
     if max_velocity is not None and max_acceleration is not None and max_velocity ** 2 < D * max_acceleration:
         t_min = D / max_velocity + max_velocity / max_acceleration
         if T <= t_min:
-            return PlanError(f'infeasible: max_{axis}velocity {max_velocity:g} m/s and max_{axis}acceleration '
+            return PlanError(f'infeasible: {v_name} {max_velocity:g} m/s and {a_name} '
                              f'{max_acceleration:g} m/s^2 together need more than {t_min:g} s to move {D:g} m')
     return None

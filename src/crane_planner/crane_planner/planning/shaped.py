@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial.polynomial import polyder, polyval
 
+from crane_msgs_py.axes import AxisLimits
+
 from .limits import check_fastest_request, shortest_duration_bound
 from .plan import Plan, PlanError
 from .profiles import ORDER, BaseProfile, limited_base, quintic_base
@@ -114,13 +116,13 @@ class ShapedPlan(Plan):
 
 
 def shaped_plan(method: str, displacement: float, duration: float, omegas, zeta, base: str = 'quintic',
-                limits: tuple = (None, None, None)) -> ShapedPlan:
+                limits: AxisLimits = AxisLimits()) -> ShapedPlan:
     """Plan from 0 to ``displacement`` (m) in ``duration`` (s) with ``method``'s shaper.
 
     One shaper per mode frequency in ``omegas`` (rad/s) with damping ratio
     ``zeta`` (one for all, or one per mode), cascaded, applied to the ``base``
     motion (``quintic``: the paper's; ``limits``: the jerk-limited time-optimal
-    profile under ``limits`` = (max_velocity, max_acceleration, max_jerk),
+    profile under the axis's ``limits``,
     stretched to the base's length). A duration not longer than the shaper
     cannot be met and is a PlanError (contract: never a silently longer motion).
     """
@@ -167,9 +169,7 @@ FASTEST_MARGIN = 1e-4
 def fastest_shaped(method: str, displacement: float, omegas, zeta, limits, base: str = 'quintic') -> ShapedPlan:
     """The shortest ``method`` plan of ``displacement`` (m) within ``limits``.
 
-    ``limits`` = (max_velocity, max_acceleration, max_jerk).
-
-    None for no limit; at least one of velocity and acceleration. The shaper's
+    ``limits``: the axis's ``AxisLimits``, at least one of velocity and acceleration. The shaper's
     own length is fixed, so what is searched is the base motion:
 
     * quintic base: the shortest base whose *shaped* plan stays within the

@@ -10,9 +10,11 @@ import threading
 
 import numpy as np
 
+from crane_msgs_py.axes import AxisLimits
+from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 
-from .limits import axis_limit_error, hoist_limits_of, limits_of
+from .limits import axis_limit_error
 from .methods import VARIATIONAL_METHODS
 from .plan import Plan, PlanError
 from .problem import Form, Problem, Weights, displacements, graded_mesh, servo_layer, uniform_mesh
@@ -54,10 +56,8 @@ class VariationalSolver:
         self.intervals = options.intervals or self.default_intervals
         self.hoist_intervals = options.intervals or self.default_hoist_intervals
         self.robust = tuple(options.robust) if method == 'rvf' else ()
-        self.max_velocity = options.max_velocity
-        self.max_acceleration = options.max_acceleration
-        self.max_jerk = options.max_jerk
-        self.hoist_limits = hoist_limits_of(options)
+        #: the cart's limits, then the hoist's (``AxisLimits``)
+        self.limits, self.hoist_limits = options.limits_of(CART_JOINT), options.limits_of(HOIST_JOINT)
         #: the budget (s) of one solve, None = the route's own cap
         self.max_solve_time = options.max_solve_time
         self._problems = {}
@@ -66,15 +66,14 @@ class VariationalSolver:
     @staticmethod
     def key(method: str, options) -> tuple:
         """Everything that makes two solvers differ: the NLP structure, the limit values and the time budget."""
-        return (*VariationalSolver.structure_of(method, options), *limits_of(options), hoist_limits_of(options),
-                options.max_solve_time)
+        return (*VariationalSolver.structure_of(method, options), options.limits, options.max_solve_time)
 
     @staticmethod
     def structure_of(method: str, options) -> tuple:
         """What a solver builds depends on: the route, the method, intervals, robust set, whether limits are set."""
         return (options.solver, method, options.intervals or VariationalSolver.default_intervals,
                 tuple(options.robust) if method == 'rvf' else (),
-                any(x is not None for x in (*limits_of(options), *hoist_limits_of(options))))
+                any(limits.any for limits in options.limits))
 
     @property
     def structure(self) -> tuple:
@@ -89,15 +88,15 @@ class VariationalSolver:
 
     @property
     def has_limits(self) -> bool:
-        return any(x is not None for x in (*self.limits, *self.hoist_limits))
+        return self.limits.any or self.hoist_limits.any
 
     @property
-    def limits(self) -> tuple:
-        """(max_velocity, max_acceleration, max_jerk) of the reference, None for none."""
-        return self.max_velocity, self.max_acceleration, self.max_jerk
+    def max_velocity(self) -> float | None:
+        """The cart's velocity limit (m/s), None for none."""
+        return self.limits.max_velocity
 
-    def axis_limits(self, hoisting: bool) -> list:
-        """The (max_velocity, max_acceleration, max_jerk) of each axis, the cart's first."""
+    def axis_limits(self, hoisting: bool) -> list[AxisLimits]:
+        """The ``AxisLimits`` of each axis planned, the cart's first."""
         return [self.limits, self.hoist_limits] if hoisting else [self.limits]
 
     def problem(self, form) -> Problem:
@@ -147,7 +146,7 @@ class VariationalSolver:
         if start is not None and self.route != 'direct':
             raise PlanError(f'planning from a moving state needs the direct solver, not the {self.route} one')
         if Dh is not None and start is None and not free_end:
-            err = axis_limit_error(Dh, duration, *self.hoist_limits, axis='hoist')
+            err = axis_limit_error(Dh, duration, self.hoist_limits)
             if err is not None:
                 raise err
         if 'tau' in self.robust and params.tau == 0.0:
@@ -159,7 +158,7 @@ class VariationalSolver:
         if self.max_solve_time is not None and not self.handles_time_budget:
             raise PlanError(f'the {self.route} solver cannot bound its solve time (max_solve_time); '
                             'use the direct solver')
-        err = axis_limit_error(D, duration, *self.limits) if start is None and not free_end else None
+        err = axis_limit_error(D, duration, self.limits) if start is None and not free_end else None
         if err is not None:  # (from a state the rest-to-rest conditions do not apply: IPOPT decides)
             raise err
         frac = self.mesh(duration, params, Dh is not None)

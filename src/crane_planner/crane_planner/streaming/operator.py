@@ -21,10 +21,10 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
+from crane_msgs_py.axes import AXES, AxisLimits
 from crane_msgs_py.params import CraneParams
 
 from ..planning.model import modal_properties
@@ -38,23 +38,8 @@ OPERATOR_SHAPERS = ('none', *SHAPERS)
 HISTORY = 60.0
 #: The rope length (m) is redesigned for when it has changed by more than this.
 LENGTH_STEP = 1e-4
-
-
-@dataclass(frozen=True)
-class AxisLimits:
-    """An axis's limits on its reference: velocity (m/s), acceleration (m/s^2), jerk (m/s^3, inf = none)."""
-
-    velocity: float
-    acceleration: float
-    jerk: float = math.inf
-
-    def __post_init__(self):
-        for name in ('velocity', 'acceleration'):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise PlanError(f'operator mode needs a finite {name} limit > 0, got {value}')
-        if not self.jerk > 0.0:
-            raise PlanError(f'the jerk limit must be > 0, got {self.jerk}')
+#: AxisLimits (crane_msgs_py.axes) is re-exported: the streamer node builds the operator's limits with it.
+__all__ = ['AxisLimits', 'OPERATOR_SHAPERS', 'OperatorStream']
 
 
 class OperatorStream:
@@ -63,7 +48,8 @@ class OperatorStream:
     Args:
         period: tick period (s).
         start: the axes' positions (m) to start from at rest: (cart,) or (cart, hoist length).
-        limits: an ``AxisLimits`` per axis.
+        limits: an ``AxisLimits`` per axis (``crane_msgs_py.axes``), each with a finite velocity and
+            acceleration limit (ruckig needs them); no jerk limit = none.
         shaper: one of ``OPERATOR_SHAPERS``.
         params: the crane model the shaper is designed on (L1 = the rope length without a hoist).
         cmd_timeout: a command older than this (s) counts as zero.
@@ -82,6 +68,9 @@ class OperatorStream:
         self.axes = len(start)
         if len(limits) != self.axes:
             raise PlanError(f'{self.axes} axes need {self.axes} limits')
+        for axis, lim in zip(AXES, limits):
+            lim = axis.limits(*lim)  # named as the axis names them
+            lim.require(('max_velocity', 'max_acceleration'), 'operator mode', PlanError)
         self.limits = tuple(limits)
         self._otg = Ruckig(self.axes, self.period)
         inp = self._input = InputParameter(self.axes)
@@ -89,9 +78,9 @@ class OperatorStream:
         inp.current_position, inp.current_velocity, inp.current_acceleration = list(start), [0.0] * self.axes, \
             [0.0] * self.axes
         inp.target_velocity, inp.target_acceleration = [0.0] * self.axes, [0.0] * self.axes
-        inp.max_velocity = [lim.velocity for lim in self.limits]
-        inp.max_acceleration = [lim.acceleration for lim in self.limits]
-        inp.max_jerk = [lim.jerk for lim in self.limits]
+        inp.max_velocity = [lim.max_velocity for lim in self.limits]
+        inp.max_acceleration = [lim.max_acceleration for lim in self.limits]
+        inp.max_jerk = [math.inf if lim.max_jerk is None else lim.max_jerk for lim in self.limits]
         self._output = OutputParameter(self.axes)
         self._command = (0.0, (0.0,) * self.axes)  # (time s, velocity per axis)
         n = int(math.ceil(HISTORY / self.period)) + 2
@@ -122,14 +111,15 @@ class OperatorStream:
         stamp, velocity = self._command
         if now - stamp > self.cmd_timeout:
             return [0.0] * self.axes
-        target = [max(-lim.velocity, min(lim.velocity, v)) for v, lim in zip(velocity, self.limits)]
+        target = [max(-lim.max_velocity, min(lim.max_velocity, v)) for v, lim in zip(velocity, self.limits)]
         if self.axes > 1:  # stop the rope where braking from its rate ends at the range's bound
             inp = self._input
             length, rate = inp.current_position[1], abs(inp.current_velocity[1])
             limit = self.limits[1]
             # braking from the rate at the acceleration limit, reached at the jerk limit; once braking for a
             # bound, the hoist stays stopped until the stick points away from it (else it would creep on)
-            margin = rate * (rate / limit.acceleration + limit.acceleration / limit.jerk) / 2 + rate * self.period * 2
+            accel, jerk = limit.max_acceleration, limit.max_jerk or math.inf
+            margin = rate * (rate / accel + accel / jerk) / 2 + rate * self.period * 2
             direction = (target[1] > 0.0) - (target[1] < 0.0)
             at_bound = (direction < 0 and length - margin <= self.hoist_range[0]) or (
                 direction > 0 and length + margin >= self.hoist_range[1])
