@@ -12,9 +12,18 @@ import os
 # setting is kept.
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
-from .dispatch import PlanOptions, check_request  # noqa: E402
 from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS, VARIATIONAL_METHODS  # noqa: E402
 from .plan import Plan, PlanError, Samples  # noqa: E402
+
+
+def __getattr__(name: str):
+    # dispatch (and CasADi with it) loads on first use: the streamer imports the pure modules of this
+    # package (the model, the shapers) and must not load CasADi
+    if name in ('PlanOptions', 'check_request'):
+        from . import dispatch
+        return getattr(dispatch, name)
+    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+
 
 __all__ = ['METHODS', 'ROBUST_PARAMETERS', 'SHAPER_METHODS', 'VARIATIONAL_METHODS', 'Plan', 'PlanError',
            'Samples', 'PlanOptions', 'check_request']

@@ -78,3 +78,15 @@ def knot_times(plan, position_tol: float = POSITION_TOL, acceleration_tol: float
         if not bad.any():
             return t
         t = np.sort(np.concatenate([t, grid(t[:-1][bad] + 0.5 * h[bad])]))
+
+
+def knot_columns(plan, times, starts) -> tuple:
+    """(position, velocity, acceleration) of ``plan`` at ``times``, each (len(times), joints): a column per
+    joint (an ``AxesPlan``'s axes in order, the cart first; else the plan alone), positions absolute from the
+    joints' ``starts`` (m), as a trajectory and ``ReferenceStream.accept`` take them."""
+    axes = list((getattr(plan, 'axes', None) or {'': plan}).values())
+    if len(axes) != len(starts):
+        raise ValueError(f'a plan of {len(axes)} joint(s) needs as many starts, not {len(starts)}')
+    samples = [axis.evaluate(times) for axis in axes]
+    return (np.column_stack([s0 + s.position for s, s0 in zip(samples, starts)]),
+            np.column_stack([s.velocity for s in samples]), np.column_stack([s.acceleration for s in samples]))

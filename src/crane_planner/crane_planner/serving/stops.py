@@ -1,0 +1,291 @@
+"""A running motion's stop without swing: the one the planner node and the streamer node both plan.
+
+A stop takes over a running motion ``STOP_LEAD`` ahead (the handover), from
+the crane's state there (``transitions.handover_state``: the running
+reference, the swing predicted along it), by ``transitions.stop`` (an NVF
+stop to rest anywhere, or a shaped motion's base braked and reshaped); its
+trajectory is the plan's knots from the handover (``knots.knot_times``,
+``knots.knot_columns``).
+
+API (kept stable: both nodes build on it):
+
+- ``STOP_LEAD``: how far ahead (s) of its request a stop takes over.
+- ``plan_stop(variational, running, handover_ns, params, options=None, measured=None, method=None,
+  state=None) -> Stop``: the stop of ``running`` (a ``transitions.Running``) taking over at
+  ``handover_ns``. ``variational`` runs its ``VariationalRequest``s (``Planner.variational``, a
+  ``SolverCache``); ``measured``: the newest ``transitions.Measurement`` (None: the model's swing);
+  ``method``: default the running motion's (a shaped motion brakes its base, anything else stops by NVF);
+  ``state``: the handover state if already predicted. PlanError (a ValueError) says why there is none.
+- ``Stop``: ``plan`` (relative), ``state`` (at the handover), ``handover_ns``; ``starts`` (per joint, where
+  the trajectory's positions start), ``end`` (where the cart stops, m), ``trajectory(times=None)`` (default
+  the plan's knot times) -> ``StopTrajectory``.
+- ``StopTrajectory``: ``t`` (s from the handover), ``position``, ``velocity``, ``acceleration`` ((knots,
+  joints), absolute), ``handover_ns``, ``duration``, ``method``, ``end``; ``arrays()``: (t, p, v, a) as
+  ``ReferenceStream.accept`` takes them.
+- ``warmups(params, hoist=False, options=None) -> list[VariationalRequest]``: what builds a stop's solvers
+  (``Planner.warmups``, or run on a ``SolverCache``).
+- ``StopRequest(joints, interps, origin_ns, handover_ns, params, options=None)``: a stop of the streamer's
+  motion (its ``QuinticHermite`` per joint, first knot at ``origin_ns``) as a worker process runs it:
+  picklable, ``request(solvers) -> StopTrajectory``; ``StopRequest.rehearsal(joints, params)``: a worker's
+  warm-up.
+- ``StopWorker(joints, params)``: the streamer's stop planner, a ``workers.SolverProcess`` started in the
+  background: ``status``, ``ready``, ``stop(interps, origin_ns, now, params) -> StopTrajectory``
+  (PlanError: why not, the worker's state included), ``close()``.
+
+What loads CasADi (``transitions``: the swing prediction; ``dispatch``: the solvers) is imported inside
+the functions that plan, never at the top: the streamer imports this module for ``StopWorker`` and
+``StopRequest`` and must not load CasADi, its stops are planned in the worker. Pure Python, no ROS import.
+"""
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from crane_msgs_py.params import CraneParams
+from crane_msgs_py.realtime import set_fifo
+
+from ..planning.plan import PlanError
+from ..streaming.hermite import QuinticHermite
+from ..streaming.knots import knot_columns, knot_times
+from .workers import SolverProcess
+
+#: How far ahead (s) of its request a stop takes over (its NVF stop is planned in tens of milliseconds).
+STOP_LEAD = 0.1
+#: A stop's answer must be in this long (s) before its handover for the streamer to take it in time.
+ANSWER_MARGIN = 0.005
+#: How many times a stop whose answer came too late is planned again further ahead.
+ATTEMPTS = 3
+#: Longest wait (s) for a worker's answer: past it the stop is refused (the worker finishes it unheard).
+ANSWER_TIMEOUT = 1.0
+
+
+@dataclass(frozen=True)
+class StopTrajectory:
+    """A stop's trajectory from its handover: knot times ``t`` (s), per joint columns (absolute)."""
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    handover_ns: int
+    duration: float
+    method: str
+    end: float
+
+    def arrays(self) -> tuple:
+        """(t, position, velocity, acceleration) as ``ReferenceStream.accept`` takes them (one joint: 1-D)."""
+        columns = (self.position, self.velocity, self.acceleration)
+        if self.position.shape[1] == 1:
+            columns = tuple(c[:, 0] for c in columns)
+        return (self.t, *columns)
+
+
+@dataclass(frozen=True)
+class Stop:
+    """A planned stop: the plan (relative), the state it starts from and its handover (ns of ROS time)."""
+
+    plan: object
+    state: object
+    handover_ns: int
+
+    @property
+    def starts(self) -> list:
+        from .transitions import joint_starts
+        return joint_starts(self.plan, self.state)
+
+    @property
+    def end(self) -> float:
+        """Where the cart stops (m)."""
+        return float(self.state.cart[0] + self.plan.displacement)
+
+    def trajectory(self, times=None) -> StopTrajectory:
+        """The stop at ``times`` (s from the handover; default its knots)."""
+        times = knot_times(self.plan) if times is None else np.asarray(times, dtype=float)
+        columns = knot_columns(self.plan, times, self.starts)
+        return StopTrajectory(times, *columns, self.handover_ns, float(self.plan.duration), self.plan.method,
+                              self.end)
+
+
+def plan_stop(variational, running, handover_ns: int, params: CraneParams, options=None, measured=None,
+              method: str | None = None, state=None) -> Stop:
+    """The stop of ``running`` taking over at ``handover_ns``; see the module docstring."""
+    from ..planning.dispatch import PlanOptions
+    from . import transitions
+    options = PlanOptions() if options is None else options
+    if state is None:
+        state = transitions.handover_state(running, handover_ns, measured, params)
+    plan = transitions.stop(variational, running, handover_ns, state, running.method if method is None else method,
+                            params, options)
+    return Stop(plan, state, handover_ns)
+
+
+def warmups(params: CraneParams, hoist: bool = False, options=None) -> list:
+    """``VariationalRequest``s that build the solvers a stop uses: NVF from a moving, swinging state to rest
+    anywhere (``transitions.stop``'s request), with a hoist the hoisting crane's."""
+    from ..planning.continuation import MotionState, first_period, problem_start
+    from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options
+    options = PlanOptions() if options is None else options
+    state = MotionState((0.0, 0.1, 0.05), (0.02, 0.0, -0.05, 0.0), hoist=(params.L1, 0.0, 0.0) if hoist else None)
+    start, model = problem_start(state, params)
+    duration = first_period(model)
+    displacement = state.cart[1] * duration / 2  # (as transitions' free end: the problem's scale)
+    if hoist:
+        displacement, options = (displacement, 0.0), hoisting_options(options)
+    return [VariationalRequest('plan', 'nvf', displacement, duration, model, options, start, True)]
+
+
+@dataclass(frozen=True)
+class StopRequest:
+    """A stop of the streamer's motion as a worker process runs it (``workers.SolverProcess.solve``).
+
+    Attributes:
+        joints: the streamed joints, the cart's first.
+        interps: the motion's ``QuinticHermite`` per joint (``reference_stream.Motion.interps``).
+        origin_ns: ROS time of the motion's first knot.
+        handover_ns: when the stop takes over.
+        params: the crane model.
+        options: ``dispatch.PlanOptions`` (None: the defaults).
+    """
+
+    joints: tuple
+    interps: tuple
+    origin_ns: int
+    handover_ns: int
+    params: CraneParams
+    options: object = None
+
+    def __call__(self, solvers) -> StopTrajectory:
+        """The stop, planned on ``solvers`` (the worker's ``SolverCache``)."""
+        from .transitions import Running
+        running = Running.of_interps(self.joints, self.interps, self.origin_ns)
+        return plan_stop(solvers, running, self.handover_ns, self.params, self.options).trajectory()
+
+    @classmethod
+    def rehearsal(cls, joints, params: CraneParams) -> 'StopRequest':
+        """A stop 1 s into a made-up motion at 0.1 m/s: a worker's warm-up, so that its first real stop finds
+        the stop's solvers (``warmups``) and the swing prediction built."""
+        t = [0.0, 2.0]
+        interps = [QuinticHermite(t, [0.0, 0.2], [0.1, 0.1], [0.0, 0.0])]
+        interps += [QuinticHermite(t, [params.L1] * 2, [0.0] * 2, [0.0] * 2) for _ in joints[1:]]
+        return cls(tuple(joints), tuple(interps), 0, 1_000_000_000, params)
+
+
+class StopWorker:
+    """The streamer's stops, planned in a worker process of their own (the streamer never loads CasADi).
+
+    The worker starts in the background (a fork server that imports CasADi,
+    then a rehearsal stop to build the solvers: seconds), at normal
+    scheduling whatever the starting thread's; one that died is started
+    again by the next ``stop``. One stop at a time.
+
+    Args:
+        joints: the streamed joints, the cart's first.
+        params: the crane model of the rehearsal.
+        start_timeout: longest wait (s) for the worker to be ready.
+    """
+
+    def __init__(self, joints, params: CraneParams, start_timeout: float = 60.0):
+        self.joints = tuple(joints)
+        self.start_timeout = start_timeout
+        self._worker: SolverProcess | None = None
+        self._status = 'starting'
+        self._closed = False
+        self._busy = threading.Lock()
+        self._start(params)
+
+    @property
+    def status(self) -> str:
+        """'ready', or what else the worker is (starting, failed, ended, busy)."""
+        worker = self._worker
+        if worker is not None and not worker.alive:
+            return 'its process ended'
+        return self._status
+
+    @property
+    def ready(self) -> bool:
+        return self.status == 'ready'
+
+    def stop(self, interps, origin_ns: int, now, params: CraneParams, lead: float = STOP_LEAD) -> StopTrajectory:
+        """The stop of the motion of ``interps`` (first knot at ``origin_ns``) taking over ``lead`` s after
+        ``now()`` (ROS time, ns), planned in the worker, and again further ahead should its answer come too
+        late for its handover. PlanError says why there is none."""
+        if not self._busy.acquire(blocking=False):
+            raise PlanError('another stop is being planned')
+        try:
+            worker, status = self._worker, self.status
+            if status != 'ready':
+                if status == 'its process ended':
+                    self._restart(worker, params)
+                raise PlanError(f'the stop planner process is not ready: {status}')
+            end_ns = origin_ns + round((interps[0].t[-1] - interps[0].t[0]) * 1e9)
+            for _ in range(ATTEMPTS):
+                asked = now()
+                handover = asked + round(lead * 1e9)
+                if handover >= end_ns:
+                    raise PlanError('the motion ends before a stop could take over')
+                answer = self._solve(worker, StopRequest(self.joints, tuple(interps), origin_ns, handover, params),
+                                     params)
+                answered = now()
+                if answered < handover - ANSWER_MARGIN * 1e9:
+                    return answer
+                lead = max(2.0 * lead, 1.5 * (answered - asked) * 1e-9 + ANSWER_MARGIN)
+            raise PlanError(f'the stop planner answered too late for the handover {ATTEMPTS} times (last lead '
+                            f'{lead / 2:.3f} s)')
+        finally:
+            self._busy.release()
+
+    def close(self) -> None:
+        """Stop the worker (idempotent); a start under way ends it once it is up."""
+        self._closed = True
+        if self._worker is not None:
+            self._worker.close()
+
+    def _solve(self, worker: SolverProcess, request: StopRequest, params: CraneParams) -> StopTrajectory:
+        try:
+            return worker.solve(request, ANSWER_TIMEOUT)
+        except PlanError:
+            if worker.closed:  # it died
+                self._restart(worker, params)
+            elif worker.late:  # its answer is dropped once in; no stop is asked of it meanwhile
+                self._status = 'busy with a stop that took too long'
+                threading.Thread(target=self._finish_late, args=(worker, params), daemon=True).start()
+            raise
+        except RuntimeError as exc:  # a bug in the worker's planning: it lives on
+            raise PlanError(f'the stop planner failed: {exc}') from None
+
+    def _finish_late(self, worker: SolverProcess, params: CraneParams) -> None:
+        worker.finish_late()
+        if worker.closed:
+            self._restart(worker, params)
+        else:
+            self._status = 'ready'
+
+    def _restart(self, worker: SolverProcess | None, params: CraneParams) -> None:
+        if worker is not None:
+            worker.close(kill=True)
+        self._worker = None
+        self._start(params)
+
+    def _start(self, params: CraneParams) -> None:
+        self._status = 'starting'
+        threading.Thread(target=self._started, args=(params,), name='stop-worker', daemon=True).start()
+
+    def _started(self, params: CraneParams) -> None:
+        # the fork server and its workers inherit this thread's scheduling: never the caller's SCHED_FIFO
+        set_fifo(0)
+        try:
+            worker = SolverProcess((), self.start_timeout)
+        except Exception as exc:  # (PlanError: not ready in time; OSError: no process)
+            self._status = f'failed to start: {exc}'
+            return
+        try:  # the warm-up as a request: SolverProcess's own warm-ups are VariationalRequests, read here
+            worker.solve(StopRequest.rehearsal(self.joints, params), self.start_timeout)
+        except (PlanError, RuntimeError):  # a failed rehearsal only means building on first use
+            if worker.late:
+                worker.finish_late()  # (a dead worker shows in ``status``)
+        if self._closed:
+            worker.close()
+            return
+        self._worker, self._status = worker, 'ready'

@@ -1,0 +1,128 @@
+"""A running motion's stop (crane_planner.serving.stops): planned here and in a worker process alike, and
+checked on crane_sim's crane (numpy, independent of the planner's CasADi model) as the streamer streams it:
+the motion's knots up to the handover, then the stop's knots."""
+import time
+
+import numpy as np
+import pytest
+
+from crane_msgs_py.params import CraneParams
+from crane_planner.planning.dispatch import SolverCache, plan
+from crane_planner.planning.plan import PlanError
+from crane_planner.serving.stops import STOP_LEAD, StopRequest, StopWorker, plan_stop, warmups
+from crane_planner.serving.transitions import Running
+from crane_planner.serving.workers import SolverProcess
+from crane_planner.streaming.hermite import QuinticHermite
+from crane_planner.streaming.knots import knot_columns, knot_times
+from crane_sim.simulator import simulate
+
+PARAMS = CraneParams()
+ORIGIN = 5_000_000_000  # ns: the running motion's first knot
+START = 0.2  # m
+HANDOVER = ORIGIN + 1_500_000_000  # half way through a 3 s motion
+DT = 1e-3
+
+
+@pytest.fixture(scope='module')
+def solvers():
+    return SolverCache()
+
+
+@pytest.fixture(scope='module')
+def running(solvers):
+    """An RVF move of 0.3 m in 3 s, as its knots stream (absolute positions)."""
+    p = plan('rvf', 0.3, 3.0, PARAMS, variational=solvers)
+    t = knot_times(p)
+    return Running(('cart',), t, *knot_columns(p, t, [START]), ORIGIN, p)
+
+
+def streamed(running, trajectory):
+    """What the streamer publishes: the motion's knots until the handover, then the stop's: (t, acceleration)."""
+    t_h = (trajectory.handover_ns - ORIGIN) * 1e-9
+    t1 = np.arange(0.0, t_h, DT)
+    a1 = running.at(ORIGIN + np.round(t1 * 1e9).astype(np.int64))[0][2]
+    t2 = np.arange(0.0, trajectory.duration + 4.0, DT)
+    a2 = QuinticHermite(*trajectory.arrays())(t2)[2]
+    return np.concatenate([t1, t_h + t2]), np.concatenate([a1, a2])
+
+
+def test_a_stop_from_a_moving_state_leaves_no_swing_on_the_simulator(solvers, running):
+    stop = plan_stop(solvers, running, HANDOVER, PARAMS)
+    trajectory = stop.trajectory()
+    assert trajectory.method == 'nvf' and trajectory.handover_ns == HANDOVER
+    # it continues the motion where it takes over (what the streamer checks)
+    ref = running.at(HANDOVER)[0]
+    assert trajectory.position[0, 0] == pytest.approx(ref[0][0], abs=1e-9)
+    assert trajectory.velocity[0, 0] == pytest.approx(ref[1][0], abs=1e-7)
+    assert trajectory.acceleration[0, 0] == pytest.approx(ref[2][0], abs=1e-6)
+    assert trajectory.end == pytest.approx(trajectory.position[-1, 0]) and trajectory.end < START + 0.3
+    t, a = streamed(running, trajectory)
+    r = simulate(t, a, PARAMS)
+    after = t > 1.5 + trajectory.duration
+    assert np.abs(r.v[0, after]).max() < 1e-4  # at rest
+    residual = np.abs(r.load_excursion[0, after]).max()
+    assert residual < 0.5e-3
+    # the motion held where it is at the handover (what the streamer does without a stop) swings far more
+    held = running.at(ORIGIN + np.round(np.minimum(t, 1.5) * 1e9).astype(np.int64))[0][0]
+    assert np.abs(simulate(t, held, PARAMS, source='position').load_excursion[0, after]).max() > 10 * residual
+
+
+def test_the_stops_warm_up_builds_every_solver_a_stop_uses(running):
+    cache = SolverCache()
+    for request in warmups(PARAMS):
+        cache(request)
+    built = dict(cache._solvers)
+    plan_stop(cache, running, HANDOVER, PARAMS)
+    assert cache._solvers == built
+
+
+def test_a_stop_request_runs_in_a_worker_as_here(solvers, running):
+    request = StopRequest(('cart',), tuple(running.interps), ORIGIN, HANDOVER, PARAMS)
+    here = request(solvers)
+    worker = SolverProcess()
+    try:
+        there = worker.solve(request, 60.0)
+    finally:
+        worker.close()
+    assert there.duration == pytest.approx(here.duration)
+    np.testing.assert_allclose(there.position, here.position, atol=1e-7)
+    assert there.arrays()[1].ndim == 1  # one joint: the columns as ReferenceStream.accept takes them
+
+
+def test_the_streamers_stop_worker_plans_ahead_and_says_why_it_cannot(running):
+    worker = StopWorker(('cart',), PARAMS)
+    clock = [HANDOVER - round(STOP_LEAD * 1e9)]
+    try:
+        with pytest.raises(PlanError, match='the stop planner process is not ready: starting'):
+            worker.stop(running.interps, ORIGIN, lambda: clock[0], PARAMS)
+        deadline = 120.0
+        while not worker.ready and deadline > 0:
+            assert not worker.status.startswith('failed'), worker.status
+            deadline -= 0.05
+            time.sleep(0.05)
+        assert worker.ready, worker.status
+        trajectory = worker.stop(running.interps, ORIGIN, lambda: clock[0], PARAMS)
+        assert trajectory.handover_ns == HANDOVER
+        with pytest.raises(PlanError, match='the motion ends before a stop could take over'):
+            worker.stop(running.interps, ORIGIN, lambda: running.end_ns, PARAMS)
+        worker._worker._process.kill()
+        worker._worker._process.join()
+        assert worker.status == 'its process ended' and not worker.ready
+        with pytest.raises(PlanError, match='not ready: its process ended'):
+            worker.stop(running.interps, ORIGIN, lambda: clock[0], PARAMS)
+        assert worker.status == 'starting'  # started again
+    finally:
+        worker.close()
+
+
+def test_a_stop_with_a_hoist_continues_both_joints(solvers):
+    p = plan('nvf', 0.3, 3.0, PARAMS, variational=solvers, hoist=(PARAMS.L1, PARAMS.L1 - 0.1))
+    t = knot_times(p)
+    running = Running(('cart', 'hoist'), t, *knot_columns(p, t, [START, PARAMS.L1]), ORIGIN, p)
+    trajectory = plan_stop(solvers, running, HANDOVER, PARAMS).trajectory()
+    refs = running.at(HANDOVER)
+    assert trajectory.position.shape[1] == 2
+    for j in range(2):
+        assert trajectory.position[0, j] == pytest.approx(refs[j][0][0], abs=1e-9)
+        assert trajectory.velocity[0, j] == pytest.approx(refs[j][1][0], abs=1e-7)
+    assert np.abs(trajectory.velocity[-1]).max() < 1e-9
