@@ -45,7 +45,7 @@ def measured_at(old, t_h, params=PARAMS, hoist=None):
                            (r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]),
                            r.y[0, -1] - s.position[-1])
     c, h = old.axes['cart'].evaluate(t), old.axes['hoist'].evaluate(t)
-    r = simulate(t, c.acceleration, params, hoist_reference=h.acceleration)
+    r = simulate(t, {'cart': c.acceleration, 'hoist': h.acceleration}, params)
     L = hoist + h.position[-1]
     return MotionState((c.position[-1], c.velocity[-1], c.acceleration[-1]),
                        (r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]),
@@ -143,7 +143,7 @@ def test_hoisting_from_a_state_both_axes_continuous_and_at_rest(solvers):
     h = np.concatenate([hoisting.axes['hoist'].evaluate(t1).acceleration,
                         new.axes['hoist'].evaluate(t2).acceleration[1:]])
     t = np.concatenate([t1, HANDOVER + t2[1:]])
-    r = simulate(t, c, PARAMS, hoist_reference=h)
+    r = simulate(t, {'cart': c, 'hoist': h}, PARAMS)
     assert r.L1[0, -1] == pytest.approx(0.25, abs=1e-5)
     assert np.abs(r.load_excursion[0, t > HANDOVER + new.duration]).max() < 0.5e-4
 

@@ -1,4 +1,4 @@
-"""The simulator with a hoist: the upper cable's length L1(t) moving (issue 21).
+"""The simulator with a hoist: the upper cable's length L1(t) moving while the cart travels.
 
 References independent of the model under test: the simulator without a hoist
 (L1 held), a load at rest under a pure hoisting motion, and the power balance
@@ -25,7 +25,7 @@ def test_a_held_hoist_reproduces_the_simulation_without_one(tau):
     p = CraneParams(tau=tau, tau_hoist=0.02, c1=0.001, c2=0.0005)
     t = np.linspace(0.0, T, 301)
     fixed = simulate(t, quintic_acceleration(t, 0.3, T), p, t_end=6.0)
-    held = simulate(t, quintic_acceleration(t, 0.3, T), p, t_end=6.0, hoist_reference=np.zeros_like(t))
+    held = simulate(t, {'cart': quintic_acceleration(t, 0.3, T), 'hoist': np.zeros_like(t)}, p, t_end=6.0)
     for name in STATE_NAMES:
         assert np.max(np.abs(getattr(held, name) - getattr(fixed, name))) < 1e-9, name
     assert np.all(held.L1 == p.L1) and np.all(held.dL1 == 0.0)
@@ -36,7 +36,7 @@ def test_a_held_hoist_reproduces_the_simulation_without_one(tau):
 def test_a_load_at_rest_stays_at_rest_while_only_the_hoist_moves(tau_hoist):
     p = CraneParams(tau_hoist=tau_hoist)
     t = np.linspace(0.0, T, 301)
-    r = simulate(t, np.zeros_like(t), p, t_end=5.0, hoist_reference=quintic_acceleration(t, -0.2, T))
+    r = simulate(t, {'cart': np.zeros_like(t), 'hoist': quintic_acceleration(t, -0.2, T)}, p, t_end=5.0)
     assert np.max(np.abs(r.theta1)) == 0.0 and np.max(np.abs(r.theta2)) == 0.0
     assert r.L1[0, -1] == pytest.approx(0.27, abs=2e-4)  # the reference sampled every 10 ms, interpolated
 
@@ -47,8 +47,8 @@ def test_the_hoist_follows_its_servo_exactly():
     tau_h, r = 0.05, 0.4
     p = CraneParams(tau_hoist=tau_h)
     t = np.array([0.0, 1.0])
-    sim = simulate(t, np.zeros(2), p, dt=1e-3, hoist_reference=np.full(2, r), initial_state=np.r_[np.zeros(7),
-                                                                                                   p.L1, 0.0, 0.0])
+    sim = simulate(t, {'cart': np.zeros(2), 'hoist': np.full(2, r)}, p, dt=1e-3,
+                   initial_state=np.r_[np.zeros(7), p.L1, 0.0, 0.0])
     e = np.exp(-sim.t / tau_h)
     assert np.max(np.abs(sim.ddL1[0] - r * (1 - e))) < 1e-12
     assert np.max(np.abs(sim.dL1[0] - r * (sim.t - tau_h * (1 - e)))) < 1e-12
@@ -75,8 +75,8 @@ def test_the_swing_energy_changes_by_the_work_the_cart_and_hoist_do():
     cart travels 0.3 m in 3 s, then 2 s of free swing, with servos."""
     p = CraneParams(tau=0.01, tau_hoist=0.02)
     t = np.linspace(0.0, T, 3001)
-    sim = simulate(t, quintic_acceleration(t, 0.3, T), p, dt=5e-4, t_end=5.0,
-                   hoist_reference=quintic_acceleration(t, -0.2, T))
+    sim = simulate(t, {'cart': quintic_acceleration(t, 0.3, T), 'hoist': quintic_acceleration(t, -0.2, T)}, p,
+                   dt=5e-4, t_end=5.0)
     rows = {n: getattr(sim, n)[0] for n in STATE_NAMES + HOIST_STATE_NAMES}
     th1, th2, d1, d2 = rows['theta1'], rows['theta2'], rows['dtheta1'], rows['dtheta2']
     acc = hoisting_accelerations(np.stack((th1, th1 + th2)), np.stack((d1, d1 + d2)), rows['a'], rows['L1'],
@@ -102,12 +102,31 @@ def test_the_swing_energy_changes_by_the_work_the_cart_and_hoist_do():
     assert np.max(np.abs(np.sum((a2 + gravity) * u2p, axis=0))) < 1e-9
 
 
-def test_a_hoist_reference_needs_acceleration_samples_of_the_same_times():
+def test_references_are_samples_of_the_same_times_of_known_axes_the_cart_among_them():
     t = np.linspace(0.0, 1.0, 11)
-    with pytest.raises(SimulationError, match='reference must have shape'):
-        simulate(t, np.zeros(11), CraneParams(), hoist_reference=np.zeros(5))
-    with pytest.raises(SimulationError, match="source='acceleration'"):
-        simulate(t, np.zeros(11), CraneParams(), source='position', hoist_reference=np.zeros(11))
+    with pytest.raises(SimulationError, match=r"references\['hoist'\]: reference must have shape"):
+        simulate(t, {'cart': np.zeros(11), 'hoist': np.zeros(5)}, CraneParams())
+    with pytest.raises(SimulationError, match=r"references\['cart'\] has 2 rows, another axis 3"):
+        simulate(t, {'cart': np.zeros((2, 11)), 'hoist': np.zeros((3, 11))}, CraneParams())
+    with pytest.raises(SimulationError, match='no axis bridge'):
+        simulate(t, {'cart': np.zeros(11), 'bridge': np.zeros(11)}, CraneParams())
+    with pytest.raises(SimulationError, match=r'references must be \[cart\]'):
+        simulate(t, {'hoist': np.zeros(11)}, CraneParams())
+
+
+def test_a_position_reference_moves_the_hoist_from_its_first_sample_as_the_acceleration_one_does():
+    p = CraneParams(tau_hoist=0.02)
+    t = np.arange(0.0, T + 1e-9, 1e-3)
+    s = np.clip(t / T, 0.0, 1.0)
+    length = 0.47 - 0.2 * (10 * s ** 3 - 15 * s ** 4 + 6 * s ** 5)  # the quintic of quintic_acceleration
+    by_position = simulate(t, {'cart': 0.3 * (length[0] - length) / 0.2, 'hoist': length}, p, t_end=5.0,
+                           source='position')
+    by_acceleration = simulate(t, {'cart': quintic_acceleration(t, 0.3, T), 'hoist': quintic_acceleration(t, -0.2, T)},
+                               p.replace(L1=0.47), t_end=5.0)
+    assert by_position.L1[0, 0] == 0.47 and by_position.L1[0, -1] == pytest.approx(0.27, abs=1e-9)
+    # the second differences are known a sample late (causal): the same motion one 1 ms step later
+    assert np.max(np.abs(by_position.L1[0, 1:] - by_acceleration.L1[0, :-1])) < 1e-6
+    assert np.max(np.abs(by_position.theta1[0, 1:] - by_acceleration.theta1[0, :-1])) < 1e-6
 
 
 def test_the_real_time_simulator_steps_the_hoist_as_the_batch_simulation_does():
@@ -115,14 +134,14 @@ def test_the_real_time_simulator_steps_the_hoist_as_the_batch_simulation_does():
     p = CraneParams(tau=0.01, tau_hoist=0.02)
     t = np.arange(0.0, 3.0 + 1e-9, 1e-3)
     a, h = quintic_acceleration(t, 0.3, T), quintic_acceleration(t, -0.2, T)
-    batch = simulate(t, a, p, dt=1e-3, hoist_reference=h)
-    sim = CraneSimulator(p, dt=1e-3, hoist=True)
+    batch = simulate(t, {'cart': a, 'hoist': h}, p, dt=1e-3)
+    sim = CraneSimulator(p, dt=1e-3, axes=('cart', 'hoist'))
     for k in range(t.size - 1):
-        sim.step(a[k], a[k + 1], h[k], h[k + 1])
+        sim.step((a[k], h[k]), (a[k + 1], h[k + 1]))
     assert sim.joint_names == HOIST_JOINT_NAMES
     positions, velocities = sim.joint_state()
     assert positions == pytest.approx([batch.y[0, -1], batch.L1[0, -1], batch.theta1[0, -1], batch.theta2[0, -1]],
                                       abs=1e-12)
     assert velocities[1] == pytest.approx(batch.dL1[0, -1], abs=1e-12)
     sim.reset()  # at rest where the rope is
-    assert sim.L1 == pytest.approx(batch.L1[0, -1], abs=1e-12) and sim.hoist_state[1:] == (0.0, 0.0)
+    assert sim.L1 == pytest.approx(batch.L1[0, -1], abs=1e-12) and sim.axis_state('hoist')[1:] == (0.0, 0.0)

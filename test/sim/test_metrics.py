@@ -6,7 +6,7 @@ import pytest
 
 from crane_msgs_py.params import CraneParams
 from crane_sim.metrics import peak, residual_load_mm, rms, swing_metrics, window
-from crane_sim.simulator import PlantBatch, SimResult, SimulationError
+from crane_sim.simulator import STATE_NAMES, PlantBatch, SimResult, SimulationError
 
 P = CraneParams()
 
@@ -64,7 +64,8 @@ def test_swing_metrics_on_a_synthetic_result():
     th2 = np.where(t <= T, A2 * np.sin(w * t), -B * np.cos(4 * math.pi * (t - T)))
     zero = np.zeros((2, t.size))
     rows = np.stack([th1, 2 * th1]), np.stack([th2, 2 * th2])
-    result = SimResult(t, zero, zero, zero, rows[0], rows[1], zero, zero, plants=PlantBatch.of(plants))
+    states = dict(zip(STATE_NAMES, (zero, zero, zero, rows[0], rows[1], zero, zero)))
+    result = SimResult(t, states, plants=PlantBatch.of(plants))
     m = swing_metrics(result, plants, T, S)
     assert len(m) == 2
     for i, k in enumerate((1.0, 2.0)):

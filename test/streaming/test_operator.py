@@ -36,7 +36,7 @@ def drive(shaper, stick, total=9.0, hoist=None, timeout=0.5, every=0.05):
 
 
 def residual_mm(t, acc, after, hoist=False):
-    r = simulate(t, acc[:, 0], PARAMS, hoist_reference=acc[:, 1] if hoist else None)
+    r = simulate(t, {'cart': acc[:, 0], 'hoist': acc[:, 1]} if hoist else acc[:, 0], PARAMS)
     return 1e3 * float(np.abs(r.load_excursion[0, t > after]).max()), r
 
 

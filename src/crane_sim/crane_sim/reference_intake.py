@@ -93,24 +93,25 @@ class ReferenceIntake:
         self.counts['malformed'] += 1
 
     def receive(self, now_ns: int, stamp_ns: int | None, position: float,
-                acceleration: float, hoist: tuple[float, float] | None = None) -> tuple | None:
-        """The sample for the playout, (stamp ns, position m, acceleration m/s^2), or None if ignored.
+                acceleration: float, others=()) -> tuple | None:
+        """The sample for the playout, (stamp ns, position m, acceleration m/s^2[, the others' pairs]), or None
+        if ignored.
 
         Args:
             now_ns: arrival time (ns of ROS time).
             stamp_ns: the sample's stamp (ns); 0 or None if unstamped.
-            position, acceleration: the sample (m, m/s^2).
-            hoist: with a hoist, its (position, acceleration) in the same sample: checked the
-                same way and appended to the result.
+            position, acceleration: the sample of the first axis, the cart (m, m/s^2).
+            others: (position, acceleration) of each further axis (the hoist) in the same sample:
+                checked the same way and appended to the result, pair after pair.
         """
         counts = self.counts
         counts['received'] += 1
         stamped = bool(stamp_ns)
         stamp = stamp_ns if stamped else self._grid_stamp(now_ns)
-        extra = () if hoist is None else (float(hoist[0]), float(hoist[1]))
+        extra = tuple(float(x) for pair in others for x in pair)
         if self.positions_only:
             acceleration = 0.0
-            extra = extra[:1] + ((0.0,) if extra else ())
+            extra = tuple(0.0 if k % 2 else x for k, x in enumerate(extra))
         if not (math.isfinite(position) and math.isfinite(acceleration) and all(map(math.isfinite, extra))):
             counts['nonfinite'] += 1
         elif stamped and now_ns - stamp > self._timeout_ns:

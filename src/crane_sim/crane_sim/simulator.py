@@ -1,9 +1,11 @@
 """Fixed-step simulation of the crane: Eqs. 18-19 driven through the axis servo of Eq. 6.
 
-State of one plant: ``[y, v, a, theta1, theta2, dtheta1, dtheta2]`` (cart
-position, velocity, acceleration, cable angles and their rates). The cart
-acceleration follows the reference through the first-order servo
-``tau a' + a = a_ref`` (Eq. 6; ``tau = 0`` means ``a = a_ref``).
+State of one plant: rows by name (``Layout``): the cart's ``y, v, a``
+(position, velocity, acceleration), the swing's ``theta1, theta2, dtheta1,
+dtheta2``, then each further axis's three (the hoist's ``L1, dL1, ddL1``).
+Each axis's acceleration follows its reference through a first-order servo
+``tau a' + a = a_ref`` (Eq. 6; ``tau = 0`` means ``a = a_ref``), ``SERVOS``
+says which rows and which time constant are whose.
 
 Within one step the reference is linear in time (or constant, ``zoh``), so the
 servo and the cart kinematics have a closed form; it is evaluated at the RK4
@@ -25,10 +27,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from crane_msgs_py.axes import AXIS_NAMES, axis, check_axes
+from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import (
     PARAMETER_NAMES,
     CraneParams,
@@ -41,15 +45,39 @@ from crane_msgs_py.params import (
 
 from .dynamics import SwingModel, hoisting_accelerations, load_excursion
 
-#: Names of the state rows, in order.
-STATE_NAMES = ('y', 'v', 'a', 'theta1', 'theta2', 'dtheta1', 'dtheta2')
+
+@dataclass(frozen=True)
+class AxisServo:
+    """What the simulator knows of an axis: its state rows (position, rate, and acceleration: the output
+    of its servo, Eq. 6), the plant parameter of its servo's time constant, and the plant parameter it starts
+    at under an acceleration reference (None: 0)."""
+
+    rows: tuple[str, str, str]
+    tau: str
+    start: str | None = None
+
+
+#: The simulator's physics of each axis of ``crane_msgs_py.axes``, by axis name.
+SERVOS = {CART_JOINT: AxisServo(('y', 'v', 'a'), 'tau'),
+          HOIST_JOINT: AxisServo(('L1', 'dL1', 'ddL1'), 'tau_hoist', start='L1')}
+#: The swing's rows: the cable angles and their rates.
+SWING_NAMES = ('theta1', 'theta2', 'dtheta1', 'dtheta2')
+#: Names of the state rows of the cart alone, in order (``CraneState``'s).
+STATE_NAMES = (*SERVOS[CART_JOINT].rows, *SWING_NAMES)
 #: Names of the hoist's state rows, after ``STATE_NAMES`` when hoisting: the upper cable's length,
 #: its rate and acceleration.
-HOIST_STATE_NAMES = ('L1', 'dL1', 'ddL1')
-#: Joint names the ROS node publishes (positions y, theta1, theta2).
-JOINT_NAMES = ('cart', 'theta1', 'theta2')
+HOIST_STATE_NAMES = SERVOS[HOIST_JOINT].rows
+
+
+def joint_names_of(axes) -> tuple:
+    """The joints the ROS node publishes for ``axes``: each axis's position, then theta1 and theta2."""
+    return (*(axis(a).sim_joint for a in axes), 'theta1', 'theta2')
+
+
+#: Joint names the ROS node publishes (positions y, theta1, theta2) ...
+JOINT_NAMES = joint_names_of((CART_JOINT,))
 #: ... and with a hoist (its position: the upper cable's length L1).
-HOIST_JOINT_NAMES = ('cart', 'hoist', 'theta1', 'theta2')
+HOIST_JOINT_NAMES = joint_names_of((CART_JOINT, HOIST_JOINT))
 INTERPOLATIONS = ('zoh', 'linear')
 SOURCES = ('acceleration', 'position')
 
@@ -60,6 +88,42 @@ _OPTIONAL = {'tau_hoist': CraneParams.tau_hoist}
 
 class SimulationError(ValueError):
     """A simulation request is malformed; the message names the argument and why."""
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Which row of a state array holds what, for a crane with ``axes`` (names of ``crane_msgs_py.axes``, in
+    its order): the first axis's rows, the swing's, then each further axis's."""
+
+    axes: tuple[str, ...] = (CART_JOINT,)
+    names: tuple[str, ...] = field(init=False)
+
+    def __post_init__(self):
+        axes = check_axes(self.axes, 'axes')
+        object.__setattr__(self, 'axes', axes)
+        object.__setattr__(self, 'names', (*SERVOS[axes[0]].rows, *SWING_NAMES,
+                                           *(name for a in axes[1:] for name in SERVOS[a].rows)))
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        """The row of the state ``name``."""
+        return self.names.index(name)
+
+    def rows(self, axis_name: str) -> tuple[int, int, int]:
+        """The rows of the axis's position, rate and acceleration."""
+        return tuple(self.index(name) for name in SERVOS[axis_name].rows)
+
+    @property
+    def angles(self) -> slice:
+        """The rows of (theta1, theta2): of (theta1, phi) in the stepper's internal form."""
+        return slice(self.index('theta1'), self.index('theta2') + 1)
+
+    @property
+    def rates(self) -> slice:
+        """The rows of (dtheta1, dtheta2): of (dtheta1, dphi) in the internal form."""
+        return slice(self.index('dtheta1'), self.index('dtheta2') + 1)
 
 
 # --------------------------------------------------------------------------- plants
@@ -188,67 +252,86 @@ def servo_weights(tau, h: float) -> np.ndarray:
 # re-stacking, and RK4 commutes with linear changes of variables, so the result
 # is the same. Rows of the internal state: y, v, a, theta1, phi, dtheta1, dphi.
 
-def _to_internal(x):
+def _to_internal(x, layout: Layout):
+    """The stepper's form of public states ``x``: the lower cable's absolute angle phi = theta1 + theta2
+    and its rate in place of theta2 and dtheta2."""
     x = np.array(x, dtype=float)
-    x[4] += x[3]
-    x[6] += x[5]
+    angles, rates = layout.angles, layout.rates
+    x[angles.stop - 1] += x[angles.start]
+    x[rates.stop - 1] += x[rates.start]
     return x
 
 
-def _to_public(x):
+def _to_public(x, layout: Layout):
     x = np.array(x, dtype=float)
-    x[4] -= x[3]
-    x[6] -= x[5]
+    angles, rates = layout.angles, layout.rates
+    x[angles.stop - 1] -= x[angles.start]
+    x[rates.stop - 1] -= x[rates.start]
     return x
 
 
 class _Stepper:
     """The one step shared by :func:`simulate` and :class:`CraneSimulator`, for a batch of plants.
 
-    The cart (y, v, a) takes the exact servo solution (:func:`servo_weights`);
-    the swing takes a classic RK4 step fed with that exact cart acceleration
-    at the stage times 0, h/2, h. RK4 is written for the second-order system
-    q'' = f(q, q', a) (angles q, rates v): the stages' angle slopes are the
-    stages' rates, so only f is evaluated.
+    Each axis (y, v, a; L1, L1', L1'') takes the exact solution of its servo
+    (:func:`servo_weights`); the swing takes a classic RK4 step fed with the
+    cart's exact acceleration (and with a hoist the rope's exact length and
+    its rates) at the stage times 0, h/2, h. RK4 is written for the
+    second-order system q'' = f(q, q', a) (angles q, rates v): the stages'
+    angle slopes are the stages' rates, so only f is evaluated.
     """
 
-    def __init__(self, plants: PlantBatch, h: float, hoist: bool = False):
-        self.W = servo_weights(plants.tau, h)
+    def __init__(self, plants: PlantBatch, h: float, layout: Layout):
+        self.layout = layout
+        #: per axis, in ``layout.axes`` order: its rows (position, rate, acceleration) and servo weights
+        self._servos = [(layout.rows(a), servo_weights(getattr(plants, SERVOS[a].tau), h)) for a in layout.axes]
+        self._cart = layout.axes.index(CART_JOINT)  # the swing's driving acceleration is the cart's
+        self._angles, self._rates = layout.angles, layout.rates
         self.model = plants.swing_model()
         # 0-d arrays: numpy multiplies by them about twice as fast as by Python floats,
         # which matters at a few dozen plants where every numpy call is pure overhead
         self._h, self._h2, self._h6 = np.array(h), np.array(0.5 * h), np.array(h / 6.0)
-        self.hoist = hoist
-        if hoist:
-            # the hoist's servo over the step and over its first half (the RK4 midpoint needs L1 there)
-            self.W_hoist, self.W_half = servo_weights(plants.tau_hoist, h), servo_weights(plants.tau_hoist, 0.5 * h)
+        self._hoist = None
+        if HOIST_JOINT in layout.axes:
+            # the hoist's servo over the step's first half too: the RK4 midpoint needs L1 there
+            k = layout.axes.index(HOIST_JOINT)
+            self._hoist = (k, layout.rows(HOIST_JOINT), servo_weights(plants.tau_hoist, 0.5 * h))
             self._constants = (plants.L2, plants.m1, plants.m2, plants.g, plants.c1, plants.c2)
 
-    def _hoist_stages(self, x, r0, r1):
-        """The swing's right-hand side at the RK4 stage times 0, h/2, h with the hoist's exact motion,
-        and the hoist rows (L1, L1', L1'') at the step's end."""
-        W, Wh, h, h2 = self.W_hoist, self.W_half, self._h, self._h2
-        c = W[0] * x[9] + W[1] * r0 + W[2] * r1
-        half = Wh[0] * x[9] + Wh[1] * r0 + Wh[2] * (0.5 * (r0 + r1))
-        L = (x[7], x[7] + h2 * x[8] + half[4], x[7] + h * x[8] + c[4])
-        dL = (x[8], x[8] + half[3], x[8] + c[3])
+    def _hoist_stages(self, x, c, r0, r1):
+        """The swing's right-hand side at the RK4 stage times 0, h/2, h with the hoist's exact motion
+        (``c``: its servo's rows over the whole step)."""
+        k, (L, dL, ddL), Wh = self._hoist
+        h, h2 = self._h, self._h2
+        r0, r1 = r0[k], r1[k]
+        half = Wh[0] * x[ddL] + Wh[1] * r0 + Wh[2] * (0.5 * (r0 + r1))
+        lengths = (x[L], x[L] + h2 * x[dL] + half[4], x[L] + h * x[dL] + c[4])
+        rates = (x[dL], x[dL] + half[3], x[dL] + c[3])
         constants = self._constants
 
-        def at(k):
-            return lambda q, v, a: hoisting_accelerations(q, v, a, L[k], dL[k], c[k], *constants)
+        def at(j):
+            return lambda q, v, a: hoisting_accelerations(q, v, a, lengths[j], rates[j], c[j], *constants)
 
-        return (at(0), at(1), at(2)), (L[2], dL[2], c[2])
+        return at(0), at(1), at(2)
 
-    def step(self, x, r0, r1, hoist0=None, hoist1=None):
-        """Internal states ``x`` one step later, the reference going linearly from r0 to r1 (and the
-        hoist's reference acceleration from hoist0 to hoist1, rows 7-9 of ``x``, when hoisting)."""
-        W, h, h2, h6 = self.W, self._h, self._h2, self._h6
-        c = W[0] * x[2] + W[1] * r0 + W[2] * r1  # a(0+), a(h/2), a(h), v and y increments
-        if self.hoist:
-            (f_begin, f_mid, f_end), hoist_end = self._hoist_stages(x, hoist0, hoist1)
+    def step(self, x, r0, r1):
+        """Internal states ``x`` one step later, each axis's reference acceleration going linearly from
+        ``r0[k]`` to ``r1[k]`` (``r0``, ``r1``: one row per axis of the layout, in its order)."""
+        h, h2, h6 = self._h, self._h2, self._h6
+        out = np.empty_like(x)
+        ends = []
+        for k, ((p, v, a), W) in enumerate(self._servos):
+            c = W[0] * x[a] + W[1] * r0[k] + W[2] * r1[k]  # a(0+), a(h/2), a(h), v and position increments
+            out[p] = x[p] + h * x[v] + c[4]
+            out[v] = x[v] + c[3]
+            out[a] = c[2]
+            ends.append(c)
+        c = ends[self._cart]
+        if self._hoist is not None:
+            f_begin, f_mid, f_end = self._hoist_stages(x, ends[self._hoist[0]], r0, r1)
         else:
             f_begin = f_mid = f_end = self.model.accelerations
-        q, v = x[3:5], x[5:7]
+        q, v = x[self._angles], x[self._rates]
         f1 = f_begin(q, v, c[0])
         v2 = v + h2 * f1
         f2 = f_mid(q + h2 * v, v2, c[1])
@@ -256,20 +339,14 @@ class _Stepper:
         f3 = f_mid(q + h2 * v2, v3, c[1])
         v4 = v + h * f3
         f4 = f_end(q + h * v3, v4, c[2])
-        out = np.empty_like(x)
-        out[0] = x[0] + h * x[1] + c[4]
-        out[1] = x[1] + c[3]
-        out[2] = c[2]
-        if self.hoist:
-            out[7], out[8], out[9] = hoist_end
         v2 += v3  # v + h/6 (f1 + 2 f2 + 2 f3 + f4), and q likewise with the stage rates
         v2 += v2
         v2 += v + v4
-        np.add(q, h6 * v2, out=out[3:5])
+        np.add(q, h6 * v2, out=out[self._angles])
         f2 += f3
         f2 += f2
         f2 += f1 + f4
-        np.add(v, h6 * f2, out=out[5:7])
+        np.add(v, h6 * f2, out=out[self._rates])
         return out
 
 
@@ -332,27 +409,32 @@ def acceleration_from_positions(t_ref, positions):
 
 @dataclass(frozen=True, eq=False)
 class SimResult:
-    """Simulated trajectories: ``t`` (n,) and (n_batch, n) arrays per state, plus the plants."""
+    """Simulated trajectories: ``t`` (n,) and an (n_batch, n) array per state row (``states``, by the names of
+    the simulation's ``Layout``; also as attributes: ``result.theta1``), plus the plants.
+
+    The rows of an axis the simulation did not have read as None (``result.L1`` without a hoist)."""
 
     t: np.ndarray
-    y: np.ndarray
-    v: np.ndarray
-    a: np.ndarray
-    theta1: np.ndarray
-    theta2: np.ndarray
-    dtheta1: np.ndarray
-    dtheta2: np.ndarray
+    states: dict
     plants: PlantBatch
-    #: the upper cable's length (m), its rate and acceleration, (n_batch, n): hoisting only, else None
-    L1: np.ndarray | None = None
-    dL1: np.ndarray | None = None
-    ddL1: np.ndarray | None = None
+
+    def __getattr__(self, name):
+        if name != 'states' and name in self.states:
+            return self.states[name]
+        if any(name in servo.rows for servo in SERVOS.values()):
+            return None
+        raise AttributeError(name)
 
     @property
     def load_excursion(self) -> np.ndarray:
         """Horizontal offset (m) of the load from its rest position below the cart, (n_batch, n)."""
         L1 = self.plants.L1[:, None] if self.L1 is None else self.L1
         return load_excursion(self.theta1, self.theta2, L1, self.plants.L2[:, None])
+
+    def members(self, rows) -> 'SimResult':
+        """The batch members ``rows`` (a slice or indices) as a result of their own."""
+        plants = PlantBatch(**{f.name: getattr(self.plants, f.name)[rows] for f in fields(PlantBatch)})
+        return SimResult(self.t, {name: x[rows] for name, x in self.states.items()}, plants)
 
     def __len__(self) -> int:
         return len(self.plants)
@@ -379,15 +461,33 @@ def _check_reference(t_ref, reference, n_plants):
     return t_ref, np.broadcast_to(reference.reshape(rows, -1), (n, t_ref.size))
 
 
-def simulate(t_ref, reference, plants, *, dt: float = 1e-3, t_end: float | None = None,
+def _references(references) -> tuple[tuple, dict]:
+    """The axes' names in ``AXES`` order and their checked references, all of one number of rows."""
+    refs = dict(references) if isinstance(references, Mapping) else {CART_JOINT: references}
+    unknown = [name for name in refs if name not in AXIS_NAMES]
+    if unknown:
+        raise SimulationError(f'references: no axis {", ".join(map(str, unknown))}; the axes are '
+                              f'{", ".join(AXIS_NAMES)}')
+    try:
+        axes = check_axes([a for a in AXIS_NAMES if a in refs], 'references')
+    except ParameterError as exc:
+        raise SimulationError(str(exc)) from None
+    return axes, refs
+
+
+def simulate(t_ref, references, plants, *, dt: float = 1e-3, t_end: float | None = None,
              interpolation: str = 'linear', source: str = 'acceleration', record_every: int = 1,
-             initial_state=None, rest_dt: float | None = None, hoist_reference=None) -> SimResult:
-    """Simulate a batch of plants driven by a sampled cart reference.
+             initial_state=None, rest_dt: float | None = None) -> SimResult:
+    """Simulate a batch of plants driven by sampled axis references.
 
     Args:
         t_ref: sample times (s), strictly increasing; the simulation starts at t_ref[0].
-        reference: acceleration (m/s^2) or position (m) samples, shape (m,) for
-            all plants or (n_batch, m), one row per plant.
+        references: the cart's reference samples, or the references of several axes by axis name
+            (``crane_msgs_py.axes``: ``{'cart': ..., 'hoist': ...}``; the cart's is always needed): each an
+            acceleration (m/s^2) or position (m) per sample, shape (m,) for all plants or (n_batch, m),
+            one row per plant. An axis is simulated if it has a reference (the hoist: the upper cable's
+            length L1 follows its reference through the servo ``tau_hoist``; the state then has the rows
+            ``HOIST_STATE_NAMES`` too).
         plants: one params object (attributes or keys L1 L2 m1 m2 g tau c1 c2) or a
             sequence; a single plant with an (n_batch, m) reference is repeated.
         dt: integration step (s).
@@ -399,37 +499,34 @@ def simulate(t_ref, reference, plants, *, dt: float = 1e-3, t_end: float | None 
             the acceleration causally by finite differences,
             :func:`acceleration_from_positions`).
         record_every: keep every k-th step (the last step is always kept).
-        initial_state: (7,) or (n_batch, 7) state ``STATE_NAMES`` at t_ref[0];
-            default: at rest at the first reference value (y = first position
-            for ``position``, else 0; servo settled, no swing).
+        initial_state: (r,) or (n_batch, r) state, the rows of ``Layout(axes).names`` at t_ref[0];
+            default: at rest at the first reference value (each axis at its first position for
+            ``position``, else the cart at 0 and the hoist at each plant's L1; servos settled, no swing).
         rest_dt: step (s) once the grid has passed the last reference sample,
             where the input holds (default ``dt``): a few times ``dt`` keeps
             RK4 as accurate on the free swing (its error grows as (omega h)^5,
             ~1e-9 of the swing per 5 ms step at 9 rad/s) for a fraction of
             the steps; the grid then continues in steps of ``rest_dt``.
-        hoist_reference: with a hoist, its reference acceleration (m/s^2) at
-            ``t_ref``, shape (m,) or (n_batch, m), followed through the servo
-            ``tau_hoist``; the upper cable's length starts at each plant's L1
-            (plus what ``initial_state`` says) and moves with it. The state
-            then has the rows ``HOIST_STATE_NAMES`` too, and the result
-            ``L1``, ``dL1``, ``ddL1``.
     """
     check_choice('interpolation', interpolation, INTERPOLATIONS, SimulationError)
     check_choice('source', source, SOURCES, SimulationError)
     p = PlantBatch.of(plants)
-    t_ref, ref = _check_reference(t_ref, reference, len(p))
-    hoisting = hoist_reference is not None
-    if hoisting:
-        _, hoist = _check_reference(t_ref, hoist_reference, len(p))
-        if ref.shape[0] != hoist.shape[0]:
-            if ref.shape[0] != 1 and hoist.shape[0] != 1:
-                raise SimulationError(f'hoist_reference has {hoist.shape[0]} rows, reference {ref.shape[0]}')
-            rows = max(ref.shape[0], hoist.shape[0])
-            ref, hoist = np.broadcast_to(ref, (rows, t_ref.size)), np.broadcast_to(hoist, (rows, t_ref.size))
-    if len(p) == 1 and ref.shape[0] > 1:
-        p = p.repeat(ref.shape[0])
+    axes, refs = _references(references)
+    layout = Layout(axes)
+    checked = {}
+    for name in axes:
+        try:
+            t_ref, checked[name] = _check_reference(t_ref, refs[name], len(p))
+        except SimulationError as exc:
+            raise SimulationError(f'references[{name!r}]: {exc}' if len(axes) > 1 else str(exc)) from None
+    rows = max(r.shape[0] for r in checked.values())
+    for name, r in checked.items():
+        if r.shape[0] not in (1, rows):
+            raise SimulationError(f'references[{name!r}] has {r.shape[0]} rows, another axis {rows}')
+    ref = np.concatenate([np.broadcast_to(checked[name], (rows, t_ref.size)) for name in axes])  # axis by axis
+    if len(p) == 1 and rows > 1:
+        p = p.repeat(rows)
     n = len(p)
-    nrows = len(STATE_NAMES) + (len(HOIST_STATE_NAMES) if hoisting else 0)
     dt = check_positive('dt', dt)
     t0 = float(t_ref[0])
     t_end = float(t_ref[-1]) if t_end is None else float(t_end)
@@ -439,15 +536,12 @@ def simulate(t_ref, reference, plants, *, dt: float = 1e-3, t_end: float | None 
     if source == 'position':
         if t_ref.size < 2:
             raise SimulationError('a position reference needs at least 2 samples')
-        y0 = ref[:, 0]
+        starts = ref[:, 0]
         t_acc, acc = acceleration_from_positions(t_ref, ref)
     else:
-        y0 = np.zeros(n)
+        starts = np.concatenate([np.zeros(n) if SERVOS[name].start is None else getattr(p, SERVOS[name].start)
+                                 for name in axes])
         t_acc, acc = t_ref, ref
-    if hoisting:  # rows: the cart's n, then the hoist's n, so the stepping below serves both
-        if source != 'acceleration':
-            raise SimulationError("hoist_reference needs source='acceleration'")
-        acc = np.concatenate([acc, hoist])
 
     rest_dt = dt if rest_dt is None else check_positive('rest_dt', rest_dt)
     n_steps = max(0, math.ceil((t_end - t0) / dt - 1e-9))
@@ -461,47 +555,44 @@ def simulate(t_ref, reference, plants, *, dt: float = 1e-3, t_end: float | None 
         n_fine = n_steps
         t = t0 + dt * np.arange(n_steps + 1)
     t_moving = t[:n_fine + 1]
+    per_axis = (-1, len(axes), n)  # each step's references: one row per axis
     if interpolation == 'linear':
-        r = np.ascontiguousarray(interpolate(t_acc, acc, t_moving, 'linear').T)
+        r = np.ascontiguousarray(interpolate(t_acc, acc, t_moving, 'linear').T).reshape(per_axis)
         r_begin, r_end = r[:-1], r[1:]
     else:   # the held value at mid-step is robust to rounding of knots that fall on the grid
-        r_begin = r_end = np.ascontiguousarray(interpolate(t_acc, acc, t_moving[:-1] + 0.5 * dt, 'zoh').T)
-    r_rest = np.ascontiguousarray(acc[:, -1])
+        r_begin = r_end = np.ascontiguousarray(
+            interpolate(t_acc, acc, t_moving[:-1] + 0.5 * dt, 'zoh').T).reshape(per_axis)
+    r_rest = np.ascontiguousarray(acc[:, -1]).reshape(per_axis[1:])
 
-    a0 = interpolate(t_acc, acc, t0, interpolation)
+    nrows = len(layout)
     if initial_state is None:
+        a0 = interpolate(t_acc, acc, t0, interpolation).reshape(per_axis[1:])
         x = np.zeros((nrows, n))
-        x[0] = y0
-        x[2] = a0[:n]
-        if hoisting:
-            x[7], x[9] = p.L1, a0[n:]
+        for k, name in enumerate(axes):
+            position, _, acceleration = layout.rows(name)
+            x[position], x[acceleration] = starts[k * n:(k + 1) * n], a0[k]
     else:
         s = np.asarray(initial_state, dtype=float)
         if s.shape not in ((nrows,), (n, nrows)) or not np.all(np.isfinite(s)):
             raise SimulationError(f'initial_state must be finite with shape ({nrows},) or ({n}, {nrows}), '
                                   f'got {s.shape}')
         x = np.array(np.broadcast_to(s, (n, nrows)).T)
-    x = _to_internal(x)
+    x = _to_internal(x, layout)
 
     keep = [k % record_every == 0 or k == n_steps for k in range(n_steps + 1)]
     out = np.empty((sum(keep), nrows, n))
     out[0] = x
     j = 1
-    stepper = _Stepper(p, dt, hoisting)
-    rest = _Stepper(p, rest_dt, hoisting) if n_steps > n_fine else None
+    stepper = _Stepper(p, dt, layout)
+    rest = _Stepper(p, rest_dt, layout) if n_steps > n_fine else None
     for k in range(n_steps):
-        if k < n_fine:
-            r0, r1 = r_begin[k], r_end[k]
-            x = stepper.step(x, r0[:n], r1[:n], r0[n:], r1[n:]) if hoisting else stepper.step(x, r0, r1)
-        elif hoisting:
-            x = rest.step(x, r_rest[:n], r_rest[:n], r_rest[n:], r_rest[n:])
-        else:
-            x = rest.step(x, r_rest, r_rest)
+        x = stepper.step(x, r_begin[k], r_end[k]) if k < n_fine else rest.step(x, r_rest, r_rest)
         if keep[k + 1]:
             out[j] = x
             j += 1
-    rows = [np.ascontiguousarray(r) for r in _to_public(out.transpose(1, 2, 0))]
-    return SimResult(t[np.array(keep)], *rows[:7], plants=p, **dict(zip(('L1', 'dL1', 'ddL1'), rows[7:])))
+    public = _to_public(out.transpose(1, 2, 0), layout)
+    return SimResult(t[np.array(keep)], {name: np.ascontiguousarray(public[i]) for i, name in enumerate(layout.names)},
+                     plants=p)
 
 
 # --------------------------------------------------------------------------- streaming
@@ -529,14 +620,23 @@ class CraneSimulator:
         params: plant parameters (attributes or keys L1 L2 m1 m2 g tau c1 c2).
         dt: integration step (s).
         state: initial :class:`CraneState` (default at rest at y = 0).
-        hoist: the upper cable's length is an axis too, driven through the
-            servo ``tau_hoist``; it starts at the plant's L1 (later changes of
-            L1 do not move it; ``reset`` keeps it where it is).
+        axes: the axes driven (names of ``crane_msgs_py.axes``, the cart first); with the hoist the
+            upper cable's length is an axis too, driven through the servo ``tau_hoist``; it starts at the
+            plant's L1 (later changes of L1 do not move it; ``reset`` keeps it where it is).
     """
 
-    def __init__(self, params, dt: float = 1e-3, state: CraneState | None = None, hoist: bool = False):
+    def __init__(self, params, dt: float = 1e-3, state: CraneState | None = None, axes=(CART_JOINT,)):
         self.dt = check_positive('dt', dt)
-        self.hoist = bool(hoist)
+        try:
+            self.layout = Layout(tuple(axes))
+        except ParameterError as exc:
+            raise SimulationError(str(exc)) from None
+        self.axes = self.layout.axes
+        self.hoist = HOIST_JOINT in self.axes
+        layout = self.layout
+        self._state_rows = [layout.index(name) for name in STATE_NAMES]
+        # of joint_state: each axis's position and rate, then the angles' (theta2 from the internal phi)
+        self._joint_rows = [layout.rows(a)[:2] for a in self.axes]
         self.set_params(params)
         self._x = None
         self.reset(state)
@@ -547,7 +647,7 @@ class CraneSimulator:
         if len(plants) != 1:
             raise ParameterError(f'CraneSimulator simulates one plant, got {len(plants)}')
         self._plants = plants
-        self._stepper = _Stepper(plants, self.dt, self.hoist)
+        self._stepper = _Stepper(plants, self.dt, self.layout)
 
     @property
     def params(self) -> dict:
@@ -555,14 +655,19 @@ class CraneSimulator:
         return self._plants.member(0)
 
     def reset(self, state: CraneState | None = None, t: float = 0.0):
-        """Back to ``state`` (default at rest at y = 0) at time ``t``; a hoist at rest where it is."""
+        """Back to ``state`` (default at rest at y = 0) at time ``t``; every other axis at rest where it is."""
         s = (state or CraneState()).as_array()
         if not np.all(np.isfinite(s)):
             raise SimulationError(f'state must be finite, got {state}')
-        if self.hoist:
-            length = self._plants.L1[0] if self._x is None else self._x[7, 0]
-            s = np.concatenate([s, [length, 0.0, 0.0]])
-        self._x = _to_internal(s.reshape(-1, 1))
+        x = np.zeros((len(self.layout), 1))
+        x[self._state_rows, 0] = s
+        for name in self.axes[1:]:  # (the first, the cart, is in ``state``)
+            position, start = self.layout.rows(name)[0], SERVOS[name].start
+            if self._x is not None:
+                x[position] = self.axis_state(name)[0]
+            elif start is not None:
+                x[position] = getattr(self._plants, start)[0]
+        self._x = _to_internal(x, self.layout)
         self._t0, self._steps = float(t), 0
 
     @property
@@ -570,57 +675,52 @@ class CraneSimulator:
         """Simulated time (s): the reset time plus the steps taken times dt."""
         return self._t0 + self._steps * self.dt
 
-    def step(self, a_ref_begin: float, a_ref_end: float | None = None, hoist_begin: float = 0.0,
-             hoist_end: float | None = None) -> None:
-        """Advance one ``dt``; the reference acceleration goes linearly from
-        ``a_ref_begin`` to ``a_ref_end`` (held at ``a_ref_begin`` if None), and
-        with a hoist its reference acceleration from ``hoist_begin`` to ``hoist_end``.
+    def step(self, begin, end=None) -> None:
+        """Advance one ``dt``; each axis's reference acceleration goes linearly from ``begin`` to ``end``
+        (held at ``begin`` if None): one value per axis of ``axes`` in its order (a number alone: the cart's).
 
         Returns nothing: building :attr:`state` costs a sixth of a step, and
         the real-time loop reads it only every 20th step."""
-        r0 = float(a_ref_begin)
-        r1 = r0 if a_ref_end is None else float(a_ref_end)
-        h0 = float(hoist_begin)
-        h1 = h0 if hoist_end is None else float(hoist_end)
-        if not (math.isfinite(r0) and math.isfinite(r1) and math.isfinite(h0) and math.isfinite(h1)):
-            raise SimulationError(f'reference acceleration must be finite, got {r0}, {r1} (hoist {h0}, {h1})')
-        if self.hoist:
-            self._x = self._stepper.step(self._x, np.array([r0]), np.array([r1]), np.array([h0]), np.array([h1]))
-        else:
-            self._x = self._stepper.step(self._x, np.array([r0]), np.array([r1]))
+        r0 = np.array(begin, dtype=float).reshape(-1, 1)
+        r1 = r0 if end is None else np.array(end, dtype=float).reshape(-1, 1)
+        if r0.shape[0] != len(self.axes) or r1.shape[0] != len(self.axes):
+            raise SimulationError(f'a step needs a reference acceleration per axis ({", ".join(self.axes)}), '
+                                  f'got {begin} to {end}')
+        if not (np.all(np.isfinite(r0)) and np.all(np.isfinite(r1))):
+            raise SimulationError(f'reference acceleration must be finite, got {begin} to {end}')
+        self._x = self._stepper.step(self._x, r0, r1)
         self._steps += 1
 
     @property
     def state(self) -> CraneState:
-        return CraneState(*(float(v) for v in _to_public(self._x)[:7, 0]))
+        """The cart's and the swing's state."""
+        return CraneState(*(float(v) for v in _to_public(self._x, self.layout)[self._state_rows, 0]))
+
+    def axis_state(self, name: str) -> tuple[float, float, float]:
+        """The axis's position, rate and acceleration now."""
+        return tuple(float(self._x[i, 0]) for i in self.layout.rows(name))
 
     def push(self, excursion: float) -> None:
         """Set the load swinging, as a push would: the load displaced ``excursion`` (m) horizontally with
-        both cables in line (theta2 = 0) and released from rest; the cart and the hoist keep their state."""
+        both cables in line (theta2 = 0) and released from rest; every axis keeps its state."""
         excursion = float(excursion)
         length = self.L1 + float(self._plants.L2[0])
         if not (math.isfinite(excursion) and abs(excursion) < length):
             raise SimulationError(f'a push must displace the load less than the cables\' length '
                                   f'({length:g} m), got {excursion} m')
-        x = _to_public(self._x)
-        x[3:7, 0] = (math.asin(excursion / length), 0.0, 0.0, 0.0)
-        self._x = _to_internal(x)
+        x = _to_public(self._x, self.layout)
+        x[[self.layout.index(name) for name in SWING_NAMES], 0] = (math.asin(excursion / length), 0.0, 0.0, 0.0)
+        self._x = _to_internal(x, self.layout)
 
     @property
     def L1(self) -> float:
         """The upper cable's length (m) now: the hoist's, or the plant's."""
-        return float(self._x[7, 0]) if self.hoist else float(self._plants.L1[0])
-
-    @property
-    def hoist_state(self) -> tuple[float, float, float]:
-        """The hoist's length (m), rate (m/s) and acceleration (m/s^2); (L1, 0, 0) without a hoist."""
-        return (float(self._x[7, 0]), float(self._x[8, 0]), float(self._x[9, 0])) if self.hoist else (self.L1, 0.0,
-                                                                                                        0.0)
+        return self.axis_state(HOIST_JOINT)[0] if self.hoist else float(self._plants.L1[0])
 
     @property
     def joint_names(self) -> tuple:
-        """The joints of ``joint_state``: ``JOINT_NAMES``, with a hoist ``HOIST_JOINT_NAMES``."""
-        return HOIST_JOINT_NAMES if self.hoist else JOINT_NAMES
+        """The joints of ``joint_state``: each axis's (``axes``), then theta1 and theta2."""
+        return joint_names_of(self.axes)
 
     @property
     def load_excursion(self) -> float:
@@ -629,9 +729,8 @@ class CraneSimulator:
         return float(load_excursion(s.theta1, s.theta2, self.L1, self._plants.L2[0]))
 
     def joint_state(self) -> tuple[list[float], list[float]]:
-        """Positions and velocities of ``joint_names`` (cart, [hoist,] theta1, theta2), for sensor_msgs/JointState."""
-        s = self.state
-        if self.hoist:
-            length, rate, _ = self.hoist_state
-            return [s.y, length, s.theta1, s.theta2], [s.v, rate, s.dtheta1, s.dtheta2]
-        return [s.y, s.theta1, s.theta2], [s.v, s.dtheta1, s.dtheta2]
+        """Positions and velocities of ``joint_names`` (each axis, theta1, theta2), for sensor_msgs/JointState."""
+        x, s = self._x[:, 0], self.state
+        positions = [float(x[p]) for p, _ in self._joint_rows]
+        velocities = [float(x[v]) for _, v in self._joint_rows]
+        return positions + [s.theta1, s.theta2], velocities + [s.dtheta1, s.dtheta2]

@@ -12,11 +12,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from crane_msgs_py.names import ACTUATED_JOINTS, CART_JOINT
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import Plan, Samples
 from crane_planner.planning.plan import AxesPlan, time_grid
 from crane_sim.metrics import peak, rms, swing_metrics
-from crane_sim.simulator import HOIST_STATE_NAMES, STATE_NAMES, PlantBatch, SimResult, simulate
+from crane_sim.simulator import SimResult, simulate
 
 #: Simulation step and reference sample period used to evaluate plans (s).
 EVAL_STEP = 1e-3
@@ -61,21 +62,25 @@ def simulate_plans(plans, plants, settle: float = DEFAULT_SETTLE, rest_step: flo
     longest = max(p.duration for p in plans)
     t = time_grid(longest, EVAL_STEP)
     n = len(plants)
-    reference = np.repeat(np.stack([p.evaluate(t).acceleration for p in plans]), n, axis=0)
-    hoist = None
-    if any(isinstance(p, AxesPlan) and 'hoist' in p.axes for p in plans):  # each plant's L1 is where it starts
-        hoist = np.repeat(np.stack([p.axes['hoist'].evaluate(t).acceleration if isinstance(p, AxesPlan)
-                                    and 'hoist' in p.axes else 0.0 * t for p in plans]), n, axis=0)
-    sim = simulate(t, reference, plants * len(plans), dt=EVAL_STEP, t_end=longest + settle,
-                   interpolation='linear', rest_dt=rest_step, hoist_reference=hoist)
-    evaluations, batch = [], PlantBatch.of(plants)
+    # every axis any plan moves; a plan without it holds it (the hoist: each plant's L1 is where it starts)
+    axes = [CART_JOINT, *(name for name in ACTUATED_JOINTS[1:]
+                          if any(isinstance(p, AxesPlan) and name in p.axes for p in plans))]
+    references = {name: np.repeat(np.stack([_axis_acceleration(p, name, t) for p in plans]), n, axis=0)
+                  for name in axes}
+    sim = simulate(t, references, plants * len(plans), dt=EVAL_STEP, t_end=longest + settle,
+                   interpolation='linear', rest_dt=rest_step)
+    evaluations = []
     for k, plan in enumerate(plans):
-        rows = slice(k * n, (k + 1) * n)
-        lengths = {} if sim.L1 is None else {f: getattr(sim, f)[rows] for f in HOIST_STATE_NAMES}
-        part = SimResult(sim.t, *(getattr(sim, f)[rows] for f in STATE_NAMES), plants=batch, **lengths)
+        part = sim.members(slice(k * n, (k + 1) * n))
         evaluations.append(Evaluation(plan, plan.sample(EVAL_STEP), part,
                                       swing_metrics(part, None, plan.duration, settle)))
     return evaluations
+
+
+def _axis_acceleration(plan: Plan, name: str, t) -> np.ndarray:
+    """The reference acceleration of the axis ``name`` in ``plan`` at ``t``; 0 where the plan does not move it."""
+    one = plan.axes.get(name) if isinstance(plan, AxesPlan) else plan if name == CART_JOINT else None
+    return 0.0 * t if one is None else one.evaluate(t).acceleration
 
 
 def simulate_plan(plan: Plan, plants, settle: float = DEFAULT_SETTLE) -> Evaluation:
