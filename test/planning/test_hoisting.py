@@ -1,4 +1,4 @@
-"""Hoisting while travelling (issue 21): the planner's model, NVF/RVF with two axes, shapers while hoisting.
+"""Hoisting while travelling: the planner's model, NVF/RVF with two axes, shapers while hoisting.
 
 Residuals are measured on crane_sim's independent numpy model (Newton's law
 projected across the cables), never on the planner's own CasADi model.

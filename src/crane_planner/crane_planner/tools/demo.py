@@ -24,10 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
+from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import PARAMETER_NAMES, CraneParams
 from crane_msgs_py.realtime import DIE_WITH_PARENT
 
-from .harness import CraneHarness, HarnessError, start_crane_nodes
+from .harness import CraneHarness, HarnessError, start_crane_nodes, state_columns
 from .processes import NodeDied, NodeGroup, find_executable, isolated_graph
 
 PROG = 'crane-demo'
@@ -69,7 +70,8 @@ class Case:
     network: bool
     commission: bool = False  # first plan with the planner's model, identify, then plan again
     hoist: tuple | None = None  # (L1 start, L1 goal) m: the rope moves during the motion (nodes with a hoist)
-    #: what is measured (issue 22 beside the plain move): 'move', 'retarget', 'stop', 'settle', 'operator'
+    #: what is measured: 'move' (a planned move from rest), or motion from any state: 'retarget', 'stop',
+    #: 'settle', 'operator'
     kind: str = 'move'
     #: the methods this case runs by default (of --methods; every one of them with --cases all), None = all;
     #: the operator case's are operator_shaper values
@@ -87,12 +89,12 @@ CASES = {
     'nominal+net': Case('nominal+net', CraneParams(), True, methods=('rvf', 'zv', 'zvd')),
     'perturbed+net': Case('perturbed+net', CraneParams(L1=PERTURBED_L1), True),
     'commission': Case('commission', UNKNOWN_PLANT, False, commission=True),
-    # issue 21: 0.3 m of travel while lifting the load by 0.2 m, on the model's plant and on one whose
+    # hoisting: 0.3 m of travel while lifting the load by 0.2 m, on the model's plant and on one whose
     # payload hangs 20 % lower than the model says
     'hoist': Case('hoist', CraneParams(), False, hoist=HOIST, methods=('rvf', 'zv', 'zvd')),
     'hoist+L2': Case('hoist+L2', CraneParams(L2=0.391 * 1.2), False, hoist=HOIST, methods=('rvf', 'zv')),
-    # issue 22: a new goal (0.2 m further) at 40 % of the move, a cancel at 50 % (the stop is NVF's), a
-    # 30 mm push damped by ~/settle, and a scripted stick (forward, lifting while travelling, release)
+    # motion from any state: a new goal (0.2 m further) at 40 % of the move, a cancel at 50 % (the stop is
+    # NVF's), a 30 mm push damped by ~/settle, and a scripted stick (forward, lifting while travelling, release)
     'retarget': Case('retarget', CraneParams(), False, kind='retarget', methods=('rvf', 'zv')),
     'stop': Case('stop', CraneParams(), False, kind='stop', methods=('rvf', 'zv')),
     'settle': Case('settle', CraneParams(), False, kind='settle', methods=('nvf',)),
@@ -237,12 +239,13 @@ def _window_residual(driver: CraneHarness, case: Case, begin_ns: int, origin_ns:
     rec = driver.states_between(begin_ns, end_ns + 50_000_000, timeout=10.0)  # a 50 Hz sample past the window
     if len(rec) < 10:
         raise HarnessError(f'only {len(rec)} joint_states in the {case.name} case: is the sim publishing?')
-    t = (rec[:, 0] - origin_ns) * 1e-9
-    L1 = rec[:, 4] if np.isfinite(rec[:, 4]).all() else case.plant.L1
-    residual = float(residual_load_mm(t, rec[:, 1], rec[:, 2], L1, case.plant.L2, after=(after_ns - origin_ns) * 1e-9,
-                                      until=(end_ns - origin_ns) * 1e-9))
-    rope = rec[:, 4] if np.isfinite(rec[:, 4]).all() else None
-    return t, 1e3 * load_excursion(rec[:, 1], rec[:, 2], L1, case.plant.L2), rope, residual
+    c = state_columns(rec)
+    t = (c['stamp'] - origin_ns) * 1e-9
+    rope = c[HOIST_JOINT] if np.isfinite(c[HOIST_JOINT]).all() else None  # the hoist's position is L1
+    L1 = case.plant.L1 if rope is None else rope
+    residual = float(residual_load_mm(t, c['theta1'], c['theta2'], L1, case.plant.L2,
+                                      after=(after_ns - origin_ns) * 1e-9, until=(end_ns - origin_ns) * 1e-9))
+    return t, 1e3 * load_excursion(c['theta1'], c['theta2'], L1, case.plant.L2), rope, residual
 
 
 def _served(driver: CraneHarness, stamp_ns: int):
@@ -268,7 +271,7 @@ def _home(driver: CraneHarness, args, hoist: float | None = None, duration: floa
 
 
 def run_any_state(driver: CraneHarness, case: Case, method: str, args) -> Run:
-    """One run of a motion-from-any-state case (issue 22): the residual after the new goal's motion, the
+    """One run of a motion-from-any-state case: the residual after the new goal's motion, the
     stop, the settle, or the released stick."""
     D, T, settle = args.displacement, args.duration, args.settle
     if case.kind in ('retarget', 'stop'):
@@ -352,10 +355,10 @@ def commission(driver: CraneHarness, args, model: CraneParams):
     end_ns = start_ns + round((T + EXCITATION_RECORD) * 1e9)
     request_back(driver, start_ns + round(T * 1e9), end_ns)
     back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns)
-    rec = driver.states_between(start_ns, end_ns)
+    c = state_columns(driver.states_between(start_ns, end_ns))
     driver.set_parameters('sim', {'noise': 0.0})
-    t_rec = (rec[:, 0] - start_ns) * 1e-9
-    recording = Recording(t_rec, rec[:, 3], rec[:, 1], rec[:, 2], quintic(t_rec, D, T)[0])
+    t_rec = (c['stamp'] - start_ns) * 1e-9
+    recording = Recording(t_rec, c[CART_JOINT], c['theta1'], c['theta2'], quintic(t_rec, D, T)[0])
     result = identify(recording, model)
     back_end_ns = back_ns + round((args.return_duration + 0.05) * 1e9)
     driver.sleep((back_end_ns - driver.now_ns()) * 1e-9)
@@ -443,7 +446,7 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
         written.append(save_figure(fig, out / 'demo_swing.png'))
 
     any_state = [case for case in args.cases if case.kind != 'move']
-    if any_state:  # issue 22: the swing around the event (the handover, the cancel, ~/settle, the stick)
+    if any_state:  # motion from any state: the swing around the event (the handover, the cancel, ~/settle, the stick)
         fig, axes = plt.subplots(len(any_state), 1, figsize=(9, 2.7 * len(any_state) + 0.6), squeeze=False)
         titles = {'retarget': f'retarget: {args.displacement:g} m, a goal {RETARGET_EXTRA:g} m further at '
                               f'{100 * RETARGET_AT:g} % (dotted: the handover)',
@@ -481,7 +484,7 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
                 ax.grid(True, alpha=0.3)
             axes[0, col].legend(ncol=2, fontsize=7)
         fig.suptitle(f'{args.displacement:g} m of travel while hoisting {HOIST[0]:g} -> {HOIST[1]:g} m in '
-                     f'{HOIST_DURATION:g} s (issue 21)', fontsize=11)
+                     f'{HOIST_DURATION:g} s', fontsize=11)
         written.append(save_figure(fig, out / 'demo_hoist.png'))
 
     if timing_log and timing_log.exists():

@@ -33,6 +33,7 @@ from crane_msgs_py.conversions import (
 )
 from crane_msgs_py.diagnostics import OK, level_of, status_values
 from crane_msgs_py.names import (
+    ACTUATED_JOINTS,
     HOIST_JOINT,
     JOINT_STATES_TOPIC,
     PLANNER_NODE,
@@ -40,7 +41,6 @@ from crane_msgs_py.names import (
     REFERENCE_TOPIC,
     RESET_SERVICE,
     SETTLE_SERVICE,
-    SIM_JOINTS,
     SIM_NODE,
     STREAMER_NODE,
     TRAJECTORY_TOPIC,
@@ -50,6 +50,15 @@ from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS, TRAJ
 from crane_msgs_py.runner import spinning
 
 from .processes import PLANNER, SIM, STREAMER, NodeGroup
+
+#: The columns of the joint_states rows the harness keeps (``states_between``, ``last_state``): the stamp (ns),
+#: the swing angles, then every actuated joint's position (NaN for one the setup does not have).
+STATE_COLUMNS = ('stamp', 'theta1', 'theta2', *ACTUATED_JOINTS)
+
+
+def state_columns(rows: np.ndarray) -> dict[str, np.ndarray]:
+    """The columns of joint_states ``rows`` (``states_between``) by their names in ``STATE_COLUMNS``."""
+    return dict(zip(STATE_COLUMNS, np.asarray(rows).reshape(-1, len(STATE_COLUMNS)).T))
 
 
 class HarnessError(RuntimeError):
@@ -114,10 +123,11 @@ class CraneHarness:
 
     # -- callbacks
     def _on_state(self, msg):
-        pos, _ = joint_state_to_arrays(msg, SIM_JOINTS)
-        hoist = msg.position[list(msg.name).index(HOIST_JOINT)] if HOIST_JOINT in msg.name else math.nan
+        pos, _ = joint_state_to_arrays(msg, STATE_COLUMNS[1:3])  # the angles
+        names = list(msg.name)
+        joints = (msg.position[names.index(j)] if j in names else math.nan for j in ACTUATED_JOINTS)
         with self._lock:
-            self._states.append((stamp_ns(msg.header.stamp), pos[1], pos[2], pos[0], hoist))
+            self._states.append((stamp_ns(msg.header.stamp), *pos, *joints))
 
     def references(self) -> list:
         """The references kept so far (``keep_references``): rows of (stamp ns, position, velocity,
@@ -409,18 +419,19 @@ class CraneHarness:
         self.wait_until(arrived, timeout, f'no joint_states stamped past the motion within {timeout:g} s', 0.02)
 
     def last_state(self) -> tuple | None:
-        """The newest joint_states row (stamp ns, theta1, theta2, cart, hoist or NaN), None before any."""
+        """The newest joint_states row (``STATE_COLUMNS``: stamp ns, theta1, theta2, cart, hoist or NaN), None
+        before any."""
         with self._lock:
             return self._states[-1] if self._states else None
 
     def states_between(self, begin_ns: int, end_ns: int, timeout: float = 3.0) -> np.ndarray:
         """joint_states stamped in [begin, end] (dropping everything older than ``end_ns``): rows of
-        (stamp ns, theta1, theta2, cart, hoist or NaN)."""
+        ``STATE_COLUMNS`` (stamp ns, theta1, theta2, cart, hoist or NaN; ``state_columns`` names them)."""
         self.wait_for_state_after(end_ns, timeout)
         with self._lock:
             rows = [r for r in self._states if begin_ns <= r[0] <= end_ns]
             self._states = [r for r in self._states if r[0] > end_ns]
-        return np.array(rows).reshape(-1, 5)
+        return np.array(rows).reshape(-1, len(STATE_COLUMNS))
 
     def close(self):
         self.keep_references(False)
