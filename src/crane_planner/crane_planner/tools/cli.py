@@ -14,6 +14,8 @@ import time
 
 import numpy as np
 
+from crane_msgs_py.axes import AXES, LIMIT_QUANTITIES
+from crane_msgs_py.names import CART_JOINT
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, PlanOptions
 from crane_planner.planning.hoisting import HOIST_SHAPER_DESIGNS
@@ -98,10 +100,6 @@ def _add_model_options(p: argparse.ArgumentParser):
                    help='collocation intervals for nvf/rvf (default: solver default)')
     g.add_argument('--solver', choices=('direct', 'indirect'), default='direct',
                    help='nvf/rvf solver: direct collocation + IPOPT, or the paper\'s indirect TPBVP')
-    limit = 'a path constraint for nvf/rvf, a check for shapers'
-    g.add_argument('--max-velocity', type=_finite, metavar='V', help=f'axis limit |v| (m/s): {limit}')
-    g.add_argument('--max-acceleration', type=_finite, metavar='A', help=f'axis limit |a_ref| (m/s^2): {limit}')
-    g.add_argument('--max-jerk', type=_finite, metavar='J', help=f'axis limit on the reference jerk (m/s^3): {limit}')
     g.add_argument('--base', choices=BASES, default='quintic',
                    help="shapers' base motion: the paper's quintic, or the jerk-limited time-optimal profile under "
                         'the limits (default quintic)')
@@ -109,11 +107,22 @@ def _add_model_options(p: argparse.ArgumentParser):
     h.add_argument('--hoist', type=_finite, nargs=2, metavar=('L1_START', 'L1_GOAL'),
                    help='the upper cable goes from L1_START to L1_GOAL (m) during the move (it sets the model\'s '
                         'L1 to L1_START); the hoist follows its own servo --tau_hoist')
-    for name, unit in (('velocity', 'm/s'), ('acceleration', 'm/s^2'), ('jerk', 'm/s^3')):
-        h.add_argument(f'--max-hoist-{name}', type=_finite, metavar='X', help=f'hoist axis limit on {name} ({unit})')
     h.add_argument('--hoist-shaper', choices=HOIST_SHAPER_DESIGNS, default='adaptive',
                    help='how a shaper follows the rope length: adaptive (fitted to the hoisting crane, the '
                         'default) or designed at the start, middle or end length')
+    _add_axis_limits(p, g, h)
+
+
+def _add_axis_limits(p, model_group, hoist_group):
+    """Every axis's limits as options named as the axis names them (--max-velocity: the cart's,
+    --max-hoist-velocity: the hoist's); the cart's with the model options, the hoist's with hoisting."""
+    for a in AXES:
+        group = model_group if a is AXES[0] else hoist_group if a.kind == 'hoist' else \
+            p.add_argument_group(f'the {a.name} axis')
+        for name, (quantity, _), unit in zip(a.limit_names, LIMIT_QUANTITIES, a.limit_units):
+            group.add_argument('--' + name.replace('_', '-'), type=_finite, metavar=quantity[0].upper(),
+                               help=f'{a.name} axis limit on |{quantity}| of its reference ({unit}); '
+                                    f'a path constraint for nvf/rvf, a check for shapers')
 
 
 #: Plant parameters the evaluation may change (``--plant-X``) and ``sweep`` may vary (g stays).
@@ -227,10 +236,8 @@ def _model_and_options(args) -> tuple[CraneParams, PlanOptions]:
     options = PlanOptions(omega=tuple(args.omega) if args.omega else None, damping=args.damping,
                           robust=args.robust or ('L1',), hoist_robust=args.robust or ('L2',),
                           intervals=args.intervals, solver=args.solver,
-                          max_velocity=args.max_velocity, max_acceleration=args.max_acceleration,
-                          max_jerk=args.max_jerk, base=args.base, max_hoist_velocity=args.max_hoist_velocity,
-                          max_hoist_acceleration=args.max_hoist_acceleration, max_hoist_jerk=args.max_hoist_jerk,
-                          hoist_shaper=args.hoist_shaper)
+                          base=args.base, hoist_shaper=args.hoist_shaper,
+                          limits={a.name: a.limits(*(getattr(args, n) for n in a.limit_names)) for a in AXES})
     return model, options
 
 
@@ -452,7 +459,7 @@ def cmd_choose(args) -> int:
         raise UsageError(f'argument --tolerance-mm: must be >= 0, got {args.tolerance_mm}')
     _check_settle(args)
     model, options = _model_and_options(args)
-    if options.max_velocity is None and options.max_acceleration is None:
+    if not options.limits_of(CART_JOINT).bounds_speed:
         raise UsageError('choose needs axis limits: --max-velocity and/or --max-acceleration')
     plants = band(model, args.span, args.points, args.span_L2)
     with Progress(len(args.methods) + 1, 'choose', PROG) as progress:

@@ -40,7 +40,6 @@ from crane_msgs_py.conversions import (
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (
     DEFAULT_FRAME_ID,
-    HOIST_JOINT,
     JOINT_STATES_TOPIC,
     MARKERS_TOPIC,
     OUTPUT_FLOAT64_ARRAY,
@@ -128,12 +127,11 @@ class SimNode(Node):
         p = declare(self, PARAMETERS)
         self._check(p)  # ParameterError on a bad override, see main()
         self._joints = check_joints(p['joints'])
-        hoist = HOIST_JOINT in self._joints
         # Late steps are caught up, never skipped (a skipped step would drop its references);
         # the playout delay keeps them in time up to a point, the lateness diagnostics show it.
         self._ticker = Ticker(round(p['step'] * 1e9), max_backlog=10**9)
         self._sim = CraneSimulator(CraneParams(**{n: p[n] for n in PARAMETER_NAMES}), dt=self._ticker.period * 1e-9,
-                                   hoist=hoist)
+                                   axes=self._joints)
         self._publish_every = max(1, round(1.0 / (p['publish_rate'] * p['step'])))
         self._source, self._interpolation = p['reference_source'], p['interpolation']
         self._diagnostics = DiagnosticsPublisher(self)
@@ -145,7 +143,7 @@ class SimNode(Node):
         self._joint_states = self.create_publisher(JointState, JOINT_STATES_TOPIC, JOINT_STATES_QOS)
 
         # Handed from the executor to the loop; deque append/popleft are atomic.
-        self._inbox: deque = deque(maxlen=1000)   # (stamp ns, position, acceleration[, hoist's two]), checked
+        self._inbox: deque = deque(maxlen=1000)   # (stamp ns, then position, acceleration per axis), checked
         self._pending_params: CraneParams | None = None
         self._reset_requested = threading.Event()
         self._push: float | None = None  # a push for the loop to apply (m)
@@ -227,17 +225,17 @@ class SimNode(Node):
     def _on_reference(self, msg):
         now = self.get_clock().now().nanoseconds
         try:
-            if self._sim.hoist:
+            if len(self._joints) > 1:  # a column per axis: the cart's, then the others' pairs
                 stamp, position, _, acceleration = read_reference(msg, self._joints)
-                hoist = (position[1], acceleration[1])
+                others = tuple(zip(position[1:], acceleration[1:]))
                 position, acceleration = position[0], acceleration[0]
             else:
                 stamp, position, _, acceleration = read_reference(msg)
-                hoist = None
+                others = ()
         except ValueError:
             self._intake.count_malformed()
             return
-        sample = self._intake.receive(now, stamp, position, acceleration, hoist)
+        sample = self._intake.receive(now, stamp, position, acceleration, others)
         if sample is not None:
             self._inbox.append(sample)
 
@@ -268,9 +266,10 @@ class SimNode(Node):
         ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
         epoch_ros = ros_now + (epoch - time.monotonic_ns())  # ROS time of step 0
         dt_ns, dt = ticker.period, ticker.period * 1e-9
-        playout_args, playout, hoist_playout, timeouts = None, None, None, 0
+        playout_args, playouts, timeouts = None, (), 0  # a playout per axis, in sim.axes order
         L2 = sim.params['L2']  # of the markers: the live plant's
-        angles = slice(2, 4) if sim.hoist else slice(1, 3)  # of theta1, theta2 in joint_state()
+        theta1 = sim.joint_names.index('theta1')
+        angles = slice(theta1, theta1 + 2)  # of theta1, theta2 in joint_state()
         while not self._loop_thread.stopping.is_set():
             deadline = ticker.deadline
             now = sleep_until(deadline, 0)
@@ -281,9 +280,9 @@ class SimNode(Node):
                 L2 = params.L2
             if self._playout_args is not playout_args:
                 playout_args = self._playout_args
-                timeouts += playout.timeouts if playout else 0
-                playout = ReferencePlayout(*playout_args)
-                hoist_playout = ReferencePlayout(*playout_args) if sim.hoist else None
+                timeouts += playouts[0].timeouts if playouts else 0
+                playouts = tuple(ReferencePlayout(*playout_args) for _ in sim.axes)
+                playout = playouts[0]  # the cart's: its timeouts are the stream's
             if self._push is not None:
                 push, self._push = self._push, None
                 try:
@@ -293,22 +292,17 @@ class SimNode(Node):
             if self._reset_requested.is_set():
                 self._reset_requested.clear()
                 sim.reset(CraneState(y=sim.state.y))
-                playout.reset()
-                if hoist_playout is not None:
-                    hoist_playout.reset()
+                for one in playouts:
+                    one.reset()
             while inbox:
-                stamp, position, acceleration, *hoist = inbox.popleft()
+                stamp, *sample = inbox.popleft()  # (position, acceleration) per axis
                 try:
-                    playout.push((stamp - epoch_ros) * 1e-9, position, acceleration)
-                    if hoist_playout is not None:
-                        hoist_playout.push((stamp - epoch_ros) * 1e-9, *hoist)
+                    for k, one in enumerate(playouts):
+                        one.push((stamp - epoch_ros) * 1e-9, sample[2 * k], sample[2 * k + 1])
                 except SimulationError:  # not after the last one (a playout swapped meanwhile)
                     counts['out_of_order'] += 1
             t0 = ticker.tick * dt  # nominal time of the step since step 0
-            if hoist_playout is not None:
-                sim.step(*playout.step(t0, t0 + dt), *hoist_playout.step(t0, t0 + dt))
-            else:
-                sim.step(*playout.step(t0, t0 + dt))
+            sim.step(*zip(*(one.step(t0, t0 + dt) for one in playouts)))
             counts['steps'] += 1
             counts['timeouts'] = timeouts + playout.timeouts
             if ticker.tick % self._publish_every == 0:
