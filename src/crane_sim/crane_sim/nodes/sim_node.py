@@ -39,6 +39,7 @@ from crane_msgs_py.conversions import (
 )
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (
+    CART_JOINT,
     DEFAULT_FRAME_ID,
     JOINT_STATES_TOPIC,
     MARKERS_TOPIC,
@@ -268,7 +269,7 @@ class SimNode(Node):
         dt_ns, dt = ticker.period, ticker.period * 1e-9
         playout_args, playouts, timeouts = None, (), 0  # a playout per axis, in sim.axes order
         L2 = sim.params['L2']  # of the markers: the live plant's
-        theta1 = sim.joint_names.index('theta1')
+        theta1, cart = sim.joint_names.index('theta1'), sim.joint_names.index(CART_JOINT)
         angles = slice(theta1, theta1 + 2)  # of theta1, theta2 in joint_state()
         while not self._loop_thread.stopping.is_set():
             deadline = ticker.deadline
@@ -311,9 +312,9 @@ class SimNode(Node):
                 plant_time = epoch_ros + (ticker.tick + 1) * dt_ns - round(playout.delay * 1e9)
                 fill_joint_state(self._joint_state, plant_time, positions, velocities)
                 # the crane as measured: the published angles, the live cable lengths (the hoist's now)
-                theta1, theta2 = positions[angles]
-                fill_crane_markers(self._markers, plant_time, positions[0],
-                                   *mass_positions(positions[0], theta1, theta2, sim.L1, L2))
+                angle1, angle2 = positions[angles]
+                fill_crane_markers(self._markers, plant_time, positions[cart],
+                                   *mass_positions(positions[cart], angle1, angle2, sim.L1, L2))
                 try:
                     self._joint_states.publish(self._joint_state)
                     self._markers_pub.publish(self._markers)
