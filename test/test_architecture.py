@@ -10,6 +10,8 @@ Imports are read from the source (every ``import``, also inside functions),
 not by importing, so a lazy import cannot hide.
 """
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -184,3 +186,14 @@ def test_the_planning_rule_flags_an_import_of_the_serving_machinery(tmp_path, so
 def test_the_circle_check_finds_a_lazy_circle():
     assert cycles({'a': {'b'}, 'b': {'c'}, 'c': {'a'}, 'd': {'a'}}) == [['a', 'b', 'c']]
     assert cycles({'a': {'b'}, 'b': set()}) == []
+
+
+def test_the_streamer_node_loads_no_casadi():
+    """The 1 kHz streamer never waits on CasADi (nor on the GIL of a CasADi build): its stops are planned in a
+    worker process (serving.stops). Imported in a fresh interpreter, its module loads no CasADi."""
+    pytest.importorskip('rclpy')
+    code = ('import sys\nimport crane_planner.nodes.streamer_node\n'
+            'print(sorted(m for m in sys.modules if m.split(".")[0] == "casadi"))')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == '[]'

@@ -54,6 +54,17 @@ def test_joint_trajectory_round_trip():
     assert np.allclose(p, s.position - 0.2) and np.allclose(v, s.velocity) and np.allclose(a, s.acceleration)
 
 
+def test_joint_trajectory_columns_hold_a_joint_left_out_where_told_and_refuse_it_otherwise():
+    s = samples()
+    msg = cv.samples_to_joint_trajectory(s, start_position=-0.2)
+    t, p, v, a = cv.joint_trajectory_columns(msg, ('cart', 'hoist'), (None, 0.47))
+    assert p.shape == v.shape == a.shape == (t.size, 2)
+    assert np.allclose(p[:, 0], s.position - 0.2) and np.allclose(a[:, 0], s.acceleration)
+    assert np.all(p[:, 1] == 0.47) and not v[:, 1].any() and not a[:, 1].any()  # the hoist held at rest
+    with pytest.raises(ValueError, match='hoist'):
+        cv.joint_trajectory_columns(msg, ('cart', 'hoist'))
+
+
 def test_joint_trajectory_without_cart_or_accelerations_is_refused():
     msg = cv.samples_to_joint_trajectory(samples())
     msg.joint_names = ['x']

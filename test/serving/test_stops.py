@@ -14,6 +14,7 @@ from crane_planner.serving.transitions import Running
 from crane_planner.serving.workers import SolverProcess
 from crane_planner.streaming.hermite import QuinticHermite
 from crane_planner.streaming.knots import knot_columns, knot_times
+from crane_planner.streaming.reference_stream import ReferenceStream
 from crane_sim.simulator import simulate
 
 PARAMS = CraneParams()
@@ -21,6 +22,7 @@ ORIGIN = 5_000_000_000  # ns: the running motion's first knot
 START = 0.2  # m
 HANDOVER = ORIGIN + 1_500_000_000  # half way through a 3 s motion
 DT = 1e-3
+MS = 1_000_000  # ns: the streamer's tick at 1 kHz
 
 
 @pytest.fixture(scope='module')
@@ -89,30 +91,56 @@ def test_a_stop_request_runs_in_a_worker_as_here(solvers, running):
     assert there.arrays()[1].ndim == 1  # one joint: the columns as ReferenceStream.accept takes them
 
 
-def test_the_streamers_stop_worker_plans_ahead_and_says_why_it_cannot(running):
+@pytest.fixture(scope='module')
+def stop_worker():
     worker = StopWorker(('cart',), PARAMS)
-    clock = [HANDOVER - round(STOP_LEAD * 1e9)]
-    try:
-        with pytest.raises(PlanError, match='the stop planner process is not ready: starting'):
-            worker.stop(running.interps, ORIGIN, lambda: clock[0], PARAMS)
-        deadline = 120.0
-        while not worker.ready and deadline > 0:
-            assert not worker.status.startswith('failed'), worker.status
-            deadline -= 0.05
-            time.sleep(0.05)
-        assert worker.ready, worker.status
-        trajectory = worker.stop(running.interps, ORIGIN, lambda: clock[0], PARAMS)
-        assert trajectory.handover_ns == HANDOVER
-        with pytest.raises(PlanError, match='the motion ends before a stop could take over'):
-            worker.stop(running.interps, ORIGIN, lambda: running.end_ns, PARAMS)
-        worker._worker._process.kill()
-        worker._worker._process.join()
-        assert worker.status == 'its process ended' and not worker.ready
-        with pytest.raises(PlanError, match='not ready: its process ended'):
-            worker.stop(running.interps, ORIGIN, lambda: clock[0], PARAMS)
-        assert worker.status == 'starting'  # started again
-    finally:
-        worker.close()
+    with pytest.raises(PlanError, match='the stop planner process is not ready: starting'):
+        worker.stop((), ORIGIN, lambda: HANDOVER, PARAMS)
+    deadline = time.monotonic() + 120.0
+    while not worker.ready and time.monotonic() < deadline:
+        assert not worker.status.startswith('failed'), worker.status
+        time.sleep(0.05)
+    assert worker.ready, worker.status
+    yield worker
+    worker.close()
+
+
+def test_the_streamers_stop_is_planned_in_its_worker_and_spliced_in_without_swing(stop_worker, running):
+    """The streamer's path: its ReferenceStream streams the motion, ~/stop takes it over from the worker's
+    answer; what the stream then publishes, tick by tick, leaves no swing on crane_sim."""
+    stream = ReferenceStream(MS, hold=START, start_tolerance=1e-6)
+    tick = [0]
+    assert stream.start(ORIGIN, lambda: tick[0])
+    t, p, v, a = (running.interps[0].t, running.interps[0].position, running.interps[0].velocity,
+                  running.interps[0].acceleration)
+    stream.accept(t, p, v, a, ORIGIN, ORIGIN)
+    samples = []
+    for _ in range(1500):
+        samples.append(stream.sample(tick[0]))
+        tick[0] += 1
+    trajectory = stop_worker.take_over(stream, lambda: ORIGIN + tick[0] * MS, PARAMS)
+    assert trajectory.handover_ns >= ORIGIN + 1500 * MS + STOP_LEAD * 1e9 - 1
+    while stream.streaming or stream.queued:
+        samples.append(stream.sample(tick[0]))
+        tick[0] += 1
+    samples += [stream.sample(tick[0] + k) for k in range(4000)]
+    acceleration = np.array(samples)[:, 2]
+    r = simulate(np.arange(acceleration.size) * DT, acceleration, PARAMS)
+    assert np.abs(r.load_excursion[0, -2000:]).max() < 0.5e-3
+    assert np.abs(r.v[0, -2000:]).max() < 1e-4
+
+
+def test_the_streamers_stop_worker_says_why_it_cannot_and_starts_again(stop_worker, running):
+    with pytest.raises(PlanError, match='the motion ends before a stop could take over'):
+        stop_worker.stop(running.interps, ORIGIN, lambda: running.end_ns, PARAMS)
+    with pytest.raises(PlanError, match='no motion is streaming'):
+        stop_worker.take_over(ReferenceStream(MS, hold=START, start_tolerance=1e-6), lambda: ORIGIN, PARAMS)
+    stop_worker._worker._process.kill()
+    stop_worker._worker._process.join()
+    assert stop_worker.status == 'its process ended' and not stop_worker.ready
+    with pytest.raises(PlanError, match='not ready: its process ended'):
+        stop_worker.stop(running.interps, ORIGIN, lambda: HANDOVER - round(STOP_LEAD * 1e9), PARAMS)
+    assert stop_worker.status == 'starting'  # started again
 
 
 def test_a_stop_with_a_hoist_continues_both_joints(solvers):

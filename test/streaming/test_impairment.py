@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from crane_msgs_py.params import ParameterError
-from crane_planner.streaming.impairment import DelayLine, Impairment
+from crane_planner.streaming.impairment import DelayLine, Impairment, Link
 
 N = 20000
 PERIOD = 1e-3
@@ -116,3 +116,18 @@ def test_off_by_default_delivers_at_once_in_order():
 def test_bad_parameters_are_named(kwargs, word):
     with pytest.raises(ParameterError, match=word):
         Impairment(**kwargs)
+
+
+def test_a_link_takes_a_new_impairment_at_once_flushing_the_old_and_counts_over_every_link():
+    link = Link()
+    lossy = Impairment(delay=0.01, loss=0.5, seed=3)
+    assert link.use(lossy) == [] and link.line is not None
+    for k in range(100):
+        link.line.send(k * 1e-3, k)
+    in_flight, lost = len(link.line), link.lost
+    assert 0 < lost < 100 and link.use(lossy) == ()  # the same impairment: nothing changes
+    flushed = link.use(Impairment())  # inactive: straight on, what was in flight delivered now
+    assert len(flushed) == in_flight and link.line is None and link.lost == lost
+    assert link.use(None) == [] and link.use(lossy) == [] and link.lost == lost  # a fresh line, its count on top
+    link.line.send(0.0, 'x')
+    assert link.lost in (lost, lost + 1)

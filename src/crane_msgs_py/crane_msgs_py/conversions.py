@@ -123,6 +123,20 @@ def joint_trajectory_to_arrays(msg: JointTrajectory, joint: str = CART_JOINT):
     return t, p, v, a
 
 
+def joint_trajectory_columns(msg: JointTrajectory, joints, holds=None):
+    """(t, position, velocity, acceleration) of ``joints``, a column each: (points, joints) arrays. A joint
+    the trajectory leaves out holds at rest at its entry of ``holds`` if that is not None, else ValueError
+    names it (``joint_trajectory_to_arrays``)."""
+    t = joint_trajectory_to_arrays(msg, joints[0])[0]
+    columns = []
+    for joint, hold in zip(joints, holds or [None] * len(joints)):
+        if hold is None or joint in msg.joint_names:
+            columns.append(joint_trajectory_to_arrays(msg, joint)[1:])
+        else:
+            columns.append((np.full(t.size, float(hold)), np.zeros(t.size), np.zeros(t.size)))
+    return (t, *(np.column_stack(c) for c in zip(*columns)))
+
+
 def reference_message(output: str = OUTPUT_JOINT_TRAJECTORY, frame_id: str = DEFAULT_FRAME_ID,
                       joint=CART_JOINT):
     """A reusable one-sample reference message of the streamer's ``output`` type, for ``joint`` (a name, or a

@@ -28,14 +28,25 @@ def int_range(lo: int, hi: int) -> dict:
     return {'integer_range': [IntegerRange(from_value=int(lo), to_value=int(hi), step=1)]}
 
 
+def _descriptor_fields(extra: dict) -> dict:
+    """``extra`` with its plain (lo, hi) ranges as rcl's range messages."""
+    fields = dict(extra)
+    for key, make in (('floating_point_range', float_range), ('integer_range', int_range)):
+        if isinstance(fields.get(key), tuple):
+            fields.update(make(*fields[key]))
+    return fields
+
+
 def declare(node, table: dict) -> dict:
     """Declare every parameter of ``table``; their values (overrides applied) by name.
 
-    An empty list default declares an empty double array (rclpy would type it
-    as a byte array).
+    A range is given as ``float_range``/``int_range`` make it, or plain as
+    (lo, hi) (the table of a pure module, e.g. ``streaming.config``). An empty
+    list default declares an empty double array (rclpy would type it as a byte
+    array).
     """
     for name, (default, description, extra) in table.items():
-        descriptor = ParameterDescriptor(description=description, **extra)
+        descriptor = ParameterDescriptor(description=description, **_descriptor_fields(extra))
         if isinstance(default, list) and not default:
             node.declare_parameter(name, Parameter.Type.DOUBLE_ARRAY, descriptor)
             if node.get_parameter_or(name).type_ == Parameter.Type.NOT_SET:  # no override given

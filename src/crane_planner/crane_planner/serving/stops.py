@@ -30,7 +30,8 @@ API (kept stable: both nodes build on it):
   warm-up.
 - ``StopWorker(joints, params)``: the streamer's stop planner, a ``workers.SolverProcess`` started in the
   background: ``status``, ``ready``, ``stop(interps, origin_ns, now, params) -> StopTrajectory``
-  (PlanError: why not, the worker's state included), ``close()``.
+  (PlanError: why not, the worker's state included), ``take_over(stream, now, params) -> StopTrajectory``
+  (the stop of what a ``ReferenceStream`` streams, accepted by it), ``close()``.
 
 What loads CasADi (``transitions``: the swing prediction; ``dispatch``: the solvers) is imported inside
 the functions that plan, never at the top: the streamer imports this module for ``StopWorker`` and
@@ -39,6 +40,7 @@ the functions that plan, never at the top: the streamer imports this module for 
 from __future__ import annotations
 
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -164,12 +166,12 @@ class StopRequest:
 
     @classmethod
     def rehearsal(cls, joints, params: CraneParams) -> 'StopRequest':
-        """A stop 1 s into a made-up motion at 0.1 m/s: a worker's warm-up, so that its first real stop finds
-        the stop's solvers (``warmups``) and the swing prediction built."""
-        t = [0.0, 2.0]
-        interps = [QuinticHermite(t, [0.0, 0.2], [0.1, 0.1], [0.0, 0.0])]
-        interps += [QuinticHermite(t, [params.L1] * 2, [0.0] * 2, [0.0] * 2) for _ in joints[1:]]
-        return cls(tuple(joints), tuple(interps), 0, 1_000_000_000, params)
+        """A stop 0.6 s into a made-up move (a quintic of 0.2 m in 2 s): a worker's warm-up, so that its first
+        real stop finds the stop's solvers (``warmups``) and the swing prediction built."""
+        t = [0.0, 1.0, 2.0]  # (the quintic's knots: exact, its acceleration 0 at the middle)
+        interps = [QuinticHermite(t, [0.0, 0.1, 0.2], [0.0, 0.1875, 0.0], [0.0] * 3)]
+        interps += [QuinticHermite(t, [params.L1] * 3, [0.0] * 3, [0.0] * 3) for _ in joints[1:]]
+        return cls(tuple(joints), tuple(interps), 0, 600_000_000, params)
 
 
 class StopWorker:
@@ -193,6 +195,7 @@ class StopWorker:
         self._status = 'starting'
         self._closed = False
         self._busy = threading.Lock()
+        self._took = 0.0  # how long (s) the last stop took to plan: the next one's lead is at least 1.5 times that
         self._start(params)
 
     @property
@@ -209,8 +212,9 @@ class StopWorker:
 
     def stop(self, interps, origin_ns: int, now, params: CraneParams, lead: float = STOP_LEAD) -> StopTrajectory:
         """The stop of the motion of ``interps`` (first knot at ``origin_ns``) taking over ``lead`` s after
-        ``now()`` (ROS time, ns), planned in the worker, and again further ahead should its answer come too
-        late for its handover. PlanError says why there is none."""
+        ``now()`` (ROS time, ns), or 1.5 times as long as the last stop took to plan if that is longer, planned in
+        the worker, and again further ahead should its answer come too late for its handover. PlanError says why
+        there is none."""
         if not self._busy.acquire(blocking=False):
             raise PlanError('another stop is being planned')
         try:
@@ -220,6 +224,7 @@ class StopWorker:
                     self._restart(worker, params)
                 raise PlanError(f'the stop planner process is not ready: {status}')
             end_ns = origin_ns + round((interps[0].t[-1] - interps[0].t[0]) * 1e9)
+            lead = max(lead, 1.5 * self._took + ANSWER_MARGIN)
             for _ in range(ATTEMPTS):
                 asked = now()
                 handover = asked + round(lead * 1e9)
@@ -228,13 +233,24 @@ class StopWorker:
                 answer = self._solve(worker, StopRequest(self.joints, tuple(interps), origin_ns, handover, params),
                                      params)
                 answered = now()
+                self._took = (answered - asked) * 1e-9
                 if answered < handover - ANSWER_MARGIN * 1e9:
                     return answer
-                lead = max(2.0 * lead, 1.5 * (answered - asked) * 1e-9 + ANSWER_MARGIN)
+                lead = max(2.0 * lead, 1.5 * self._took + ANSWER_MARGIN)
             raise PlanError(f'the stop planner answered too late for the handover {ATTEMPTS} times (last lead '
                             f'{lead / 2:.3f} s)')
         finally:
             self._busy.release()
+
+    def take_over(self, stream, now, params: CraneParams) -> StopTrajectory:
+        """Stop the motion ``stream`` (a ``reference_stream.ReferenceStream``) streams: its ``stop``, accepted
+        by the stream as its handover. PlanError or the stream's ValueError says why not."""
+        motion = stream.last_motion
+        if motion is None or not stream.streaming:
+            raise PlanError('no motion is streaming')
+        trajectory = self.stop(motion.interps, motion.origin_ns, now, params)
+        stream.accept(*trajectory.arrays(), trajectory.handover_ns, now())
+        return trajectory
 
     def close(self) -> None:
         """Stop the worker (idempotent); a start under way ends it once it is up."""
@@ -280,8 +296,12 @@ class StopWorker:
         except Exception as exc:  # (PlanError: not ready in time; OSError: no process)
             self._status = f'failed to start: {exc}'
             return
-        try:  # the warm-up as a request: SolverProcess's own warm-ups are VariationalRequests, read here
-            worker.solve(StopRequest.rehearsal(self.joints, params), self.start_timeout)
+        rehearsal = StopRequest.rehearsal(self.joints, params)
+        try:  # the warm-up as a request (SolverProcess's own warm-ups are VariationalRequests, read here), twice:
+            worker.solve(rehearsal, self.start_timeout)  # the solvers built
+            started = time.monotonic()
+            worker.solve(rehearsal, self.start_timeout)  # and what a stop takes to plan then
+            self._took = time.monotonic() - started
         except (PlanError, RuntimeError):  # a failed rehearsal only means building on first use
             if worker.late:
                 worker.finish_late()  # (a dead worker shows in ``status``)

@@ -133,3 +133,33 @@ class DelayLine:
     def __len__(self) -> int:
         """Messages in flight."""
         return len(self._heap)
+
+
+class Link:
+    """The link under the impairment of the moment (``use``): items go through a ``DelayLine`` while it is
+    active, else straight on (``line`` None). A new impairment takes over at once, the items still in flight
+    on the old link delivered first; ``lost`` and ``reordered`` count over every link."""
+
+    def __init__(self):
+        self.impairment: Impairment | None = None
+        self.line: DelayLine | None = None
+        self._counted = (0, 0)  # lost, reordered on the links before the current one
+
+    @property
+    def lost(self) -> int:
+        return self._counted[0] + (self.line.lost if self.line is not None else 0)
+
+    @property
+    def reordered(self) -> int:
+        return self._counted[1] + (self.line.reordered if self.line is not None else 0)
+
+    def use(self, impairment: Impairment | None) -> list:
+        """Take ``impairment`` on (None: none, and the next is a fresh line, its draws from its seed again);
+        the items in flight on the old link, to deliver now."""
+        if impairment is self.impairment:
+            return ()  # (every tick: nothing allocated)
+        flushed = self.line.deliver(math.inf) if self.line is not None else []
+        self._counted = (self.lost, self.reordered)
+        self.impairment = impairment
+        self.line = DelayLine(impairment) if impairment is not None and impairment.active else None
+        return flushed
