@@ -44,7 +44,7 @@ def test_a_spawn_with_other_limits_or_budget_shares_but_another_structure_does_n
     same = seed.spawn(PlanOptions(max_velocity=0.3, max_solve_time=2.0))
     other = seed.spawn(PlanOptions(intervals=20))
     assert same.transcription(True) is seed.transcription(True)
-    assert same.max_velocity == 0.3 and same.max_solve_time == 2.0
+    assert same.limits.max_velocity == 0.3 and same.max_solve_time == 2.0
     assert other.transcription(True) is not seed.transcription(True)
 
 

@@ -8,9 +8,9 @@ Each axis's acceleration follows its reference through a first-order servo
 says which rows and which time constant are whose.
 
 Within one step the reference is linear in time (or constant, ``zoh``), so the
-servo and the cart kinematics have a closed form; it is evaluated at the RK4
+servo and each axis's kinematics have a closed form; it is evaluated at the RK4
 stage times and the swing (Eqs. 18-19, ``crane_sim.dynamics``) is integrated
-by classic RK4. The cart is therefore exact for every ``tau >= 0``, including
+by classic RK4. Each axis is therefore exact for every ``tau >= 0``, including
 ``tau`` much smaller than the step, where an explicit integrator of Eq. 6
 would blow up.
 
@@ -19,8 +19,8 @@ Everything is vectorized over a batch of plants (numpy arrays of shape
 (:class:`CraneSimulator`, for the real-time node) share one step function.
 No ROS import here.
 
-Why one module of ~490 lines: both paths use the private stepper and the
-internal state layout (``_Stepper``, ``_to_internal``/``_to_public``);
+Why one module of ~740 lines: both paths use the private stepper and the
+internal state form (``_Stepper``, ``_to_internal``/``_to_public``);
 splitting them apart would make those private pieces public API.
 """
 from __future__ import annotations

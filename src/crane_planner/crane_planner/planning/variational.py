@@ -90,11 +90,6 @@ class VariationalSolver:
     def has_limits(self) -> bool:
         return self.limits.any or self.hoist_limits.any
 
-    @property
-    def max_velocity(self) -> float | None:
-        """The cart's velocity limit (m/s), None for none."""
-        return self.limits.max_velocity
-
     def axis_limits(self, hoisting: bool) -> list[AxisLimits]:
         """The ``AxisLimits`` of each axis planned, the cart's first."""
         return [self.limits, self.hoist_limits] if hoisting else [self.limits]
