@@ -72,8 +72,8 @@ def measure(args, env) -> int:
             # -- goal-to-handover latency
             from service_load import cpu_s  # (bench/: the planner and its solver processes)
 
-            from crane_planner.nodes.planner_node import PARAMETERS
             from crane_planner.planning import VARIATIONAL_METHODS
+            from crane_planner.serving.config import PARAMETERS
             warmup = PARAMETERS['handover_warmup'][0]  # the default, restored after each handover timed without
             planner_pid = next(p.popen.pid for p in nodes.processes if p.name == 'planner')
 

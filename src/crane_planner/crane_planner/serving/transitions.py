@@ -168,6 +168,31 @@ class Running:
         return bool(np.ptp(interp.position) > 1e-9 or np.abs(interp.velocity).max() > 1e-9)
 
 
+@dataclass(frozen=True)
+class Trajectory:
+    """A plan as sent on ``trajectory``: per joint its samples (relative, at the same times), the joints'
+    start positions (m) they add to, and the stamp (ns; 0: as soon as possible)."""
+
+    joints: tuple
+    samples: list
+    starts: tuple
+    stamp_ns: int
+
+    @property
+    def knots(self) -> int:
+        return len(self.samples[0].t)
+
+    def running(self, origin_ns: int, plan: Plan | None = None) -> Running:
+        """The motion as the streamer will interpolate the message: knot times in whole ns (as the message
+        carries them), positions absolute; origin 0 (as soon as possible): learned from stream_state."""
+        t = np.rint(np.asarray(self.samples[0].t, dtype=float) * 1e9).astype(np.int64) * 1e-9
+        position = np.column_stack([s0 + np.asarray(s.position, dtype=float)
+                                    for s, s0 in zip(self.samples, self.starts)])
+        velocity, acceleration = (np.column_stack([np.asarray(getattr(s, k), dtype=float) for s in self.samples])
+                                  for k in ('velocity', 'acceleration'))
+        return Running(self.joints, t, position, velocity, acceleration, origin_ns, plan)
+
+
 def taken_over(running: Running, new: Running, start_ns: int) -> Running:
     """The motion the streamer streams once it takes the handover ``new`` of ``running`` over at its tick
     ``start_ns`` (``stream_state``'s motion start): a handover ending no earlier than ``running`` is

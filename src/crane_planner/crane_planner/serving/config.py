@@ -1,0 +1,207 @@
+"""The planner node's parameters: the table it declares (``PARAMETERS``) and ``Config``, one validated set.
+
+Pure Python, no ROS import: the node declares it (``node_parameters.declare``),
+``devtools/make_params_files.py`` writes ``config/planner.yaml`` from the same
+table and the benchmarks read its defaults.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from crane_msgs_py.names import DEFAULT_FRAME_ID, HOIST_JOINT, check_joints
+from crane_msgs_py.params import (
+    PARAMETER_DESCRIPTIONS,
+    PARAMETER_NAMES,
+    CraneParams,
+    ParameterError,
+    check_choice,
+    check_nonnegative,
+    check_positive,
+)
+
+from ..planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOptions
+from ..planning.continuation import MotionState, problem_start
+from ..planning.dispatch import VariationalRequest, hoisting_options
+from ..planning.hoisting import HOIST_SHAPER_DESIGNS
+from ..planning.profiles import BASES
+from .moves import MoveBounds
+
+
+def _range(lo, hi) -> dict:
+    """The descriptor field of a parameter's range [lo, hi]: an integer one for int bounds, else a double one
+    (a plain (lo, hi) pair: ``node_parameters.declare`` makes rcl's range of it)."""
+    return {'integer_range' if isinstance(lo, int) else 'floating_point_range': (lo, hi)}
+
+
+#: name -> (default, description, descriptor fields; a range as (lo, hi)). Ranges are the
+#: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by
+#: ``Config.from_values``, whose reason the node reports on /diagnostics.
+PARAMETERS = {
+    'L1': (CraneParams.L1, PARAMETER_DESCRIPTIONS['L1'], _range(0.0, 100.0)),
+    'L2': (CraneParams.L2, PARAMETER_DESCRIPTIONS['L2'], _range(0.0, 100.0)),
+    'm1': (CraneParams.m1, PARAMETER_DESCRIPTIONS['m1'], _range(0.0, 1e5)),
+    'm2': (CraneParams.m2, PARAMETER_DESCRIPTIONS['m2'], _range(0.0, 1e5)),
+    'g': (CraneParams.g, PARAMETER_DESCRIPTIONS['g'], _range(0.0, 100.0)),
+    'tau': (CraneParams.tau, PARAMETER_DESCRIPTIONS['tau'], _range(0.0, 10.0)),
+    'c1': (CraneParams.c1, PARAMETER_DESCRIPTIONS['c1'], _range(0.0, 1e3)),
+    'c2': (CraneParams.c2, PARAMETER_DESCRIPTIONS['c2'], _range(0.0, 1e3)),
+    'tau_hoist': (CraneParams.tau_hoist, PARAMETER_DESCRIPTIONS['tau_hoist'], _range(0.0, 10.0)),
+    'method': ('rvf', f'method of a move that names none: one of {", ".join(METHODS)}',
+               {'additional_constraints': f'one of {", ".join(METHODS)}'}),
+    'robust_parameters': (['L1'], f'parameters RVF is made insensitive to, among {", ".join(ROBUST_PARAMETERS)}',
+                          {'additional_constraints': f'distinct names among {", ".join(ROBUST_PARAMETERS)}'}),
+    'shaper_frequencies': ([], 'shaper design frequencies (rad/s), one per mode; empty = the linearized '
+                               "model's modal frequencies", {'additional_constraints': 'each > 0'}),
+    'shaper_damping': (-1.0, "shaper design damping ratio, >= 0 and < 1; -1 = the model's modal damping "
+                             'ratios (0 when c1 = c2 = 0; 0 with shaper_frequencies set)',
+                       _range(-1.0, 1.0)),
+    'intervals': (0, 'collocation intervals of NVF/RVF, 4..2000; 0 = the solver default',
+                  _range(0, 2000)),
+    'sample_period': (0.0, 'knot spacing of returned plans (s); 0 = knots where the plan needs them '
+                           '(its breakpoints, and as few more as keep the streamer\'s quintic Hermite '
+                           'interpolation within 1 um); the last knot is exactly at the end',
+                      _range(0.0, 1.0)),
+    'frame_id': (DEFAULT_FRAME_ID, 'frame of returned trajectories', {}),
+    'joints': (['cart'], "the actuated joints this planner serves: [cart], or [cart, hoist] (the hoist's "
+                         "position is the upper cable's length L1; every array of a Move is per joint in this "
+                         'order); fixed at start-up',
+               {'additional_constraints': '[cart] or [cart, hoist]', 'read_only': True}),
+    'publish_lead': (0.3, 'an executed trajectory is sent to the streamer this long (s) before its start '
+                          'time, so that a goal canceled before then streams nothing (one starting as '
+                          'soon as possible is sent at once)', _range(0.0, 10.0)),
+    'max_duration': (60.0, 'longest motion served (s), > 0', _range(0.0, 3600.0)),
+    'max_displacement': (10.0, 'largest |goal - start| served (m), > 0',
+                         _range(0.0, 1e4)),
+    'max_velocity': (0.0, 'axis limit |v| of the reference (m/s); 0 = no limit',
+                     _range(0.0, 1e3)),
+    'max_acceleration': (0.0, 'axis limit |a| of the reference (m/s^2); 0 = no limit',
+                         _range(0.0, 1e4)),
+    'max_jerk': (0.0, 'axis limit on the jerk of the reference (m/s^3); 0 = no limit',
+                 _range(0.0, 1e6)),
+    'max_hoist_velocity': (0.0, 'hoist axis limit |v| of its reference (m/s); 0 = no limit', _range(0.0, 1e3)),
+    'max_hoist_acceleration': (0.0, 'hoist axis limit |a| of its reference (m/s^2); 0 = no limit',
+                               _range(0.0, 1e4)),
+    'max_hoist_jerk': (0.0, 'hoist axis limit on the jerk of its reference (m/s^3); 0 = no limit',
+                       _range(0.0, 1e6)),
+    'hoist_robust_parameters': (['L2'], 'parameters RVF is made insensitive to in a move that hoists (the '
+                                        f'payload\'s cable by default), among {", ".join(ROBUST_PARAMETERS)}',
+                                {'additional_constraints': f'distinct names among {", ".join(ROBUST_PARAMETERS)}'}),
+    'hoist_shaper': ('adaptive', 'how a shaper follows the rope length in a move that hoists: adaptive (fitted '
+                                 'to the hoisting crane) or designed at the start, middle or end length',
+                     {'additional_constraints': f'one of {", ".join(HOIST_SHAPER_DESIGNS)}'}),
+    'shaper_base': ('quintic', "the motion shapers shape: 'quintic' (the paper's) or 'limits' (the jerk-limited "
+                               'time-optimal profile under the axis limits; needs max_velocity or max_acceleration)',
+                    {'additional_constraints': f'one of {", ".join(BASES)}'}),
+    'handover_lead': (0.042, 'a new NVF/RVF goal during a motion takes over this long (s) after it arrives, from '
+                            'the state the motion is in then (a plan taking longer is planned again further ahead)',
+                      _range(0.001, 1.0)),
+    'shaper_handover_lead': (0.001, 'the same for a shaper; shorter than its planning and transport on purpose: '
+                                    'a change reaching the streamer after its tick starts at the next one, '
+                                    'delayed (up to 20 ms, no swing added): the earliest handover possible',
+                             _range(0.001, 1.0)),
+    'handover_priority': (40, 'SCHED_FIFO priority (1..99) of the thread that takes ExecuteMove requests and plans '
+                              'and sends a shaper\'s handover: 1-2 ms of Python that, at normal priority beside the '
+                              '1 kHz nodes, waits as long again for a core; the middleware\'s receive threads run one '
+                              'below; 0 = normal scheduling (also without the privilege: a warning)',
+                          _range(0, 99)),
+    'handover_warmup': (0.02, 'while a motion streams, every this many s the goals\' thread plans a shaper\'s '
+                              'handover of it and serializes its trajectory without sending it (0.5-1 ms each), so '
+                              'that a real goal\'s handover runs on warm caches: after 50-250 ms untouched the same '
+                              'Python took 3-22 times as long on a shared host; 0 = off',
+                        _range(0.0, 10.0)),
+    'settle_method': ('nvf', '~/settle plans with this method: nvf or rvf (a shaper cannot damp a swing it did not '
+                             'cause)', {'additional_constraints': 'nvf or rvf'}),
+    'max_solve_time': (1.0, 'budget of one NVF/RVF solve (s), > 0: a request not solved within it is '
+                            'refused; every request is answered within this + 0.5 s',
+                       _range(0.0, 60.0)),
+    'solver_pool_size': (8, 'NVF/RVF solver instances per method in the node process, 1..32, made as '
+                            'concurrent requests need them (2-6 MB each; the first of a method builds its NLP, '
+                            '~25 MB); they serve every NVF/RVF request when solver_processes is 0, else those '
+                            'finding every worker process busy', _range(1, 32)),
+    'solver_processes': (3, 'worker processes solving NVF/RVF side by side, 0..16, started with the node '
+                            '(~40 MB each beyond what they share); 0 = solve in threads of the node process '
+                            "only, where solves take turns at IPOPT's linear solver (read-only)",
+                         dict(_range(0, 16), read_only=True)),
+}
+
+
+@dataclass(frozen=True)
+class Config:
+    """One consistent set of the node's parameters, validated; swapped whole on a change."""
+
+    params: CraneParams
+    options: PlanOptions
+    method: str
+    sample_period: float
+    frame_id: str
+    max_duration: float
+    max_displacement: float
+    solver_pool_size: int
+    solver_processes: int
+    joints: tuple
+    publish_lead: float
+    handover_lead: float = 0.042
+    shaper_handover_lead: float = 0.001
+    settle_method: str = 'nvf'
+    handover_priority: int = 40
+    handover_warmup: float = 0.02
+
+    @property
+    def bounds(self) -> MoveBounds:
+        return MoveBounds(self.joints, self.method, self.max_displacement, self.max_duration)
+
+    @classmethod
+    def from_values(cls, v: dict) -> 'Config':
+        """From parameter values by name; ParameterError names the bad one."""
+        params = CraneParams(**{name: v[name] for name in PARAMETER_NAMES})
+        check_choice('method', v['method'], METHODS)
+        intervals = int(v['intervals'])
+        options = PlanOptions(
+            omega=tuple(v['shaper_frequencies']) or None,
+            damping=None if v['shaper_damping'] == -1.0 else v['shaper_damping'],
+            robust=tuple(v['robust_parameters']), intervals=intervals or None,
+            max_velocity=v['max_velocity'] or None, max_acceleration=v['max_acceleration'] or None,
+            max_jerk=v['max_jerk'] or None, base=v['shaper_base'],
+            max_solve_time=check_positive('max_solve_time', v['max_solve_time']),
+            max_hoist_velocity=v['max_hoist_velocity'] or None,
+            max_hoist_acceleration=v['max_hoist_acceleration'] or None,
+            max_hoist_jerk=v['max_hoist_jerk'] or None, hoist_robust=tuple(v['hoist_robust_parameters']),
+            hoist_shaper=v['hoist_shaper'])
+        if not v['frame_id']:
+            raise ParameterError('frame_id must not be empty')
+        joints = check_joints(v['joints'])
+        check_choice('settle_method', v['settle_method'], VARIATIONAL_METHODS)
+        return cls(params, options, v['method'], check_nonnegative('sample_period', v['sample_period']),
+                   v['frame_id'], check_positive('max_duration', v['max_duration']),
+                   check_positive('max_displacement', v['max_displacement']), int(v['solver_pool_size']),
+                   int(v['solver_processes']), joints, check_nonnegative('publish_lead', v['publish_lead']),
+                   check_positive('handover_lead', v['handover_lead']),
+                   check_positive('shaper_handover_lead', v['shaper_handover_lead']), v['settle_method'],
+                   int(v['handover_priority']), check_nonnegative('handover_warmup', v['handover_warmup']))
+
+    def warmups(self) -> list[VariationalRequest]:
+        """Requests that build the NVF/RVF solvers of this configuration.
+
+        A typical move, and with velocity or acceleration limits its fastest
+        plan (the free-final-time NLP), so the first of either is answered warm.
+        """
+        D, duration = min(0.3, self.max_displacement), min(3.0, self.max_duration)
+        requests = [VariationalRequest('plan', method, D, duration, self.params, self.options)
+                    for method in VARIATIONAL_METHODS]
+        if self.options.max_velocity is not None or self.options.max_acceleration is not None:
+            requests += [VariationalRequest('fastest', method, D, None, self.params, self.options)
+                         for method in VARIATIONAL_METHODS]
+        if HOIST_JOINT in self.joints:  # and a move that hoists by a tenth of the rope (another NLP)
+            hoisting = hoisting_options(self.options)
+            requests += [VariationalRequest('plan', method, (D, -0.1 * self.params.L1), duration, self.params,
+                                            hoisting) for method in VARIATIONAL_METHODS]
+        # and a plan from a moving, swinging state (a new goal mid-move) and a stop: their own warm starts
+        state = MotionState((0.0, 0.1, 0.05), (0.02, 0.0, -0.05, 0.0),
+                            hoist=(self.params.L1, 0.0, 0.0) if HOIST_JOINT in self.joints else None)
+        start, model = problem_start(state, self.params)
+        options = hoisting_options(self.options) if state.hoist else self.options
+        for free_end in (False, True):
+            displacement = (D, 0.0) if state.hoist else D
+            requests += [VariationalRequest('plan', method, displacement, duration, model, options, start, free_end)
+                         for method in VARIATIONAL_METHODS]
+        return requests

@@ -1,0 +1,149 @@
+"""What the planner knows of the crane: the streamer's newest ``stream_state``, the newest ``joint_states``
+and the motion it last sent, as records.
+
+``stream_state`` (50 Hz) says where the streamer holds each joint, whether
+it streams or is in operator mode, and the current motion's start and
+origin; ``joint_states`` (50 Hz) give the swing a handover is predicted
+from. The view tells whether the streamer was heard recently, where it
+holds the axes, and whether a motion is in progress (``in_motion``), whose
+origin a motion sent as soon as possible learns from ``stream_state``
+(``origin``). Pure Python, no ROS import: the node hands in the messages'
+values.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+from crane_msgs_py.names import HOIST_JOINT
+
+from .goals import Goals
+from .transitions import Measurement, Running
+
+#: How fresh (s) the last ``stream_state`` must be for the streamer to count as heard.
+STREAM_FRESH = 1.0
+#: ``StreamState.state`` values (``crane_msgs_py.conversions``): streaming a motion, following cmd_vel.
+STREAMING, OPERATOR = 'streaming', 'operator'
+#: A motion the streamer says it does not stream this long (ns) after its origin was refused.
+REFUSED_AFTER_NS = 100_000_000
+
+
+@dataclass(frozen=True)
+class StreamSample:
+    """One ``stream_state`` (the fields ``conversions.read_stream_state`` reads, in its order)."""
+
+    stamp_ns: int
+    state: str  # streaming, holding or operator
+    hold: dict  # joint -> position (m)
+    motion_start_ns: int  # the current (or last) motion's first tick
+    motion_duration: float
+    motion_origin_ns: int  # when its first knot is streamed
+
+    @property
+    def operator(self) -> bool:
+        return self.state == OPERATOR
+
+
+def joint_sample(stamp_ns: int, position, velocity, names=(), joint_positions=(), joint_velocities=()) \
+        -> Measurement:
+    """A ``joint_states`` message as a ``Measurement``: the sim's joints' ``position`` and ``velocity`` (cart,
+    theta1, theta2; a NaN velocity as 0), and with a hoist among ``names`` its rope length and rate."""
+    hoist = None
+    if HOIST_JOINT in names:
+        k = list(names).index(HOIST_JOINT)
+        hoist = (float(joint_positions[k]), float(joint_velocities[k]) if len(joint_velocities) > k else 0.0)
+    velocity = [0.0 if math.isnan(v) else float(v) for v in velocity]
+    return Measurement(stamp_ns, (float(position[0]), velocity[0]),
+                       (float(position[1]), float(position[2]), velocity[1], velocity[2]), hoist)
+
+
+class CraneView:
+    """The newest ``stream_state`` and ``joint_states`` and the motion last sent (kept by ``goals``).
+
+    Args:
+        clock: ROS time now (ns).
+        goals: the book of goals (the last motion sent, and whose execution learns its origin).
+        fresh: how recent (s) a ``stream_state`` must be to count as heard.
+        sleep, monotonic: how ``origin`` waits.
+    """
+
+    def __init__(self, clock: Callable[[], int], goals: Goals, fresh: float = STREAM_FRESH,
+                 sleep: Callable[[float], None] = time.sleep, monotonic: Callable[[], float] = time.monotonic):
+        self._clock, self._goals, self._fresh = clock, goals, fresh
+        self._sleep, self._monotonic = sleep, monotonic
+        self._lock = threading.Lock()
+        self._stream: tuple[int, StreamSample] | None = None  # (received ns, sample)
+        self._measured: Measurement | None = None
+
+    # -- inputs --------------------------------------------------------------------------
+
+    def on_stream_state(self, sample: StreamSample) -> None:
+        with self._lock:
+            self._stream = (self._clock(), sample)
+
+    def on_joint_state(self, measured: Measurement) -> None:
+        with self._lock:
+            self._measured = measured
+
+    # -- what it says --------------------------------------------------------------------
+
+    @property
+    def measured(self) -> Measurement | None:
+        """The newest ``joint_states`` (what a handover predicts the swing from)."""
+        with self._lock:
+            return self._measured
+
+    def age(self) -> float | None:
+        """Seconds since the newest ``stream_state`` arrived (None: never)."""
+        with self._lock:
+            stream = self._stream
+        return None if stream is None else (self._clock() - stream[0]) * 1e-9
+
+    def heard(self) -> StreamSample | None:
+        """The streamer's newest state, if it was heard within ``fresh`` s."""
+        with self._lock:
+            stream = self._stream
+        if stream is None or self._clock() - stream[0] > self._fresh * 1e9:
+            return None
+        return stream[1]
+
+    def hold(self) -> dict | None:
+        """Where the streamer holds each joint (m), if it was heard within ``fresh`` s."""
+        heard = self.heard()
+        return None if heard is None else heard.hold
+
+    def origin(self, running: Running, wait: float = 0.2) -> bool:
+        """Whether ``running``'s origin is known: the streamer's once stream_state tells it (a trajectory that
+        reached it after its stamp starts at its next tick), until then the stamp it was sent with; one sent
+        as soon as possible (no stamp) waits up to ``wait`` s for the streamer's."""
+        deadline = self._monotonic() + wait
+        while not running.confirmed:
+            origin = self._goals.origin_of(running)
+            if origin is not None:
+                running.origin_ns, running.confirmed = origin, True
+                break
+            if running.origin_ns or self._monotonic() > deadline:
+                return running.origin_ns != 0
+            self._sleep(0.002)
+        return True
+
+    def in_motion(self) -> Running | None:
+        """The motion the streamer is streaming (or about to), if any: the last one sent, unless it has
+        ended, or the streamer says it holds though the motion should have started 0.1 s ago (refused)."""
+        with self._goals.lock:
+            running = self._goals.running
+        if running is None:
+            return None
+        # one sent to start as soon as possible (or late) has started once its goal's stream_state says so
+        if running.origin_ns == 0 and not self.origin(running, wait=0.0) and self._goals.owner(running) is None:
+            return None  # its goal ended before the streamer started it: nothing is in motion
+        if running.origin_ns and self._clock() >= running.end_ns:
+            return None
+        heard = self.heard()
+        if heard is not None and heard.state != STREAMING and running.origin_ns and \
+                heard.stamp_ns > running.origin_ns + REFUSED_AFTER_NS:
+            return None
+        return running

@@ -1,0 +1,172 @@
+"""When a handover is planned and sent: its lead, the slack it may arrive with, and the retries.
+
+A goal during a motion, a stop and a settle each plan from the state the
+running motion will be in at the handover, ``lead`` s from now. Planning
+that takes longer than the lead (less the transport's share) is planned
+again further ahead (``plan_handover``); a handover the streamer did not take
+all the same (it came late on a busy host) is sent again, four times further
+ahead (``HandoverPolicy``). An executed goal is held until ``publish_lead``
+before its start (``send_at``); one whose start passed meanwhile streams
+from the streamer's next tick (``streamed_origin``). Every time comes from
+the clocks given, so the rules run on a fake clock in the tests. Pure
+Python, no ROS import.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from ..planning.continuation import MotionState
+from ..planning.plan import Plan
+from ..streaming.reference_stream import MAX_HANDOVER_SHIFT
+from .execution import Execution
+from .moves import CheckedMove, MoveError
+from .transitions import Running, Trajectory
+
+#: A handover's trajectory must be sent at least this long (s) before the handover, for its transport to
+#: the streamer and the streamer's check (1-3 ms on a busy two-core machine); one that arrives late all the
+#: same is refused by the streamer and planned again further ahead (``HandoverPolicy``).
+TRANSPORT_MARGIN = 0.008
+#: Attempts at a handover whose plan took longer than its lead (the lead doubles each time), and at one the
+#: streamer did not take (the lead grows fourfold each time).
+HANDOVER_ATTEMPTS = 3
+#: How much further ahead a handover the streamer did not take is planned again.
+RETRY_LEAD_SCALE = 4.0
+#: A handover counts as not taken once the streamer's clock is this far (ns) past it without taking it.
+NOT_TAKEN_AFTER_NS = 50_000_000
+
+
+@dataclass(frozen=True)
+class Handover:
+    """A planned handover: the plan from ``state``, the running motion's state at ``handover_ns``."""
+
+    plan: Plan
+    handover_ns: int
+    state: MotionState
+
+
+@dataclass(frozen=True)
+class HandoverResult:
+    """A goal's handover as planned (and sent): the move checked from the handover state, its plan, its
+    trajectory, its status values (/diagnostics) and the handover (ns)."""
+
+    checked: CheckedMove
+    plan: Plan
+    trajectory: Trajectory
+    values: dict
+    handover_ns: int
+
+
+class NotSent(Exception):
+    """A goal's handover not sent: the goal gave way to a newer one, or was canceled, before it was sent, or
+    while a handover the streamer did not take was to be sent again."""
+
+
+def send_at(start_ns: int, publish_lead: float) -> int:
+    """When a goal's trajectory starting at ``start_ns`` (0: as soon as possible) is sent: ``publish_lead``
+    before its start, so a cancel before then streams nothing; at once (0) if it starts as soon as possible."""
+    return start_ns - round(publish_lead * 1e9) if start_ns else 0
+
+
+def streamed_origin(start_ns: int, now_ns: int) -> int:
+    """The origin a trajectory starting at ``start_ns`` is sent with at ``now_ns``: its start, or 0 if that
+    has passed (the goal came late, or planning outlasted its lead). Streamed whole from the streamer's next
+    tick, like one as soon as possible, its origin comes from stream_state (``CraneView.origin``), and the
+    streamer's time to start it counts from now, not from a start it could never have met."""
+    return start_ns if start_ns > now_ns else 0
+
+
+def arrival_lead(lead: float, arrived_ns: int | None, now_ns: int) -> float:
+    """A handover's lead counted from the goal's arrival (``arrived_ns``), as if planned then; at least half
+    the lead from now."""
+    if arrived_ns is None:
+        return lead
+    return max(0.5 * lead, lead - (now_ns - arrived_ns) * 1e-9)
+
+
+def plan_handover(clock: Callable[[], int], running: Running, lead: float,
+                  make_plan: Callable[[int, MotionState], Plan], state_at: Callable[[int], MotionState],
+                  rehearse: bool = False, timer: Callable[[], float] = time.perf_counter,
+                  warn: Callable[[str], None] = lambda message: None,
+                  attempts: int = HANDOVER_ATTEMPTS) -> Handover | None:
+    """``make_plan(handover_ns, state)`` from the state ``running`` will be in ``lead`` s from now
+    (``state_at(handover_ns)``), planned again further ahead if it took longer than that; None if the
+    motion ends first. ``rehearse``: planned once, however long it took, for nothing to be sent.
+    MoveError after ``attempts`` plans too slow for their lead."""
+    for _ in range(attempts):
+        handover = max(clock() + round(lead * 1e9), running.origin_ns)
+        if handover >= running.end_ns:
+            return None
+        t0 = timer()
+        state = state_at(handover)
+        t1 = timer()
+        plan = make_plan(handover, state)
+        took = timer() - t0
+        # the transport's share of the lead: TRANSPORT_MARGIN, or with a short lead (a shaper's) 40 % of it.
+        # A plan ending no earlier than the running motion (a new goal's) may even arrive late: the streamer
+        # delays its change to its next tick, up to MAX_HANDOVER_SHIFT (half of it kept for the transport).
+        # A handover arriving too late all the same is refused and planned again.
+        slack = (0.5 * MAX_HANDOVER_SHIFT if handover + round(plan.duration * 1e9) >= running.end_ns
+                 else -min(TRANSPORT_MARGIN, 0.4 * lead))
+        if rehearse or clock() < handover + slack * 1e9:
+            return Handover(plan, handover, state)
+        warn(f'handover: planning took {1e3 * took:.1f} ms (the state {1e3 * (t1 - t0):.1f} ms), beyond the '
+             f'lead {1e3 * lead:.1f} ms: planning again further ahead')
+        lead = max(2.0 * lead, 1.5 * took + TRANSPORT_MARGIN)
+    raise MoveError('duration', f'planning took longer than the handover lead {attempts} times '
+                                f'(last lead {lead / 2:.3f} s); raise handover_lead')
+
+
+def taken(execution: Execution, handover_ns: int, wait: float = 0.5,
+          sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter) -> bool:
+    """Whether the streamer streams the handover at ``handover_ns`` (its stream_state says so), waiting
+    until its clock is ``NOT_TAKEN_AFTER_NS`` past the handover, or ``wait`` s."""
+    deadline = timer() + wait
+    while timer() < deadline:
+        if execution.motion_start_ns is not None:
+            return True
+        if execution.stream_ns is not None and execution.stream_ns > handover_ns + NOT_TAKEN_AFTER_NS:
+            return False
+        sleep(0.002)
+    return False
+
+
+class HandoverPolicy:
+    """A goal's handover of a running motion, sent until the streamer takes it.
+
+    Args:
+        send: ``send(lead_scale, first) -> (HandoverResult, Execution)``: plan the handover ``lead_scale``
+            times the configured lead ahead (``first``: the first attempt, whose lead counts from the goal's
+            arrival) and send it; ValueError says why it cannot be planned, ``NotSent`` that it may not be.
+        sleep, timer: how ``taken`` waits.
+        attempts: handovers sent before giving up.
+        warn: told of each retry.
+    """
+
+    def __init__(self, send: Callable[[float, bool], tuple[HandoverResult, Execution]],
+                 sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter,
+                 attempts: int = HANDOVER_ATTEMPTS, warn: Callable[[str], None] = lambda message: None):
+        self._send, self._sleep, self._timer = send, sleep, timer
+        self.attempts, self._warn = attempts, warn
+
+    def run(self, first: tuple[HandoverResult, Execution] | None = None,
+            planned: Callable[[HandoverResult], Any] = lambda result: None,
+            canceled: Callable[[], bool] = lambda: False) -> HandoverResult | None:
+        """The handover the streamer took (None: it took none of ``attempts``). ``first``: the first one,
+        already sent (on the goal's arrival); ``planned`` is told of the first one planned. A cancel
+        (``canceled()``) before a handover is sent again raises NotSent: the streamer took none, the running
+        motion goes on and nothing of the goal streams."""
+        lead_scale = 1.0
+        for attempt in range(self.attempts):
+            if attempt and canceled():
+                raise NotSent('canceled while its handover was to be sent again')
+            result, execution = first if attempt == 0 and first is not None else self._send(lead_scale, attempt == 0)
+            if attempt == 0:
+                planned(result)
+            if taken(execution, result.handover_ns, sleep=self._sleep, timer=self._timer):
+                return result
+            lead_scale *= RETRY_LEAD_SCALE
+            self._warn(f'execute_move: the streamer did not take the handover (late on arrival?): planning it '
+                       f'again {lead_scale:g} times further ahead')
+        return None

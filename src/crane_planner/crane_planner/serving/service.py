@@ -1,0 +1,553 @@
+"""The planner's requests as plain Python: a preview, an executed goal from arrival to result, a settle.
+
+The planner node hands in records (a ``moves.Move``, a ``crane_view.StreamSample``,
+a ``transitions.Measurement``) and gets records back (``Planned``, ``Outcome``,
+a ``transitions.Trajectory`` to publish); it keeps the ROS entities and
+threads. An executed goal (``execute``): planned, held until
+``publish_lead`` before its start, sent, followed (``execution.Execution``)
+to its result; a goal during a motion takes the motion over
+(``handover.HandoverPolicy``; a shaper's is planned and sent on arrival,
+``arrive``, on the goals' thread); a cancel during the motion stops it
+(``stops.plan_stop``). Each goal's state is in the book of goals
+(``goals.Goals``), what the crane does in ``crane_view.CraneView``. Every
+time comes from the clocks given (ROS time ``clock``, ``timer`` and
+``sleep`` for waits), so the whole runs on a fake clock in the tests. Pure
+Python, no ROS import.
+"""
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from crane_msgs_py.names import CART_JOINT, STREAM_STATE_TOPIC
+
+from ..planning.methods import METHODS, SHAPER_METHODS, VARIATIONAL_METHODS
+from ..planning.plan import Plan, time_grid
+from ..streaming.knots import knot_times
+from . import transitions
+from .config import Config
+from .crane_view import STREAM_FRESH, CraneView, StreamSample
+from .execution import DONE, FAILED, MOVING, WAITING, Execution
+from .goals import Goal, Goals, GoalState, TakeOver
+from .handover import (
+    HandoverPolicy,
+    HandoverResult,
+    NotSent,
+    arrival_lead,
+    plan_handover,
+    send_at,
+    streamed_origin,
+    taken,
+)
+from .moves import CheckedMove, Move, MoveError, axis_samples, check_move, plan_move
+from .stops import STOP_LEAD, plan_stop
+from .transitions import Measurement, Running, Trajectory
+
+#: Settle window (s) of a goal that gives none (``settle`` 0).
+DEFAULT_SETTLE = 2.0
+#: Feedback period (s): 20 Hz, above the contract's 10 Hz.
+FEEDBACK_PERIOD = 0.05
+
+
+@dataclass(frozen=True)
+class Planned:
+    """A move planned: checked, its plan, its trajectory, its status values (/diagnostics) and how long
+    its planning took (s; for a handover from the goal's arrival)."""
+
+    checked: CheckedMove
+    plan: Plan
+    trajectory: Trajectory
+    values: dict
+    planning_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """A goal's result: how it ends (``succeed``, ``abort``, ``cancel``), why, the residual swing (m), its
+    plan (None if none was made) and the handover warm-ups during its motion (count, s)."""
+
+    how: str
+    message: str
+    residual_swing: float = math.nan
+    plan: Planned | None = None
+    warmups: int = 0
+    warmup_s: float = 0.0
+
+    @property
+    def success(self) -> bool:
+        return self.how == 'succeed'
+
+    def status(self) -> dict:
+        """Its values on /diagnostics."""
+        return dict(outcome=self.how, residual_swing=self.residual_swing, error='' if self.success else self.message,
+                    handover_warmups=self.warmups,
+                    handover_warmup_ms=1e3 * self.warmup_s / self.warmups if self.warmups else 0.0)
+
+
+def plan_status(values: dict, planned: Planned | None, t0: float, solved: float, now: float,
+                error: str = '') -> tuple[str, dict]:
+    """A request's status on /diagnostics, (message, values): the plan's facts, or why it was refused
+    (``planned`` None); planned from ``t0`` to ``solved``, reported at ``now`` (s, one timer)."""
+    if error:
+        return error, dict(values, solve_time=0.0, plan_time=now - t0, iterations=0, knots=0, error=error)
+    plan, knots = planned.plan, planned.trajectory.knots
+    info = plan.info
+    return f'{values["method"]}: {knots} knots in {plan.duration:.4f} s', dict(
+        values, solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
+        iterations=info.get('iterations', 0), plan_time=solved - t0, message_time=now - solved, knots=knots,
+        error='')
+
+
+class MoveService:
+    """The planner's requests, served.
+
+    Args:
+        planner: the ``serving.Planner``.
+        config: the node's current ``Config`` (read at each request: a change applies to the next).
+        clock: ROS time now (ns).
+        publish: sends a ``Trajectory`` to the streamer.
+        report: ``report(values, planned, t0, solved, error='')``: a request's status (/diagnostics): its
+            values, the ``Planned`` (None: refused), when its planning began and ended (``timer``), why not.
+        log: has ``info``, ``warn`` and ``error`` (a message each).
+        sleep, timer: how waits wait (s) and are timed (s, monotonic).
+    """
+
+    def __init__(self, planner, config: Callable[[], Config], clock: Callable[[], int],
+                 publish: Callable[[Trajectory], Any], report: Callable[..., Any], log,
+                 sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter):
+        self.planner, self.config, self.clock = planner, config, clock
+        self._publish, self._report, self.log = publish, report, log
+        self._sleep, self._timer = sleep, timer
+        self.goals = Goals(clock)
+        self.view = CraneView(clock, self.goals, sleep=sleep, monotonic=timer)
+        self.handing_over = threading.Lock()  # one handover (goal, stop, settle) planned at a time
+
+    # -- inputs ------------------------------------------------------------------------
+
+    def on_stream_state(self, sample: StreamSample) -> None:
+        self.view.on_stream_state(sample)
+        for execution in self.goals.executions():
+            execution.on_stream_state(sample.stamp_ns, sample.motion_start_ns, sample.motion_duration,
+                                      sample.motion_origin_ns)
+
+    def on_joint_state(self, measured: Measurement) -> None:
+        self.view.on_joint_state(measured)
+        length = measured.hoist[0] if measured.hoist is not None else None
+        for execution in self.goals.executions():
+            execution.on_joint_state(measured.stamp_ns, measured.swing[0], measured.swing[1], length)
+
+    # -- planning (a preview, and each goal) ---------------------------------------------
+
+    def plan(self, move: Move, service: str, execute: bool = False) -> Planned:
+        """The move checked and planned; MoveError/ValueError says why not (its ``values``: the status)."""
+        config, t0 = self.config(), self._timer()
+        values = {'service': service, 'method': move.method or config.method,
+                  'start': move.start[0] if move.start else math.nan,
+                  'goal': move.goal[0] if move.goal else math.nan, 'duration': move.duration}
+        hold = self.view.hold()
+        try:
+            checked = check_move(move, config.bounds, hold, config.params.L1)
+            values.update(method=checked.method, start=checked.start, goal=checked.goal,
+                          displacement=checked.displacement)
+            if checked.hoist_start is not None:
+                values.update(hoist_start=checked.hoist_start, hoist_goal=checked.hoist_goal)
+            plan = plan_move(self.planner, checked, config.bounds, config.params, config.options)
+            if execute:  # after planning: a preview and a goal of the same bad move give the same reason
+                heard = self.view.heard()
+                check_executable(checked, hold, heard is not None and heard.operator)
+        except ValueError as exc:
+            exc.values = values
+            raise
+        values['duration'] = plan.duration
+        trajectory = Trajectory(checked.joints, axis_samples(plan, knots_of(plan, config)), checked.starts,
+                                checked.start_ns)
+        return Planned(checked, plan, trajectory, values, self._timer() - t0)
+
+    # -- a goal's arrival (the goals' thread) ----------------------------------------------
+
+    def arrive(self, key, move: Move, settle: float) -> Goal:
+        """A goal arrived (registered under ``key`` until accepted); a shaper's during a motion is handed
+        over at once (``first_handover``): before the server accepts it, and before the executor runs
+        ``execute``. A variational one (its lead is 42 ms) plans in ``execute``: the goals' thread never
+        waits on a solver process, so a cancel or another goal is not held up behind it."""
+        goal, forgotten = self.goals.arrive(key)
+        for other in forgotten:
+            self.log.error(f'execute_move: a goal was never accepted by the action server (it was '
+                           f'{other.history[-1].value}); forgotten')
+        running = None
+        try:
+            arrived_t, running = self._timer(), self.view.in_motion()
+            if running is not None and math.isfinite(settle) and settle >= 0.0:  # (else execute refuses it)
+                goal.take_over = TakeOver(running, goal.arrived_ns, arrived_t)
+                config = self.config()
+                shaper = (move.method or config.method) not in VARIATIONAL_METHODS
+                # not when planning would wait: for the running motion's start on the streamer (origin) or
+                # behind a stop or settle being planned (handing_over)
+                if shaper and running.origin_ns and not self.handing_over.locked():
+                    sent = self._send_handover(goal, move, running, settle or DEFAULT_SETTLE)
+                    goal.take_over = TakeOver(running, goal.arrived_ns, arrived_t, sent)
+        except Exception as exc:  # raised again by _take_over: a refusal (ValueError) or a bug's
+            goal.take_over = TakeOver(running, goal.arrived_ns, self._timer(), error=exc)
+        return goal
+
+    def warm_handover(self, rehearse: Callable[[Trajectory], Any]) -> None:
+        """Plan a shaper's handover of the running motion as ``arrive`` would (back to where the motion
+        started) and ``rehearse`` its trajectory (the node serializes it as publishing would), sending
+        nothing: a real goal's handover is 1-2 ms of Python that, left untouched for 50-250 ms beside the
+        1 kHz nodes, took several times as long (caches, not page faults). Not while a handover is being
+        planned (on the goals' thread, at its priority, it would take the core from an NVF/RVF handover's
+        solver process, whose lead is tight). A bug's exception is raised after the rehearsal is counted."""
+        if self.handing_over.locked():
+            return
+        t0, running = self._timer(), self.view.in_motion()
+        if running is None or not running.origin_ns or running.hoist_moves:  # (a shaper cannot retarget then)
+            return
+        config = self.config()
+        method = next((m for m in (running.method, config.method) if m in SHAPER_METHODS), SHAPER_METHODS[0])
+        move = Move(method, goal=(float(running.interps[0].position[0]),), duration=running.duration)
+        try:
+            rehearse(self._preempting(move, running, rehearse=True).trajectory)
+        except ValueError:  # (a stop's remainder too short for the shaper, the motion ended meanwhile, ...)
+            pass
+        finally:
+            self.goals.count_warmup(running, self._timer() - t0)
+
+    # -- a goal executed (the executor's threads) -------------------------------------------
+
+    def execute(self, goal: Goal, move: Move, settle: float, feedback: Callable[..., Any],
+                canceled: Callable[[], bool]) -> Outcome:
+        """``goal`` from its plan to its result. ``feedback(progress=, time_remaining=, swing=)``; ``canceled()``:
+        whether the server has a cancel of it."""
+        t0 = self._timer()
+        if not (math.isfinite(settle) and settle >= 0.0):
+            return self._end(goal, 'abort', f'settle: must be finite and >= 0 s (0 = {DEFAULT_SETTLE:g} s), '
+                                            f'got {settle}')
+        settle = settle or DEFAULT_SETTLE
+        if goal.take_over is not None:  # a new goal during a motion: it takes over (preemption)
+            return self._take_over(goal, move, settle, feedback, canceled)
+        try:
+            planned = self.plan(move, 'execute_move', execute=True)
+        except ValueError as exc:
+            self._report({'service': 'execute_move', 'method': '', **getattr(exc, 'values', {})}, None, t0, t0,
+                          error=str(exc))
+            return self._end(goal, 'abort', str(exc))
+        self._report(planned.values, planned, t0, self._timer())
+        checked, plan, config = planned.checked, planned.plan, self.config()
+        feedback(progress=0.0, time_remaining=plan.duration, swing=math.nan)  # planned: the caller knows at once
+        self.goals.hold(goal)
+        # hold the trajectory until publish_lead before its start: a cancel before then streams nothing
+        due = send_at(checked.start_ns, config.publish_lead)
+        while self.clock() < due and goal.state is GoalState.HELD and not canceled():
+            self._sleep(min(FEEDBACK_PERIOD, max(0.0, (due - self.clock()) * 1e-9)))
+        now = self.clock()
+        origin = streamed_origin(checked.start_ns, now)
+        execution = Execution(plan.duration, settle, origin or now, config.params.L1, config.params.L2)
+        if not self.goals.send(goal, execution, planned.trajectory.running(origin, plan), canceled):
+            if goal.state in (GoalState.PREEMPTED, GoalState.TAKEN_OVER):
+                return self._end(goal, 'abort', 'preempted by a newer goal before its motion started: nothing '
+                                                 'was streamed', planned)
+            return self._end(goal, 'cancel', 'canceled before its motion started: nothing was streamed', planned)
+        self._publish(planned.trajectory)
+        if checked.start_ns and not origin:
+            self.log.warn(f'execute_move: its start_time had passed {(now - checked.start_ns) * 1e-9:.3f} s '
+                          'before its trajectory was sent: the streamer streams it from its next tick')
+        what = f'{checked.method}: {checked.start:g} -> {checked.goal:g} m in {plan.duration:.4g} s'
+        return self._follow(goal, planned, feedback, canceled, settle, what)
+
+    def _take_over(self, goal: Goal, move: Move, settle: float, feedback, canceled) -> Outcome:
+        """A goal during a motion: plan from the state at the handover, send, and once the streamer has
+        taken it over (its stream_state), end the preempted goal and follow this one."""
+        take_over = goal.take_over
+        on_arrival = take_over.sent is not None
+        self.log.info('execute_move: a goal during a motion: handed over on arrival' if on_arrival else
+                      'execute_move: a goal during a motion: planning the handover')
+        reported = []
+
+        def send(lead_scale: float, first: bool):  # (the first from the goal's arrival, as if planned then)
+            return self._send_handover(goal, move, take_over.running, settle, lead_scale,
+                                       take_over.arrived_ns if first else None)
+
+        def planned(result: HandoverResult):
+            solved = self._timer()
+            planning = Planned(result.checked, result.plan, result.trajectory, result.values,
+                               solved - take_over.arrived_t)
+            self._report(result.values, planning, take_over.arrived_t, solved)
+            reported.append(planning)
+            feedback(progress=0.0, time_remaining=result.plan.duration, swing=math.nan)
+
+        policy = HandoverPolicy(send, self._sleep, self._timer, warn=self.log.warn)
+        try:
+            if take_over.error is not None:  # a refusal, or a bug's (for the node)
+                raise take_over.error
+            result = policy.run(take_over.sent, planned, canceled)
+        except NotSent:  # (nothing of it streams: a running motion goes on as it was)
+            if goal.state in (GoalState.PREEMPTED, GoalState.TAKEN_OVER):
+                return self._end(goal, 'abort', 'preempted by a newer goal before its motion started: nothing '
+                                                 'was streamed', reported[0] if reported else None)
+            return self._end(goal, 'cancel', 'canceled before its motion started: nothing was streamed',
+                             reported[0] if reported else None)
+        except ValueError as exc:
+            self._report({'service': 'execute_move', 'method': '', **getattr(exc, 'values', {})}, None,
+                         take_over.arrived_t, take_over.arrived_t, error=str(exc))
+            return self._end(goal, 'abort', str(exc))
+        if result is None:
+            return self._end(goal, 'abort', f'the streamer took none of {policy.attempts} handovers (see its '
+                                            '/diagnostics); the running motion goes on', reported[0])
+        checked, plan = result.checked, result.plan
+        self.goals.take_over(goal, result.handover_ns, transitions.taken_over(
+            take_over.running, result.trajectory.running(result.handover_ns, plan), goal.execution.motion_start_ns))
+        what = (f'{checked.method}: from {checked.start:g} m (taking over the motion) -> {checked.goal:g} m in '
+                f'{plan.duration:.4g} s')
+        return self._follow(goal, reported[0], feedback, canceled, settle, what)
+
+    def _send_handover(self, goal: Goal, move: Move, running: Running, settle: float, lead_scale: float = 1.0,
+                       arrived_ns: int | None = None) -> tuple[HandoverResult, Execution]:
+        """Plan ``goal``'s handover of ``running`` and send it; ValueError says why it cannot be planned,
+        NotSent that the goal gave way or was canceled meanwhile."""
+        result = self._preempting(move, running, lead_scale, arrived_ns)
+        config = self.config()
+        execution = Execution(result.plan.duration, settle, result.handover_ns, config.params.L1, config.params.L2)
+        if not self.goals.send(goal, execution):  # (before it is sent: the first stream_state of it finds it)
+            raise NotSent()
+        self._publish(result.trajectory)  # at once: the handover is due in milliseconds
+        return result, execution
+
+    def _follow(self, goal: Goal, planned: Planned, feedback, canceled, settle: float, what: str) -> Outcome:
+        """Follow the goal's motion to its result: done, taken over by a newer goal, or stopped on a cancel."""
+        self.goals.follow(goal)
+        stopped = None  # (where the stop ends, m) once a cancel has stopped the motion
+        while True:
+            execution = goal.execution
+            phase = execution.phase(self.clock())
+            if goal.running is not None:  # a pending motion's origin, kept once this goal has ended too
+                self.view.origin(goal.running, wait=0.0)
+            feedback(progress=execution.progress, time_remaining=execution.time_remaining, swing=execution.swing)
+            if goal.state is GoalState.TAKEN_OVER:
+                return self._end(goal, 'abort', f'preempted by a newer goal after '
+                                                f'{execution.progress * execution.duration:.3f} s of its motion '
+                                                f'({what})', planned)
+            if canceled() and stopped is None:
+                if phase in (WAITING, MOVING) and goal.running is not None:
+                    try:
+                        stopped = self._stop(goal, settle)
+                    except ValueError as exc:
+                        return self._end(goal, 'cancel', f'canceled, but no stop could be planned ({exc}): the '
+                                                         'motion runs to its end', planned)
+                    continue
+                return self._end(goal, 'cancel', 'canceled after its motion had ended', planned, execution.residual)
+            if phase in (DONE, FAILED):
+                break
+            self._sleep(FEEDBACK_PERIOD)
+        if phase == FAILED:
+            self.goals.clear(goal.running)  # the streamer did not take it: nothing is in motion
+            return self._end(goal, 'abort', execution.failure, planned)
+        residual = ('no joint_states: residual not measured' if math.isnan(execution.residual)
+                    else f'residual swing {1e3 * execution.residual:.3f} mm')
+        cut = ('' if execution.window_end_ns == execution.end_ns + round(settle * 1e9) else
+               f' (observed {(execution.window_end_ns - execution.end_ns) * 1e-9:.3g} s: the next motion started)')
+        if stopped is not None:
+            return self._end(goal, 'cancel', f'canceled: stopped at {stopped:.6g} m in {execution.duration:.4g} s '
+                                             f'without swing ({what}); {residual}{cut}', planned, execution.residual)
+        return self._end(goal, 'succeed', f'{what}; {residual}{cut}', planned, execution.residual)
+
+    def _end(self, goal: Goal, how: str, message: str, planned: Planned | None = None,
+             residual: float = math.nan) -> Outcome:
+        self.goals.end(goal)
+        return Outcome(how, message, residual, planned, goal.warmups, goal.warmup_s)
+
+    # -- motion from any state: a new goal, a stop, a settle ------------------------------------
+
+    def _handover(self, running: Running, lead: float, make_plan, swing: bool = True, rehearse: bool = False):
+        """``handover.plan_handover`` of ``running`` once its origin is known, one at a time (``rehearse``:
+        beside them); the swing there predicted from the newest joint_states (``swing``: not needed by a
+        shaper's change)."""
+        if not self.view.origin(running):
+            raise MoveError('goal', 'the running motion has not started on the streamer yet (no stream_state '
+                                    'of it): a goal during it is accepted once it streams')
+        params = self.config().params
+
+        def state_at(handover_ns):
+            return transitions.handover_state(running, handover_ns, self.view.measured, params, swing)
+
+        with contextlib.nullcontext() if rehearse else self.handing_over:
+            return plan_handover(self.clock, running, lead, make_plan, state_at, rehearse, self._timer,
+                                 self.log.warn)
+
+    def _preempting(self, move: Move, running: Running, lead_scale: float = 1.0, arrived_ns: int | None = None,
+                    rehearse: bool = False) -> HandoverResult:
+        """The handover of a goal arriving during ``running``, ``lead_scale`` times the configured lead from
+        now, or from ``arrived_ns`` if given (``handover.arrival_lead``); ``rehearse``: see ``plan_handover``."""
+        config = self.config()
+        values = {'service': 'execute_move', 'method': move.method or config.method,
+                  'goal': move.goal[0] if move.goal else math.nan, 'duration': move.duration, 'preempts': True}
+        try:
+            if move.start:
+                raise MoveError('start', 'a goal during a motion starts where the motion is when it takes over: '
+                                         'leave start empty')
+            if move.start_ns:
+                raise MoveError('start_time', 'a goal during a motion takes over at once: leave start_time zero')
+            end = dict(zip(running.joints, (float(i.position[-1]) for i in running.interps)))
+            checked = check_move(move, config.bounds, end, config.params.L1)
+            if checked.duration is None:
+                raise MoveError('duration', 'a goal during a motion needs a duration (> 0 s): the fastest plan is '
+                                            'planned from rest only')
+            goal = {'cart': checked.goal}
+            if checked.hoist_goal is not None:
+                goal['hoist'] = checked.hoist_goal
+            shaper = checked.method not in VARIATIONAL_METHODS
+            lead = arrival_lead((config.shaper_handover_lead if shaper else config.handover_lead) * lead_scale,
+                                arrived_ns, self.clock())
+
+            def make(handover_ns, state):
+                return transitions.retarget(self.planner.variational, running, handover_ns, state, checked.method,
+                                            goal, checked.duration, config.params, config.options)
+
+            try:
+                done = self._handover(running, lead, make, swing=not shaper, rehearse=rehearse)
+            except MoveError:
+                raise
+            except ValueError as exc:
+                raise MoveError('duration', str(exc)) from None
+            if done is None:
+                raise MoveError('goal', 'the running motion ended while this goal was planned; send it again')
+        except ValueError as exc:
+            exc.values = values
+            raise
+        plan, handover, state = done.plan, done.handover_ns, done.state
+        checked = CheckedMove(checked.method, checked.joint_names, state.cart[0], checked.goal, checked.duration,
+                              handover, state.hoist[0] if state.hoist else None, checked.hoist_goal)
+        values.update(method=checked.method, start=state.cart[0], goal=checked.goal, duration=plan.duration,
+                      handover_lead=(handover - self.clock()) * 1e-9)
+        return HandoverResult(checked, plan, self._trajectory(plan, state, running.joints, handover), values,
+                              handover)
+
+    def _trajectory(self, plan: Plan, state, joints, handover_ns: int) -> Trajectory:
+        starts = transitions.joint_starts(plan, state)
+        return Trajectory(tuple(joints), axis_samples(plan, knots_of(plan, self.config())), tuple(starts),
+                          handover_ns)
+
+    def _stop(self, goal: Goal, settle: float) -> float:
+        """Stop ``goal``'s motion without swing (a cancel during it): send the stop, follow it from now on.
+        Returns where the cart stops (m); ValueError says why no stop could be planned."""
+        config, running = self.config(), goal.running
+
+        def make(handover_ns, state):
+            return plan_stop(self.planner.variational, running, handover_ns, config.params, config.options,
+                             state=state).plan
+
+        done = self._handover(running, STOP_LEAD, make)
+        if done is None:  # the motion ended meanwhile: it is at rest already
+            return float(running.interps[0].position[-1])
+        plan, handover, state = done.plan, done.handover_ns, done.state
+        trajectory = self._trajectory(plan, state, running.joints, handover)
+        stop = trajectory.running(handover, plan)
+        self.goals.stopping(goal, stop, Execution(plan.duration, settle, handover, config.params.L1, config.params.L2))
+        self._publish(trajectory)
+        # a stop ending after the motion would have (one near its end) is streamed with its change delayed to
+        # the tick at or after its stamp: what a next handover must continue
+        if taken(goal.execution, handover, STOP_LEAD + 0.2, self._sleep, self._timer):
+            self.goals.replace(goal, stop, transitions.taken_over(running, stop, goal.execution.motion_start_ns))
+        where = state.cart[0] + plan.displacement
+        self.log.info(f'execute_move: canceled during its motion: stopping at {where:.6g} m in '
+                      f'{plan.duration:.4g} s ({plan.method})')
+        return where
+
+    def settle(self) -> tuple[str, float, Plan]:
+        """``~/settle``: damp the swing measured now by a short motion ending where the cart is held, sent.
+        (message, swing amplitude m, plan); MoveError says why not."""
+        config = self.config()
+        if self.view.in_motion() is not None:
+            raise MoveError('settle', 'a motion is streaming: settle once it has ended')
+        hold = self.view.hold()
+        if hold is None:
+            raise MoveError('settle', f'no streamer heard on {STREAM_STATE_TOPIC}: nothing would stream the '
+                                      'motion')
+        measured, now = self.view.measured, self.clock()
+        if measured is None or now - measured.stamp_ns > transitions.MEASUREMENT_AGE * 1e9:
+            raise MoveError('settle', f'no joint_states within {transitions.MEASUREMENT_AGE:g} s: the swing to '
+                                      'damp is not measured')
+        joints = tuple(j for j in config.joints if j in hold)
+        holding = Running.holding(joints, [hold[j] for j in joints], now)
+
+        def make(handover_ns, state):
+            return transitions.settle(self.planner.variational, state, config.params, config.options,
+                                      config.settle_method)
+
+        done = self._handover(holding, config.handover_lead, make)
+        trajectory = self._trajectory(done.plan, done.state, joints, done.handover_ns)
+        self.goals.set_running(trajectory.running(done.handover_ns, done.plan))
+        self._publish(trajectory)
+        swing = transitions.swing_of(done.state, config.params)
+        return (f'settling a swing of about {1e3 * swing:.1f} mm: a {done.plan.duration:.3g} s {done.plan.method} '
+                f'motion ending where the cart is held ({hold[CART_JOINT]:.6g} m)'), swing, done.plan
+
+
+def knots_of(plan: Plan, config: Config):
+    """Where a plan is sampled for its trajectory: where it needs knots, or every ``sample_period``."""
+    return knot_times(plan) if config.sample_period == 0.0 else time_grid(plan.duration, config.sample_period)
+
+
+def check_executable(move: CheckedMove, hold: dict | None, operator: bool = False) -> None:
+    """What the streamer would refuse, refused before anything is sent."""
+    if hold is None:
+        raise MoveError('goal', f'no streamer heard on {STREAM_STATE_TOPIC} within {STREAM_FRESH:g} s: nothing '
+                                'would stream the motion (is crane_streamer running and started?)')
+    if operator:
+        raise MoveError('goal', 'the streamer is in operator mode (it follows cmd_vel): set its mode to '
+                                'trajectory, at rest, to execute moves')
+    for joint, start in zip(move.joints, move.starts):
+        if joint not in hold:
+            raise MoveError('joint_names', f'the streamer does not stream {joint} (it streams '
+                                           f'{", ".join(hold)}): start it with joints {list(move.joints)}')
+        if abs(start - hold[joint]) > 1e-6:
+            raise MoveError('start', f'{start:.6g} m is not where the streamer holds the {joint} '
+                                     f'({hold[joint]:.6g} m); leave start empty to start there')
+
+
+def start_processes(planner, config: Config, log) -> None:
+    """The planner's first solver process started (its others start meanwhile), before a request can come."""
+    if not config.solver_processes:
+        return
+    t0 = time.perf_counter()
+    if planner.start_processes(ready_within=60.0):
+        log.info(f'first of {config.solver_processes} solver processes ready in {time.perf_counter() - t0:.2f} s')
+    else:
+        log.error('no solver process started within 60 s; NVF/RVF requests will be refused')
+
+
+def build_solvers(planner, config: Config, log) -> tuple[dict, dict, str]:
+    """Build every method once with ``config``, so first requests are warm: (seconds per method ready,
+    error per method failed, a summary). With solver processes, every one is started first (one still
+    building takes a core) and the node's own solvers built for requests finding every worker busy."""
+    times, failed = {}, {}
+    t_all = time.perf_counter()
+    if config.solver_processes and not planner.start_processes(120.0, all_of_them=True):
+        log.warn('not every solver process started within 120 s')
+    if config.solver_processes:
+        try:
+            planner.warm_threads(config.warmups())
+        except Exception as exc:
+            log.warn(f'building the in-node NVF/RVF solvers failed: {exc}')
+    for method in METHODS:
+        # long enough for every shaper; the variational solvers at a typical request
+        duration = min(3.0 if method in VARIATIONAL_METHODS else 10.0, config.max_duration)
+        t0 = time.perf_counter()
+        try:
+            plan = planner.plan(method, min(0.3, config.max_displacement), duration, config.params, config.options)
+        except Exception as exc:  # a warm-up failure only means building on first use
+            failed[method] = str(exc)
+            log.warn(f'{method} warm-up failed: {exc}')
+            continue
+        times[method] = time.perf_counter() - t0
+        build = plan.info.get('build_time_s')
+        log.info(f'{method} ready in {times[method]:.2f} s' + (f' (solver built in {build:.2f} s)' if build else ''))
+    # the handover's predictor (a CasADi function built on first use)
+    holding = Running.holding(config.joints, [0.0, config.params.L1][:len(config.joints)], 0)
+    measured = Measurement(0, (0.0, 0.0), (0.0, 0.0, 0.0, 0.0),
+                           (config.params.L1, 0.0) if len(config.joints) > 1 else None)
+    transitions.handover_state(holding, 10_000_000, measured, config.params)
+    return times, failed, f'{len(times)} of {len(METHODS)} methods ready in {time.perf_counter() - t_all:.2f} s'

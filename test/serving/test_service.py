@@ -1,0 +1,222 @@
+"""An executed goal from arrival to result (serving.service) on a fake clock and a fake streamer: what only
+a ROS graph could show before (a preempt or a cancel before the first send, a start already past, a goal
+during a motion handed over on arrival, a cancel while a handover is sent again)."""
+import math
+from types import SimpleNamespace
+
+import pytest
+
+from crane_planner.planning.dispatch import plan
+from crane_planner.planning.plan import PlanError
+from crane_planner.serving.config import PARAMETERS, Config
+from crane_planner.serving.crane_view import StreamSample
+from crane_planner.serving.goals import GoalState
+from crane_planner.serving.moves import Move
+from crane_planner.serving.service import MoveService
+from crane_planner.serving.transitions import Trajectory
+from serving.fake_clock import FakeClock
+
+T0 = 40_000_000_000
+MS = 1_000_000
+S = GoalState
+
+
+class FakePlanner:
+    """The shapers as the Planner plans them; no NVF/RVF solver here."""
+
+    def plan(self, method, displacement, duration, params=None, options=None, hoist=None):
+        return plan(method, displacement, duration, params, options)
+
+    def variational(self, request):
+        raise PlanError('no NVF/RVF solver in this test')
+
+
+class Log:
+    def __init__(self):
+        self.lines = []
+
+    def info(self, message):
+        self.lines.append(('info', message))
+
+    def warn(self, message):
+        self.lines.append(('warn', message))
+
+    def error(self, message):
+        self.lines.append(('error', message))
+
+
+class Crane:
+    """The service with a fake streamer: stream_state every 20 ms; a trajectory published starts at its
+    stamp's tick, or at the next 1 ms tick if it has none or it has passed (streamed whole from there); one
+    published during a motion is a handover (its origin its stamp) unless ``refuse`` says to refuse it."""
+
+    def __init__(self, refuse=0, hold=0.0):
+        self.clock, self.log, self.published, self.refuse = FakeClock(T0), Log(), [], refuse
+        values = {name: default for name, (default, _, _) in PARAMETERS.items()}
+        self.config = Config.from_values({**values, 'method': 'zv'})
+        self.service = MoveService(FakePlanner(), lambda: self.config, self.clock, self.publish, self.report,
+                                   self.log, sleep=self.clock.sleep, timer=self.clock.timer)
+        self.hold, self.current, self.pending, self.next_state = hold, None, None, T0
+        self.clock.hooks.append(self.tick)
+        self.tick(T0)
+
+    def report(self, values, planned, t0, solved, error=''):
+        pass
+
+    def publish(self, trajectory: Trajectory):
+        self.published.append((self.clock(), trajectory))
+        if self.refuse:
+            self.refuse -= 1
+            return
+        tick = (self.clock() // MS + 1) * MS
+        duration = float(trajectory.samples[0].t[-1])
+        handover = self.current is not None
+        start = max(trajectory.stamp_ns, tick)
+        origin = trajectory.stamp_ns if handover or trajectory.stamp_ns >= tick else start
+        self.pending = SimpleNamespace(start=start, origin=origin, duration=duration, trajectory=trajectory)
+
+    def tick(self, now):
+        if self.pending is not None and now >= self.pending.start:
+            self.current, self.pending = self.pending, None
+        m = self.current
+        if m is not None and now >= m.start + round(m.duration * 1e9):
+            self.hold = float(m.trajectory.starts[0] + m.trajectory.samples[0].position[-1])
+        if now >= self.next_state:
+            self.next_state = now + 20 * MS
+            streaming = m is not None and now < m.start + round(m.duration * 1e9)
+            self.service.on_stream_state(StreamSample(now, 'streaming' if streaming else 'holding',
+                                                      {'cart': self.hold}, m.start if m else 0,
+                                                      m.duration if m else 0.0, m.origin if m else 0))
+
+    def goal(self, key, move, settle=0.2):
+        goal = self.service.arrive(key, move, settle)
+        self.service.goals.accept(key, f'handle {key}')
+        return goal
+
+    def execute(self, goal, move, settle=0.2, canceled=lambda: False):
+        feedback = []
+        outcome = self.service.execute(goal, move, settle, lambda **f: feedback.append(f), canceled)
+        return outcome, feedback
+
+    def at(self, ns, action):
+        """``action()`` once the clock reaches ``ns``."""
+        def hook(now):
+            if now >= ns:
+                self.clock.hooks.remove(hook)
+                action()
+        self.clock.hooks.append(hook)
+
+
+def move(goal=0.3, duration=2.0, start_ns=0, method='zv'):
+    return Move(method, goal=(goal,), duration=duration, start_ns=start_ns)
+
+
+def test_a_goal_preempted_before_its_first_send_streams_nothing():
+    crane = Crane()
+    first = move(start_ns=T0 + 2_000_000_000)  # held until publish_lead (0.3 s) before its start
+    goal = crane.goal('a', first)
+    crane.at(T0 + 500 * MS, lambda: crane.goal('b', move(0.1)))
+    outcome, feedback = crane.execute(goal, first)
+    assert outcome.how == 'abort' and 'preempted by a newer goal before its motion started' in outcome.message
+    assert 'nothing was streamed' in outcome.message and crane.published == []
+    assert goal.history == [S.ARRIVED, S.HELD, S.PREEMPTED] and goal.state is S.ENDED
+    assert crane.clock() < T0 + 600 * MS  # it ended at once, not at its start
+    assert feedback[0] == dict(progress=0.0, time_remaining=outcome.plan.plan.duration, swing=pytest.approx(math.nan,
+                                                                                               nan_ok=True))
+
+
+def test_a_goal_canceled_before_it_was_sent_streams_nothing():
+    crane = Crane()
+    held = move(start_ns=T0 + 2_000_000_000)
+    goal = crane.goal('a', held)
+    crane.at(T0 + 500 * MS, lambda: crane.service.goals.cancel(goal.handle))
+    outcome, _ = crane.execute(goal, held, canceled=lambda: goal.state is S.CANCELED)
+    assert (outcome.how, outcome.message) == ('cancel', 'canceled before its motion started: nothing was streamed')
+    assert crane.published == [] and S.SENT not in goal.history
+
+
+def test_a_goal_held_for_its_lead_is_sent_publish_lead_before_its_start():
+    crane = Crane()
+    start = T0 + 1_000_000_000
+    goal = crane.goal('a', move(start_ns=start))
+    outcome, _ = crane.execute(goal, move(start_ns=start))
+    sent_at, trajectory = crane.published[0]
+    assert start - sent_at == pytest.approx(300 * MS, abs=50 * MS) and trajectory.stamp_ns == start
+    assert outcome.success and 'zv: 0 -> 0.3 m' in outcome.message
+    assert goal.history == [S.ARRIVED, S.HELD, S.SENT, S.FOLLOWING]
+
+
+def test_a_goal_whose_start_passed_streams_from_the_next_tick_its_origin_from_stream_state():
+    crane = Crane()
+    late = move(start_ns=T0 - 5 * MS)
+    goal = crane.goal('a', late)
+    outcome, _ = crane.execute(goal, late)
+    sent_at, trajectory = crane.published[0]
+    assert trajectory.stamp_ns == T0 - 5 * MS  # as asked; the streamer starts it at its next tick
+    running = crane.service.goals.running
+    assert running.confirmed and running.origin_ns == (sent_at // MS + 1) * MS  # the streamer's, not the stamp
+    assert outcome.success
+    assert any(level == 'warn' and 'start_time had passed 0.005 s' in line for level, line in crane.log.lines)
+
+
+def run_old_goal_until(crane, ns):
+    """Start the old goal's motion and leave it streaming at ``ns`` (its follower stopped early)."""
+    first = move(duration=3.0)
+    goal = crane.goal('old', first)
+    running = []
+
+    def stop_following():
+        running.append(crane.service.goals.running)
+        raise StopFollowing()
+
+    crane.at(ns, stop_following)
+    with pytest.raises(StopFollowing):
+        crane.service.execute(goal, first, 0.2, lambda **f: None, lambda: False)
+    return goal, running[0]
+
+
+class StopFollowing(Exception):
+    pass
+
+
+def test_a_shapers_goal_during_a_motion_is_handed_over_on_arrival_and_takes_the_motion_over():
+    crane = Crane()
+    old, running = run_old_goal_until(crane, T0 + 1_200_000_000)
+    assert crane.service.view.in_motion() is running
+    new_move = move(goal=0.5, duration=3.0)
+    arrived = crane.clock()
+    goal = crane.goal('new', new_move)
+    assert goal.state is S.SENT and len(crane.published) == 2  # sent from the goal callback
+    sent_at, handover = crane.published[1]
+    assert sent_at == arrived and handover.stamp_ns == arrived + 1 * MS  # shaper_handover_lead
+    outcome, _ = crane.execute(goal, new_move)
+    assert outcome.success and 'taking over the motion' in outcome.message
+    assert old.state is S.TAKEN_OVER and goal.history == [S.ARRIVED, S.SENT, S.FOLLOWING]
+    assert crane.hold == pytest.approx(0.5)
+
+
+def test_a_cancel_while_a_handover_the_streamer_refused_is_sent_again_streams_nothing_more():
+    crane = Crane(refuse=0)
+    old, running = run_old_goal_until(crane, T0 + 1_200_000_000)
+    crane.refuse = 1  # the streamer refuses the first handover (late on arrival)
+    new_move = move(goal=0.5, duration=3.0)
+    goal = crane.goal('new', new_move)
+    handover = crane.published[-1][1].stamp_ns
+    canceled = []
+    crane.at(handover + 30 * MS, lambda: canceled.append(True))  # before the streamer is seen refusing it
+    outcome, _ = crane.execute(goal, new_move, canceled=lambda: bool(canceled))
+    assert (outcome.how, outcome.message) == ('cancel', 'canceled before its motion started: nothing was streamed')
+    assert len(crane.published) == 2  # the old motion's and the refused handover: none sent again
+    assert old.state is not S.TAKEN_OVER and crane.service.goals.running is running
+    assert crane.clock() > handover + 50 * MS  # it waited to see the handover not taken
+
+
+def test_a_variational_goal_during_a_motion_that_cannot_be_planned_ends_with_the_reason():
+    crane = Crane()
+    run_old_goal_until(crane, T0 + 1_200_000_000)
+    nvf = move(goal=0.5, duration=3.0, method='nvf')
+    goal = crane.goal('new', nvf)
+    assert goal.state is S.ARRIVED  # a variational goal is planned in execute, not on arrival
+    outcome, _ = crane.execute(goal, nvf)
+    assert outcome.how == 'abort' and 'no NVF/RVF solver' in outcome.message and len(crane.published) == 1
+    assert math.isnan(outcome.residual_swing)
