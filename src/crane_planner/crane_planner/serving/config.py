@@ -33,19 +33,15 @@ def _range(lo, hi) -> dict:
     return {'integer_range' if isinstance(lo, int) else 'floating_point_range': (lo, hi)}
 
 
+#: The crane model's parameters' upper bounds (each from 0) for rclpy's range check.
+MODEL_BOUNDS = {'L1': 100.0, 'L2': 100.0, 'm1': 1e5, 'm2': 1e5, 'g': 100.0, 'tau': 10.0, 'c1': 1e3, 'c2': 1e3,
+                'tau_hoist': 10.0}
 #: name -> (default, description, descriptor fields; a range as (lo, hi)). Ranges are the
 #: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by
 #: ``Config.from_values``, whose reason the node reports on /diagnostics.
 PARAMETERS = {
-    'L1': (CraneParams.L1, PARAMETER_DESCRIPTIONS['L1'], _range(0.0, 100.0)),
-    'L2': (CraneParams.L2, PARAMETER_DESCRIPTIONS['L2'], _range(0.0, 100.0)),
-    'm1': (CraneParams.m1, PARAMETER_DESCRIPTIONS['m1'], _range(0.0, 1e5)),
-    'm2': (CraneParams.m2, PARAMETER_DESCRIPTIONS['m2'], _range(0.0, 1e5)),
-    'g': (CraneParams.g, PARAMETER_DESCRIPTIONS['g'], _range(0.0, 100.0)),
-    'tau': (CraneParams.tau, PARAMETER_DESCRIPTIONS['tau'], _range(0.0, 10.0)),
-    'c1': (CraneParams.c1, PARAMETER_DESCRIPTIONS['c1'], _range(0.0, 1e3)),
-    'c2': (CraneParams.c2, PARAMETER_DESCRIPTIONS['c2'], _range(0.0, 1e3)),
-    'tau_hoist': (CraneParams.tau_hoist, PARAMETER_DESCRIPTIONS['tau_hoist'], _range(0.0, 10.0)),
+    **{name: (getattr(CraneParams, name), PARAMETER_DESCRIPTIONS[name], _range(0.0, MODEL_BOUNDS[name]))
+       for name in PARAMETER_NAMES},
     'method': ('rvf', f'method of a move that names none: one of {", ".join(METHODS)}',
                {'additional_constraints': f'one of {", ".join(METHODS)}'}),
     'robust_parameters': (['L1'], f'parameters RVF is made insensitive to, among {", ".join(ROBUST_PARAMETERS)}',
