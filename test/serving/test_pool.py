@@ -160,3 +160,55 @@ def test_the_refusal_names_the_hint_given():
     pool = SolverPool(Counter(), size=1, grace=0.0, hint='raise solver_processes')
     with pool.lend(0.1), pytest.raises(PlanError, match='raise solver_processes'):
         pool.take(0.01)
+
+
+class Tagged:
+    """Instances with a tag, to tell which one a preference picked."""
+
+    def __init__(self, tags):
+        self.tags = list(tags)
+
+    def __call__(self):
+        return type('Instance', (), {'tag': self.tags.pop(0)})()
+
+
+def filled(tags):
+    pool = SolverPool(Tagged(tags), size=len(tags), grace=0.0)
+    assert pool.fill(5.0, count=len(tags))
+    return pool
+
+
+def test_a_preferred_idle_instance_is_lent_before_the_most_recently_returned_one():
+    pool = filled(['a', 'b', 'c'])
+    preferred = pool.take(0.1, prefer=lambda i: i.tag == 'b')
+    assert preferred.tag == 'b'
+    other = pool.take(0.1, prefer=lambda i: i.tag == 'b')  # none preferred is idle: any
+    assert other.tag != 'b'
+
+
+def test_upkeep_never_takes_the_last_idle_instance_nor_one_a_request_waits_for():
+    pool = filled(['a', 'b'])
+    upkept = pool.take_idle(lambda i: True, keep=1)
+    assert upkept is not None
+    assert pool.take_idle(lambda i: True, keep=1) is None  # the last idle one stays for requests
+    assert pool.take_idle(lambda i: i.tag == upkept.tag, keep=0) is None  # none idle that it wants
+    lent = pool.take(0.1)
+    got = []
+    waiting = threading.Thread(target=lambda: got.append(pool.take(5.0)))
+    waiting.start()
+    wait_for(lambda: pool._waiting == 1)
+    pool.give_back(upkept)  # back from upkeep: the waiting request gets it, upkeep does not
+    waiting.join()
+    assert got == [upkept] and pool.take_idle(lambda i: True, keep=0) is None
+    pool.give_back(lent)
+    assert pool.take_idle(lambda i: True, keep=0) is lent
+
+
+def test_fill_counts_an_instance_in_upkeep_as_ready():
+    pool = filled(['a', 'b'])
+    upkept = pool.take_idle(lambda i: True, keep=0)
+    assert pool.fill(0.0, count=2)  # ready, only not idle
+    lent = pool.take(0.1)
+    assert not pool.fill(0.0, count=2)  # one serving a request is not
+    pool.give_back(lent)
+    pool.give_back(upkept)

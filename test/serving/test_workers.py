@@ -1,10 +1,14 @@
 """NVF/RVF in worker processes (crane_planner.serving.workers): real processes, real CasADi/IPOPT.
 
 The workers exist so that a solve never waits on another's linear algebra
-(IPOPT's MUMPS runs one call at a time per process); these tests check that
-what comes back is what an in-process solve gives, and that a worker that
-dies, is late or is busy never costs a request its answer or another its plan.
+(IPOPT's MUMPS runs one call at a time per process), and so that building
+and solving never take the interpreter lock from the threads answering cheap
+requests; these tests check that what comes back is what an in-process solve
+gives, that a worker that dies, is late or is busy never costs a request its
+answer or another its plan, and that a shaper's plan is answered while the
+workers build a new configuration's solvers.
 """
+import dataclasses
 import os
 import signal
 import threading
@@ -32,7 +36,8 @@ def planner():
     planner = Planner(processes=2)
     planner.warmups = WARMUPS
     assert planner.start_processes(ready_within=60.0)
-    planner.warm_threads(WARMUPS)  # as the node does: a request finding every worker busy pays no build
+    planner.warm_threads(WARMUPS)  # as the node does: the workers have them, nothing is built here
+    assert planner.wait_built(120.0)  # and their twins with limits: no upkeep takes a worker from a test
     yield planner
     planner.close()
 
@@ -61,26 +66,100 @@ def test_a_refusal_in_a_worker_is_raised_in_the_caller_with_its_reason(planner):
         planner.plan(*HOPELESS)
 
 
-def test_a_request_finding_every_worker_busy_is_solved_in_process_before_the_hopeless_ones_end(planner):
-    done, errors = [], []
-
-    def hopeless():
+def run_in_thread(target, done, name):
+    """Start ``target`` in a thread that appends (name, its result or exception) to ``done`` when it ends."""
+    def run():
         try:
-            planner.plan(*HOPELESS)
-        except PlanError as exc:
-            errors.append(exc)
-        done.append('hopeless')
+            done.append((name, target()))
+        except Exception as exc:
+            done.append((name, exc))
+    th = threading.Thread(target=run)
+    th.start()
+    return th
 
-    threads = [threading.Thread(target=hopeless) for _ in range(2)]  # both workers busy for 1 s
-    for th in threads:
-        th.start()
+
+def test_a_request_finding_every_worker_busy_waits_for_one_and_nothing_is_built_in_this_process(planner):
+    done = []
+    threads = [run_in_thread(lambda: planner.plan(*HOPELESS), done, 'hopeless') for _ in range(2)]
     wait_until(lambda: planner._processes.instances == 2 and not planner._processes._idle)
-    plan = planner.plan('rvf', 0.3, 3.0, MODEL, OPTIONS)
-    done.append('typical')
+    plan = planner.plan('rvf', 0.3, 3.0, MODEL, OPTIONS)  # due within 1 s + answer_margin: waits for a worker
+    done.append(('typical', plan))
     for th in threads:
         th.join()
-    assert done[0] == 'typical' and len(errors) == 2  # answered while both workers still solved
+    order = [name for name, _ in done]
+    assert order.index('typical') > 0  # it had a worker once a hopeless request's budget was spent
+    assert all(isinstance(result, PlanError) for name, result in done if name == 'hopeless')
     assert plan.evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-9)
+    assert planner._pools == {}  # no solver of this process's own, built or used
+
+
+def test_a_request_whose_answer_is_due_before_a_worker_frees_up_is_refused_naming_solver_processes(planner):
+    done = []
+    threads = [run_in_thread(lambda: planner.plan(*HOPELESS), done, 'hopeless') for _ in range(2)]
+    wait_until(lambda: planner._processes.instances == 2 and not planner._processes._idle)
+    # due within 0.1 s + answer_margin, before either hopeless request's budget of 1 s ends
+    with pytest.raises(PlanError, match='raise solver_processes'):
+        planner.plan('nvf', 0.3, 3.0, MODEL, dataclasses.replace(OPTIONS, max_solve_time=0.1))
+    done.append(('refused', None))
+    for th in threads:
+        th.join()
+    assert done[0][0] == 'refused'
+
+
+def test_a_shaper_plan_is_answered_while_the_workers_build_a_new_configuration():
+    """Setting ``warmups`` to another NLP structure (intervals) has the worker build it, in its own
+    process: a ZV plan asked meanwhile is answered before that build ends, and before an NVF request of
+    the new configuration sent ahead of it."""
+    planner = Planner(processes=1)
+    planner.toggled_limits = False  # only what the test needs built
+    planner.warmups = WARMUPS
+    try:
+        assert planner.start_processes(ready_within=60.0) and planner.wait_built(60.0)
+        rebuilt = dataclasses.replace(OPTIONS, intervals=20, max_solve_time=30.0)
+        events = []
+        planner.warmups = [VariationalRequest('plan', m, 0.3, 3.0, MODEL, rebuilt) for m in ('nvf', 'rvf')]
+        building = run_in_thread(lambda: planner.wait_built(120.0), events, 'rebuilt')
+        expensive = run_in_thread(lambda: planner.plan('nvf', 0.3, 3.0, MODEL, rebuilt), events, 'nvf')
+        wait_until(lambda: not planner._processes._idle)  # the worker builds (for the upkeep or the NVF request)
+        shaped = planner.plan('zv', 0.3, 3.0, MODEL, rebuilt)
+        events.append(('zv', shaped))
+        building.join()
+        expensive.join()
+        order = [name for name, _ in events]
+        assert order[0] == 'zv' and set(order) == {'zv', 'rebuilt', 'nvf'}, order
+        results = dict(events)
+        assert results['rebuilt'] is True
+        assert results['nvf'].evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-9)
+        assert shaped.evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-12)
+        assert planner._pools == {}
+        worker = planner._processes._idle[0]
+        assert worker.has(VariationalRequest('plan', 'rvf', 0.3, 3.0, MODEL, rebuilt))
+    finally:
+        planner.close()
+
+
+def test_toggled_limits_make_a_limit_change_a_spawn_in_the_workers():
+    """After the upkeep, setting max_velocity (another NLP structure than none) costs the next NVF request
+    no build: its solver is spawned from the one built for the twin with limits."""
+    planner = Planner(processes=1)
+    planner.warmups = WARMUPS[:1]
+    try:
+        assert planner.start_processes(ready_within=60.0) and planner.wait_built(120.0)
+        limited = PlanOptions(max_solve_time=1.0, max_velocity=0.16)
+        request = VariationalRequest('plan', 'nvf', 0.3, 3.0, MODEL, limited)
+        assert planner._processes._idle[0].has(request)
+        plan = planner.variational(request)
+        assert plan.info['build_time_s'] < 0.2 * worker_build_time(planner)
+        speed = np.diff(plan.evaluate(np.linspace(0.0, 3.0, 601)).position) / 0.005
+        assert 0.1 < np.max(np.abs(speed)) <= 0.16 * (1 + 1e-6)
+    finally:
+        planner.close()
+
+
+def worker_build_time(planner) -> float:
+    """What building the NVF NLP from nothing takes in a worker (s): a request of an intervals never built."""
+    cold = dataclasses.replace(OPTIONS, intervals=16, max_solve_time=30.0)
+    return planner.plan('nvf', 0.3, 3.0, MODEL, cold).info['build_time_s']
 
 
 def test_a_worker_that_dies_mid_solve_costs_one_refusal_and_is_replaced():

@@ -7,6 +7,7 @@ processes, so concurrent requests never queue behind each other. Used by the
 """
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 
@@ -16,19 +17,11 @@ from ..planning import dispatch
 from ..planning.dispatch import PlanOptions, VariationalRequest, variational_solver
 from ..planning.plan import Plan, PlanError
 from .pool import SolverPool
-from .workers import SolverProcess
+from .workers import SolverProcess, solver_settings
 
-
-def solver_settings(options: PlanOptions) -> dict:
-    """The settings of every solver that serves beside others: the direct route's solves pace each other
-    (``yielding.YieldingCallback``).
-
-    Imported here, not at the top: CasADi loads only when a variational plan is asked for.
-    """
-    if options.solver != 'direct':
-        return {}
-    from .yielding import YieldingCallback
-    return {'iteration_callback': YieldingCallback}
+#: The axis limits of the warm-ups that build the limited NLPs of a configuration without limits
+#: (``Planner.toggled_limits``): a rest-to-rest plan they leave unbounded, and a fastest plan.
+SPARE_LIMITS = {'max_velocity': 0.25, 'max_acceleration': 0.5}
 
 
 class Planner:
@@ -42,30 +35,42 @@ class Planner:
     the same NLP structure (``VariationalSolver.spawn``), which costs
     milliseconds. The options' ``solver`` picks the route.
 
-    With ``processes`` > 0, direct-route solves run instead in that many
-    worker processes (``workers.SolverProcess``, started by ``start_processes``
-    and kept), each with its own solvers (``dispatch.SolverCache``): IPOPT lets one MUMPS call at a
-    time run per process, so threads of one process still wait on each
-    other's factorizations, processes do not. A request that finds every
-    worker busy (e.g. with requests running to their time budget) is solved
-    in this process's threads after ``process_wait``, not refused. The
-    worker processes start from a fork server, so a script using them needs
-    the usual ``if __name__ == '__main__':`` guard (``multiprocessing``).
+    With ``processes`` > 0, every NVF/RVF request runs instead in one of that
+    many worker processes (``workers.SolverProcess``, started by
+    ``start_processes`` and kept), each with its own solvers: IPOPT lets one
+    MUMPS call at a time run per process, so threads of one process still
+    wait on each other's factorizations, processes do not. Nothing of NVF/RVF
+    is then built or solved in this process: building an NLP takes 0.5-2.5 s
+    of CasADi (seconds more on a loaded host) and IPOPT's Python callbacks
+    take the interpreter lock every iteration, which the threads answering
+    the cheap requests (a shaper's plan, ~1 ms) would have to share. A request
+    that finds every worker busy waits for one until its answer is due
+    (``max_solve_time`` + ``answer_margin``), then is refused naming
+    ``solver_processes``. Setting ``warmups`` (a parameter change) has the
+    workers build the new configuration's solvers in the background, one
+    worker at a time and never the last idle one. The worker processes start
+    from a fork server, so a script using them needs the usual
+    ``if __name__ == '__main__':`` guard (``multiprocessing``).
 
     Args:
-        pool_size: most solver instances per key, >= 1 (settable).
+        pool_size: most solver instances per key, >= 1 (settable); in this
+            process, so only without worker processes.
         pool_wait: longest wait (s) for an instance when all are busy, after
             which the request is refused naming ``solver_pool_size``.
-        processes: worker processes for NVF/RVF (direct route); 0 = solve in
-            this process's threads.
+        processes: worker processes for NVF/RVF; 0 = solve in this process's
+            threads.
     """
 
     #: With worker processes, a request is answered within ``max_solve_time`` + this (s),
     #: even if its worker is still building a solver (its late answer is dropped).
     answer_margin = 0.4
-    #: With worker processes, how long (s) a request waits for one to be idle before it
-    #: is solved in this process's threads instead (typical solves take 2-20 ms).
-    process_wait = 0.02
+    #: With worker processes, how long (s) a request without ``max_solve_time`` waits for an idle one.
+    unbounded_wait = 60.0
+    #: With worker processes, they also build the solvers of the warm-ups' rest-to-rest plans with
+    #: the axis limits toggled (set, as ``SPARE_LIMITS`` and a fastest plan, where the configuration
+    #: has none; unset where it has some): the limits decide the NLP's structure, so setting or
+    #: clearing ``max_velocity`` would otherwise make the next NVF/RVF request build one in its budget.
+    toggled_limits = True
 
     def __init__(self, pool_size: int = 8, pool_wait: float = 0.3, processes: int = 0):
         self.pool_wait = pool_wait
@@ -73,13 +78,30 @@ class Planner:
         self._seeds: dict = {}  # VariationalSolver.structure_of -> the first solver built for it
         self._lock = threading.Lock()
         self.pool_size = pool_size
-        #: ``VariationalRequest``s a new worker process answers before serving, so its solvers are built
-        self.warmups: list[VariationalRequest] = []
+        self._warmups: list = []  # what a new worker builds before serving
+        self._extra: list = []  # what warm_threads asked for beyond them
+        self._workers: list = []  # every worker process started, the closed ones dropped by the upkeep
+        self._upkeep = None  # the thread building the workers' missing solvers (_keep_up)
+        self._built = threading.Event()  # no worker lacks what is wanted
+        self._built.set()
+        self._closing = threading.Event()
         self._processes = None
         if processes:
-            self._processes = SolverPool(lambda: SolverProcess(self.warmups),
-                                         check_count('solver_processes', processes), 'process',
+            self._processes = SolverPool(self._new_process, check_count('solver_processes', processes), 'process',
                                          hint='raise solver_processes')
+
+    @property
+    def warmups(self) -> list[VariationalRequest]:
+        """``VariationalRequest``s that build the solvers of the current configuration: a new worker
+        process answers them before serving; set, the running workers build what they lack of them (and
+        their ``toggled_limits`` twins) in the background."""
+        return list(self._warmups)
+
+    @warmups.setter
+    def warmups(self, requests):
+        with self._lock:
+            self._warmups = list(requests)
+        self._keep_up()
 
     @property
     def pool_size(self) -> int:
@@ -114,24 +136,40 @@ class Planner:
 
         Waits up to ``ready_within`` seconds for one (or, ``all_of_them``, every
         one) to be ready and idle; whether it is (True without worker processes).
+        Once a worker is up it also builds the ``toggled_limits`` twins of the
+        warm-ups, in the background.
         """
         if self._processes is None:
             return True
         return self._processes.fill(ready_within, self._processes.size if all_of_them else 1)
 
+    def wait_built(self, timeout: float | None = None) -> bool:
+        """Wait up to ``timeout`` s until every worker process has built the solvers of ``warmups`` (and
+        of ``warm_threads``' requests and the ``toggled_limits`` twins); whether they have (True without
+        worker processes)."""
+        return self._built.wait(timeout)
+
     def close(self) -> None:
         """Stop the worker processes (busy ones after their request)."""
+        self._closing.set()
         if self._processes is not None:
             self._processes.close()
 
     def warm_threads(self, requests) -> None:
-        """Run ``VariationalRequest``s in this process's threads, so its own solvers are built.
+        """Build the solvers of these ``VariationalRequest``s where requests are solved.
 
-        With worker processes these take the requests that find every worker
-        busy; warmed, such a request does not pay for a build.
+        Without worker processes: in this process's threads, now (each request
+        run once). With them, never in this process (its threads answer the
+        cheap requests): the workers build what they lack of them in the
+        background, as for ``warmups``; this returns at once.
         """
-        for request in requests:
-            self._in_threads(request)
+        if self._processes is None:
+            for request in requests:
+                self._in_threads(request)
+            return
+        with self._lock:
+            self._extra += [r for r in requests if r not in self._extra]
+        self._keep_up()
 
     def variational(self, request: VariationalRequest) -> Plan:
         """Run one checked NVF/RVF request (e.g. a plan from a state, ``serving.transitions``) like
@@ -139,24 +177,75 @@ class Planner:
         return self._variational(request)
 
     def _variational(self, request: VariationalRequest) -> Plan:
-        """An NVF/RVF request in a worker process (direct route, if there are workers), else in a thread."""
-        if self._processes is None or request.options.solver != 'direct':
+        """An NVF/RVF request in a worker process (if there are workers), else in a thread."""
+        if self._processes is None:
             return self._in_threads(request)
         t0 = time.monotonic()
+        budget = request.options.max_solve_time
+        due = None if budget is None else budget + self.answer_margin
+        # a worker that has this NLP built, if one is idle; else any: a busy one may take as long as its
+        # request's budget, a build here would hold this process's interpreter lock for seconds
+        worker = self._processes.take(self.unbounded_wait if due is None else max(due - 0.05, 0.0),
+                                      prefer=lambda w: w.has(request))
         try:
-            worker = self._processes.take(self.process_wait)
-        except PlanError:  # every worker is busy (hard requests): solve here rather than wait or refuse
-            return self._in_threads(request)
-        try:
-            timeout = None
-            if request.options.max_solve_time is not None:
-                timeout = max(request.options.max_solve_time + self.answer_margin - (time.monotonic() - t0), 0.05)
+            timeout = None if due is None else max(due - (time.monotonic() - t0), 0.05)
             return worker.solve(request, timeout)
         finally:
             if worker.late:  # back to the pool once its answer is in, so no caller waits behind it
                 threading.Thread(target=lambda: (worker.finish_late(), self._processes.give_back(worker)),
                                  daemon=True).start()
             else:
+                self._processes.give_back(worker)
+
+    # -- the worker processes' solvers ---------------------------------------------------------------
+
+    def _new_process(self) -> SolverProcess:
+        """A worker process, warmed up on ``warmups``; the upkeep adds the rest of what is wanted."""
+        worker = SolverProcess(self.warmups)
+        with self._lock:
+            self._workers.append(worker)
+        self._keep_up()
+        return worker
+
+    def _wanted(self) -> list:
+        """What every worker should have built: the warm-ups, ``warm_threads``' requests and the twins."""
+        wanted = list(self._warmups) + [r for r in self._extra if r not in self._warmups]
+        if self.toggled_limits:
+            wanted += [r for r in toggled_limits(wanted) if r not in wanted]
+        return wanted
+
+    def _keep_up(self) -> None:
+        """Have the upkeep thread (started if none runs) look again at what the workers lack."""
+        if self._processes is None:
+            return
+        with self._lock:
+            self._built.clear()
+            if self._upkeep is not None:
+                return
+            self._upkeep = threading.Thread(target=self._upkeep_loop, name='solver-upkeep', daemon=True)
+        self._upkeep.start()
+
+    def _upkeep_loop(self) -> None:
+        """Until every live worker has built what is wanted: take an idle worker that lacks some (never
+        the last idle one, nor while a request waits for one), have it build one request's solvers,
+        give it back. One request at a time, so a worker is back in the pool every 0.1-2.5 s."""
+        while not self._closing.is_set():
+            with self._lock:
+                wanted = self._wanted()
+                self._workers = [w for w in self._workers if not w.closed]
+                if not any(w.needs(wanted) for w in self._workers):
+                    self._upkeep = None
+                    self._built.set()
+                    return
+            worker = self._processes.take_idle(lambda w: bool(w.needs(wanted)), keep=min(1, self._processes.size - 1))
+            if worker is None:  # every worker lacking some is busy, or it is the last idle one
+                self._closing.wait(0.05)
+                continue
+            try:
+                worker.warm(worker.needs(wanted)[:1])
+            except PlanError:  # it was killed: the pool replaces it, and the replacement is looked at
+                pass
+            finally:
                 self._processes.give_back(worker)
 
     def _in_threads(self, request: VariationalRequest) -> Plan:
@@ -185,3 +274,24 @@ class Planner:
         with self._lock:
             self._seeds.setdefault(structure, solver)
         return solver
+
+
+def toggled_limits(requests) -> list[VariationalRequest]:
+    """The rest-to-rest direct-route plans among ``requests`` with the axis limits toggled: the cart's set
+    to ``SPARE_LIMITS`` (and a fastest plan) where no axis has one, every axis's cleared where some have."""
+    twins = []
+    for request in requests:
+        options = request.options
+        if (options.solver != 'direct' or request.operation != 'plan' or request.start is not None
+                or request.free_end or not isinstance(request.displacement, float | int)):
+            continue
+        flat = {name: None for name in ('max_velocity', 'max_acceleration', 'max_jerk', 'max_hoist_velocity',
+                                        'max_hoist_acceleration', 'max_hoist_jerk')}
+        if any(limits.any for limits in options.limits):
+            cleared = dataclasses.replace(options, base='quintic', limits=(), **flat)
+            twins.append(dataclasses.replace(request, options=cleared))
+        else:
+            limited = dataclasses.replace(options, limits=(), **{**flat, **SPARE_LIMITS})
+            twins += [dataclasses.replace(request, options=limited),
+                      dataclasses.replace(request, operation='fastest', duration=None, options=limited)]
+    return twins

@@ -43,6 +43,8 @@ class SolverPool:
         self._idle: list = []  # the most recently returned last: its warm start is the freshest
         self._count = 0  # instances in existence (idle, lent or being made)
         self._keep_full = self._closing = False
+        self._upkept: set = set()  # ids of instances lent by take_idle: busy, but not with a request
+        self._waiting = 0  # callers of take waiting for an instance
         self._cond = threading.Condition()
         self.size = size
 
@@ -65,7 +67,8 @@ class SolverPool:
     def fill(self, ready_within: float = 0.0, count: int = 1) -> bool:
         """Make instances up to ``size`` in the background, and from now on replace those that close.
 
-        Waits up to ``ready_within`` seconds for ``count`` to be idle; whether they are.
+        Waits up to ``ready_within`` seconds for ``count`` to be idle (or lent by ``take_idle``); whether
+        they are.
         """
         with self._cond:
             self._keep_full = True
@@ -74,7 +77,7 @@ class SolverPool:
         for _ in range(missing):
             self._make_spare_in_background()
         with self._cond:
-            return bool(self._cond.wait_for(lambda: len(self._idle) >= min(count, self._size),
+            return bool(self._cond.wait_for(lambda: len(self._idle) + len(self._upkept) >= min(count, self._size),
                                             timeout=ready_within))
 
     def close(self) -> None:
@@ -95,14 +98,21 @@ class SolverPool:
         finally:
             self.give_back(solver)
 
-    def take(self, wait: float):
-        """An idle instance, to ``give_back`` when done; PlanError if ``size`` stay busy for ``wait`` s."""
+    def take(self, wait: float, prefer=None):
+        """An idle instance, to ``give_back`` when done; PlanError if ``size`` stay busy for ``wait`` s.
+
+        ``prefer(instance)``: among idle ones, one for which it is true if there is one.
+        """
         with self._cond:
-            if self._count and not self._idle:  # a busy one may come back before a new one is worth making
-                self._cond.wait_for(lambda: self._idle, timeout=min(self.grace, wait))
-            if not self._cond.wait_for(lambda: self._idle or self._count < self._size, timeout=wait):
-                raise PlanError(f'all {self._count} {self.name} solvers stayed busy for {wait:g} s; {self.hint}')
-            solver = self._idle.pop() if self._idle else None
+            self._waiting += 1
+            try:
+                if self._count and not self._idle:  # a busy one may come back before a new one is worth making
+                    self._cond.wait_for(lambda: self._idle, timeout=min(self.grace, wait))
+                if not self._cond.wait_for(lambda: self._idle or self._count < self._size, timeout=wait):
+                    raise PlanError(f'all {self._count} {self.name} solvers stayed busy for {wait:g} s; {self.hint}')
+            finally:
+                self._waiting -= 1
+            solver = self._pop(prefer) if self._idle else None
             if solver is None:
                 self._count += 1
             elif not self._idle and self._count < self._size:
@@ -117,6 +127,32 @@ class SolverPool:
                 self.give_back(None)
                 raise
         return solver
+
+    def take_idle(self, wanted, keep: int = 1):
+        """An idle instance for which ``wanted(instance)`` is true, to ``give_back`` when done, if more
+        than ``keep`` are idle and no caller of ``take`` is waiting (so that requests still find one);
+        else None, at once.
+
+        For upkeep that must not make a request wait: e.g. building a worker's solvers after a
+        parameter change, one worker at a time.
+        """
+        with self._cond:
+            if len(self._idle) <= keep or self._waiting:
+                return None
+            for k in range(len(self._idle) - 1, -1, -1):
+                if wanted(self._idle[k]):
+                    self._upkept.add(id(self._idle[k]))
+                    return self._idle.pop(k)
+        return None
+
+    def _pop(self, prefer):
+        """The most recently returned idle instance (its warm start is the freshest), or the most recent
+        one ``prefer`` likes."""
+        if prefer is not None:
+            for k in range(len(self._idle) - 1, -1, -1):
+                if prefer(self._idle[k]):
+                    return self._idle.pop(k)
+        return self._idle.pop()
 
     def _make_spare_in_background(self):
         threading.Thread(target=self._make_spare, daemon=True).start()
@@ -133,6 +169,7 @@ class SolverPool:
         closed = solver is None or getattr(solver, 'closed', False)
         replace = drop = False
         with self._cond:
+            self._upkept.discard(id(solver))
             if closed and self._keep_full and solver is not None and self._count <= self._size:
                 replace = True  # its count goes to the replacement
             elif closed or self._count > self._size or self._closing:
@@ -140,7 +177,7 @@ class SolverPool:
                 drop = not closed
             else:
                 self._idle.append(solver)
-            self._cond.notify()
+            self._cond.notify_all()  # a request's take, and fill's wait
         if drop:  # beyond a reduced size, or the pool is closing
             getattr(solver, 'close', lambda: None)()
         if replace:

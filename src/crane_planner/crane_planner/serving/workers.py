@@ -21,6 +21,7 @@ from __future__ import annotations
 import multiprocessing
 import signal
 import threading
+from collections import OrderedDict
 
 from crane_msgs_py.params import ParameterError
 
@@ -44,23 +45,84 @@ def _context():
         return _CONTEXT
 
 
-def _serve(conn, warmups) -> None:
-    """A worker's life: warm up, say ready, then answer requests until the pipe closes or None arrives."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    from ..planning.dispatch import SolverCache
+def solver_settings(options) -> dict:
+    """The settings of every solver that serves beside others: the direct route's solves pace each other
+    (``yielding.YieldingCallback``).
+
+    Imported here, not at the top: CasADi loads only when a variational plan is asked for.
+    """
+    if options.solver != 'direct':
+        return {}
     from .yielding import YieldingCallback
-    solvers = SolverCache(iteration_callback=YieldingCallback)  # workers serve the direct route only
-    for request in warmups:  # a failed warm-up only means building on first use
+    return {'iteration_callback': YieldingCallback}
+
+
+class SharedSolvers:
+    """NVF/RVF solvers kept per ``VariationalSolver.key``, with their warm starts, one caller at a time
+    (a worker's): a ``dispatch.Variational``.
+
+    A request whose key is new but whose NLP structure (``VariationalSolver.structure_of``) is known
+    gets a spawn of the first solver of that structure: a new limit value or time budget (a
+    parameter change) costs ~15 ms per model form, not a build of its NLP (0.5-2.5 s). Beyond
+    ``keep`` solvers the least recently used spawn is dropped (the first of each structure stays).
+    """
+
+    keep = 32
+
+    def __init__(self):
+        self._solvers: OrderedDict = OrderedDict()  # key -> solver, the most recently used last
+        self._seeds: dict = {}  # structure -> the first solver built for it
+
+    def __call__(self, request):
+        from ..planning.dispatch import variational_solver
+        from ..planning.variational import VariationalSolver
+        key = VariationalSolver.key(request.method, request.options)
+        solver = self._solvers.get(key)
+        if solver is None:
+            structure = VariationalSolver.structure_of(request.method, request.options)
+            seed = self._seeds.get(structure)
+            solver = (seed.spawn(request.options) if seed is not None else
+                      variational_solver(request.method, request.options, **solver_settings(request.options)))
+            self._seeds.setdefault(structure, solver)
+            self._solvers[key] = solver
+            while len(self._solvers) > self.keep:
+                self._solvers.popitem(last=False)
+        self._solvers.move_to_end(key)
+        return request.run(solver)
+
+
+def _structure(request) -> tuple:
+    from ..planning.variational import VariationalSolver
+    return VariationalSolver.structure_of(request.method, request.options)
+
+
+def _warm(solvers, requests) -> None:
+    for request in requests:  # a failed warm-up only means building on first use
         try:
             solvers(request)
         except Exception:
             pass
+
+
+def _serve(conn, warmups) -> None:
+    """A worker's life: warm up, say ready, then answer requests until the pipe closes or None arrives.
+
+    A request is a ``VariationalRequest`` (answered with its plan or its refusal), or ``('warm',
+    requests)``: build these (a parameter change), answered ``('warmed', None)``.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    solvers = SharedSolvers()
+    _warm(solvers, warmups)
     try:
         conn.send(('ready', None))
         while True:
             request = conn.recv()
             if request is None:
                 return
+            if isinstance(request, tuple) and request[0] == 'warm':
+                _warm(solvers, request[1])
+                conn.send(('warmed', None))
+                continue
             try:
                 # a callable request (``stops.StopRequest``) runs on the worker's solvers and answers itself
                 reply = ('plan', request(solvers) if callable(request) else solvers(request))
@@ -92,6 +154,11 @@ class SolverProcess:
         self.closed = False
         #: a request timed out and its answer is still to come (``finish_late``)
         self.late = False
+        #: the warm-ups it has run (at its start and by ``warm``)
+        self.warmed: list = list(warmups)
+        #: the NLP structures (``VariationalSolver.structure_of``) it has solvers of: a request of one
+        #: of these is a spawn at most, never a build
+        self.structures: set = {_structure(r) for r in self.warmed}
         try:
             ready = self._conn.poll(start_timeout) and self._conn.recv()[0] == 'ready'
         except (EOFError, OSError):
@@ -108,6 +175,30 @@ class SolverProcess:
     def alive(self) -> bool:
         return not self.closed and self._process.is_alive()
 
+    def has(self, request) -> bool:
+        """Whether the worker has a solver of the request's NLP structure (so it builds none for it)."""
+        return _structure(request) in self.structures
+
+    def needs(self, requests) -> list:
+        """Those of ``requests`` it has not run as warm-ups."""
+        return [r for r in requests if r not in self.warmed]
+
+    def warm(self, requests, limit: float = 600.0) -> None:
+        """Have the worker run ``requests`` to build their solvers (a failed one only means building on
+        first use); PlanError if it does not finish within ``limit`` s (it is then killed) or dies."""
+        requests = list(requests)
+        try:
+            self._conn.send(('warm', requests))
+            if self._conn.poll(limit):
+                self._conn.recv()
+                self.warmed += requests
+                self.structures.update(_structure(r) for r in requests)
+                return
+        except (EOFError, OSError):
+            pass
+        self.close(kill=True)
+        raise PlanError(f'a solver process did not finish building its solvers within {limit:g} s')
+
     def solve(self, request, timeout: float | None):
         """A ``dispatch.VariationalRequest`` run in the worker: its plan, or its PlanError/ParameterError
         raised here.
@@ -116,6 +207,8 @@ class SolverProcess:
         (None = no limit; it is then ``late`` until ``finish_late``), or if it
         dies (it is then ``closed``; a kept-full pool replaces it).
         """
+        if not callable(request):  # (a callable request, a stop, is run whole in the worker: no CasADi here)
+            self.structures.add(_structure(request))  # built by this request if it was not
         try:
             self._conn.send(request)
             if not self._conn.poll(timeout):
