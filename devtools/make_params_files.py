@@ -20,11 +20,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def nodes():
     from crane_msgs_py.names import PLANNER_NODE, SIM_NODE, STREAMER_NODE
-    from crane_planner.nodes import streamer_node
     from crane_planner.serving.config import PARAMETERS
+    from crane_planner.streaming import config as streamer
     from crane_sim.nodes import sim_node
     return [('planner', PLANNER_NODE, 'crane_planner planner', PARAMETERS),
-            ('streamer', STREAMER_NODE, 'crane_planner streamer', streamer_node.PARAMETERS),
+            ('streamer', STREAMER_NODE, 'crane_planner streamer', streamer.PARAMETERS),
             ('sim', SIM_NODE, 'crane_sim sim', sim_node.PARAMETERS)]
 
 
