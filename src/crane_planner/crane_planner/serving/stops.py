@@ -179,8 +179,8 @@ class StopWorker:
 
     The worker starts in the background (a fork server that imports CasADi,
     then a rehearsal stop to build the solvers: seconds), at normal
-    scheduling whatever the starting thread's; one that died is started
-    again by the next ``stop``. One stop at a time.
+    scheduling whatever the starting thread's; one that died or failed to
+    start is started again by the next ``stop``. One stop at a time.
 
     Args:
         joints: the streamed joints, the cart's first.
@@ -220,7 +220,7 @@ class StopWorker:
         try:
             worker, status = self._worker, self.status
             if status != 'ready':
-                if status == 'its process ended':
+                if status == 'its process ended' or status.startswith('failed'):
                     self._restart(worker, params)
                 raise PlanError(f'the stop planner process is not ready: {status}')
             end_ns = origin_ns + round((interps[0].t[-1] - interps[0].t[0]) * 1e9)
