@@ -78,6 +78,17 @@ def test_the_stops_warm_up_builds_every_solver_a_stop_uses(running):
     assert cache._solvers == built
 
 
+@pytest.mark.parametrize('joints', [('cart',), ('cart', 'hoist')])
+def test_a_rehearsal_builds_the_solvers_the_warm_up_lists(joints):
+    cache = SolverCache()
+    trajectory = StopRequest.rehearsal(joints, PARAMS)(cache)
+    assert trajectory.method == 'nvf' and trajectory.position.shape[1] == len(joints)
+    built = dict(cache._solvers)
+    for request in warmups(PARAMS, hoist=len(joints) > 1):
+        cache(request)
+    assert cache._solvers == built
+
+
 def test_a_stop_request_runs_in_a_worker_as_here(solvers, running):
     request = StopRequest(('cart',), tuple(running.interps), ORIGIN, HANDOVER, PARAMS)
     here = request(solvers)

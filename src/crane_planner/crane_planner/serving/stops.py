@@ -26,8 +26,9 @@ API (kept stable: both nodes build on it):
   (``Planner.warmups``, or run on a ``SolverCache``).
 - ``StopRequest(joints, interps, origin_ns, handover_ns, params, options=None)``: a stop of the streamer's
   motion (its ``QuinticHermite`` per joint, first knot at ``origin_ns``) as a worker process runs it:
-  picklable, ``request(solvers) -> StopTrajectory``; ``StopRequest.rehearsal(joints, params)``: a worker's
-  warm-up.
+  picklable, ``request(solvers) -> StopTrajectory``. ``StopRequest.rehearsal(joints, params, options=None)``:
+  one of a made-up motion, a warm-up: in a worker, or called with a ``variational`` (``Planner.variational``)
+  it builds the caller's swing prediction (CasADi, in the calling process) and the stop's solvers.
 - ``StopWorker(joints, params)``: the streamer's stop planner, a ``workers.SolverProcess`` started in the
   background: ``status``, ``ready``, ``stop(interps, origin_ns, now, params) -> StopTrajectory``
   (PlanError: why not, the worker's state included), ``take_over(stream, now, params) -> StopTrajectory``
@@ -165,13 +166,13 @@ class StopRequest:
         return plan_stop(solvers, running, self.handover_ns, self.params, self.options).trajectory()
 
     @classmethod
-    def rehearsal(cls, joints, params: CraneParams) -> 'StopRequest':
-        """A stop 0.6 s into a made-up move (a quintic of 0.2 m in 2 s): a worker's warm-up, so that its first
-        real stop finds the stop's solvers (``warmups``) and the swing prediction built."""
+    def rehearsal(cls, joints, params: CraneParams, options=None) -> 'StopRequest':
+        """A stop 0.6 s into a made-up move (a quintic of 0.2 m in 2 s): a warm-up, so that the first real stop
+        finds the stop's solvers (``warmups``) and the swing prediction built."""
         t = [0.0, 1.0, 2.0]  # (the quintic's knots: exact, its acceleration 0 at the middle)
         interps = [QuinticHermite(t, [0.0, 0.1, 0.2], [0.0, 0.1875, 0.0], [0.0] * 3)]
         interps += [QuinticHermite(t, [params.L1] * 3, [0.0] * 3, [0.0] * 3) for _ in joints[1:]]
-        return cls(tuple(joints), tuple(interps), 0, 600_000_000, params)
+        return cls(tuple(joints), tuple(interps), 0, 600_000_000, params, options)
 
 
 class StopWorker:
