@@ -171,7 +171,7 @@ class MoveService:
 
     def arrive(self, key, move: Move, settle: float) -> Goal:
         """A goal arrived (registered under ``key`` until accepted); a shaper's during a motion is handed
-        over at once (``first_handover``): before the server accepts it, and before the executor runs
+        over at once (``_send_handover``): before the server accepts it, and before the executor runs
         ``execute``. A variational one (its lead is 42 ms) plans in ``execute``: the goals' thread never
         waits on a solver process, so a cancel or another goal is not held up behind it."""
         goal, forgotten = self.goals.arrive(key)
