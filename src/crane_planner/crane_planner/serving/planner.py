@@ -48,7 +48,8 @@ class Planner:
     (``max_solve_time`` + ``answer_margin``), then is refused naming
     ``solver_processes``. Setting ``warmups`` (a parameter change) has the
     workers build the new configuration's solvers in the background, one
-    worker at a time and never the last idle one. The worker processes start
+    worker at a time, taken only when all are idle, at a low CPU priority
+    (``_upkeep_loop``). The worker processes start
     from a fork server, so a script using them needs the usual
     ``if __name__ == '__main__':`` guard (``multiprocessing``).
 
@@ -82,6 +83,7 @@ class Planner:
         self._extra: list = []  # what warm_threads asked for beyond them
         self._workers: list = []  # every worker process started, the closed ones dropped by the upkeep
         self._upkeep = None  # the thread building the workers' missing solvers (_keep_up)
+        self._twins_starting = False  # a worker is starting with the toggled_limits twins
         self._built = threading.Event()  # no worker lacks what is wanted
         self._built.set()
         self._closing = threading.Event()
@@ -136,8 +138,8 @@ class Planner:
 
         Waits up to ``ready_within`` seconds for one (or, ``all_of_them``, every
         one) to be ready and idle; whether it is (True without worker processes).
-        Once a worker is up it also builds the ``toggled_limits`` twins of the
-        warm-ups, in the background.
+        One of them warms up on the ``toggled_limits`` twins too, before it is
+        ready; the others build them later, in the background (``wait_built``).
         """
         if self._processes is None:
             return True
@@ -200,8 +202,24 @@ class Planner:
     # -- the worker processes' solvers ---------------------------------------------------------------
 
     def _new_process(self) -> SolverProcess:
-        """A worker process, warmed up on ``warmups``; the upkeep adds the rest of what is wanted."""
-        worker = SolverProcess(self.warmups)
+        """A worker process, warmed up on ``warmups``; the upkeep adds the rest of what is wanted.
+
+        While no live worker has the ``toggled_limits`` twins, the new one builds them before it is ready
+        too: a limit set or cleared right after start-up then finds a worker that needs no build for it
+        (requests prefer one that has their NLP), and a single worker pays for it, not every one.
+        """
+        with self._lock:
+            twins = self.toggled_limits and not self._twins_starting and not any(
+                w.has(r) for w in self._workers if not w.closed for r in toggled_limits(self._warmups))
+            self._twins_starting |= twins
+        warmups = self.warmups
+        try:
+            worker = SolverProcess(warmups + [r for r in toggled_limits(warmups) if r not in warmups] if twins
+                                   else warmups)
+        finally:
+            if twins:
+                with self._lock:
+                    self._twins_starting = False
         with self._lock:
             self._workers.append(worker)
         self._keep_up()
@@ -226,9 +244,10 @@ class Planner:
         self._upkeep.start()
 
     def _upkeep_loop(self) -> None:
-        """Until every live worker has built what is wanted: take an idle worker that lacks some (never
-        the last idle one, nor while a request waits for one), have it build one request's solvers,
-        give it back. One request at a time, so a worker is back in the pool every 0.1-2.5 s."""
+        """Until every live worker has built what is wanted: when every worker is idle (no request is being
+        solved or waits), take one that lacks some, have it build one request's solvers (at a low CPU
+        priority, ``workers.WARM_NICE``), give it back. One request at a time, so a worker is back in the
+        pool every 0.1-2.5 s (seconds more on a loaded host) and the others serve meanwhile."""
         while not self._closing.is_set():
             with self._lock:
                 wanted = self._wanted()
@@ -237,8 +256,8 @@ class Planner:
                     self._upkeep = None
                     self._built.set()
                     return
-            worker = self._processes.take_idle(lambda w: bool(w.needs(wanted)), keep=min(1, self._processes.size - 1))
-            if worker is None:  # every worker lacking some is busy, or it is the last idle one
+            worker = self._processes.take_idle(lambda w: bool(w.needs(wanted)), keep=self._processes.size - 1)
+            if worker is None:  # a worker is busy with a request: the others stay free for the next ones
                 self._closing.wait(0.05)
                 continue
             try:

@@ -19,6 +19,7 @@ Pure Python, no ROS import.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 import threading
 from collections import OrderedDict
@@ -104,6 +105,25 @@ def _warm(solvers, requests) -> None:
             pass
 
 
+#: The nice value of the thread that builds solvers on request (``SolverProcess.warm``): the planner's
+#: cheap requests and the other workers' solves get the cores first.
+WARM_NICE = 10
+
+
+def _warm_niced(solvers, requests) -> None:
+    """``_warm`` on a thread of its own at ``WARM_NICE`` (Linux sets a nice value per thread; one that
+    ends needs no privilege to be raised back), the worker's main thread waiting for it."""
+    def run():
+        try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), WARM_NICE)
+        except (AttributeError, OSError):  # not Linux, or not permitted: build at the worker's own priority
+            pass
+        _warm(solvers, requests)
+    builder = threading.Thread(target=run, name='solver-build')
+    builder.start()
+    builder.join()
+
+
 def _serve(conn, warmups) -> None:
     """A worker's life: warm up, say ready, then answer requests until the pipe closes or None arrives.
 
@@ -120,7 +140,7 @@ def _serve(conn, warmups) -> None:
             if request is None:
                 return
             if isinstance(request, tuple) and request[0] == 'warm':
-                _warm(solvers, request[1])
+                _warm_niced(solvers, request[1])
                 conn.send(('warmed', None))
                 continue
             try:
