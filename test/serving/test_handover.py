@@ -141,7 +141,7 @@ class Sender:
         if self.streamer is not None:
             self.clock.hooks.remove(self.streamer)
         self.streamer = streamer(self.clock, execution, at if self.taken[len(self.calls) - 1] else None)
-        return SimpleNamespace(handover_ns=at), execution
+        return handover.Sent(SimpleNamespace(handover_ns=at), execution)
 
 
 def test_a_handover_the_streamer_did_not_take_is_sent_again_four_times_further_ahead():
@@ -165,7 +165,7 @@ def test_the_first_handover_sent_on_arrival_is_not_sent_again():
     send = Sender(clock, [True])
     first = send(1.0, True)
     policy = handover.HandoverPolicy(send, clock.sleep, clock.timer)
-    assert policy.run(first) is first[0] and len(send.calls) == 1
+    assert policy.run(first) is first.result and len(send.calls) == 1
 
 
 def test_a_cancel_during_a_handover_retry_sends_nothing_more():

@@ -11,9 +11,9 @@ from crane_planner.planning.plan import PlanError
 from crane_planner.serving.config import PARAMETERS, Config
 from crane_planner.serving.crane_view import StreamSample
 from crane_planner.serving.goals import GoalState
-from crane_planner.serving.moves import Move
+from crane_planner.serving.moves import Move, MoveError
 from crane_planner.serving.service import MoveService
-from crane_planner.serving.transitions import Trajectory
+from crane_planner.serving.transitions import Measurement, Trajectory
 from serving.fake_clock import FakeClock
 
 T0 = 40_000_000_000
@@ -220,3 +220,14 @@ def test_a_variational_goal_during_a_motion_that_cannot_be_planned_ends_with_the
     outcome, _ = crane.execute(goal, nvf)
     assert outcome.how == 'abort' and 'no NVF/RVF solver' in outcome.message and len(crane.published) == 1
     assert math.isnan(outcome.residual_swing)
+
+
+def test_a_settle_is_refused_during_a_motion_and_without_a_measured_swing():
+    crane = Crane()
+    with pytest.raises(MoveError, match='no joint_states within 0.5 s'):
+        crane.service.settle()
+    crane.service.on_joint_state(Measurement(crane.clock(), (0.0, 0.0), (0.01, 0.0, 0.0, 0.0)))
+    run_old_goal_until(crane, T0 + 1_200_000_000)
+    with pytest.raises(MoveError, match='a motion is streaming'):
+        crane.service.settle()
+    assert len(crane.published) == 1

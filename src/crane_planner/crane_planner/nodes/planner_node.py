@@ -135,10 +135,10 @@ class PlannerNode(Node):
     def _build_solvers(self):
         """Every method built once with the start-up configuration (``service.build_solvers``), reported on
         /diagnostics (task ``solvers``) with the time each took."""
-        times, failed, message = service.build_solvers(self._planner, self._config, self.get_logger())
-        self._diagnostics.report('solvers', WARN if failed else OK, message,
-                                 **{f'{m}_s': v for m, v in times.items()},
-                                 **{f'{m}_error': e for m, e in failed.items()})
+        built = service.build_solvers(self._planner, self._config, self.get_logger())
+        self._diagnostics.report('solvers', WARN if built.failed else OK, built.message,
+                                 **{f'{m}_s': v for m, v in built.times.items()},
+                                 **{f'{m}_error': e for m, e in built.failed.items()})
 
     def _prioritize_receiving(self, handover_priority: int):
         """The middleware's receive threads one below the goals' thread: a goal reaches it through them, and
@@ -264,15 +264,16 @@ class PlannerNode(Node):
     def _on_settle(self, request, response):
         """``~/settle``: damp the swing measured now by a short motion ending where the cart is held."""
         try:
-            response.message, swing, plan = self._service.settle()
+            settled = self._service.settle()
         except ValueError as exc:
             response.success, response.message = False, str(exc)
             self.get_logger().warn(f'settle refused: {exc}')
             self._diagnostics.report('settle', WARN, f'settle refused: {exc}', error=str(exc))
             return response
-        response.success = True
-        self.get_logger().info(response.message)
-        self._diagnostics.report('settle', OK, response.message, swing=swing, duration=plan.duration, error='')
+        response.success, response.message = True, settled.message
+        self.get_logger().info(settled.message)
+        self._diagnostics.report('settle', OK, settled.message, swing=settled.swing, duration=settled.plan.duration,
+                                 error='')
         return response
 
     def destroy_node(self):

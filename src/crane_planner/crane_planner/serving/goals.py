@@ -74,7 +74,7 @@ class IllegalTransition(RuntimeError):
 @dataclass(frozen=True)
 class TakeOver:
     """A goal arriving during a motion: that motion, its arrival (ns; and by the timer, s), and its handover
-    as sent on arrival (``handover.HandoverResult`` and its ``Execution``), or why not (``error``: a
+    as sent on arrival (a ``handover.Sent``), or why not (``error``: a
     refusal's ValueError, or a bug's exception)."""
 
     running: Running

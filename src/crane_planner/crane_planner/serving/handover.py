@@ -58,6 +58,14 @@ class HandoverResult:
     handover_ns: int
 
 
+@dataclass(frozen=True)
+class Sent:
+    """A handover sent, and the ``Execution`` that follows it (whether the streamer takes it)."""
+
+    result: HandoverResult
+    execution: Execution
+
+
 class NotSent(Exception):
     """A goal's handover not sent: the goal gave way to a newer one, or was canceled, before it was sent, or
     while a handover the streamer did not take was to be sent again."""
@@ -136,7 +144,7 @@ class HandoverPolicy:
     """A goal's handover of a running motion, sent until the streamer takes it.
 
     Args:
-        send: ``send(lead_scale, first) -> (HandoverResult, Execution)``: plan the handover ``lead_scale``
+        send: ``send(lead_scale, first) -> Sent``: plan the handover ``lead_scale``
             times the configured lead ahead (``first``: the first attempt, whose lead counts from the goal's
             arrival) and send it; ValueError says why it cannot be planned, ``NotSent`` that it may not be.
         sleep, timer: how ``taken`` waits.
@@ -144,13 +152,13 @@ class HandoverPolicy:
         warn: told of each retry.
     """
 
-    def __init__(self, send: Callable[[float, bool], tuple[HandoverResult, Execution]],
+    def __init__(self, send: Callable[[float, bool], Sent],
                  sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter,
                  attempts: int = HANDOVER_ATTEMPTS, warn: Callable[[str], None] = lambda message: None):
         self._send, self._sleep, self._timer = send, sleep, timer
         self.attempts, self._warn = attempts, warn
 
-    def run(self, first: tuple[HandoverResult, Execution] | None = None,
+    def run(self, first: Sent | None = None,
             planned: Callable[[HandoverResult], Any] = lambda result: None,
             canceled: Callable[[], bool] = lambda: False) -> HandoverResult | None:
         """The handover the streamer took (None: it took none of ``attempts``). ``first``: the first one,
@@ -161,11 +169,11 @@ class HandoverPolicy:
         for attempt in range(self.attempts):
             if attempt and canceled():
                 raise NotSent('canceled while its handover was to be sent again')
-            result, execution = first if attempt == 0 and first is not None else self._send(lead_scale, attempt == 0)
+            sent = first if attempt == 0 and first is not None else self._send(lead_scale, attempt == 0)
             if attempt == 0:
-                planned(result)
-            if taken(execution, result.handover_ns, sleep=self._sleep, timer=self._timer):
-                return result
+                planned(sent.result)
+            if taken(sent.execution, sent.result.handover_ns, sleep=self._sleep, timer=self._timer):
+                return sent.result
             lead_scale *= RETRY_LEAD_SCALE
             self._warn(f'execute_move: the streamer did not take the handover (late on arrival?): planning it '
                        f'again {lead_scale:g} times further ahead')

@@ -37,6 +37,7 @@ from .handover import (
     HandoverPolicy,
     HandoverResult,
     NotSent,
+    Sent,
     arrival_lead,
     plan_handover,
     send_at,
@@ -100,6 +101,24 @@ def plan_status(values: dict, planned: Planned | None, t0: float, solved: float,
         values, solve_time=info.get('solve_time_s', solved - t0), build_time=info.get('build_time_s', 0.0),
         iterations=info.get('iterations', 0), plan_time=solved - t0, message_time=now - solved, knots=knots,
         error='')
+
+
+@dataclass(frozen=True)
+class Settled:
+    """A settle sent: what it says, the swing's amplitude it damps (m) and its plan."""
+
+    message: str
+    swing: float
+    plan: Plan
+
+
+@dataclass(frozen=True)
+class Built:
+    """The solvers built at start-up: seconds per method ready, the error per method failed, a summary."""
+
+    times: dict
+    failed: dict
+    message: str
 
 
 class MoveService:
@@ -305,7 +324,7 @@ class MoveService:
         return self._follow(goal, reported[0], feedback, canceled, settle, what)
 
     def _send_handover(self, goal: Goal, move: Move, running: Running, settle: float, lead_scale: float = 1.0,
-                       arrived_ns: int | None = None) -> tuple[HandoverResult, Execution]:
+                       arrived_ns: int | None = None) -> Sent:
         """Plan ``goal``'s handover of ``running`` and send it; ValueError says why it cannot be planned,
         NotSent that the goal gave way or was canceled meanwhile."""
         result = self._preempting(move, running, lead_scale, arrived_ns)
@@ -314,7 +333,7 @@ class MoveService:
         if not self.goals.send(goal, execution):  # (before it is sent: the first stream_state of it finds it)
             raise NotSent()
         self._publish(result.trajectory)  # at once: the handover is due in milliseconds
-        return result, execution
+        return Sent(result, execution)
 
     def _follow(self, goal: Goal, planned: Planned, feedback, canceled, settle: float, what: str) -> Outcome:
         """Follow the goal's motion to its result: done, taken over by a newer goal, or stopped on a cancel."""
@@ -456,9 +475,9 @@ class MoveService:
                       f'{plan.duration:.4g} s ({plan.method})')
         return where
 
-    def settle(self) -> tuple[str, float, Plan]:
-        """``~/settle``: damp the swing measured now by a short motion ending where the cart is held, sent.
-        (message, swing amplitude m, plan); MoveError says why not."""
+    def settle(self) -> Settled:
+        """``~/settle``: damp the swing measured now by a short motion ending where the cart is held, sent;
+        MoveError says why not."""
         config = self.config()
         if self.view.in_motion() is not None:
             raise MoveError('settle', 'a motion is streaming: settle once it has ended')
@@ -482,8 +501,9 @@ class MoveService:
         self.goals.set_running(trajectory.running(done.handover_ns, done.plan))
         self._publish(trajectory)
         swing = transitions.swing_of(done.state, config.params)
-        return (f'settling a swing of about {1e3 * swing:.1f} mm: a {done.plan.duration:.3g} s {done.plan.method} '
-                f'motion ending where the cart is held ({hold[CART_JOINT]:.6g} m)'), swing, done.plan
+        return Settled(f'settling a swing of about {1e3 * swing:.1f} mm: a {done.plan.duration:.3g} s '
+                       f'{done.plan.method} motion ending where the cart is held ({hold[CART_JOINT]:.6g} m)', swing,
+                       done.plan)
 
 
 def knots_of(plan: Plan, config: Config):
@@ -519,10 +539,10 @@ def start_processes(planner, config: Config, log) -> None:
         log.error('no solver process started within 60 s; NVF/RVF requests will be refused')
 
 
-def build_solvers(planner, config: Config, log) -> tuple[dict, dict, str]:
-    """Build every method once with ``config``, so first requests are warm: (seconds per method ready,
-    error per method failed, a summary). With solver processes, every one is started first (one still
-    building takes a core) and the node's own solvers built for requests finding every worker busy."""
+def build_solvers(planner, config: Config, log) -> Built:
+    """Build every method once with ``config``, so first requests are warm. With solver processes, every one
+    is started first (one still building takes a core) and the node's own solvers built for requests finding
+    every worker busy."""
     times, failed = {}, {}
     t_all = time.perf_counter()
     if config.solver_processes and not planner.start_processes(120.0, all_of_them=True):
@@ -550,4 +570,4 @@ def build_solvers(planner, config: Config, log) -> tuple[dict, dict, str]:
     measured = Measurement(0, (0.0, 0.0), (0.0, 0.0, 0.0, 0.0),
                            (config.params.L1, 0.0) if len(config.joints) > 1 else None)
     transitions.handover_state(holding, 10_000_000, measured, config.params)
-    return times, failed, f'{len(times)} of {len(METHODS)} methods ready in {time.perf_counter() - t_all:.2f} s'
+    return Built(times, failed, f'{len(times)} of {len(METHODS)} methods ready in {time.perf_counter() - t_all:.2f} s')
