@@ -10,6 +10,11 @@ Starts the planner, streamer and sim executables in a private ROS graph and meas
   A shaper's handovers alternate with the planner's ``handover_warmup`` on (its default, 0.02 s) and off,
   so what the warm-up gains and costs (the CPU share of the planner and its solver processes over each
   move, retarget and return) is a ratio measured in the same run.
+- **handover warm-up**: over a 3 s ZV move, the rehearsals the planner's goals' thread made per
+  ``handover_warmup`` period (1 = every period; a busy host lets fewer happen) and how long each took
+  (the goal's execute status on /diagnostics), ``--settles`` moves.
+- **settle**: the crane pushed aside (the sim's ``~/push``), then ``~/settle``: the time from the call
+  to the settle motion's stamp, ``--settles`` times.
 - **operator command latency**: in operator mode (operator_shaper zv, whose first impulse is at 0),
   a cmd_vel published here, then the first 1 kHz reference sample that differs from the one before:
   its stamp (the tick it is due) less the publish time. Target: <= 2 ms plus the shaper's delay (0).
@@ -36,6 +41,7 @@ def main() -> int:
     ap.add_argument('--window', type=float, default=5.0, help='seconds of tick lateness per window (default 5)')
     ap.add_argument('--rounds', type=int, default=3, help='windows per mode, alternating (default 3)')
     ap.add_argument('--methods', default='nvf,rvf,zv', help='methods retargeted (default nvf,rvf,zv)')
+    ap.add_argument('--settles', type=int, default=5, help='settles after a push, and warm-up moves (default 5)')
     args = ap.parse_args()
     args.methods = [m for m in args.methods.split(',') if m]
     from crane_planner.tools.processes import isolated_graph
@@ -118,6 +124,42 @@ def measure(args, env) -> int:
                 result['goal_to_handover_without_warmup'] = cold
                 result['warmup_latency_ratio'] = {m: round(latency[m]['median_ms'] / v['median_ms'], 2)
                                                   for m, v in cold.items()}
+
+            # -- the handover warm-up: how often the goals' thread rehearsed during a motion, how long each took
+            from crane_msgs_py.diagnostics import status_float
+            rehearsals = []
+            for _ in range(args.settles):
+                mark = driver.planner.diagnostics.mark()
+                start, _, _ = driver.move('zv', None, 0.3, 3.0, settle=0.2)
+                driver.move_result(start)
+                status = driver.planner.diagnostics.wait_for(after=mark, name='crane_planner: execute', timeout=5.0)
+                if status is not None:  # from its trajectory sent (publish_lead before its start) to its end
+                    periods = (3.0 + 0.3) / warmup
+                    rehearsals.append((status_float(status, 'handover_warmups') / periods,
+                                       status_float(status, 'handover_warmup_ms')))
+                back, _, _ = driver.move('zv', None, 0.0, 3.0, settle=0.2)
+                driver.move_result(back)
+            if rehearsals:
+                share, each = np.array(rehearsals).T
+                result['handover_warmup'] = {'period_s': warmup, 'rehearsed_share_of_periods_median':
+                                             round(float(np.median(share)), 3),
+                                             'rehearsal_ms_median': round(float(np.median(each)), 3),
+                                             'rehearsal_ms_max': round(float(np.max(each)), 3), 'n': len(share)}
+
+            # -- settle: from the ~/settle call to the settle motion's stamp, a push's swing damped
+            after_call = []
+            for _ in range(args.settles):
+                driver.reset_sim()
+                driver.push_sim()
+                driver.sleep(1.0)
+                called = driver.now_ns()
+                stamp, _ = driver.settle()
+                after_call.append((stamp - called) * 1e-6)
+                driver.sleep(max(0.0, (stamp - driver.now_ns()) * 1e-9 + 4.0))  # the settle over
+            driver.reset_sim()
+            result['settle_call_to_stamp_ms'] = {'median': round(float(np.median(after_call)), 2),
+                                                 'p90': round(float(np.percentile(after_call, 90)), 2),
+                                                 'max': round(float(np.max(after_call)), 2), 'n': len(after_call)}
 
             # -- tick lateness holding (trajectory mode)
             def p99s(seconds):

@@ -105,8 +105,12 @@ def _warm(solvers, requests) -> None:
             pass
 
 
-#: The nice value of the thread that builds solvers on request (``SolverProcess.warm``): the planner's
-#: cheap requests and the other workers' solves get the cores first.
+#: The nice value of a worker process: its solves and builds (hundreds of ms to seconds of CPU) yield a
+#: shared core to the process answering the cheap requests (a shaper's plan, ~1 ms of Python across a few
+#: executor threads), which has the default 0; alone on a core a worker runs as fast as at 0.
+WORKER_NICE = 5
+#: The nice value of the thread that builds solvers on request (``SolverProcess.warm``): requests being
+#: solved get the cores before it.
 WARM_NICE = 10
 
 
@@ -131,6 +135,10 @@ def _serve(conn, warmups) -> None:
     requests)``: build these (a parameter change), answered ``('warmed', None)``.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, max(WORKER_NICE, os.getpriority(os.PRIO_PROCESS, 0)))
+    except (AttributeError, OSError):
+        pass
     solvers = SharedSolvers()
     _warm(solvers, warmups)
     try:
