@@ -55,9 +55,12 @@ def test_a_request_beyond_max_solve_time_is_refused_naming_the_budget():
     solver = DirectSolver('rvf', PlanOptions(max_solve_time=0.3))
     solver.solve(0.3, 3.0, MODEL)
     t0 = time.perf_counter()
-    with pytest.raises(PlanError, match=r'rvf: no plan for D=10 m, T=0.5 s within max_solve_time 0.3 s'):
+    # IPOPT's own wall-time limit stopped it (the message says so only for Maximum_WallTime_Exceeded),
+    # having run to the budget
+    with pytest.raises(PlanError, match=r'rvf: no plan for D=10 m, T=0.5 s within max_solve_time 0.3 s '
+                                        r'\(IPOPT stopped after \d+ iterations\)'):
         solver.solve(*HOPELESS, MODEL)
-    assert time.perf_counter() - t0 < 0.3 + solver.retry_window + 0.5  # IPOPT's own limit stopped it
+    assert time.perf_counter() - t0 >= 0.3
     assert solver.solve(0.3, 3.0, MODEL).info['status'] == 'Solve_Succeeded'  # and it still serves
 
 
