@@ -43,15 +43,16 @@ class Planner:
     is then built or solved in this process: building an NLP takes 0.5-2.5 s
     of CasADi (seconds more on a loaded host) and IPOPT's Python callbacks
     take the interpreter lock every iteration, which the threads answering
-    the cheap requests (a shaper's plan, ~1 ms) would have to share. A request
-    that finds every worker busy waits for one until its answer is due
-    (``max_solve_time`` + ``answer_margin``), then is refused naming
-    ``solver_processes``. Setting ``warmups`` (a parameter change) has the
-    workers build the new configuration's solvers in the background, one
-    worker at a time, taken only when all are idle, at a low CPU priority
-    (``_upkeep_loop``). The worker processes start
-    from a fork server, so a script using them needs the usual
-    ``if __name__ == '__main__':`` guard (``multiprocessing``).
+    the cheap requests (a shaper's plan, ~1 ms) would have to share; and the
+    workers run at a lower CPU priority (``workers.WORKER_NICE``), so on a
+    shared core those threads come first. A request that finds every worker
+    busy waits for one until its answer is due (``max_solve_time`` +
+    ``answer_margin``), then is refused naming ``solver_processes``. Setting
+    ``warmups`` (a parameter change) has the workers build the new
+    configuration's solvers in the background, one worker at a time, taken
+    only when all are idle, at a lower priority still (``_upkeep_loop``). The
+    worker processes start from a fork server, so a script using them needs
+    the usual ``if __name__ == '__main__':`` guard (``multiprocessing``).
 
     Args:
         pool_size: most solver instances per key, >= 1 (settable); in this

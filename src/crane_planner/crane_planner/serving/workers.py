@@ -5,8 +5,12 @@ mutex (MUMPS keeps Fortran state), so two solves in threads of one process
 take turns at each factorization; a 15 ms solve beside one that runs to its
 1 s budget took 40-300 ms. Each worker is a process of its own (its own
 MUMPS), running one ``dispatch.VariationalRequest`` at a time on its own
-solvers (``dispatch.SolverCache``) and keeping them and their warm starts
-between requests.
+solvers (``SharedSolvers``: a new key of a known NLP structure is a spawn)
+and keeping them and their warm starts between requests. Building and
+solving there also keeps CasADi and IPOPT off the caller's interpreter lock,
+and a worker runs at a lower CPU priority (``WORKER_NICE``) than the caller
+answering cheap requests; it builds a parameter change's solvers on request
+(``SolverProcess.warm``) at a lower one still.
 
 Workers start from a fork server that has imported CasADi and the planning
 core once (``multiprocessing`` "forkserver": a clean process, never a fork
