@@ -88,7 +88,6 @@ class StreamerNode(Node):
         self.ticks = self.sent = self.skipped = self.accepted = self.refused = self.commands = self._ticks_window = 0
         self._window_start = time.monotonic()
         self._link = Link()  # the loop's, with the impairment of the moment
-
         self.create_subscription(JointTrajectory, names.TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS)
         self.create_subscription(Twist, names.CMD_VEL_TOPIC, self._on_cmd_vel, CMD_VEL_QOS)
         self.create_service(Trigger, names.START_SERVICE, self._on_start)
@@ -206,8 +205,9 @@ class StreamerNode(Node):
             try:  # planned in the stop worker while the loop streams on
                 stop = self._stops.take_over(self._stream, lambda: self.get_clock().now().nanoseconds,
                                              self._config.model)
-                response.message = (f'stopping without swing at {stop.end:.6g} m in {stop.duration:.3g} s '
-                                    f'({stop.method}), then stopped')
+                response.message = ('stopping: the motion ends before a stop could take over (at rest), then '
+                                    'stopped' if stop is None else f'stopping without swing at {stop.end:.6g} m in '
+                                    f'{stop.duration:.3g} s ({stop.method}), then stopped')
                 self._stop_at_rest = True
             except ValueError as exc:  # no stop without swing: hold where the stream is (a hard stop)
                 self._halt()

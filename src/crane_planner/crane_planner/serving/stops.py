@@ -30,9 +30,10 @@ API (kept stable: both nodes build on it):
   one of a made-up motion, a warm-up: in a worker, or called with a ``variational`` (``Planner.variational``)
   it builds the caller's swing prediction (CasADi, in the calling process) and the stop's solvers.
 - ``StopWorker(joints, params)``: the streamer's stop planner, a ``workers.SolverProcess`` started in the
-  background: ``status``, ``ready``, ``stop(interps, origin_ns, now, params) -> StopTrajectory``
-  (PlanError: why not, the worker's state included), ``take_over(stream, now, params) -> StopTrajectory``
-  (the stop of what a ``ReferenceStream`` streams, accepted by it), ``close()``.
+  background: ``status``, ``ready``, ``stop(interps, origin_ns, now, params) -> StopTrajectory | None``
+  (None: the motion ends before a stop could take over; PlanError: why there is no stop, the worker's state
+  included), ``take_over(stream, now, params) -> StopTrajectory | None`` (the stop of what a
+  ``ReferenceStream`` streams, accepted by it), ``close()``.
 
 What loads CasADi (``transitions``: the swing prediction; ``dispatch``: the solvers) is imported inside
 the functions that plan, never at the top: the streamer imports this module for ``StopWorker`` and
@@ -211,11 +212,12 @@ class StopWorker:
     def ready(self) -> bool:
         return self.status == 'ready'
 
-    def stop(self, interps, origin_ns: int, now, params: CraneParams, lead: float = STOP_LEAD) -> StopTrajectory:
+    def stop(self, interps, origin_ns: int, now, params: CraneParams,
+             lead: float = STOP_LEAD) -> StopTrajectory | None:
         """The stop of the motion of ``interps`` (first knot at ``origin_ns``) taking over ``lead`` s after
         ``now()`` (ROS time, ns), or 1.5 times as long as the last stop took to plan if that is longer, planned in
-        the worker, and again further ahead should its answer come too late for its handover. PlanError says why
-        there is none."""
+        the worker, and again further ahead should its answer come too late for its handover. None if the
+        motion ends first (it ends at rest by itself); PlanError says why there is no stop."""
         if not self._busy.acquire(blocking=False):
             raise PlanError('another stop is being planned')
         try:
@@ -230,7 +232,7 @@ class StopWorker:
                 asked = now()
                 handover = asked + round(lead * 1e9)
                 if handover >= end_ns:
-                    raise PlanError('the motion ends before a stop could take over')
+                    return None
                 answer = self._solve(worker, StopRequest(self.joints, tuple(interps), origin_ns, handover, params),
                                      params)
                 answered = now()
@@ -243,14 +245,16 @@ class StopWorker:
         finally:
             self._busy.release()
 
-    def take_over(self, stream, now, params: CraneParams) -> StopTrajectory:
+    def take_over(self, stream, now, params: CraneParams) -> StopTrajectory | None:
         """Stop the motion ``stream`` (a ``reference_stream.ReferenceStream``) streams: its ``stop``, accepted
-        by the stream as its handover. PlanError or the stream's ValueError says why not."""
+        by the stream as its handover (None: the motion ends first). PlanError or the stream's ValueError says
+        why not."""
         motion = stream.last_motion
         if motion is None or not stream.streaming:
             raise PlanError('no motion is streaming')
         trajectory = self.stop(motion.interps, motion.origin_ns, now, params)
-        stream.accept(*trajectory.arrays(), trajectory.handover_ns, now())
+        if trajectory is not None:
+            stream.accept(*trajectory.arrays(), trajectory.handover_ns, now())
         return trajectory
 
     def close(self) -> None:
