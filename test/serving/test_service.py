@@ -231,3 +231,16 @@ def test_a_settle_is_refused_during_a_motion_and_without_a_measured_swing():
     with pytest.raises(MoveError, match='a motion is streaming'):
         crane.service.settle()
     assert len(crane.published) == 1
+
+
+def test_the_handover_warm_up_rehearses_a_shapers_handover_sends_nothing_and_counts_for_the_motions_goal():
+    crane = Crane()
+    old, running = run_old_goal_until(crane, T0 + 1_200_000_000)
+    rehearsed = []
+    crane.service.warm_handover(rehearsed.append)
+    assert len(rehearsed) == 1 and rehearsed[0].stamp_ns > crane.clock() and len(crane.published) == 1
+    assert rehearsed[0].starts[0] == pytest.approx(float(running.at(rehearsed[0].stamp_ns)[0][0][0]))
+    assert old.warmups == 1
+    with crane.service.handing_over:  # a handover being planned: no rehearsal takes the core from it
+        crane.service.warm_handover(rehearsed.append)
+    assert len(rehearsed) == 1
