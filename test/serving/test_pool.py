@@ -212,3 +212,10 @@ def test_fill_counts_an_instance_in_upkeep_as_ready():
     assert not pool.fill(0.0, count=2)  # one serving a request is not
     pool.give_back(lent)
     pool.give_back(upkept)
+
+
+def test_upkeep_takes_the_idle_instance_ranked_highest():
+    pool = filled(['a', 'b', 'c'])
+    ranks = {'a': 1, 'b': 3, 'c': 2}
+    assert pool.take_idle(lambda i: True, keep=0, rank=lambda i: ranks[i.tag]).tag == 'b'
+    assert pool.take_idle(lambda i: i.tag != 'c', keep=0, rank=lambda i: ranks[i.tag]).tag == 'a'

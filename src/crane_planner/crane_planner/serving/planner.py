@@ -68,10 +68,11 @@ class Planner:
     answer_margin = 0.4
     #: With worker processes, how long (s) a request without ``max_solve_time`` waits for an idle one.
     unbounded_wait = 60.0
-    #: With worker processes, they also build the solvers of the warm-ups' rest-to-rest plans with
-    #: the axis limits toggled (set, as ``SPARE_LIMITS`` and a fastest plan, where the configuration
-    #: has none; unset where it has some): the limits decide the NLP's structure, so setting or
-    #: clearing ``max_velocity`` would otherwise make the next NVF/RVF request build one in its budget.
+    #: With worker processes, one of them also builds the NVF solvers of the warm-ups' rest-to-rest
+    #: plans with the axis limits toggled (set, as ``SPARE_LIMITS`` and a fastest plan, where the
+    #: configuration has none; unset where it has some) before it is ready: the limits decide the NLP's
+    #: structure, so setting or clearing ``max_velocity`` would otherwise make the next NVF request build
+    #: one in its budget (0.5-1 s, seconds on a loaded host). RVF's would cost every start-up ~4 s more.
     toggled_limits = True
 
     def __init__(self, pool_size: int = 8, pool_wait: float = 0.3, processes: int = 0):
@@ -96,8 +97,8 @@ class Planner:
     @property
     def warmups(self) -> list[VariationalRequest]:
         """``VariationalRequest``s that build the solvers of the current configuration: a new worker
-        process answers them before serving; set, the running workers build what they lack of them (and
-        their ``toggled_limits`` twins) in the background."""
+        process answers them before serving; set, the running workers build what they lack of them in
+        the background."""
         return list(self._warmups)
 
     @warmups.setter
@@ -139,8 +140,7 @@ class Planner:
 
         Waits up to ``ready_within`` seconds for one (or, ``all_of_them``, every
         one) to be ready and idle; whether it is (True without worker processes).
-        One of them warms up on the ``toggled_limits`` twins too, before it is
-        ready; the others build them later, in the background (``wait_built``).
+        One of them warms up on the ``toggled_limits`` twins too.
         """
         if self._processes is None:
             return True
@@ -148,8 +148,7 @@ class Planner:
 
     def wait_built(self, timeout: float | None = None) -> bool:
         """Wait up to ``timeout`` s until every worker process has built the solvers of ``warmups`` (and
-        of ``warm_threads``' requests and the ``toggled_limits`` twins); whether they have (True without
-        worker processes)."""
+        of ``warm_threads``' requests); whether they have (True without worker processes)."""
         return self._built.wait(timeout)
 
     def close(self) -> None:
@@ -206,17 +205,20 @@ class Planner:
         """A worker process, warmed up on ``warmups``; the upkeep adds the rest of what is wanted.
 
         While no live worker has the ``toggled_limits`` twins, the new one builds them before it is ready
-        too: a limit set or cleared right after start-up then finds a worker that needs no build for it
-        (requests prefer one that has their NLP), and a single worker pays for it, not every one.
+        too: a limit set or cleared then finds a worker that needs no build for an NVF request (requests
+        prefer one that has their NLP; the upkeep takes it last), and a single worker pays for it (~1.5 s
+        of CPU), not every one.
         """
         with self._lock:
             twins = self.toggled_limits and not self._twins_starting and not any(
-                w.has(r) for w in self._workers if not w.closed for r in toggled_limits(self._warmups))
+                w.has(r) for w in self._workers if not w.closed for r in toggled_limits(self._warmups)
+                if r.method == 'nvf')
             self._twins_starting |= twins
         warmups = self.warmups
+        if twins:
+            warmups += [r for r in toggled_limits(warmups) if r.method == 'nvf' and r not in warmups]
         try:
-            worker = SolverProcess(warmups + [r for r in toggled_limits(warmups) if r not in warmups] if twins
-                                   else warmups)
+            worker = SolverProcess(warmups)
         finally:
             if twins:
                 with self._lock:
@@ -227,11 +229,8 @@ class Planner:
         return worker
 
     def _wanted(self) -> list:
-        """What every worker should have built: the warm-ups, ``warm_threads``' requests and the twins."""
-        wanted = list(self._warmups) + [r for r in self._extra if r not in self._warmups]
-        if self.toggled_limits:
-            wanted += [r for r in toggled_limits(wanted) if r not in wanted]
-        return wanted
+        """What every worker should have built: the warm-ups and ``warm_threads``' requests."""
+        return list(self._warmups) + [r for r in self._extra if r not in self._warmups]
 
     def _keep_up(self) -> None:
         """Have the upkeep thread (started if none runs) look again at what the workers lack."""
@@ -257,7 +256,9 @@ class Planner:
                     self._upkeep = None
                     self._built.set()
                     return
-            worker = self._processes.take_idle(lambda w: bool(w.needs(wanted)), keep=self._processes.size - 1)
+            # the one lacking most NLP structures first: one that has them (the twins) stays for requests
+            worker = self._processes.take_idle(lambda w: bool(w.needs(wanted)), keep=self._processes.size - 1,
+                                               rank=lambda w: sum(not w.has(r) for r in wanted))
             if worker is None:  # a worker is busy with a request: the others stay free for the next ones
                 self._closing.wait(0.05)
                 continue

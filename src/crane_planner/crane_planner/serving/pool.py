@@ -128,10 +128,10 @@ class SolverPool:
                 raise
         return solver
 
-    def take_idle(self, wanted, keep: int = 1):
-        """An idle instance for which ``wanted(instance)`` is true, to ``give_back`` when done, if more
-        than ``keep`` are idle and no caller of ``take`` is waiting (so that requests still find one);
-        else None, at once.
+    def take_idle(self, wanted, keep: int = 1, rank=None):
+        """An idle instance for which ``wanted(instance)`` is true (of those, the first with the highest
+        ``rank(instance)``), to ``give_back`` when done, if more than ``keep`` are idle and no caller of
+        ``take`` is waiting (so that requests still find one); else None, at once.
 
         For upkeep that must not make a request wait: e.g. building a worker's solvers after a
         parameter change, one worker at a time.
@@ -139,11 +139,12 @@ class SolverPool:
         with self._cond:
             if len(self._idle) <= keep or self._waiting:
                 return None
-            for k in range(len(self._idle) - 1, -1, -1):
-                if wanted(self._idle[k]):
-                    self._upkept.add(id(self._idle[k]))
-                    return self._idle.pop(k)
-        return None
+            candidates = [k for k in range(len(self._idle) - 1, -1, -1) if wanted(self._idle[k])]
+            if not candidates:
+                return None
+            k = max(candidates, key=lambda k: rank(self._idle[k])) if rank is not None else candidates[0]
+            self._upkept.add(id(self._idle[k]))
+            return self._idle.pop(k)
 
     def _pop(self, prefer):
         """The most recently returned idle instance (its warm start is the freshest), or the most recent
