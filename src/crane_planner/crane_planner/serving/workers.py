@@ -109,12 +109,12 @@ def _warm(solvers, requests) -> None:
             pass
 
 
-#: The nice value of a worker process: its solves and builds (hundreds of ms to seconds of CPU) yield a
-#: shared core to the process answering the cheap requests (a shaper's plan, ~1 ms of Python across a few
-#: executor threads), which has the default 0; alone on a core a worker runs as fast as at 0.
+#: What a worker process adds to the nice value it inherits from its caller: its solves and builds
+#: (hundreds of ms to seconds of CPU) yield a shared core to the caller answering the cheap requests (a
+#: shaper's plan, ~1 ms of Python across a few executor threads); alone on a core it runs as fast.
 WORKER_NICE = 5
-#: The nice value of the thread that builds solvers on request (``SolverProcess.warm``): requests being
-#: solved get the cores before it.
+#: What the thread building solvers on request (``SolverProcess.warm``) adds to the caller's nice value:
+#: requests being solved get the cores before it.
 WARM_NICE = 10
 
 
@@ -122,8 +122,10 @@ def _warm_niced(solvers, requests) -> None:
     """``_warm`` on a thread of its own at ``WARM_NICE`` (Linux sets a nice value per thread; one that
     ends needs no privilege to be raised back), the worker's main thread waiting for it."""
     def run():
-        try:
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), WARM_NICE)
+        try:  # a new thread starts at the worker's nice value, WORKER_NICE above the caller's
+            tid = threading.get_native_id()
+            os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid)
+                                                     + WARM_NICE - WORKER_NICE))
         except (AttributeError, OSError):  # not Linux, or not permitted: build at the worker's own priority
             pass
         _warm(solvers, requests)
@@ -140,8 +142,8 @@ def _serve(conn, warmups) -> None:
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        os.setpriority(os.PRIO_PROCESS, 0, max(WORKER_NICE, os.getpriority(os.PRIO_PROCESS, 0)))
-    except (AttributeError, OSError):
+        os.nice(WORKER_NICE)
+    except OSError:
         pass
     solvers = SharedSolvers()
     _warm(solvers, warmups)
