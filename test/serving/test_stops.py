@@ -9,7 +9,7 @@ import pytest
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning.dispatch import SolverCache, plan
 from crane_planner.planning.plan import PlanError
-from crane_planner.serving.stops import STOP_LEAD, StopRequest, StopWorker, plan_stop, warmups
+from crane_planner.serving.stops import STOP_LEAD, StopRequest, StopWarmup, StopWorker, plan_stop, warmups
 from crane_planner.serving.transitions import Running
 from crane_planner.serving.workers import SolverProcess
 from crane_planner.streaming.hermite import QuinticHermite
@@ -87,6 +87,8 @@ def test_a_rehearsal_builds_the_solvers_the_warm_up_lists(joints):
     for request in warmups(PARAMS, hoist=len(joints) > 1):
         cache(request)
     assert cache._solvers == built
+    lighter = SolverCache()  # the stop worker's warm-up: the same solvers
+    assert StopWarmup(joints, PARAMS)(lighter) is None and lighter._solvers.keys() == built.keys()
 
 
 def test_a_stop_request_runs_in_a_worker_as_here(solvers, running):

@@ -29,6 +29,8 @@ API (kept stable: both nodes build on it):
   picklable, ``request(solvers) -> StopTrajectory``. ``StopRequest.rehearsal(joints, params, options=None)``:
   one of a made-up motion, a warm-up: in a worker, or called with a ``variational`` (``Planner.variational``)
   it builds the caller's swing prediction (CasADi, in the calling process) and the stop's solvers.
+  ``StopWarmup(joints, params)``: the stop worker's lighter warm-up (``warmups`` and the prediction, at
+  ``workers.WARM_NICE``).
 - ``StopWorker(joints, params)``: the streamer's stop planner, a ``workers.SolverProcess`` started in the
   background: ``status``, ``ready``, ``stop(interps, origin_ns, now, params) -> StopTrajectory | None``
   (None: the motion ends before a stop could take over; PlanError: why there is no stop, the worker's state
@@ -41,8 +43,8 @@ the functions that plan, never at the top: the streamer imports this module for 
 """
 from __future__ import annotations
 
+import os
 import threading
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,7 +55,7 @@ from crane_msgs_py.realtime import set_fifo
 from ..planning.plan import PlanError
 from ..streaming.hermite import QuinticHermite
 from ..streaming.knots import knot_columns, knot_times
-from .workers import SolverProcess
+from .workers import WARM_NICE, SolverProcess
 
 #: How far ahead (s) of its request a stop takes over (its NVF stop is planned in tens of milliseconds).
 STOP_LEAD = 0.1
@@ -176,11 +178,41 @@ class StopRequest:
         return cls(tuple(joints), tuple(interps), 0, 600_000_000, params, options)
 
 
+@dataclass(frozen=True)
+class StopWarmup:
+    """A stop worker's warm-up, run by it as a request: the stop's solvers (``warmups``) and the swing
+    prediction's integrator, built on a thread at ``workers.WARM_NICE`` so that the build yields the cores to
+    everything else starting up (the planner's warm-up, the streamer's loop)."""
+
+    joints: tuple
+    params: CraneParams
+
+    def __call__(self, solvers) -> None:
+        thread = threading.Thread(target=self._build, args=(solvers,), name='stop-warmup')
+        thread.start()
+        thread.join()
+
+    def _build(self, solvers) -> None:
+        from .transitions import Running, handover_state
+        try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), WARM_NICE)  # this thread only (Linux)
+        except (AttributeError, OSError):
+            pass
+        for request in warmups(self.params, hoist=len(self.joints) > 1):
+            try:
+                solvers(request)
+            except Exception:  # (built on first use then)
+                pass
+        rehearsal = StopRequest.rehearsal(self.joints, self.params)
+        handover_state(Running.of_interps(self.joints, rehearsal.interps, 0), rehearsal.handover_ns, None,
+                       self.params)
+
+
 class StopWorker:
     """The streamer's stops, planned in a worker process of their own (the streamer never loads CasADi).
 
     The worker starts in the background (a fork server that imports CasADi,
-    then a rehearsal stop to build the solvers: seconds), at normal
+    then ``StopWarmup``: seconds), at normal
     scheduling whatever the starting thread's; one that died or failed to
     start is started again by the next ``stop``. One stop at a time.
 
@@ -301,13 +333,9 @@ class StopWorker:
         except Exception as exc:  # (PlanError: not ready in time; OSError: no process)
             self._status = f'failed to start: {exc}'
             return
-        rehearsal = StopRequest.rehearsal(self.joints, params)
-        try:  # the warm-up as a request (SolverProcess's own warm-ups are VariationalRequests, read here), twice:
-            worker.solve(rehearsal, self.start_timeout)  # the solvers built
-            started = time.monotonic()
-            worker.solve(rehearsal, self.start_timeout)  # and what a stop takes to plan then
-            self._took = time.monotonic() - started
-        except (PlanError, RuntimeError):  # a failed rehearsal only means building on first use
+        try:  # the warm-up as a request (SolverProcess's own warm-ups are VariationalRequests, read here)
+            worker.solve(StopWarmup(self.joints, params), self.start_timeout)
+        except (PlanError, RuntimeError):  # a failed warm-up only means building on first use
             if worker.late:
                 worker.finish_late()  # (a dead worker shows in ``status``)
         if self._closed:
