@@ -110,10 +110,9 @@ PARAMETERS = {
     'max_solve_time': (1.0, 'budget of one NVF/RVF solve (s), > 0: a request not solved within it is '
                             'refused; every request is answered within this + 0.5 s',
                        _range(0.0, 60.0)),
-    'solver_pool_size': (8, 'NVF/RVF solver instances per method in the node process, 1..32, made as '
-                            'concurrent requests need them (2-6 MB each; the first of a method builds its NLP, '
-                            '~25 MB); they serve every NVF/RVF request when solver_processes is 0, else those '
-                            'finding every worker process busy', _range(1, 32)),
+    'solver_pool_size': (8, 'NVF/RVF solver instances per method in the node process when solver_processes '
+                            'is 0, 1..32, made as concurrent requests need them (2-6 MB each; the first of a '
+                            'method builds its NLP, ~25 MB); unused with worker processes', _range(1, 32)),
     'solver_processes': (3, 'worker processes solving NVF/RVF side by side, 0..16, started with the node '
                             '(~40 MB each beyond what they share); 0 = solve in threads of the node process '
                             "only, where solves take turns at IPOPT's linear solver (read-only)",

@@ -541,8 +541,8 @@ def start_processes(planner, config: Config, log) -> None:
 
 def build_solvers(planner, config: Config, log) -> Built:
     """Build every method once with ``config``, so first requests are warm. With solver processes, every one
-    is started first (one still building takes a core) and the node's own solvers built for requests finding
-    every worker busy."""
+    is started first (one still building takes a core), and what they lack of the configuration's warm-ups
+    is built in them in the background (never in this process, whose threads answer the cheap requests)."""
     times, failed = {}, {}
     t_all = time.perf_counter()
     if config.solver_processes and not planner.start_processes(120.0, all_of_them=True):
@@ -551,7 +551,7 @@ def build_solvers(planner, config: Config, log) -> Built:
         try:
             planner.warm_threads(config.warmups())
         except Exception as exc:
-            log.warn(f'building the in-node NVF/RVF solvers failed: {exc}')
+            log.warn(f'building the NVF/RVF solvers failed: {exc}')
     for method in METHODS:
         # long enough for every shaper; the variational solvers at a typical request
         duration = min(3.0 if method in VARIATIONAL_METHODS else 10.0, config.max_duration)
