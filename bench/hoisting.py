@@ -1,4 +1,4 @@
-"""Hoisting while travelling (issue 21): planning latency with the hoist as a second axis.
+"""Hoisting while travelling: planning latency with the hoist as a second axis.
 
 Default model (Table 1, tau = tau_hoist = 0.01 s), 0.3 m of travel while L1 goes
 0.47 -> 0.27 m in 3 s, through the planning dispatcher with one solver cache
@@ -12,7 +12,8 @@ Default model (Table 1, tau = tau_hoist = 0.01 s), 0.3 m of travel while L1 goes
   the goal length (target <= 200 ms);
 - shaper_ms: median of 5 length-adaptive ZV and ZVD plans (no target);
 - one_axis_warm_ms: the same varied warm NVF/RVF solves without a hoist, in
-  this run, so a slowdown of today's path shows beside the hoist's figures.
+  this run, so a slowdown of the one-axis path shows beside the hoist's figures.
+
 Prints one JSON object.
 """
 import json

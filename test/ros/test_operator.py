@@ -1,4 +1,5 @@
-"""ROS: the streamer's operator mode through the real executables and crane-teleop (issue 22), and the
+"""ROS: the streamer's operator mode through the real executables and crane-teleop, and the
+
 streamer's ~/stop during a planned motion. The swing is measured by the test from ``joint_states``."""
 import signal
 
