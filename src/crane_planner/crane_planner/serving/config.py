@@ -96,14 +96,15 @@ PARAMETERS = {
                                     'delayed (up to 20 ms, no swing added): the earliest handover possible',
                              _range(0.001, 1.0)),
     'handover_priority': (40, 'SCHED_FIFO priority (1..99) of the thread that takes ExecuteMove requests and plans '
-                              'and sends a shaper\'s handover: 1-2 ms of Python that, at normal priority beside the '
-                              '1 kHz nodes, waits as long again for a core; the middleware\'s receive threads run one '
+                              'and sends a shaper\'s handover: Python that, at normal priority beside the 1 kHz nodes, '
+                              'may wait for a core as long as it runs; the middleware\'s receive threads run one '
                               'below; 0 = normal scheduling (also without the privilege: a warning)',
                           _range(0, 99)),
     'handover_warmup': (0.02, 'while a motion streams, every this many s the goals\' thread plans a shaper\'s '
-                              'handover of it and serializes its trajectory without sending it (0.5-1 ms each), so '
-                              'that a real goal\'s handover runs on warm caches: after 50-250 ms untouched the same '
-                              'Python took 3-22 times as long on a shared host; 0 = off',
+                              'handover of it and serializes its trajectory without sending it, so that a real '
+                              'goal\'s handover runs on warm caches: code left untouched for a while beside the '
+                              '1 kHz nodes runs several times slower; 0 = off',
+
                         _range(0.0, 10.0)),
     'settle_method': ('nvf', '~/settle plans with this method: nvf or rvf (a shaper cannot damp a swing it did not '
                              'cause)', {'additional_constraints': 'nvf or rvf'}),

@@ -40,10 +40,10 @@ class Planner:
     ``start_processes`` and kept), each with its own solvers: IPOPT lets one
     MUMPS call at a time run per process, so threads of one process still
     wait on each other's factorizations, processes do not. Nothing of NVF/RVF
-    is then built or solved in this process: building an NLP takes 0.5-2.5 s
-    of CasADi (seconds more on a loaded host) and IPOPT's Python callbacks
-    take the interpreter lock every iteration, which the threads answering
-    the cheap requests (a shaper's plan, ~1 ms) would have to share; and the
+    is then built or solved in this process: building an NLP takes seconds
+    of CasADi and IPOPT's Python callbacks take the interpreter lock every
+    iteration, which the threads answering the cheap requests (a shaper's
+    plan, a millisecond's work) would have to share; and the
     workers run at a lower CPU priority (``workers.WORKER_NICE``), so on a
     shared core those threads come first. A request that finds every worker
     busy waits for one until its answer is due (``max_solve_time`` +
@@ -72,7 +72,8 @@ class Planner:
     #: plans with the axis limits toggled (set, as ``SPARE_LIMITS`` and a fastest plan, where the
     #: configuration has none; unset where it has some) before it is ready: the limits decide the NLP's
     #: structure, so setting or clearing ``max_velocity`` would otherwise make the next NVF request build
-    #: one in its budget (0.5-1 s, seconds on a loaded host). RVF's would cost every start-up ~4 s more.
+    #: one in its budget, which a build alone can exhaust. RVF's are left out: its NLP is several times
+    #: as costly to build, and every start-up would pay for it.
     toggled_limits = True
 
     def __init__(self, pool_size: int = 8, pool_wait: float = 0.3, processes: int = 0):
@@ -206,8 +207,8 @@ class Planner:
 
         While no live worker has the ``toggled_limits`` twins, the new one builds them before it is ready
         too: a limit set or cleared then finds a worker that needs no build for an NVF request (requests
-        prefer one that has their NLP; the upkeep takes it last), and a single worker pays for it (~1.5 s
-        of CPU), not every one.
+        prefer one that has their NLP; the upkeep takes it last), and a single worker pays for it (a build's
+        CPU), not every one.
         """
         with self._lock:
             twins = self.toggled_limits and not self._twins_starting and not any(
@@ -247,7 +248,8 @@ class Planner:
         """Until every live worker has built what is wanted: when every worker is idle (no request is being
         solved or waits), take one that lacks some, have it build one request's solvers (at a low CPU
         priority, ``workers.WARM_NICE``), give it back. One request at a time, so a worker is back in the
-        pool every 0.1-2.5 s (seconds more on a loaded host) and the others serve meanwhile."""
+        pool after at most one build and the others serve meanwhile."""
+
         while not self._closing.is_set():
             with self._lock:
                 wanted = self._wanted()

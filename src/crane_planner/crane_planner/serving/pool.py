@@ -5,7 +5,7 @@ per-call state, and its warm start is its last solution). A ``SolverPool``
 hands each request an idle instance. Beyond the first, instances are built
 lazily, up to ``size``: a spare in the background when the last idle one
 is lent (so a request beside a long solve does not pay for a build, which
-takes 0.1-0.3 s on a loaded machine), and one in the request when every
+takes far longer than a typical solve), and one in the request when every
 existing one stays busy for ``grace`` seconds (each instance holds a few
 MB). A request that finds ``size`` instances busy waits at most ``wait``
 seconds for one to come back, then is refused: answering late would break
@@ -33,7 +33,9 @@ class SolverPool:
             (instances beyond a smaller size are dropped as they come back).
         name: what the instances solve, for the refusal message.
         grace: how long (s) a request waits for a busy instance before a new
-            one is made (typical NVF/RVF solves take 2-40 ms).
+            one is made (about as long as a typical NVF/RVF solve: a short wait usually finds one idle).
+
+
         hint: what the refusal advises when all stay busy.
     """
 

@@ -216,8 +216,9 @@ class MoveService:
     def warm_handover(self, rehearse: Callable[[Trajectory], Any]) -> None:
         """Plan a shaper's handover of the running motion as ``arrive`` would (back to where the motion
         started) and ``rehearse`` its trajectory (the node serializes it as publishing would), sending
-        nothing: a real goal's handover is 1-2 ms of Python that, left untouched for 50-250 ms beside the
-        1 kHz nodes, took several times as long (caches, not page faults). Not while a handover is being
+        nothing: a real goal's handover is a short run of Python that, left untouched for a while beside the
+        1 kHz nodes, runs several times slower (cold caches, not page faults). Not while a handover is being
+
         planned (on the goals' thread, at its priority, it would take the core from an NVF/RVF handover's
         solver process, whose lead is tight). A bug's exception is raised after the rehearsal is counted."""
         if self.handing_over.locked():

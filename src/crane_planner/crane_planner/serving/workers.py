@@ -2,8 +2,8 @@
 
 Why processes: IPOPT serializes every MUMPS call of a process behind one
 mutex (MUMPS keeps Fortran state), so two solves in threads of one process
-take turns at each factorization; a 15 ms solve beside one that runs to its
-1 s budget took 40-300 ms. Each worker is a process of its own (its own
+take turns at each factorization, and a short solve beside one that runs to
+its budget takes many times as long. Each worker is a process of its own (its own
 MUMPS), running one ``dispatch.VariationalRequest`` at a time on its own
 solvers (``SharedSolvers``: a new key of a known NLP structure is a spawn)
 and keeping them and their warm starts between requests. Building and
@@ -14,7 +14,7 @@ answering cheap requests; it builds a parameter change's solvers on request
 
 Workers start from a fork server that has imported CasADi and the planning
 core once (``multiprocessing`` "forkserver": a clean process, never a fork
-of the caller's threads, e.g. rclpy's), so a new worker costs ~20 ms plus
+of the caller's threads, e.g. rclpy's), so a new worker costs little beyond
 building its solvers. A worker ignores SIGINT (Ctrl-C is the parent's to
 handle) and ends when its parent's end of the pipe closes.
 
@@ -68,7 +68,7 @@ class SharedSolvers:
 
     A request whose key is new but whose NLP structure (``VariationalSolver.structure_of``) is known
     gets a spawn of the first solver of that structure: a new limit value or time budget (a
-    parameter change) costs ~15 ms per model form, not a build of its NLP (0.5-2.5 s). Beyond
+    parameter change) costs a small fraction of a build of its NLP. Beyond
     ``keep`` solvers the least recently used spawn is dropped (the first of each structure stays).
     """
 
@@ -110,8 +110,9 @@ def _warm(solvers, requests) -> None:
 
 
 #: What a worker process adds to the nice value it inherits from its caller: its solves and builds
-#: (hundreds of ms to seconds of CPU) yield a shared core to the caller answering the cheap requests (a
-#: shaper's plan, ~1 ms of Python across a few executor threads); alone on a core it runs as fast. Two
+#: (long runs of CPU) yield a shared core to the caller answering the cheap requests (a shaper's
+#: plan, a little Python across a few executor threads); alone on a core it runs as fast. Two
+
 #: steps (~1.6x the caller's share against it), not more: against other processes of the host at the
 #: caller's priority a worker must still solve a typical request within its budget.
 WORKER_NICE = 2

@@ -26,8 +26,9 @@ class YieldingCallback(IterationCallback):
     alone in its process (a worker's) pauses only past ``alone_after`` s, and
     then as long as its last iteration took: by then it is likely one that
     runs to its budget, and it leaves half its core to the other processes'
-    typical requests; a warm fastest request (60-120 ms on a slow host) is
-    not slowed down.
+    typical requests; a warm fastest request, which normally ends before
+    ``alone_after``, is not slowed down.
+
     """
 
     after = 0.05
