@@ -13,7 +13,6 @@ Default model (Table 1, tau = tau_hoist = 0.01 s), 0.3 m of travel while L1 goes
 - shaper_ms: median of 5 length-adaptive ZV and ZVD plans (no target);
 - one_axis_warm_ms: the same varied warm NVF/RVF solves without a hoist, in
   this run, so a slowdown of the one-axis path shows beside the hoist's figures.
-
 Prints one JSON object.
 """
 import json

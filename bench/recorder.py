@@ -9,8 +9,8 @@ the recording: the reference's header stamps, one per tick on the streamer's
 CPU is the recorder's utime + stime (its rusage at exit) over its run.
 
 Targets: >= 99 % of the reference samples published while it recorded (a recording
-that misses more is no record of the run), and
- no more than 25 % of a core for the recorder.
+that misses more is no record of the run), and no more than 25 % of a core for
+the recorder.
 
     .venv/bin/python bench/recorder.py [--duration 20]
 """

@@ -1,6 +1,5 @@
 """ROS: hoisting while travelling through the real executables.
 
-
 The planner, streamer and sim run with the joints [cart, hoist] in one
 namespace of a private graph (``hoist_crane`` fixture, always stopped). The
 test measures the swing itself from ``joint_states``, with the rope length

@@ -1,5 +1,4 @@
 """ROS: the streamer's operator mode through the real executables and crane-teleop, and the
-
 streamer's ~/stop during a planned motion. The swing is measured by the test from ``joint_states``."""
 import signal
 

@@ -104,7 +104,6 @@ PARAMETERS = {
                               'handover of it and serializes its trajectory without sending it, so that a real '
                               'goal\'s handover runs on warm caches: code left untouched for a while beside the '
                               '1 kHz nodes runs several times slower; 0 = off',
-
                         _range(0.0, 10.0)),
     'settle_method': ('nvf', '~/settle plans with this method: nvf or rvf (a shaper cannot damp a swing it did not '
                              'cause)', {'additional_constraints': 'nvf or rvf'}),

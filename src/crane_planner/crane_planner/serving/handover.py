@@ -26,7 +26,6 @@ from .transitions import Running, Trajectory
 
 #: A handover's trajectory must be sent at least this long (s) before the handover, for its transport to
 #: the streamer and the streamer's check, which a busy machine delays; one that arrives late all the
-
 #: same is refused by the streamer and planned again further ahead (``HandoverPolicy``).
 TRANSPORT_MARGIN = 0.008
 #: Attempts at a handover whose plan took longer than its lead (the lead doubles each time), and at one the

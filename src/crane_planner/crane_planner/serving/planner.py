@@ -249,7 +249,6 @@ class Planner:
         solved or waits), take one that lacks some, have it build one request's solvers (at a low CPU
         priority, ``workers.WARM_NICE``), give it back. One request at a time, so a worker is back in the
         pool after at most one build and the others serve meanwhile."""
-
         while not self._closing.is_set():
             with self._lock:
                 wanted = self._wanted()

@@ -34,8 +34,6 @@ class SolverPool:
         name: what the instances solve, for the refusal message.
         grace: how long (s) a request waits for a busy instance before a new
             one is made (about as long as a typical NVF/RVF solve: a short wait usually finds one idle).
-
-
         hint: what the refusal advises when all stay busy.
     """
 

@@ -218,7 +218,6 @@ class MoveService:
         started) and ``rehearse`` its trajectory (the node serializes it as publishing would), sending
         nothing: a real goal's handover is a short run of Python that, left untouched for a while beside the
         1 kHz nodes, runs several times slower (cold caches, not page faults). Not while a handover is being
-
         planned (on the goals' thread, at its priority, it would take the core from an NVF/RVF handover's
         solver process, whose lead is tight). A bug's exception is raised after the rehearsal is counted."""
         if self.handing_over.locked():

@@ -112,7 +112,6 @@ def _warm(solvers, requests) -> None:
 #: What a worker process adds to the nice value it inherits from its caller: its solves and builds
 #: (long runs of CPU) yield a shared core to the caller answering the cheap requests (a shaper's
 #: plan, a little Python across a few executor threads); alone on a core it runs as fast. Two
-
 #: steps (~1.6x the caller's share against it), not more: against other processes of the host at the
 #: caller's priority a worker must still solve a typical request within its budget.
 WORKER_NICE = 2

@@ -28,7 +28,6 @@ class YieldingCallback(IterationCallback):
     runs to its budget, and it leaves half its core to the other processes'
     typical requests; a warm fastest request, which normally ends before
     ``alone_after``, is not slowed down.
-
     """
 
     after = 0.05
