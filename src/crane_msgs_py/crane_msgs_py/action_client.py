@@ -7,8 +7,8 @@ goal response. There may be more than one action server ..." and drops it: the
 future never completes (ros2/rclpy#1123; fixed upstream by ros2/rclpy#1308 and
 its backports, after the 7.1.6 we pin). A caller sending from its own thread
 while an executor spins the client's node meets it when the server answers
-before the sender's bookkeeping is done: after the planner's goal thread got
-faster, ``bench/any_state.py`` lost a goal's response this way. Here a request
+before the sender's bookkeeping is done, which a fast server on the same host
+does. Here a request
 is sent and registered under one lock, which the handling of responses waits for.
 """
 from __future__ import annotations

@@ -3,8 +3,8 @@
 rclpy 7.1 formats every new goal's ID (a ``unique_identifier_msgs/UUID``: a
 numpy uint8 array) into two debug messages, before and after its goal
 callback, whether or not debug messages are logged. numpy's array printing
-takes 0.2-0.4 ms for each when the process's caches are cold (a goal every few
-seconds): most of a shaper's handover budget (5 ms from the goal sent to the
+is slow when the process's caches are cold (a goal every few seconds), and
+that comes out of a shaper's handover budget (5 ms from the goal sent to the
 reference changed). ``take_data`` (the Waitable API the executor calls) hands
 the ID on as a view that formats as its 32 hex digits; its bytes, dtype and
 size are the message's, so everything else (the goal handle, the response,

@@ -63,7 +63,8 @@ MARKERS_QOS = QoSProfile(
 
 #: ``~/plan_move`` (the service and its clients): the services' default policies with a queue of
 #: 100 instead of 10. Requests run side by side, but each waits in the service's queue until the
-#: executor takes it: 20 sent at once overflowed the default queue, and half were never answered.
+#: executor takes it: a burst of concurrent requests overflows the default queue, and a dropped
+#: request is never answered.
 PLAN_MOVE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=100,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
@@ -83,7 +84,7 @@ def recording(profile: QoSProfile, seconds: float, rate_hz: float) -> QoSProfile
 
     For readers that must not lose a sample of a stream they record (tests,
     benches, the harness behind ``crane-demo``): a Python process can stall
-    for hundreds of ms on a loaded host while DDS keeps receiving on time,
+    on a loaded host while DDS keeps receiving on time,
     and a queue of the publisher's depth then drops what arrived meanwhile.
     The depth is the reader's own: the other policies match the publisher's.
     """

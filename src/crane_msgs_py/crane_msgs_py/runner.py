@@ -72,8 +72,8 @@ class LoopThread:
     just below (preempted by an ordinary process while holding the GIL it
     would stall the loop, starved by the loop it would drop input) and the
     middleware's receive threads that feed the executor below that (at
-    normal priority a message waits for a core before the executor sees it:
-    0.2-0.4 ms on a loaded machine, 0.04 ms at SCHED_FIFO). A failure
+    normal priority a message waits for a core, behind whatever else a
+    loaded machine runs, before the executor sees it). A failure
     is logged and kept in ``error`` (for the node's diagnostics) instead of
     ending the thread unseen. ``stopping`` is set by ``stop()``; the loop
     checks it.

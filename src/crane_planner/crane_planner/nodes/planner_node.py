@@ -67,8 +67,9 @@ class PlannerNode(Node):
             self._planner, lambda: self._config, lambda: self.get_clock().now().nanoseconds,
             lambda t: self._trajectory.publish(self._message(t)), self._report, self.get_logger())
         # The two 50 Hz inputs on a node and SingleThreadedExecutor thread of their own: through the services'
-        # MultiThreadedExecutor their 100 messages a second kept the node at a whole core (4 % this way); the
-        # EventsExecutor, after 900 previews, ran them about once a second and goals found no stream_state.
+        # MultiThreadedExecutor, which rebuilds its wait set for every entity, their 100 messages a second
+        # cost the node far more CPU than on a small executor of their own; the EventsExecutor, once many
+        # requests had been served, fell behind on them and goals found no stream_state.
         self._inputs, self._inputs_spinning = self._spun('inputs', lambda node: [node.create_subscription(
             *topic) for topic in ((StreamState, names.STREAM_STATE_TOPIC, self._on_stream_state, STREAM_STATE_QOS),
                                   (JointState, names.JOINT_STATES_TOPIC, self._on_joint_state, JOINT_STATES_QOS))])
@@ -79,12 +80,12 @@ class PlannerNode(Node):
                                     goal_callback=self._on_goal, handle_accepted_callback=self._on_accepted,
                                     cancel_callback=self._on_cancel, callback_group=group)
         # The action's requests (goal, cancel, result) are waited for on a thread of their own: through the
-        # MultiThreadedExecutor a goal reached its callback 2-4 ms after it arrived (its wait set rebuilt for
-        # every entity), a shaper's whole handover budget. The server stays this node's (`ros2 action info`
+        # MultiThreadedExecutor a goal reached its callback only after its wait set was rebuilt for every
+        # entity, which can take a shaper's whole handover budget. The server stays this node's (`ros2 action info`
         # names it): only its waiting moves; its callbacks return at once or within a shaper's handover
         # (_on_goal), the goals execute on this node's executor. The same thread keeps a shaper's handover
-        # warm (_warm_handover), at handover_priority: at normal priority beside the 1 kHz nodes it waits for
-        # a core as long again as it works.
+        # warm (_warm_handover), at handover_priority: at normal priority beside the 1 kHz nodes it may wait for
+        # a core as long as it works.
         self.remove_waitable(self._action)
         self._goals_node, self._goals_spinning = self._spun('goals', self._add_goals, refused=self._priority_refused,
                                                             priority=lambda: self._config.handover_priority)
@@ -142,7 +143,7 @@ class PlannerNode(Node):
 
     def _prioritize_receiving(self, handover_priority: int):
         """The middleware's receive threads one below the goals' thread: a goal reaches it through them, and
-        at normal priority waits for a core there first (0.2-0.4 ms on a loaded machine)."""
+        at normal priority waits for a core there first, behind whatever else a loaded machine runs."""
         _, refused = set_threads_fifo(max(0, handover_priority - 1))
         if refused:
             self.get_logger().warn(f'handover_priority: the middleware\'s receive threads: {refused}')
@@ -202,8 +203,9 @@ class PlannerNode(Node):
     def _on_goal(self, request) -> GoalResponse:
         """Every goal is accepted (a refusal is its result's reason) and registered here, on the goals'
         thread, and a shaper's during a motion handed over at once (``MoveService.arrive``): before rclpy's
-        acceptance of it (its goal handle, response and status, 0.3 ms of that handover's 5 ms; rclpy fails
-        to accept a goal only on an internal error, which it logs), and before the executor runs ``_execute``."""
+        acceptance of it (its goal handle, response and status: a noticeable share of that handover's 5 ms
+        budget; rclpy fails to accept a goal only on an internal error, which it logs), and before the executor
+        runs ``_execute``."""
         self._service.arrive(id(request), _move(request.move), request.settle)
         return GoalResponse.ACCEPT
 
