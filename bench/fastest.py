@@ -29,8 +29,8 @@ CHOOSE_TARGET_S = 3.0
 
 def one_plan_ms() -> float:
     """This host's yardstick, measured in the same run: the median time (ms) of one ZV plan
-    (design + exact build) of 0.3 m in 3 s. Hosts here differ ~2.5x in speed; the searches'
-    cost in such plans does not."""
+    (design + exact build) of 0.3 m in 3 s. Hosts differ in speed; the searches' cost in such
+    plans does not."""
     params = CraneParams()
     times = []
     for _ in range(200):

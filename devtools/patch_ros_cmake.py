@@ -1,6 +1,6 @@
 """Repoint the ROS wheels' exported CMake files at this venv's Python and NumPy headers.
 
-The ``ros-jazzy-*`` wheels were built with ``/opt/python/cp311-cp311``; about 20
+The ``ros-jazzy-*`` wheels were built with ``/opt/python/cp311-cp311``; the
 ``share/*/cmake/*.cmake`` files of the venv name its include directories, and CMake stops
 ("Imported target ... includes non-existent path") when a package such as crane_interfaces
 links against them. This rewrites those paths to the running interpreter's

@@ -19,7 +19,7 @@ Everything is vectorized over a batch of plants (numpy arrays of shape
 (:class:`CraneSimulator`, for the real-time node) share one step function.
 No ROS import here.
 
-Why one module of ~740 lines: both paths use the private stepper and the
+Why one module: both paths use the private stepper and the
 internal state form (``_Stepper``, ``_to_internal``/``_to_public``);
 splitting them apart would make those private pieces public API.
 """

@@ -160,8 +160,8 @@ class Transcription:
         """A new IPOPT instance of this NLP with ``options``.
 
         The first one generates the NLP's derivatives (most of a solver's
-        build time: 0.3 s for NVF, 0.8 s for RVF); later ones reuse them and
-        cost about 15 ms. Instances share only those functions, which each
+        build time); later ones reuse them and cost a small fraction of
+        that. Instances share only those functions, which each
         instance calls with its own work arrays, so instances solve side by
         side in different threads; one instance keeps per-call state and must
         serve one call at a time.

@@ -114,7 +114,8 @@ def problem_start(state: MotionState, params: CraneParams) -> tuple[dict, CraneP
 # -- prediction ----------------------------------------------------------------------------------------------
 
 
-#: RK4 steps of one CasADi call of the predictor (``_rk4_steps``): a call costs ~0.1 ms from Python, a step ~1 us.
+#: RK4 steps of one CasADi call of the predictor (``_rk4_steps``): a call from Python costs as much as many
+#: steps, so the steps are batched per call.
 CHUNK = 64
 
 

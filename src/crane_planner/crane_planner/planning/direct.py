@@ -70,15 +70,15 @@ class DirectSolver(VariationalSolver):
 
         If the options keep the NLP's structure (``VariationalSolver.structure``:
         limit values and the time budget may differ) it shares this solver's
-        transcriptions and their derivatives: it costs about 15 ms per model form
-        instead of a build, keeps its own IPOPT instances and warm starts (the
+        transcriptions and their derivatives: it costs a small fraction of a
+        build per model form, keeps its own IPOPT instances and warm starts (the
         first taken from this one's last solution), and solves side by side with
         this one.
         """
         other = super().spawn(options)
         if other.structure == self.structure:
             other._transcriptions, other._transcriptions_lock = self._transcriptions, self._transcriptions_lock
-            other._warm_source = self  # a cold start takes 10x the iterations of a warm one
+            other._warm_source = self  # a cold start takes many times the iterations of a warm one
         return other
 
     def transcription(self, form, free_time: bool = False) -> Transcription:
@@ -259,8 +259,8 @@ class DirectSolver(VariationalSolver):
         so the solution for -D is minus that for D, multipliers included; in
         scaled variables a request of the other sign is then as warm as one
         of the same sign. A hoist breaks the symmetry: a solution whose axes
-        moved in other directions is no start (RVF took 330 iterations from
-        one, 5 from the quintic guess), so None then.
+        moved in other directions is no start (from one, RVF needs far more
+        iterations than from the quintic guess), so None then.
         """
         sign, start = warm
         now = DirectSolver.sign(displacement)

@@ -83,7 +83,7 @@ class BaseProfile:
         k = self.piece(x) if piece is None else np.asarray(piece)
         dx = x - self.breaks[k]
         # shift each piece polynomial to x: c'_m = sum_n C(n, m) dx^(n - m) c_n; the powers
-        # dx^0..dx^5 by products and gathered (a float power per matrix entry cost 20x more)
+        # dx^0..dx^5 by products and gathered (a float power per matrix entry costs many times more)
         shift = _SHIFT_MASK * np.vander(dx, ORDER + 1, increasing=True)[:, _SHIFT_POWER]
         return np.einsum('imn,in->im', shift, self.coefficients[k])
 

@@ -77,7 +77,7 @@ class ShapedPlan(Plan):
 
         Each piece is sampled at ``_PEAK_SAMPLES`` points and the largest sample
         refined by the parabola through it and its neighbours: exact to a few
-        parts in 1e8 for these degree <= 4 pieces, and ~50x cheaper than dense
+        parts in 1e8 for these degree <= 4 pieces, and far cheaper than dense
         sampling of the whole plan (``fastest`` evaluates it a dozen times).
         """
         breaks = self._breaks[self._breaks < self.duration]

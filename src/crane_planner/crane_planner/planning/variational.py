@@ -38,8 +38,8 @@ class VariationalSolver:
     handles_hoist = True
     #: Collocation intervals when PlanOptions.intervals is None.
     default_intervals = 30
-    #: ... and with a hoist: its NLP costs 4x as much per interval, and 24 intervals leave the same
-    #: residual swing (7e-5 mm on the nominal hoisting move) as 30, in 39 ms instead of 51 (RVF, warm).
+    #: ... and with a hoist: its NLP costs several times as much per interval, and 24 intervals leave the
+    #: same residual swing on the nominal hoisting move as 30, in less time.
     default_hoist_intervals = 24
     weights = Weights()
     #: End intervals of the servo mesh, as a multiple of the boundary-layer width (see ``mesh``).

@@ -76,7 +76,7 @@ def choose(displacement: float, model: CraneParams, options: PlanOptions, method
     planner = planner or Planner()
     candidates, plans = [], []
     # Every method's search at once: CasADi lets go of the GIL while it builds and solves, so
-    # NVF's and RVF's first free-time NLPs (most of the time) share the cores (2.97 -> 2.46 s here).
+    # NVF's and RVF's first free-time NLPs (most of the time) share the cores instead of taking turns.
     with ThreadPoolExecutor(max_workers=max(1, len(methods))) as pool:
         searches = [pool.submit(planner.fastest, method, displacement, model, options, hoist) for method in methods]
     for method, search in zip(methods, searches):

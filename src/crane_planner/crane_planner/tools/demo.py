@@ -143,8 +143,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--settle', type=float, default=2.0, metavar='S',
                    help='seconds of swing observed after each motion (default 2.0, more than the slow '
                         "mode's 1.73 s period)")
-    # not 1.0: NVF's 0.3 m in 1 s took 55 IPOPT iterations (0.2 s) from the warm start of a 3 s move, and
-    # past max_solve_time (1 s) on a loaded CI machine, which failed the demo; in 1.5 s it takes 4 (14 ms)
+    # not 1.0: from the warm start of a 3 s move, NVF's 0.3 m in 1 s takes an order of magnitude more IPOPT
+    # iterations than in 1.5 s, enough to run past max_solve_time (1 s) on a loaded machine and fail the demo
     p.add_argument('--return-duration', type=float, default=1.5, metavar='T',
                    help='time (s) of the unmeasured move back between runs, starting as the observation '
                         'ends (default 1.5)')

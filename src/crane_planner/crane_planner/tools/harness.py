@@ -224,8 +224,8 @@ class CraneHarness:
     def lead(self) -> float:
         """Seconds between a request and its motion start: three times the slowest round trip
         seen so far, at least 0.3 s (the planner's publish_lead: it sends the trajectory at once
-        then). A request after a parameter change, on a machine also recording at 1 kHz, has
-        taken 0.4 s: such a motion reaches the streamer late and is streamed whole from its
+        then). A request after a parameter change, on a machine also recording at 1 kHz, can
+        take longer than that: such a motion reaches the streamer late and is streamed whole from its
         next tick, and every window follows the start it really got (``streamed_start``)."""
         return max(0.3, 3.0 * self._slowest_plan)
 

@@ -41,11 +41,10 @@ def isolated_ros_env(domain_id: int | None = None) -> dict:
     env['ROS_DOMAIN_ID'] = str(random.randint(*DOMAIN_ID_RANGE) if domain_id is None else int(domain_id))
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env.pop('ROS_LOCALHOST_ONLY', None)  # deprecated in Jazzy; conflicts with the range
-    # Fast DDS over UDP only, not shared memory: opening a healthy SHM port stalls senders for 333 ms
-    # (Fast-DDS#6535), which held up our 1 kHz stream and the planner's 50 Hz inputs whenever a
-    # participant joined (a recorder's first 300 samples 0.33 s late; a planner hearing stream_state
-    # seconds late after a test process's clients came and went), and killed processes leave
-    # stale ports behind. Loopback UDP carries our few hundred kB/s with ~0.1 ms latency.
+    # Fast DDS over UDP only, not shared memory: opening a healthy SHM port stalls senders for a third
+    # of a second (Fast-DDS#6535), which holds up our 1 kHz stream and the planner's 50 Hz inputs
+    # whenever a participant joins (a recorder, a test process's clients), and killed processes leave
+    # stale ports behind. Loopback UDP carries our few hundred kB/s with latency far below a tick.
     env.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
     env.setdefault('PYTHONUNBUFFERED', '1')
     env.setdefault('RCUTILS_COLORIZED_OUTPUT', '0')

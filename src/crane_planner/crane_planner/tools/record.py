@@ -10,10 +10,10 @@ SIGTERM or after ``--duration``; exit 0, 2 on bad options, 1 if a topic never
 appeared.
 
 Why no executor: rclpy's executor rebuilds its wait set and runs Python for
-every message; beside the streamer and the sim that cost 39 % of a core for
-the 1 kHz ``reference`` (``bench/recorder.py``). The recorder instead drains
-each subscription's queue in batches every ``DRAIN_PERIOD`` (one wake-up per
-period, however many messages arrived): 8 % of a core, the same messages. Each
+every message, which for the 1 kHz ``reference`` costs a large share of a core
+beside the streamer and the sim (``bench/recorder.py``). The recorder instead
+drains each subscription's queue in batches every ``DRAIN_PERIOD`` (one wake-up
+per period, however many messages arrived): a fraction of that, the same messages. Each
 is stamped with the middleware's own reception time, so batching does not
 blur the receive times; the middleware's receive threads, which take those
 times, run at SCHED_FIFO ``--priority`` so a busy machine does not delay them.
@@ -42,7 +42,7 @@ DEFAULT_TOPICS = ('reference', 'joint_states', 'trajectory', '/diagnostics', 'cr
 #: Seconds between two drains of the subscriptions' queues: 10 messages of a 1 kHz topic per drain.
 DRAIN_PERIOD = 0.01
 #: SCHED_FIFO priority of the middleware's receive threads by default: they stamp each message's receive
-#: time, and at normal priority a busy machine delays them (5-12 ms behind two niced busy processes here).
+#: time, and at normal priority a busy machine delays them by several ticks of a 1 kHz topic.
 PRIORITY = 30
 #: Queue depth of every recorded subscription: 2 s of a 1 kHz topic, so a recorder that is
 #: descheduled for a while (a busy machine) still finds every message when it drains.
@@ -101,10 +101,9 @@ class Recorder:
         subscriptions to match their publishers; the topics without a publisher after ``timeout`` s.
 
         Why wait for the graph to settle: while this process still discovers
-        the graph (the first second or so), Fast DDS delivered nothing to its
-        readers for 0.2-0.35 s, then the queued samples all at once; recorded
-        then, 300 samples of a 1 kHz topic carried receive times 0.3 s late
-        (2 of 3 recordings). The topic list is also incomplete then (a topic
+        the graph (the first second or so), Fast DDS may deliver nothing to its
+        readers for a while, then the queued samples all at once, stamped with
+        receive times that late. The topic list is also incomplete then (a topic
         seen through its subscribers only: no publisher to match yet).
         """
         deadline = time.monotonic() + timeout
@@ -121,15 +120,15 @@ class Recorder:
         missing = [t for t in self.topics if t not in (seen or {}) or seen[t][1] == 0]
         present = [t for t in self.topics if t not in missing]
         # Every message class imported and its type support loaded before the first subscription:
-        # doing so between two subscriptions (100s of ms on a busy machine) held up the delivery to
-        # the subscriptions already made, whose first samples then arrived up to 0.33 s late.
+        # doing so between two subscriptions (slow on a busy machine) holds up the delivery to the
+        # subscriptions already made, whose first samples then arrive late.
         classes = {t: message_class(seen[t][0]) for t in present}
         for cls in classes.values():
             check_for_type_support(cls)
         for topic in present:
             self._subscribe(topic, seen[topic][0], classes[topic])
         # A subscription in the graph is not yet matched with its publishers: what they publish
-        # before the match is lost (the demo's first trajectory was, once). Recording starts
+        # before the match is lost (the demo's first trajectory, say). Recording starts
         # when every subscription counts the publishers the graph showed.
         while time.monotonic() < deadline and any(
                 sub.get_publisher_count() < self._expected[topic] for topic, sub in self._subscriptions.items()):
