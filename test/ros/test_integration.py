@@ -380,9 +380,9 @@ def test_a_goal_canceled_before_its_start_streams_nothing_and_ends_canceled(cran
 
 def test_a_goal_whose_start_time_has_passed_is_streamed_from_now_and_followed_to_its_result(crane):
     """A goal arriving after its own start_time (a client slow to discover the planner, a clock behind): the
-    streamer streams it whole from its next tick, and the planner follows that motion to its result. (It used
-    to abort the goal at once, "not streamed within 1 s of its start", while the crane moved: every next goal
-    then met a motion the planner did not know of.) The next goal starts where this one ended."""
+    streamer streams it whole from its next tick, and the planner follows that motion to its result. (Aborting
+    the goal at once, "not streamed within 1 s of its start", while the crane moved would leave every next goal
+    to meet a motion the planner did not know of.) The next goal starts where this one ended."""
     from crane_sim.metrics import residual_load_mm
     crane.driver.reset_sim()
     crane.driver.sleep(0.3)
@@ -406,7 +406,7 @@ def test_a_goal_whose_start_time_has_passed_is_streamed_from_now_and_followed_to
 def test_the_harness_finds_a_late_motion_s_trajectory_by_the_start_it_was_streamed_from(crane):
     """A move whose start had passed when it reached the streamer starts at the streamer's next tick, the
     start CraneHarness.move returns; CraneHarness.trajectory of that start is the trajectory the planner
-    published, stamped with the start asked for (crane-demo read a late plan so, and failed once under load)."""
+    published, stamped with the start asked for (crane-demo reads a late plan so, and must not fail under load)."""
     from crane_msgs_py.conversions import stamp_ns
     crane.driver.reset_sim()
     hold, goal = crane.hold, crane.next_goal()
@@ -802,7 +802,7 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
         nodes.check_alive()
     assert int(values['accepted']) > 2000 and values['reference_type'] == 'float64_array'
     # the positions are played out and differentiated over the plant's steps: the cart comes to rest
-    # at the goal even when a stall re-anchored the unstamped samples' grid (it once drifted 0.5 m)
+    # at the goal even when a stall re-anchored the unstamped samples' grid (which must not shift where it ends)
     assert float(values['y']) == pytest.approx(D, abs=5e-3)
 
 
@@ -811,10 +811,10 @@ def test_markers_draw_the_crane_of_the_published_joint_states(crane):
     them (x1 = y - L1 sin th1, x2 = x1 - L2 sin(th1 + th2); z down the cables) within 1e-9 m.
 
     Both streams are read on a node and executor of their own with queues of 10 s, as ``references()``
-    does: this process (its Python threads, the harness's executor among them) has stalled for
-    100-500 ms on a loaded host while DDS received every frame on time, and a reader queue of the
-    markers' own depth (5 frames, 100 ms: RViz's) then dropped frames that looked like a sim
-    publishing markers at 39 Hz.
+    does: this process (its Python threads, the harness's executor among them) can stall on a
+    loaded host for longer than a reader queue of the markers' own depth (5 frames, 100 ms: RViz's)
+    holds while DDS receives every frame on time, and the frames such a queue drops would look like
+    a sim publishing markers too slowly.
     """
     import rclpy
     from rclpy.experimental import EventsExecutor
