@@ -30,7 +30,7 @@ REFERENCE_QOS = QoSProfile(
 
 #: ``reference`` for receivers that need every sample (the sim integrates
 #: them, recorders count them): the same policies with a queue of 1 s, so a
-#: receiver stalled for hundreds of ms (a busy machine, a virtual CPU
+#: receiver stalled for less than that (a busy machine, a virtual CPU
 #: descheduled by its host) still gets every sample, in order.
 REFERENCE_EVERY_SAMPLE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1000,

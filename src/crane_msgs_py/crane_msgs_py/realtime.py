@@ -126,7 +126,7 @@ def fix_mmap_threshold() -> str | None:
     large blocks come from the per-thread heaps and stay there: a process
     whose many threads allocate and free solver workspaces (the planner:
     MUMPS, several MB a solve) then grows by a heap's worth per thread,
-    150 MB over a few thousand requests. A fixed threshold keeps its size
+    without bound as requests go on. A fixed threshold keeps its size
     flat. Returns a warning if it could not be set (not glibc).
     """
     try:

@@ -111,10 +111,10 @@ PARAMETERS = {
                             'refused; every request is answered within this + 0.5 s',
                        _range(0.0, 60.0)),
     'solver_pool_size': (8, 'NVF/RVF solver instances per method in the node process when solver_processes '
-                            'is 0, 1..32, made as concurrent requests need them (2-6 MB each; the first of a '
-                            'method builds its NLP, ~25 MB); unused with worker processes', _range(1, 32)),
+                            'is 0, 1..32, made as concurrent requests need them (a few MB each; the first of a '
+                            'method builds its NLP, several times that); unused with worker processes', _range(1, 32)),
     'solver_processes': (3, 'worker processes solving NVF/RVF side by side, 0..16, started with the node '
-                            '(~40 MB each beyond what they share); 0 = solve in threads of the node process '
+                            '(tens of MB each beyond what they share); 0 = solve in threads of the node process '
                             "only, where solves take turns at IPOPT's linear solver (read-only)",
                          dict(_range(0, 16), read_only=True)),
 }

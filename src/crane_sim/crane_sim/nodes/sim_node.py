@@ -12,7 +12,7 @@ the loop plays them out by their stamps, ``playout_delay`` behind
 clock, and ``joint_states`` carry plant time, so they line up with the
 reference stamps. The loop alone touches the simulator, so parameter changes
 and resets are handed over too. The EventsExecutor keeps the 1 kHz
-subscription at a fifth of the CPU the Python executors need.
+subscription at a fraction of the CPU the Python executors need.
 """
 from __future__ import annotations
 
