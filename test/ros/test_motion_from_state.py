@@ -134,12 +134,16 @@ def test_cancel_at_half_way_stops_the_crane_without_swing(crane):
     residual, rec = residual_mm(driver, stop_end, stop_end + round(SETTLE * 1e9))
     assert residual <= 0.5, residual
     assert abs(1e3 * result.residual_swing - residual) < 0.05
-    # at rest within the stop's duration, where the result says, short of the goal
-    assert np.ptp(rec[:, 3]) < 1e-5 and rec[-1, 3] == pytest.approx(where, abs=1e-4) and where < 0.3
-    # an unshaped hard stop of the same move at the same time (the reference held), on the same plant
+    # at rest within the stop's duration, where the result says
+    assert np.ptp(rec[:, 3]) < 1e-5 and rec[-1, 3] == pytest.approx(where, abs=1e-4)
+    # the stop took over during the motion and braked forward from where the motion was then (how far into
+    # the motion depends on how long the stop took to plan: a loaded host plans it further ahead)
     from crane_msgs_py.conversions import joint_trajectory_to_arrays
     from crane_planner.streaming.hermite import QuinticHermite
     t_k, p, v, a = joint_trajectory_to_arrays(traj, 'cart')
+    assert start < stop < start + round(T * 1e9)
+    assert where > QuinticHermite(t_k, p, v, a)(np.array([(stop - start) * 1e-9]))[0][0]
+    # an unshaped hard stop of the same move at the same time (the reference held), on the same plant
     t = np.arange(0.0, 8.0, 1e-3)
     held = QuinticHermite(t_k, p, v, a)(np.minimum(t, (stop - start) * 1e-9))[0]
     hard = simulate(t, held, NOMINAL, source='position')
