@@ -32,6 +32,14 @@ class ParameterError(ValueError):
     """A parameter value is out of its domain; the message names the parameter."""
 
 
+def parameter_range(lo, hi) -> dict:
+    """A node parameter's range [lo, hi] as a pure parameter table gives it: an integer range for int bounds,
+    else a double one (``node_parameters.declare`` makes rcl's descriptor of the plain pair)."""
+    if isinstance(lo, int) and isinstance(hi, int):
+        return {'integer_range': (lo, hi)}
+    return {'floating_point_range': (float(lo), float(hi))}
+
+
 def check_finite(name: str, value) -> float:
     """Return ``value`` as float, or raise ParameterError naming ``name``."""
     try:

@@ -17,6 +17,7 @@ from crane_msgs_py.params import (
     check_choice,
     check_nonnegative,
     check_positive,
+    parameter_range,
 )
 
 from ..planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOptions
@@ -26,13 +27,6 @@ from ..planning.hoisting import HOIST_SHAPER_DESIGNS
 from ..planning.profiles import BASES
 from .moves import MoveBounds
 
-
-def _range(lo, hi) -> dict:
-    """The descriptor field of a parameter's range [lo, hi]: an integer one for int bounds, else a double one
-    (a plain (lo, hi) pair: ``node_parameters.declare`` makes rcl's range of it)."""
-    return {'integer_range' if isinstance(lo, int) else 'floating_point_range': (lo, hi)}
-
-
 #: The crane model's parameters' upper bounds (each from 0) for rclpy's range check.
 MODEL_BOUNDS = {'L1': 100.0, 'L2': 100.0, 'm1': 1e5, 'm2': 1e5, 'g': 100.0, 'tau': 10.0, 'c1': 1e3, 'c2': 1e3,
                 'tau_hoist': 10.0}
@@ -40,7 +34,7 @@ MODEL_BOUNDS = {'L1': 100.0, 'L2': 100.0, 'm1': 1e5, 'm2': 1e5, 'g': 100.0, 'tau
 #: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by
 #: ``Config.from_values``, whose reason the node reports on /diagnostics.
 PARAMETERS = {
-    **{name: (getattr(CraneParams, name), PARAMETER_DESCRIPTIONS[name], _range(0.0, MODEL_BOUNDS[name]))
+    **{name: (getattr(CraneParams, name), PARAMETER_DESCRIPTIONS[name], parameter_range(0.0, MODEL_BOUNDS[name]))
        for name in PARAMETER_NAMES},
     'method': ('rvf', f'method of a move that names none: one of {", ".join(METHODS)}',
                {'additional_constraints': f'one of {", ".join(METHODS)}'}),
@@ -50,13 +44,13 @@ PARAMETERS = {
                                "model's modal frequencies", {'additional_constraints': 'each > 0'}),
     'shaper_damping': (-1.0, "shaper design damping ratio, >= 0 and < 1; -1 = the model's modal damping "
                              'ratios (0 when c1 = c2 = 0; 0 with shaper_frequencies set)',
-                       _range(-1.0, 1.0)),
+                       parameter_range(-1.0, 1.0)),
     'intervals': (0, 'collocation intervals of NVF/RVF, 4..2000; 0 = the solver default',
-                  _range(0, 2000)),
+                  parameter_range(0, 2000)),
     'sample_period': (0.0, 'knot spacing of returned plans (s); 0 = knots where the plan needs them '
                            '(its breakpoints, and as few more as keep the streamer\'s quintic Hermite '
                            'interpolation within 1 um); the last knot is exactly at the end',
-                      _range(0.0, 1.0)),
+                      parameter_range(0.0, 1.0)),
     'frame_id': (DEFAULT_FRAME_ID, 'frame of returned trajectories', {}),
     'joints': (['cart'], "the actuated joints this planner serves: [cart], or [cart, hoist] (the hoist's "
                          "position is the upper cable's length L1; every array of a Move is per joint in this "
@@ -64,21 +58,21 @@ PARAMETERS = {
                {'additional_constraints': '[cart] or [cart, hoist]', 'read_only': True}),
     'publish_lead': (0.3, 'an executed trajectory is sent to the streamer this long (s) before its start '
                           'time, so that a goal canceled before then streams nothing (one starting as '
-                          'soon as possible is sent at once)', _range(0.0, 10.0)),
-    'max_duration': (60.0, 'longest motion served (s), > 0', _range(0.0, 3600.0)),
+                          'soon as possible is sent at once)', parameter_range(0.0, 10.0)),
+    'max_duration': (60.0, 'longest motion served (s), > 0', parameter_range(0.0, 3600.0)),
     'max_displacement': (10.0, 'largest |goal - start| served (m), > 0',
-                         _range(0.0, 1e4)),
+                         parameter_range(0.0, 1e4)),
     'max_velocity': (0.0, 'axis limit |v| of the reference (m/s); 0 = no limit',
-                     _range(0.0, 1e3)),
+                     parameter_range(0.0, 1e3)),
     'max_acceleration': (0.0, 'axis limit |a| of the reference (m/s^2); 0 = no limit',
-                         _range(0.0, 1e4)),
+                         parameter_range(0.0, 1e4)),
     'max_jerk': (0.0, 'axis limit on the jerk of the reference (m/s^3); 0 = no limit',
-                 _range(0.0, 1e6)),
-    'max_hoist_velocity': (0.0, 'hoist axis limit |v| of its reference (m/s); 0 = no limit', _range(0.0, 1e3)),
+                 parameter_range(0.0, 1e6)),
+    'max_hoist_velocity': (0.0, 'hoist axis limit |v| of its reference (m/s); 0 = no limit', parameter_range(0.0, 1e3)),
     'max_hoist_acceleration': (0.0, 'hoist axis limit |a| of its reference (m/s^2); 0 = no limit',
-                               _range(0.0, 1e4)),
+                               parameter_range(0.0, 1e4)),
     'max_hoist_jerk': (0.0, 'hoist axis limit on the jerk of its reference (m/s^3); 0 = no limit',
-                       _range(0.0, 1e6)),
+                       parameter_range(0.0, 1e6)),
     'hoist_robust_parameters': (['L2'], 'parameters RVF is made insensitive to in a move that hoists (the '
                                         f'payload\'s cable by default), among {", ".join(ROBUST_PARAMETERS)}',
                                 {'additional_constraints': f'distinct names among {", ".join(ROBUST_PARAMETERS)}'}),
@@ -90,33 +84,34 @@ PARAMETERS = {
                     {'additional_constraints': f'one of {", ".join(BASES)}'}),
     'handover_lead': (0.042, 'a new NVF/RVF goal during a motion takes over this long (s) after it arrives, from '
                             'the state the motion is in then (a plan taking longer is planned again further ahead)',
-                      _range(0.001, 1.0)),
+                      parameter_range(0.001, 1.0)),
     'shaper_handover_lead': (0.001, 'the same for a shaper; shorter than its planning and transport on purpose: '
                                     'a change reaching the streamer after its tick starts at the next one, '
                                     'delayed (up to 20 ms, no swing added): the earliest handover possible',
-                             _range(0.001, 1.0)),
+                             parameter_range(0.001, 1.0)),
     'handover_priority': (40, 'SCHED_FIFO priority (1..99) of the thread that takes ExecuteMove requests and plans '
                               'and sends a shaper\'s handover: Python that, at normal priority beside the 1 kHz nodes, '
                               'may wait for a core as long as it runs; the middleware\'s receive threads run one '
                               'below; 0 = normal scheduling (also without the privilege: a warning)',
-                          _range(0, 99)),
+                          parameter_range(0, 99)),
     'handover_warmup': (0.02, 'while a motion streams, every this many s the goals\' thread plans a shaper\'s '
                               'handover of it and serializes its trajectory without sending it, so that a real '
                               'goal\'s handover runs on warm caches: code left untouched for a while beside the '
                               '1 kHz nodes runs several times slower; 0 = off',
-                        _range(0.0, 10.0)),
+                        parameter_range(0.0, 10.0)),
     'settle_method': ('nvf', '~/settle plans with this method: nvf or rvf (a shaper cannot damp a swing it did not '
                              'cause)', {'additional_constraints': 'nvf or rvf'}),
     'max_solve_time': (1.0, 'budget of one NVF/RVF solve (s), > 0: a request not solved within it is '
                             'refused; every request is answered within this + 0.5 s',
-                       _range(0.0, 60.0)),
+                       parameter_range(0.0, 60.0)),
     'solver_pool_size': (8, 'NVF/RVF solver instances per method in the node process when solver_processes '
                             'is 0, 1..32, made as concurrent requests need them (a few MB each; the first of a '
-                            'method builds its NLP, several times that); unused with worker processes', _range(1, 32)),
+                            'method builds its NLP, several times that); unused with worker processes',
+                         parameter_range(1, 32)),
     'solver_processes': (3, 'worker processes solving NVF/RVF side by side, 0..16, started with the node '
                             '(tens of MB each beyond what they share); 0 = solve in threads of the node process '
                             "only, where solves take turns at IPOPT's linear solver (read-only)",
-                         dict(_range(0, 16), read_only=True)),
+                         dict(parameter_range(0, 16), read_only=True)),
 }
 
 

@@ -9,34 +9,32 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from crane_msgs_py.axes import AxisLimits
 from crane_msgs_py.names import OUTPUT_JOINT_TRAJECTORY, OUTPUTS
-from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams, ParameterError, check_choice
+from crane_msgs_py.params import (
+    PARAMETER_DESCRIPTIONS,
+    PARAMETER_NAMES,
+    CraneParams,
+    ParameterError,
+    check_choice,
+    parameter_range,
+)
 
 from .impairment import DISTRIBUTIONS, Impairment
-from .operator import OPERATOR_SHAPERS, AxisLimits, OperatorStream
+from .operator import OPERATOR_SHAPERS, OperatorStream
 
 MODES = ('trajectory', 'operator')
-
-
-def _floats(lo: float, hi: float) -> dict:
-    """A double parameter's range [lo, hi], as ``node_parameters.declare`` takes it."""
-    return {'floating_point_range': (float(lo), float(hi))}
-
-
-def _ints(lo: int, hi: int) -> dict:
-    """An integer parameter's range [lo, hi], as ``node_parameters.declare`` takes it."""
-    return {'integer_range': (int(lo), int(hi))}
 
 
 #: name -> (default, description, descriptor fields; a range as (lo, hi)).
 PARAMETERS = {
     'rate': (1000.0, 'publishing rate of reference (Hz); fixed at start-up',
-             {**_floats(1.0, 10000.0), 'read_only': True}),
+             {**parameter_range(1.0, 10000.0), 'read_only': True}),
     'output': (OUTPUT_JOINT_TRAJECTORY, 'reference type: joint_trajectory (one point: position, velocity, '
                'acceleration) or float64_array (Float64MultiArray [position]); fixed at start-up',
                {'additional_constraints': f'one of {", ".join(OUTPUTS)}', 'read_only': True}),
     'state_rate': (50.0, 'publishing rate of stream_state (Hz), at most rate; fixed at start-up',
-                   {**_floats(1.0, 1000.0), 'read_only': True}),
+                   {**parameter_range(1.0, 1000.0), 'read_only': True}),
     'auto_start': (True, 'start streaming at start-up (else wait for ~/start)', {'read_only': True}),
     'initial_position': (0.0, 'hold position (m) before the first motion', {'read_only': True}),
     'joints': (['cart'], 'the streamed joints: [cart] or [cart, hoist] (the reference then carries a column '
@@ -45,23 +43,23 @@ PARAMETERS = {
     'initial_hoist_position': (CraneParams.L1, 'with a hoist: its hold position (m, the upper cable\'s length) '
                                                'before the first motion', {'read_only': True}),
     'start_tolerance': (1e-6, 'largest distance (m) between a trajectory\'s first position and the hold '
-                        'position; farther is a jump and the trajectory is refused', _floats(0.0, 1.0)),
+                        'position; farther is a jump and the trajectory is refused', parameter_range(0.0, 1.0)),
     'busy_wait': (1e-4, 'the last part (s) of each tick period spent spinning instead of sleeping, for '
-                  'wake-up precision at the cost of CPU', _floats(0.0, 1e-3)),
+                  'wake-up precision at the cost of CPU', parameter_range(0.0, 1e-3)),
     'sched_priority': (50, 'SCHED_FIFO priority of the loop thread, 1..99 (as ros2_control\'s controller '
                        'manager; without the privilege a warning and normal scheduling), the executor thread one '
                        'below, the middleware\'s receive threads two below; 0 = normal scheduling',
-                       {**_ints(0, 99), 'read_only': True}),
+                       {**parameter_range(0, 99), 'read_only': True}),
     'timing_log': ('', 'file to write every tick lateness to at shutdown, JSON {rate_hz, first_tick_ns (ROS '
                    'time of the first tick), lateness_us: [...]}, ticks of later ~/start runs appended; '
                    'empty = off',
                    {'read_only': True}),
-    'network.delay': (0.0, 'impairment: fixed delay (s) of every message', _floats(0.0, 10.0)),
-    'network.jitter': (0.0, 'impairment: standard deviation (s) of the random delay', _floats(0.0, 10.0)),
+    'network.delay': (0.0, 'impairment: fixed delay (s) of every message', parameter_range(0.0, 10.0)),
+    'network.jitter': (0.0, 'impairment: standard deviation (s) of the random delay', parameter_range(0.0, 10.0)),
     'network.distribution': ('normal', f'impairment: jitter distribution, one of {", ".join(DISTRIBUTIONS)} '
                              '(normal/uniform zero-mean, exponential one-sided)',
                              {'additional_constraints': f'one of {", ".join(DISTRIBUTIONS)}'}),
-    'network.loss': (0.0, 'impairment: probability that a message is lost', _floats(0.0, 1.0)),
+    'network.loss': (0.0, 'impairment: probability that a message is lost', parameter_range(0.0, 1.0)),
     'network.reorder': (False, 'impairment: let messages overtake each other (false = FIFO delivery)', {}),
     'network.seed': (0, 'impairment: seed of the random draws', {}),
     'mode': ('trajectory', 'trajectory: stream the trajectories sent on trajectory; operator: follow cmd_vel '
@@ -72,20 +70,20 @@ PARAMETERS = {
                               'every tick for the rope length then (length-adaptive); none = rate limits only',
                         {'additional_constraints': f'one of {", ".join(OPERATOR_SHAPERS)}'}),
     'cmd_timeout': (0.5, 'operator mode: a command older than this (s) counts as zero, so a lost joystick stops '
-                         'the crane (without swing)', _floats(0.001, 10.0)),
-    'operator.max_velocity': (0.3, 'operator mode: the cart\'s velocity limit (m/s)', _floats(1e-6, 100.0)),
+                         'the crane (without swing)', parameter_range(0.001, 10.0)),
+    'operator.max_velocity': (0.3, 'operator mode: the cart\'s velocity limit (m/s)', parameter_range(1e-6, 100.0)),
     'operator.max_acceleration': (0.5, 'operator mode: the cart\'s acceleration limit (m/s^2)',
-                                  _floats(1e-6, 1000.0)),
-    'operator.max_jerk': (5.0, 'operator mode: the cart\'s jerk limit (m/s^3)', _floats(1e-6, 1e6)),
+                                  parameter_range(1e-6, 1000.0)),
+    'operator.max_jerk': (5.0, 'operator mode: the cart\'s jerk limit (m/s^3)', parameter_range(1e-6, 1e6)),
     'operator.max_hoist_velocity': (0.2, 'operator mode: the hoist\'s velocity limit (m/s)',
-                                    _floats(1e-6, 100.0)),
+                                    parameter_range(1e-6, 100.0)),
     'operator.max_hoist_acceleration': (0.5, 'operator mode: the hoist\'s acceleration limit (m/s^2)',
-                                        _floats(1e-6, 1000.0)),
-    'operator.max_hoist_jerk': (5.0, 'operator mode: the hoist\'s jerk limit (m/s^3)', _floats(1e-6, 1e6)),
+                                        parameter_range(1e-6, 1000.0)),
+    'operator.max_hoist_jerk': (5.0, 'operator mode: the hoist\'s jerk limit (m/s^3)', parameter_range(1e-6, 1e6)),
     'operator.hoist_range': ([0.1, 3.0], 'operator mode: the shortest and longest rope (m) the hoist may reach',
                              {'additional_constraints': '[shortest, longest], 0 < shortest < longest'}),
     **{name: (getattr(CraneParams, name), f'crane model of the operator shaper and of a ~/stop: '
-                                          f'{PARAMETER_DESCRIPTIONS[name]}', _floats(0.0, 1e4))
+                                          f'{PARAMETER_DESCRIPTIONS[name]}', parameter_range(0.0, 1e4))
        for name in PARAMETER_NAMES},
 }
 

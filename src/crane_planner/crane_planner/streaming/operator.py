@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from crane_msgs_py.axes import AXES, AxisLimits
+from crane_msgs_py.axes import AXES
 from crane_msgs_py.params import CraneParams
 
 from ..planning.model import modal_properties
@@ -38,8 +38,6 @@ OPERATOR_SHAPERS = ('none', *SHAPERS)
 HISTORY = 60.0
 #: The rope length (m) is redesigned for when it has changed by more than this.
 LENGTH_STEP = 1e-4
-#: AxisLimits (crane_msgs_py.axes) is re-exported: the streamer node builds the operator's limits with it.
-__all__ = ['AxisLimits', 'OPERATOR_SHAPERS', 'OperatorStream']
 
 
 class OperatorStream:
