@@ -17,7 +17,7 @@ from ..planning import dispatch
 from ..planning.dispatch import PlanOptions, VariationalRequest, variational_solver
 from ..planning.plan import Plan, PlanError
 from .pool import SolverPool
-from .workers import SolverProcess, solver_settings
+from .workers import SolverProcess, solver_settings, start_fork_server
 
 #: The axis limits of the warm-ups that build the limited NLPs of a configuration without limits
 #: (``Planner.toggled_limits``): a rest-to-rest plan they leave unbounded, and a fastest plan.
@@ -94,6 +94,7 @@ class Planner:
         if processes:
             self._processes = SolverPool(self._new_process, check_count('solver_processes', processes), 'process',
                                          hint='raise solver_processes')
+            start_fork_server()  # (from the caller's thread: the main one, for a node)
 
     @property
     def warmups(self) -> list[VariationalRequest]:

@@ -55,7 +55,7 @@ from crane_msgs_py.realtime import set_fifo
 from ..planning.plan import PlanError
 from ..streaming.hermite import QuinticHermite
 from ..streaming.knots import knot_columns, knot_times
-from .workers import WARM_NICE, SolverProcess
+from .workers import WARM_NICE, SolverProcess, start_fork_server
 
 #: How far ahead (s) of its request a stop takes over (its NVF stop is planned in tens of milliseconds).
 STOP_LEAD = 0.1
@@ -230,6 +230,7 @@ class StopWorker:
         self._closed = False
         self._busy = threading.Lock()
         self._took = 0.0  # how long (s) the last stop took to plan: the next one's lead is at least 1.5 times that
+        start_fork_server()
         self._start(params)
 
     @property

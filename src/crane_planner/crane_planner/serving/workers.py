@@ -47,7 +47,36 @@ def _context():
         if _CONTEXT is None:
             _CONTEXT = multiprocessing.get_context('forkserver')
             _CONTEXT.set_forkserver_preload(_PRELOAD)
+            _start_forkserver()
         return _CONTEXT
+
+
+def _start_forkserver() -> None:
+    """Start the fork server with SIGINT ignored, if called from the main thread (see ``start_fork_server``).
+
+    The fork server protects itself from Ctrl-C only once it has imported ``_PRELOAD`` (a second or
+    more): a node stopped by SIGINT to its process group (Ctrl-C in a terminal, a launcher) meanwhile
+    would have it die with a KeyboardInterrupt traceback. An ignored signal stays ignored across the
+    server's exec (and Python keeps it so), and the workers it forks inherit that.
+    """
+    from multiprocessing import forkserver
+    if threading.current_thread() is not threading.main_thread():  # (only the main thread sets handlers)
+        forkserver.ensure_running()
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def start_fork_server() -> None:
+    """Start the workers' fork server now; from the main thread, immune to SIGINT while it loads CasADi.
+
+    Workers are usually started from background threads; a caller that will start some calls this first
+    from its main thread (a node's constructor), so that stopping the node with Ctrl-C early leaves no
+    traceback of a half-loaded fork server."""
+    _context()
 
 
 def solver_settings(options) -> dict:
