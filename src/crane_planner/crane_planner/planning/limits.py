@@ -10,19 +10,8 @@ from __future__ import annotations
 import math
 
 from crane_msgs_py.axes import AxisLimits
-from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 
 from .plan import PlanError
-
-
-def limits_of(options, axis: str = CART_JOINT) -> AxisLimits:
-    """The ``AxisLimits`` of ``axis`` in ``options`` (a ``dispatch.PlanOptions``)."""
-    return options.limits_of(axis)
-
-
-def hoist_limits_of(options) -> AxisLimits:
-    """The hoist's ``AxisLimits`` in ``options`` (``limits_of(options, 'hoist')``, as serving/ reads them)."""
-    return options.limits_of(HOIST_JOINT)
 
 
 def check_fastest_request(displacement: float, limits: AxisLimits) -> float:

@@ -54,7 +54,6 @@ from ..planning.continuation import (
     shaped_stop,
 )
 from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options, plan
-from ..planning.limits import hoist_limits_of, limits_of
 from ..planning.methods import SHAPER_METHODS
 from ..planning.model import modal_frequencies
 from ..planning.plan import AxesPlan, Plan, PlanError
@@ -291,7 +290,7 @@ def retarget(variational, running: Running, handover_ns: int, state: MotionState
 def stop(variational, running: Running, handover_ns: int, state: MotionState, method: str, params: CraneParams,
          options: PlanOptions) -> Plan:
     """A stop from the handover to rest as near as the limits allow, without residual swing (relative plan)."""
-    vmax, amax, jmax = limits_of(options)
+    vmax, amax, jmax = options.limits_of(CART_JOINT)
     shaped = running.plan if isinstance(running.plan, ShapedPlan) else None
     if method in SHAPER_METHODS and shaped is not None:
         accel, jerk = amax or shaped.peaks()[1], jmax or shaped.peaks()[2]
@@ -307,7 +306,7 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
     accel = amax if amax is not None else STOP_BRAKING * max(_peak_acceleration(running), abs(state.cart[2]))
     shortest = max(STOP_SHORTEST * period, braking_time(state.cart[1], state.cart[2], accel, jmax))
     if state.hoist is not None:
-        hv, ha, hj = hoist_limits_of(options)
+        hv, ha, hj = options.limits_of(HOIST_JOINT)
         if ha is not None:
             shortest = max(shortest, braking_time(state.hoist[1], state.hoist[2], ha, hj))
     last = None
