@@ -5,8 +5,10 @@ import math
 import numpy as np
 import pytest
 
+from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning.continuation import (
+    AxisState,
     Continuation,
     MotionState,
     braking_time,
@@ -41,15 +43,15 @@ def measured_at(old, t_h, params=PARAMS, hoist=None):
     if hoist is None:
         s = old.evaluate(t)
         r = simulate(t, s.acceleration, params)
-        return MotionState((s.position[-1], s.velocity[-1], s.acceleration[-1]),
-                           (r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]),
-                           r.y[0, -1] - s.position[-1])
+        cart = AxisState(s.position[-1], s.velocity[-1], s.acceleration[-1], r.y[0, -1] - s.position[-1])
+        return MotionState({CART_JOINT: cart}, (r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]))
     c, h = old.axes['cart'].evaluate(t), old.axes['hoist'].evaluate(t)
     r = simulate(t, {'cart': c.acceleration, 'hoist': h.acceleration}, params)
     L = hoist + h.position[-1]
-    return MotionState((c.position[-1], c.velocity[-1], c.acceleration[-1]),
-                       (r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]),
-                       r.y[0, -1] - c.position[-1], (L, h.velocity[-1], h.acceleration[-1]), r.L1[0, -1] - L)
+    return MotionState({CART_JOINT: AxisState(c.position[-1], c.velocity[-1], c.acceleration[-1],
+                                              r.y[0, -1] - c.position[-1]),
+                        HOIST_JOINT: AxisState(L, h.velocity[-1], h.acceleration[-1], r.L1[0, -1] - L)},
+                       (r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]))
 
 
 def handed_over(old, new, t_h, params=PARAMS, settle=4.0):
@@ -82,9 +84,10 @@ def test_unshaped_hard_stop_leaves_a_swing_the_comparisons_are_against(running):
 def test_retarget_from_the_measured_state_ends_at_the_new_goal_without_swing(solvers, running, method):
     state = measured_at(running, HANDOVER)
     start, model = problem_start(state, PARAMS)
-    new = solvers(VariationalRequest('plan', method, 0.5 - state.cart[0], 3.0, model, PlanOptions(), start))
+    cart = state.axis(CART_JOINT)
+    new = solvers(VariationalRequest('plan', method, 0.5 - cart.position, 3.0, model, PlanOptions(), start))
     assert_continuous(running, new, HANDOVER)
-    assert state.cart[0] + new.displacement == pytest.approx(0.5, abs=1e-9)
+    assert cart.position + new.displacement == pytest.approx(0.5, abs=1e-9)
     end = new.evaluate(new.duration)
     assert abs(end.velocity[0]) < 1e-9 and abs(end.acceleration[0]) < 1e-8
     residual, r = handed_over(running, new, HANDOVER)
@@ -97,22 +100,23 @@ def test_stop_rests_anywhere_without_swing_and_plans_from_a_swinging_state(solve
     assert max(abs(x) for x in state.swing) > 0.01  # mid-move the load swings
     start, model = problem_start(state, PARAMS)
     T = first_period(PARAMS)
-    stop = solvers(VariationalRequest('plan', 'nvf', state.cart[1] * T / 2, T, model, PlanOptions(), start,
+    cart = state.axis(CART_JOINT)
+    stop = solvers(VariationalRequest('plan', 'nvf', cart.velocity * T / 2, T, model, PlanOptions(), start,
                                       free_end=True))
     assert_continuous(running, stop, 1.5)
     end = stop.evaluate(T)
     assert abs(end.velocity[0]) < 1e-9 and abs(end.acceleration[0]) < 1e-8
-    assert 0.0 < stop.displacement < state.cart[1] * T  # it brakes: less than the speed would carry it
+    assert 0.0 < stop.displacement < cart.velocity * T  # it brakes: less than the speed would carry it
     residual, r = handed_over(running, stop, 1.5)
     assert residual < 0.5e-4
-    assert r.y[0, -1] == pytest.approx(state.cart[0] + stop.displacement, abs=1e-5)
+    assert r.y[0, -1] == pytest.approx(cart.position + stop.displacement, abs=1e-5)
 
 
 def test_settle_damps_a_swing_and_ends_where_it_started(solvers):
     """A load swinging 30 mm at rest: the NVF plan from that state to the same place damps it below 1 mm."""
     # the swing of a free first-mode oscillation with 30 mm at the load
     theta = 0.03 / (PARAMS.L1 + PARAMS.L2)
-    state = MotionState((0.0, 0.0, 0.0), (theta, 0.0, 0.0, 0.0))
+    state = MotionState({CART_JOINT: AxisState()}, (theta, 0.0, 0.0, 0.0))
     start, model = problem_start(state, PARAMS)
     T = first_period(PARAMS)
     settle = solvers(VariationalRequest('plan', 'nvf', 0.0, T, model, PlanOptions(), start))
@@ -129,12 +133,13 @@ def test_hoisting_from_a_state_both_axes_continuous_and_at_rest(solvers):
     hoisting = plan('nvf', 0.3, 3.0, PARAMS, variational=solvers, hoist=(0.47, 0.3))
     state = measured_at(hoisting, HANDOVER, hoist=0.47)
     start, model = problem_start(state, PARAMS)
-    assert model.L1 == pytest.approx(state.hoist[0] + state.hoist_lag)
-    new = solvers(VariationalRequest('plan', 'nvf', (0.5 - state.cart[0], 0.25 - model.L1), 3.0, model,
-                                     hoisting_options(PlanOptions()), start))
+    rope = state.axis(HOIST_JOINT)
+    assert model.L1 == pytest.approx(rope.position + rope.lag)
+    new = solvers(VariationalRequest('plan', 'nvf', (0.5 - state.axis(CART_JOINT).position, 0.25 - model.L1), 3.0,
+                                     model, hoisting_options(PlanOptions()), start))
     h0 = new.evaluate_axis('hoist', 0.0)
-    assert h0.position[0] == pytest.approx(state.hoist[0], abs=1e-12)
-    assert h0.velocity[0] == pytest.approx(state.hoist[1], abs=1e-9)
+    assert h0.position[0] == pytest.approx(rope.position, abs=1e-12)
+    assert h0.velocity[0] == pytest.approx(rope.velocity, abs=1e-9)
     assert new.evaluate_axis('hoist', new.duration).position[0] == pytest.approx(0.25, abs=1e-9)
     t1 = np.arange(0.0, HANDOVER + 1e-9, DT)
     t2 = np.arange(0.0, new.duration + 4.0, DT)
@@ -158,16 +163,18 @@ def test_predict_carries_a_measurement_to_the_handover_like_the_independent_simu
         return [(s.position, s.velocity, s.acceleration, s.jerk)]
 
     predicted = predict(measured, reference, t_m, HANDOVER, PARAMS)
-    assert predicted.cart == pytest.approx(truth.cart, abs=1e-12)
+    p, q = predicted.axis(CART_JOINT), truth.axis(CART_JOINT)
+    assert (p.position, p.velocity, p.acceleration) == pytest.approx((q.position, q.velocity, q.acceleration),
+                                                                     abs=1e-12)
     # the simulator takes the reference sampled every ms (linear between): agreement to its error
     assert predicted.swing == pytest.approx(truth.swing, abs=5e-5)
-    assert predicted.cart_lag == pytest.approx(truth.cart_lag, abs=1e-6)
+    assert p.lag == pytest.approx(q.lag, abs=1e-6)
     # without prediction the swing 60 ms earlier is far off: the prediction is doing the work
     assert max(abs(a - b) for a, b in zip(measured.swing, truth.swing)) > 1e-3
 
 
 def test_servo_start_is_steady_tracking_by_default():
-    state = MotionState((0.1, 0.2, 0.3))
+    state = MotionState({CART_JOINT: AxisState(0.1, 0.2, 0.3)})
     start, _ = problem_start(state, PARAMS)
     tau = PARAMS.tau
     # the model's reference y + tau v, v + tau a, a_ref is the state's reference
@@ -180,16 +187,26 @@ def test_servo_start_is_steady_tracking_by_default():
 
 def test_bad_states_are_refused():
     with pytest.raises(PlanError, match='finite'):
-        MotionState((0.0, math.nan, 0.0))
+        MotionState({CART_JOINT: AxisState(0.0, math.nan, 0.0)})
+    with pytest.raises(PlanError, match='finite'):
+        AxisState(0.0, 0.0, 0.0, math.inf)
     with pytest.raises(PlanError, match='swing'):
-        MotionState((0.0, 0.0, 0.0), (0.0, 0.0))
+        MotionState({CART_JOINT: AxisState()}, (0.0, 0.0))
+    with pytest.raises(PlanError, match=f'needs the {CART_JOINT}'):
+        MotionState({HOIST_JOINT: AxisState(0.5)})
+    with pytest.raises(PlanError, match=f'no {HOIST_JOINT} axis'):
+        MotionState().axis(HOIST_JOINT)
     with pytest.raises(PlanError, match='rope length'):
-        problem_start(MotionState(hoist=(-0.1, 0.0, 0.0)), PARAMS)
-    assert MotionState().at_rest and not MotionState((0.0, 1e-3, 0.0)).at_rest
+        problem_start(MotionState({CART_JOINT: AxisState(), HOIST_JOINT: AxisState(-0.1)}), PARAMS)
+    assert MotionState().at_rest and not MotionState({CART_JOINT: AxisState(0.0, 1e-3, 0.0)}).at_rest
+    assert not MotionState({CART_JOINT: AxisState(), HOIST_JOINT: AxisState(0.5, 0.0, 1e-3)}).at_rest
+    # the axes kept in the registry's order, whatever order they were given in
+    state = MotionState({HOIST_JOINT: AxisState(0.5), CART_JOINT: AxisState()})
+    assert tuple(state.axes) == (CART_JOINT, HOIST_JOINT) and state.has(HOIST_JOINT)
 
 
 def test_the_indirect_route_refuses_a_moving_start():
-    start, model = problem_start(MotionState((0.0, 0.1, 0.0)), PARAMS)
+    start, model = problem_start(MotionState({CART_JOINT: AxisState(0.0, 0.1)}), PARAMS)
     with pytest.raises(PlanError, match='direct solver'):
         SolverCache()(VariationalRequest('plan', 'nvf', 0.2, 3.0, model, PlanOptions(solver='indirect'), start))
 
@@ -241,7 +258,7 @@ def test_only_plans_from_a_state_say_so_and_a_refusal_still_probes_the_limits(so
     """The start state is not confused with the solver's start points: a rest-to-rest plan carries no
     from_state, and an infeasible pair of limits is probed (one solve per limit) and named."""
     assert 'from_state' not in running.info
-    start, model = problem_start(MotionState((0.0, 0.1, 0.0)), PARAMS)
+    start, model = problem_start(MotionState({CART_JOINT: AxisState(0.0, 0.1)}), PARAMS)
     assert solvers(VariationalRequest('plan', 'nvf', 0.2, 3.0, model, PlanOptions(), start)).info['from_state']
     with pytest.raises(PlanError, match='within max_acceleration 0.14 and max_jerk 0.5 .*infeasible'):
         plan('nvf', 0.3, 3.0, PARAMS, PlanOptions(max_acceleration=0.14, max_jerk=0.5), variational=SolverCache())

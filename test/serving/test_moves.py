@@ -6,7 +6,7 @@ import pytest
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import PlanOptions
 from crane_planner.serving import Planner
-from crane_planner.serving.moves import Move, MoveBounds, MoveError, check_move, plan_move, summarize
+from crane_planner.serving.moves import AxisMove, Move, MoveBounds, MoveError, check_move, plan_move, summarize
 
 BOUNDS = MoveBounds(('cart',), 'rvf', max_displacement=2.0, max_duration=20.0)
 HOLD = {'cart': 0.25}
@@ -35,9 +35,10 @@ def test_each_bad_field_is_refused_naming_it_and_its_bound(move, field, needle):
 
 def test_an_empty_start_is_where_the_streamer_holds_the_axes_else_zero():
     move = check_move(Move(goal=(0.55,), duration=3.0), BOUNDS, HOLD)
-    assert (move.method, move.joint_names, move.start, move.goal) == ('rvf', ('cart',), 0.25, 0.55)
+    assert (move.method, move.joint_names, move.axes) == ('rvf', ('cart',), {'cart': AxisMove(0.25, 0.55)})
     assert move.displacement == pytest.approx(0.3)
-    assert check_move(Move(goal=(0.3,), duration=3.0), BOUNDS, None).start == 0.0  # no streamer: a preview from 0
+    # no streamer: a preview from 0
+    assert check_move(Move(goal=(0.3,), duration=3.0), BOUNDS, None).axes['cart'].start == 0.0
     assert check_move(Move(start=(0.1,), goal=(0.3,), duration=0.0), BOUNDS, HOLD).duration is None  # fastest
 
 
@@ -77,11 +78,14 @@ HOIST_BOUNDS = MoveBounds(('cart', 'hoist'), 'zv', max_displacement=2.0, max_dur
 
 def test_a_move_with_a_hoist_starts_at_the_model_length_without_a_streamer_and_holds_what_it_leaves_out():
     lift = check_move(Move(goal=(0.3, 0.27), duration=3.0), HOIST_BOUNDS, None, L1=0.47)
-    assert (lift.start, lift.goal, lift.hoist_start, lift.hoist_goal) == (0.0, 0.3, 0.47, 0.27)
+    assert lift.axes == {'cart': AxisMove(0.0, 0.3), 'hoist': AxisMove(0.47, 0.27)}
     assert lift.joints == ('cart', 'hoist') and lift.starts == (0.0, 0.47)
     held = check_move(Move(joint_names=('cart',), goal=(0.3,), duration=3.0), HOIST_BOUNDS,
                       {'cart': 0.1, 'hoist': 0.4})
-    assert (held.start, held.hoist_start, held.hoist_goal) == (0.1, 0.4, 0.4)
+    assert held.axes == {'cart': AxisMove(0.1, 0.3), 'hoist': AxisMove(0.4, 0.4)} and held.displacement == 0.3 - 0.1
+    assert held.goals == {'cart': 0.3, 'hoist': 0.4}
+    later = held.starting({'cart': 0.2}, 7)
+    assert later.axes == {'cart': AxisMove(0.2, 0.3), 'hoist': AxisMove(0.4, 0.4)} and later.start_ns == 7
     for move, field in ((Move(goal=(0.3, -0.1), duration=3.0), 'goal'),
                         (Move(start=(0.0, 0.0), goal=(0.3, 0.3), duration=3.0), 'start')):
         with pytest.raises(MoveError, match=f'move.{field}: hoist .* the rope length'):

@@ -13,7 +13,7 @@ from crane_planner.serving.crane_view import StreamSample
 from crane_planner.serving.goals import GoalState
 from crane_planner.serving.moves import Move, MoveError
 from crane_planner.serving.service import MoveService
-from crane_planner.serving.transitions import Measurement, Trajectory
+from crane_planner.serving.transitions import JointReading, Measurement, Trajectory
 from serving.fake_clock import FakeClock
 
 T0 = 40_000_000_000
@@ -226,7 +226,7 @@ def test_a_settle_is_refused_during_a_motion_and_without_a_measured_swing():
     crane = Crane()
     with pytest.raises(MoveError, match='no joint_states within 0.5 s'):
         crane.service.settle()
-    crane.service.on_joint_state(Measurement(crane.clock(), (0.0, 0.0), (0.01, 0.0, 0.0, 0.0)))
+    crane.service.on_joint_state(Measurement(crane.clock(), {'cart': JointReading(0.0)}, (0.01, 0.0, 0.0, 0.0)))
     run_old_goal_until(crane, T0 + 1_200_000_000)
     with pytest.raises(MoveError, match='a motion is streaming'):
         crane.service.settle()

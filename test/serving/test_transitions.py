@@ -3,11 +3,13 @@ every handover is checked against the streamer's own rules (ReferenceStream) and
 import numpy as np
 import pytest
 
+from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, plan
 from crane_planner.planning.plan import AxesPlan, PlanError
 from crane_planner.serving.moves import axis_samples
 from crane_planner.serving.transitions import (
+    JointReading,
     Measurement,
     Running,
     handover_state,
@@ -59,7 +61,7 @@ def measure(running, stamp_ns):
     t = np.arange(0.0, (stamp_ns - ORIGIN) * 1e-9 + 1e-9, DT)
     a = running.at(ORIGIN + np.round(t * 1e9).astype(np.int64))[0][2]
     r = simulate(t, a, PARAMS)
-    return Measurement(stamp_ns, (START + r.y[0, -1], r.v[0, -1]),
+    return Measurement(stamp_ns, {CART_JOINT: JointReading(START + r.y[0, -1], r.v[0, -1])},
                        (r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]))
 
 
@@ -78,9 +80,9 @@ def test_a_new_goal_at_40_percent_ends_at_it_without_swing(variational, method):
     handover = ORIGIN + 1_200_000_000
     state = handover_state(old, handover, measure(old, handover - 30_000_000), PARAMS)
     new = retarget(variational, old, handover, state, method, {'cart': START + 0.5}, 3.0, PARAMS, PlanOptions())
-    handover_is_continuous(old, new, handover, state.cart[0])
-    assert state.cart[0] + new.displacement == pytest.approx(START + 0.5, abs=1e-9)
-    t, r = simulated(old, new, handover, state.cart[0])
+    handover_is_continuous(old, new, handover, state.axis(CART_JOINT).position)
+    assert state.axis(CART_JOINT).position + new.displacement == pytest.approx(START + 0.5, abs=1e-9)
+    t, r = simulated(old, new, handover, state.axis(CART_JOINT).position)
     assert np.abs(r.load_excursion[0, t > 1.2 + new.duration]).max() < 0.1e-3
 
 
@@ -92,7 +94,7 @@ def test_a_new_goal_taken_over_late_with_its_change_delayed_still_leaves_no_swin
     handover = ORIGIN + 1_200_000_000
     state = handover_state(old, handover, measure(old, handover - 30_000_000), PARAMS)
     new = retarget(variational, old, handover, state, method, {'cart': START + 0.5}, 3.0, PARAMS, PlanOptions())
-    sent = running_of(new, start=state.cart[0])
+    sent = running_of(new, start=state.axis(CART_JOINT).position)
     sent.origin_ns = handover
     at = handover + 7_300_000
     joined = taken_over(old, sent, at)
@@ -115,7 +117,7 @@ def test_the_swing_is_predicted_from_the_measurement_or_else_the_model(variation
     modelled = handover_state(old, handover, None, PARAMS)
     for state in (measured, modelled):
         assert state.swing == pytest.approx(truth.swing, abs=1e-4)
-        assert state.cart[0] == pytest.approx(old.at(handover)[0][0][0])
+        assert state.axis(CART_JOINT).position == pytest.approx(old.at(handover)[0][0][0])
     # a measurement too old (or after the handover) is not used: the model's swing then
     stale = handover_state(old, handover, measure(old, handover - 600_000_000), PARAMS)
     assert stale.swing == pytest.approx(modelled.swing, abs=1e-12)
@@ -126,9 +128,9 @@ def test_cancel_at_half_way_stops_without_swing_ten_times_better_than_a_hard_sto
     handover = ORIGIN + 1_500_000_000
     state = handover_state(old, handover, measure(old, handover - 20_000_000), PARAMS)
     new = stop(variational, old, handover, state, 'rvf', PARAMS, PlanOptions())
-    handover_is_continuous(old, new, handover, state.cart[0])
+    handover_is_continuous(old, new, handover, state.axis(CART_JOINT).position)
     assert new.method == 'nvf'  # every variational stop is NVF's
-    t, r = simulated(old, new, handover, state.cart[0])
+    t, r = simulated(old, new, handover, state.axis(CART_JOINT).position)
     residual = np.abs(r.load_excursion[0, t > 1.5 + new.duration]).max()
     assert residual < 0.5e-3
     assert np.abs(r.v[0, t > 1.5 + new.duration]).max() < 1e-4  # at rest within the stop's duration
@@ -144,10 +146,10 @@ def test_a_shaped_motion_stops_by_braking_its_base_within_the_limits(variational
     handover = ORIGIN + 1_200_000_000
     state = handover_state(old, handover, None, PARAMS)
     new = stop(variational, old, handover, state, 'zvd', PARAMS, PlanOptions(max_acceleration=1.0, max_jerk=10.0))
-    handover_is_continuous(old, new, handover, state.cart[0])
+    handover_is_continuous(old, new, handover, state.axis(CART_JOINT).position)
     assert new.info.get('stop') == 'shaped'
     assert new.peaks()[1] <= 1.0 + 1e-9
-    t, r = simulated(old, new, handover, state.cart[0])
+    t, r = simulated(old, new, handover, state.axis(CART_JOINT).position)
     assert np.abs(r.load_excursion[0, t > 1.2 + new.duration]).max() < 0.1e-3
 
 
@@ -158,8 +160,8 @@ def test_settle_damps_30_mm_below_1_mm_within_3_s(variational):
     x0 = np.array([0.0, 0.0, 0.0, theta, 0.0, 0.0, 0.0])
     free = simulate(np.arange(0.0, 0.5, DT), np.zeros(500), PARAMS, initial_state=x0)
     swing = (free.theta1[0, -1], free.theta2[0, -1], free.dtheta1[0, -1], free.dtheta2[0, -1])
-    from crane_planner.planning.continuation import MotionState
-    state = MotionState((START, 0.0, 0.0), swing, 0.0)
+    from crane_planner.planning.continuation import AxisState, MotionState
+    state = MotionState({CART_JOINT: AxisState(START, lag=0.0)}, swing)
     new = settle(variational, state, PARAMS, PlanOptions())
     assert new.duration < 2.5 and new.displacement == pytest.approx(0.0, abs=1e-9)
     t = np.arange(0.0, new.duration + 3.0, DT)
@@ -175,7 +177,8 @@ def test_shapers_refuse_a_new_goal_while_hoisting_and_nvf_serves_it(variational)
     old = running_of(hoisting, hoist=0.47)
     handover = ORIGIN + 1_200_000_000
     state = handover_state(old, handover, None, PARAMS)
-    assert state.hoist is not None and state.hoist[1] < 0.0  # lifting
+    rope = state.axis(HOIST_JOINT)
+    assert rope.velocity < 0.0  # lifting
     with pytest.raises(PlanError, match='cannot retarget a motion while the rope length changes'):
         retarget(variational, old, handover, state, 'zv', {'cart': START + 0.5, 'hoist': 0.35}, 3.0, PARAMS,
                  PlanOptions())
@@ -183,8 +186,8 @@ def test_shapers_refuse_a_new_goal_while_hoisting_and_nvf_serves_it(variational)
                    PlanOptions())
     assert isinstance(new, AxesPlan)
     h = new.evaluate_axis('hoist', [0.0, new.duration])
-    assert h.position[0] == pytest.approx(state.hoist[0], abs=1e-12) and h.position[1] == pytest.approx(0.3)
-    assert joint_starts(new, state) == [state.cart[0], new.starts['hoist']]
+    assert h.position[0] == pytest.approx(rope.position, abs=1e-12) and h.position[1] == pytest.approx(0.3)
+    assert joint_starts(new, state) == [state.axis(CART_JOINT).position, new.starts['hoist']]
 
 
 def test_a_new_goal_needs_a_duration(variational):
@@ -203,6 +206,6 @@ def test_a_stop_brakes_no_harder_than_twice_the_motion_and_stops_short_of_its_go
     new = stop(variational, old, handover, state, 'nvf', PARAMS, PlanOptions())
     own = plan('nvf', 0.3, 3.0, PARAMS, variational=variational).peaks()[1]
     assert new.peaks()[1] <= 2.0 * own * (1 + 1e-6)
-    assert state.cart[0] + new.displacement < START + 0.3  # short of the goal it was heading to
+    assert state.axis(CART_JOINT).position + new.displacement < START + 0.3  # short of the goal it was heading to
     limited = stop(variational, old, handover, state, 'nvf', PARAMS, PlanOptions(max_acceleration=0.1))
     assert limited.peaks()[1] <= 0.1 + 1e-6 and limited.duration > new.duration

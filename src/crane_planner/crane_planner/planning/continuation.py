@@ -2,9 +2,9 @@
 
 The variational formulation takes any initial state: its boundary conditions
 are just numbers (``Problem.boundary``). A plan from a state starts where the
-reference is at the handover (position, velocity, acceleration of each axis)
-with the swing there, and ends at rest at a goal, or anywhere (a stop,
-``free_end``), or where it started (a settle). ``MotionState`` is that state;
+reference is at the handover (each axis's position, velocity, acceleration:
+an ``AxisState``) with the swing there, and ends at rest at a goal, or
+anywhere (a stop, ``free_end``), or where it started (a settle). ``MotionState`` is that state;
 ``problem_start`` turns it into the problem's states (the servo's lag
 included); ``predict`` carries a measured state forward along a known
 reference to the handover with the planning model.
@@ -29,14 +29,41 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from crane_msgs_py.axes import AXIS_NAMES, CART, HOIST, axis
 from crane_msgs_py.params import CraneParams
 
 from .dynamics import PARAMETERS, crane_ode
 from .model import modal_frequencies
 from .plan import Plan, PlanError
-from .problem import Form
+from .problem import AXIS_STATES, Form
 from .profiles import BaseProfile, ruckig_pieces
 from .shaped import ShapedPlan
+
+
+@dataclass(frozen=True)
+class AxisState:
+    """One axis's reference at one instant, and how far the actual axis lags it (SI, the axis's unit).
+
+    Attributes:
+        position: the reference's position (m; the hoist's: the rope length L1).
+        velocity, acceleration: the reference's (m/s, m/s^2).
+        lag: the actual axis's position less the reference's (m); None = steady
+            tracking by the axis's servo tau y' + y = y_ref (Eq. 6), i.e.
+            -tau (v - tau a).
+    """
+
+    position: float = 0.0
+    velocity: float = 0.0
+    acceleration: float = 0.0
+    lag: float | None = None
+
+    def __post_init__(self):
+        for name in ('position', 'velocity', 'acceleration', 'lag'):
+            value = getattr(self, name)
+            if value is not None or name != 'lag':
+                if not math.isfinite(float(value)):
+                    raise PlanError('a motion state must be finite')
+                object.__setattr__(self, name, float(value))
 
 
 @dataclass(frozen=True)
@@ -44,34 +71,44 @@ class MotionState:
     """The crane at one instant, SI units.
 
     Attributes:
-        cart: the cart reference's (position m, velocity m/s, acceleration m/s^2).
+        axes: each axis's ``AxisState`` by its name (``crane_msgs_py.axes``), kept in
+            ``AXES`` order; the cart's always, the others' if the crane has them.
         swing: (theta1, theta2, dtheta1, dtheta2) in rad and rad/s.
-        cart_lag: the actual cart's position less the reference's (m); None =
-            steady tracking by the servo (Eq. 6), i.e. -tau (v - tau a).
-        hoist: the hoist reference's (rope length L1 m, its rate, its
-            acceleration), or None without a hoist axis.
-        hoist_lag: the actual rope length less the reference's (m); None = steady.
     """
 
-    cart: tuple = (0.0, 0.0, 0.0)
+    axes: dict[str, AxisState] = field(default_factory=lambda: {CART.name: AxisState()})
     swing: tuple = (0.0, 0.0, 0.0, 0.0)
-    cart_lag: float | None = None
-    hoist: tuple | None = None
-    hoist_lag: float | None = None
 
     def __post_init__(self):
-        values = [*self.cart, *self.swing, *(self.hoist or ()), self.cart_lag or 0.0, self.hoist_lag or 0.0]
-        if len(self.cart) != 3 or len(self.swing) != 4 or (self.hoist is not None and len(self.hoist) != 3):
-            raise PlanError('a motion state needs the cart (p, v, a), the swing (theta1, theta2, dtheta1, '
-                            'dtheta2) and optionally the hoist (L1, rate, acceleration)')
-        if not all(math.isfinite(float(x)) for x in values):
+        axes = dict(self.axes)
+        if CART.name not in axes or len(self.swing) != 4 or any(n not in AXIS_NAMES for n in axes) \
+                or not all(isinstance(s, AxisState) for s in axes.values()):
+            raise PlanError(f'a motion state needs the {CART.name}\'s AxisState, optionally those of '
+                            f'{", ".join(AXIS_NAMES[1:])}, and the swing (theta1, theta2, dtheta1, dtheta2)')
+        if not all(math.isfinite(float(x)) for x in self.swing):
             raise PlanError('a motion state must be finite')
+        object.__setattr__(self, 'axes', {n: axes[n] for n in AXIS_NAMES if n in axes})
+
+    def has(self, name: str) -> bool:
+        """Whether the crane has the axis ``name`` in this state."""
+        return name in self.axes
+
+    def axis(self, name: str) -> AxisState:
+        """The axis ``name``'s state; PlanError if the state has none."""
+        try:
+            return self.axes[name]
+        except KeyError:
+            raise PlanError(f'the motion state has no {name} axis (it has {", ".join(self.axes)})') from None
 
     @property
     def at_rest(self) -> bool:
         """Whether every axis and the swing are still (to 1e-9)."""
-        moving = [*self.cart[1:], *self.swing, *(self.hoist[1:] if self.hoist else ())]
+        moving = [*self.swing, *(x for s in self.axes.values() for x in (s.velocity, s.acceleration))]
         return max(abs(x) for x in moving) < 1e-9
+
+
+#: Each axis's servo time constant (Eq. 6) among ``CraneParams``' fields.
+SERVO_CONSTANTS = {CART.name: 'tau', HOIST.name: 'tau_hoist'}
 
 
 def _servo_start(p_lag: float | None, v: float, a: float, tau: float) -> tuple[float, float, float]:
@@ -92,22 +129,24 @@ def _servo_start(p_lag: float | None, v: float, a: float, tau: float) -> tuple[f
 def problem_start(state: MotionState, params: CraneParams) -> tuple[dict, CraneParams]:
     """(start, params): the problem's states at the start (SI, by name, ``Problem.boundary``) and the model.
 
-    Positions are relative to the cart reference's position; with a hoist
-    the model's L1 is the actual rope length then (the hoist's h starts at 0),
-    so the plan's hoist reference, L1 + h + tau_hoist h', starts at the
-    reference's length.
+    Each axis's states (``problem.AXIS_STATES``) start as its servo (Eq. 6)
+    tracks its reference then; a travelling axis's position is relative to
+    its reference's position. The hoist's is the model's L1: the actual rope
+    length then (the hoist's h starts at 0), so the plan's hoist reference,
+    L1 + h + tau_hoist h', starts at the reference's length.
     """
-    p, v, a = (float(x) for x in state.cart)
-    lag, velocity, acceleration = _servo_start(state.cart_lag, v, a, params.tau)
-    start = {'y': lag, 'v': velocity, 'a': acceleration, 'a_ref': a}
+    start = {}
+    for name, s in state.axes.items():
+        y, v, a, a_ref = AXIS_STATES[name]
+        lag, velocity, acceleration = _servo_start(s.lag, s.velocity, s.acceleration,
+                                                   getattr(params, SERVO_CONSTANTS[name]))
+        start.update({y: lag, v: velocity, a: acceleration, a_ref: s.acceleration})
+        if axis(name).kind == 'hoist':  # the model's L1 is the actual rope length: h starts at 0
+            start[y] = 0.0
+            if not s.position + lag > 0.0:
+                raise PlanError(f'the rope length must be > 0 m, got {s.position + lag:g} m')
+            params = params.replace(L1=s.position + lag)
     start.update(zip(('theta1', 'theta2', 'dtheta1', 'dtheta2'), (float(x) for x in state.swing)))
-    if state.hoist is not None:
-        L, Lv, La = (float(x) for x in state.hoist)
-        lag, velocity, acceleration = _servo_start(state.hoist_lag, Lv, La, params.tau_hoist)
-        start.update(h=0.0, hv=velocity, ha=acceleration, ha_ref=La)
-        if not L + lag > 0.0:
-            raise PlanError(f'the rope length must be > 0 m, got {L + lag:g} m')
-        params = params.replace(L1=L + lag)
     return start, params
 
 
@@ -140,16 +179,16 @@ def predict(measured: MotionState, reference, t_measured: float, t_handover: flo
             step: float = 1e-3) -> MotionState:
     """The state at ``t_handover`` (s) of a crane measured at ``t_measured``, driven meanwhile by ``reference``.
 
-    ``measured`` holds the reference at ``t_measured`` with the actual axes
-    (``cart_lag``, ``hoist_lag``) and the measured swing; ``reference(t)``
+    ``measured`` holds each axis's reference at ``t_measured`` with the
+    actual axis (its ``lag``) and the measured swing; ``reference(t)``
     gives the reference's (position, velocity, acceleration, jerk) per axis
-    at the times ``t`` (an array), a list with the cart's first. The planning model
+    at the times ``t`` (an array), a list in ``measured.axes``' order (the cart's first). The planning model
     (``dynamics.crane_ode``, Eqs. 18-19 with the servo of Eq. 6, the hoist's
     Lagrangian with one) is integrated by RK4 with the reference's jerk as
     input. With ``t_handover`` before ``t_measured`` the measured state is
     taken as it is (a measurement newer than the handover).
     """
-    hoist = measured.hoist is not None
+    hoist = measured.has(HOIST.name)
     form = Form.of(params, hoist)
     start, model = problem_start(measured, params)
     rk4, names = _rk4_steps(form)
@@ -160,25 +199,27 @@ def predict(measured: MotionState, reference, t_measured: float, t_handover: flo
     n = max(0, int(math.ceil(span / step / CHUNK - 1e-9))) * CHUNK  # whole chunks of steps <= step
     h = span / n if n else 0.0
     if n:  # the reference's jerk at every stage time, in one call
-        jerk = np.array([r[3] for r in reference(t_measured + h / 2 * np.arange(2 * n + 1))])[:2 if hoist else 1]
+        jerk = np.array([r[3] for r in reference(t_measured + h / 2 * np.arange(2 * n + 1))])[:len(measured.axes)]
         u = np.vstack([jerk[:, 0:-1:2], jerk[:, 1::2], jerk[:, 2::2]])  # (3 axes-blocks, n) per step
         for k in range(0, n, CHUNK):
             x = np.asarray(rk4(x, u[:, k:k + CHUNK], p, h))[:, -1]  # (the state after every step: the last)
     s = dict(zip(names, x))
     refs = reference(np.array([t_handover])) if n else None
-    cart = tuple(float(r[0]) for r in refs[0][:3]) if n else measured.cart
     swing = tuple(float(s[k]) for k in ('theta1', 'theta2', 'dtheta1', 'dtheta2'))
-    # the lags only if the measurement gave them: derived from integrated positions they carry the
-    # integration's error over tau (velocity) and tau^2 (acceleration); steady tracking does not
-    if measured.cart_lag is None:
-        cart_lag = None
-    else:  # model positions are relative to the cart reference at t_measured: the lag is y - (p_h - p_m)
-        cart_lag = s['y'] - (cart[0] - measured.cart[0])
-    if not hoist:
-        return MotionState(cart, swing, cart_lag)
-    hoist_ref = tuple(float(r[0]) for r in refs[1][:3]) if n else measured.hoist
-    hoist_lag = None if measured.hoist_lag is None else model.L1 + s['h'] - hoist_ref[0]
-    return MotionState(cart, swing, cart_lag, hoist_ref, hoist_lag)
+    axes = {}
+    for k, (name, was) in enumerate(measured.axes.items()):
+        ref = tuple(float(r[0]) for r in refs[k][:3]) if n else (was.position, was.velocity, was.acceleration)
+        # the lags only if the measurement gave them: derived from integrated positions they carry the
+        # integration's error over tau (velocity) and tau^2 (acceleration); steady tracking does not
+        position = s[AXIS_STATES[name][0]]
+        if was.lag is None:
+            lag = None
+        elif axis(name).kind == 'hoist':  # the rope is L1 + h, the model's L1 its actual length at t_measured
+            lag = model.L1 + position - ref[0]
+        else:  # model positions are relative to the reference at t_measured: the lag is y - (p_h - p_m)
+            lag = position - (ref[0] - was.position)
+        axes[name] = AxisState(*ref, lag)
+    return MotionState(axes, swing)
 
 
 # -- how long a stop and a settle take --------------------------------------------------------------------

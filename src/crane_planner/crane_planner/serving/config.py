@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from crane_msgs_py.names import DEFAULT_FRAME_ID, HOIST_JOINT, check_joints
+from crane_msgs_py.names import CART_JOINT, DEFAULT_FRAME_ID, HOIST_JOINT, check_joints
 from crane_msgs_py.params import (
     PARAMETER_DESCRIPTIONS,
     PARAMETER_NAMES,
@@ -21,7 +21,7 @@ from crane_msgs_py.params import (
 )
 
 from ..planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOptions
-from ..planning.continuation import MotionState, problem_start
+from ..planning.continuation import AxisState, MotionState, problem_start
 from ..planning.dispatch import VariationalRequest, hoisting_options
 from ..planning.hoisting import HOIST_SHAPER_DESIGNS
 from ..planning.profiles import BASES
@@ -186,12 +186,14 @@ class Config:
             requests += [VariationalRequest('plan', method, (D, -0.1 * self.params.L1), duration, self.params,
                                             hoisting) for method in VARIATIONAL_METHODS]
         # and a plan from a moving, swinging state (a new goal mid-move) and a stop: their own warm starts
-        state = MotionState((0.0, 0.1, 0.05), (0.02, 0.0, -0.05, 0.0),
-                            hoist=(self.params.L1, 0.0, 0.0) if HOIST_JOINT in self.joints else None)
+        hoisting = HOIST_JOINT in self.joints
+        state = MotionState({CART_JOINT: AxisState(0.0, 0.1, 0.05),
+                             **({HOIST_JOINT: AxisState(self.params.L1)} if hoisting else {})},
+                            (0.02, 0.0, -0.05, 0.0))
         start, model = problem_start(state, self.params)
-        options = hoisting_options(self.options) if state.hoist else self.options
+        options = hoisting_options(self.options) if hoisting else self.options
         for free_end in (False, True):
-            displacement = (D, 0.0) if state.hoist else D
+            displacement = (D, 0.0) if hoisting else D
             requests += [VariationalRequest('plan', method, displacement, duration, model, options, start, free_end)
                          for method in VARIATIONAL_METHODS]
         return requests

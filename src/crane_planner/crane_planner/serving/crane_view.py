@@ -18,10 +18,10 @@ import time
 from dataclasses import dataclass
 from typing import Callable
 
-from crane_msgs_py.names import HOIST_JOINT
+from crane_msgs_py.axes import AXES, CART
 
 from .goals import Goals
-from .transitions import Measurement, Running
+from .transitions import JointReading, Measurement, Running
 
 #: How fresh (s) the last ``stream_state`` must be for the streamer to count as heard.
 STREAM_FRESH = 1.0
@@ -50,14 +50,17 @@ class StreamSample:
 def joint_sample(stamp_ns: int, position, velocity, names=(), joint_positions=(), joint_velocities=()) \
         -> Measurement:
     """A ``joint_states`` message as a ``Measurement``: the sim's joints' ``position`` and ``velocity`` (cart,
-    theta1, theta2; a NaN velocity as 0), and with a hoist among ``names`` its rope length and rate."""
-    hoist = None
-    if HOIST_JOINT in names:
-        k = list(names).index(HOIST_JOINT)
-        hoist = (float(joint_positions[k]), float(joint_velocities[k]) if len(joint_velocities) > k else 0.0)
+    theta1, theta2; a NaN velocity as 0), and each other axis among ``names`` (its ``sim_joint``) from
+    ``joint_positions`` and ``joint_velocities`` (the hoist's: its rope length and rate)."""
     velocity = [0.0 if math.isnan(v) else float(v) for v in velocity]
-    return Measurement(stamp_ns, (float(position[0]), velocity[0]),
-                       (float(position[1]), float(position[2]), velocity[1], velocity[2]), hoist)
+    joints = {CART.name: JointReading(float(position[0]), velocity[0])}
+    names = list(names)
+    for other in AXES[1:]:
+        if other.sim_joint in names:
+            k = names.index(other.sim_joint)
+            joints[other.name] = JointReading(float(joint_positions[k]),
+                                              float(joint_velocities[k]) if len(joint_velocities) > k else 0.0)
+    return Measurement(stamp_ns, joints, (float(position[1]), float(position[2]), velocity[1], velocity[2]))
 
 
 class CraneView:

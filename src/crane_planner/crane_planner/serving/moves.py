@@ -64,32 +64,61 @@ class MoveBounds:
 
 
 @dataclass(frozen=True)
-class CheckedMove:
-    """A move that may be planned: the method, the cart's start and goal (m), the duration (None: fastest),
-    and the hoist's start and goal (the rope length, m) when the planner has a hoist (else None)."""
+class AxisMove:
+    """One axis of a checked move: where its reference starts and where it goes (m; the hoist's: the rope
+    length L1). An axis the move leaves out has its goal at its start: held."""
 
-    method: str
-    joint_names: tuple
     start: float
     goal: float
-    duration: float | None
-    start_ns: int
-    hoist_start: float | None = None
-    hoist_goal: float | None = None
 
     @property
     def displacement(self) -> float:
         return self.goal - self.start
 
+
+@dataclass(frozen=True)
+class CheckedMove:
+    """A move that may be planned: the method, the joints the move named, every axis of the planner by its
+    name (``AxisMove``, kept in ``ACTUATED_JOINTS`` order: the cart's first), the duration (None: fastest)
+    and the start time (ns of ROS time; 0 = as soon as possible)."""
+
+    method: str
+    joint_names: tuple
+    axes: dict[str, AxisMove]
+    duration: float | None
+    start_ns: int
+
+    def __post_init__(self):
+        if CART_JOINT not in self.axes or any(n not in ACTUATED_JOINTS for n in self.axes):
+            raise PlanError(f'a checked move needs the {CART_JOINT} and axes among {", ".join(ACTUATED_JOINTS)}, '
+                            f'got {", ".join(self.axes)}')
+        object.__setattr__(self, 'axes', {n: self.axes[n] for n in ACTUATED_JOINTS if n in self.axes})
+
+    @property
+    def displacement(self) -> float:
+        """The cart's displacement (m): what ``dispatch.plan`` plans (the other axes beside it)."""
+        return self.axes[CART_JOINT].displacement
+
     @property
     def joints(self) -> tuple:
-        """Every joint the plan moves or holds: the cart, and the hoist if the planner has one."""
-        return ACTUATED_JOINTS if self.hoist_start is not None else (CART_JOINT,)
+        """Every joint the plan moves or holds: each axis of the planner."""
+        return tuple(self.axes)
 
     @property
     def starts(self) -> tuple:
         """The start position of each of ``joints`` (m)."""
-        return (self.start,) if self.hoist_start is None else (self.start, self.hoist_start)
+        return tuple(m.start for m in self.axes.values())
+
+    @property
+    def goals(self) -> dict:
+        """The goal of each of ``joints`` (m), by name."""
+        return {name: m.goal for name, m in self.axes.items()}
+
+    def starting(self, starts: dict, start_ns: int) -> 'CheckedMove':
+        """The same move from ``starts`` (m, by joint; a joint not among them starts where it did) at
+        ``start_ns``: a goal during a motion, once its handover is known."""
+        axes = {name: AxisMove(starts.get(name, m.start), m.goal) for name, m in self.axes.items()}
+        return CheckedMove(self.method, self.joint_names, axes, self.duration, start_ns)
 
 
 def check_move(move: Move, bounds: MoveBounds, hold: dict | None, L1: float = CraneParams.L1) -> CheckedMove:
@@ -140,13 +169,13 @@ def check_move(move: Move, bounds: MoveBounds, hold: dict | None, L1: float = Cr
         for label, values in (('start', start), ('goal', goal)):
             if not values[HOIST_JOINT] > 0.0:
                 raise MoveError(label, f'hoist {values[HOIST_JOINT]:g} m: the rope length (L1) must be > 0')
-    displacement = goal['cart'] - start['cart']
+    displacement = goal[CART_JOINT] - start[CART_JOINT]
     if duration > bounds.max_duration:
         raise MoveError('duration', f'{duration:g} s exceeds max_duration {bounds.max_duration:g} s')
     if duration > 0.0:
         check_request(method, displacement, duration)
-    return CheckedMove(method, names, start['cart'], goal['cart'], duration or None, int(move.start_ns),
-                       start.get(HOIST_JOINT), goal.get(HOIST_JOINT))
+    axes = {name: AxisMove(start[name], goal[name]) for name in start}
+    return CheckedMove(method, names, axes, duration or None, int(move.start_ns))
 
 
 def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParams, options: PlanOptions) -> Plan:
@@ -156,11 +185,11 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
     shaper, a limit the plan would break, no solution in time) unless it is
     about the displacement; the fastest plan must also fit ``max_duration``.
     """
-    hoist = None
-    if move.hoist_start is not None:
-        params = params.replace(L1=move.hoist_start)  # the rope as it is now
-        if move.hoist_goal != move.hoist_start:
-            hoist = (move.hoist_start, move.hoist_goal)
+    hoist, rope = None, move.axes.get(HOIST_JOINT)
+    if rope is not None:
+        params = params.replace(L1=rope.start)  # the rope as it is now
+        if rope.goal != rope.start:
+            hoist = (rope.start, rope.goal)  # (dispatch.plan's hoist=)
     try:
         if move.duration is None:
             plan = planner.fastest(move.method, move.displacement, params, options, hoist=hoist)
@@ -174,7 +203,7 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
         raise MoveError('duration', f'the fastest {move.method} plan lasts {plan.duration:g} s, beyond '
                                     f'max_duration {bounds.max_duration:g} s')
     if not isinstance(plan, AxesPlan):  # with a hoist, held where it is
-        plan = with_hoist_held(plan, move.hoist_start)
+        plan = with_hoist_held(plan, None if rope is None else rope.start)
     return plan
 
 

@@ -23,7 +23,7 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from crane_msgs_py.names import CART_JOINT, STREAM_STATE_TOPIC
+from crane_msgs_py.names import CART_JOINT, HOIST_JOINT, STREAM_STATE_TOPIC
 
 from ..planning.methods import METHODS, SHAPER_METHODS, VARIATIONAL_METHODS
 from ..planning.plan import Plan, time_grid
@@ -46,7 +46,7 @@ from .handover import (
 )
 from .moves import CheckedMove, Move, MoveError, axis_samples, check_move, plan_move
 from .stops import STOP_LEAD, plan_stop
-from .transitions import Measurement, Running, Trajectory
+from .transitions import JointReading, Measurement, Running, Trajectory
 
 #: Settle window (s) of a goal that gives none (``settle`` 0).
 DEFAULT_SETTLE = 2.0
@@ -155,7 +155,8 @@ class MoveService:
 
     def on_joint_state(self, measured: Measurement) -> None:
         self.view.on_joint_state(measured)
-        length = measured.hoist[0] if measured.hoist is not None else None
+        rope = measured.joints.get(HOIST_JOINT)
+        length = rope.position if rope is not None else None
         for execution in self.goals.executions():
             execution.on_joint_state(measured.stamp_ns, measured.swing[0], measured.swing[1], length)
 
@@ -170,10 +171,12 @@ class MoveService:
         hold = self.view.hold()
         try:
             checked = check_move(move, config.bounds, hold, config.params.L1)
-            values.update(method=checked.method, start=checked.start, goal=checked.goal,
+            cart = checked.axes[CART_JOINT]
+            values.update(method=checked.method, start=cart.start, goal=cart.goal,
                           displacement=checked.displacement)
-            if checked.hoist_start is not None:
-                values.update(hoist_start=checked.hoist_start, hoist_goal=checked.hoist_goal)
+            for name, axis_move in checked.axes.items():  # the other axes' as <name>_start, <name>_goal
+                if name != CART_JOINT:
+                    values.update({f'{name}_start': axis_move.start, f'{name}_goal': axis_move.goal})
             plan = plan_move(self.planner, checked, config.bounds, config.params, config.options)
             if execute:  # after planning: a preview and a goal of the same bad move give the same reason
                 heard = self.view.heard()
@@ -274,7 +277,8 @@ class MoveService:
         if checked.start_ns and not origin:
             self.log.warn(f'execute_move: its start_time had passed {(now - checked.start_ns) * 1e-9:.3f} s '
                           'before its trajectory was sent: the streamer streams it from its next tick')
-        what = f'{checked.method}: {checked.start:g} -> {checked.goal:g} m in {plan.duration:.4g} s'
+        cart = checked.axes[CART_JOINT]
+        what = f'{checked.method}: {cart.start:g} -> {cart.goal:g} m in {plan.duration:.4g} s'
         return self._follow(goal, planned, feedback, canceled, settle, what)
 
     def _take_over(self, goal: Goal, move: Move, settle: float, feedback, canceled) -> Outcome:
@@ -319,7 +323,8 @@ class MoveService:
         checked, plan = result.checked, result.plan
         self.goals.take_over(goal, result.handover_ns, transitions.taken_over(
             take_over.running, result.trajectory.running(result.handover_ns, plan), goal.execution.motion_start_ns))
-        what = (f'{checked.method}: from {checked.start:g} m (taking over the motion) -> {checked.goal:g} m in '
+        cart = checked.axes[CART_JOINT]
+        what = (f'{checked.method}: from {cart.start:g} m (taking over the motion) -> {cart.goal:g} m in '
                 f'{plan.duration:.4g} s')
         return self._follow(goal, reported[0], feedback, canceled, settle, what)
 
@@ -414,9 +419,7 @@ class MoveService:
             if checked.duration is None:
                 raise MoveError('duration', 'a goal during a motion needs a duration (> 0 s): the fastest plan is '
                                             'planned from rest only')
-            goal = {'cart': checked.goal}
-            if checked.hoist_goal is not None:
-                goal['hoist'] = checked.hoist_goal
+            goal = checked.goals
             shaper = checked.method not in VARIATIONAL_METHODS
             lead = arrival_lead((config.shaper_handover_lead if shaper else config.handover_lead) * lead_scale,
                                 arrived_ns, self.clock())
@@ -437,9 +440,9 @@ class MoveService:
             exc.values = values
             raise
         plan, handover, state = done.plan, done.handover_ns, done.state
-        checked = CheckedMove(checked.method, checked.joint_names, state.cart[0], checked.goal, checked.duration,
-                              handover, state.hoist[0] if state.hoist else None, checked.hoist_goal)
-        values.update(method=checked.method, start=state.cart[0], goal=checked.goal, duration=plan.duration,
+        checked = checked.starting({name: s.position for name, s in state.axes.items()}, handover)
+        cart = checked.axes[CART_JOINT]
+        values.update(method=checked.method, start=cart.start, goal=cart.goal, duration=plan.duration,
                       handover_lead=(handover - self.clock()) * 1e-9)
         return HandoverResult(checked, plan, self._trajectory(plan, state, running.joints, handover), values,
                               handover)
@@ -470,7 +473,7 @@ class MoveService:
         # the tick at or after its stamp: what a next handover must continue
         if taken(goal.execution, handover, STOP_LEAD + 0.2, self._sleep, self._timer):
             self.goals.replace(goal, stop, transitions.taken_over(running, stop, goal.execution.motion_start_ns))
-        where = state.cart[0] + plan.displacement
+        where = state.axis(CART_JOINT).position + plan.displacement
         self.log.info(f'execute_move: canceled during its motion: stopping at {where:.6g} m in '
                       f'{plan.duration:.4g} s ({plan.method})')
         return where
@@ -566,8 +569,8 @@ def build_solvers(planner, config: Config, log) -> Built:
         build = plan.info.get('build_time_s')
         log.info(f'{method} ready in {times[method]:.2f} s' + (f' (solver built in {build:.2f} s)' if build else ''))
     # the handover's predictor (a CasADi function built on first use)
-    holding = Running.holding(config.joints, [0.0, config.params.L1][:len(config.joints)], 0)
-    measured = Measurement(0, (0.0, 0.0), (0.0, 0.0, 0.0, 0.0),
-                           (config.params.L1, 0.0) if len(config.joints) > 1 else None)
+    rest = [0.0, config.params.L1][:len(config.joints)]
+    holding = Running.holding(config.joints, rest, 0)
+    measured = Measurement(0, {name: JointReading(p) for name, p in zip(config.joints, rest)}, (0.0, 0.0, 0.0, 0.0))
     transitions.handover_state(holding, 10_000_000, measured, config.params)
     return Built(times, failed, f'{len(times)} of {len(METHODS)} methods ready in {time.perf_counter() - t_all:.2f} s')

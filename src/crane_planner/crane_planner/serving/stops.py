@@ -49,6 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 from crane_msgs_py.realtime import set_fifo
 
@@ -104,7 +105,7 @@ class Stop:
     @property
     def end(self) -> float:
         """Where the cart stops (m)."""
-        return float(self.state.cart[0] + self.plan.displacement)
+        return float(self.state.axis(CART_JOINT).position + self.plan.displacement)
 
     def trajectory(self, times=None) -> StopTrajectory:
         """The stop at ``times`` (s from the handover; default its knots)."""
@@ -130,13 +131,15 @@ def plan_stop(variational, running, handover_ns: int, params: CraneParams, optio
 def warmups(params: CraneParams, hoist: bool = False, options=None) -> list:
     """``VariationalRequest``s that build the solvers a stop uses: NVF from a moving, swinging state to rest
     anywhere (``transitions.stop``'s request), with a hoist the hoisting crane's."""
-    from ..planning.continuation import MotionState, first_period, problem_start
+    from ..planning.continuation import AxisState, MotionState, first_period, problem_start
     from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options
     options = PlanOptions() if options is None else options
-    state = MotionState((0.0, 0.1, 0.05), (0.02, 0.0, -0.05, 0.0), hoist=(params.L1, 0.0, 0.0) if hoist else None)
+    axes = {CART_JOINT: AxisState(0.0, 0.1, 0.05), **({HOIST_JOINT: AxisState(params.L1)} if hoist else {})}
+    state = MotionState(axes, (0.02, 0.0, -0.05, 0.0))
     start, model = problem_start(state, params)
     duration = first_period(model)
-    displacement = state.cart[1] * duration / 2  # (as transitions' free end: the problem's scale)
+    # (as transitions' free end: the problem's scale)
+    displacement = state.axis(CART_JOINT).velocity * duration / 2
     if hoist:
         displacement, options = (displacement, 0.0), hoisting_options(options)
     return [VariationalRequest('plan', 'nvf', displacement, duration, model, options, start, True)]

@@ -44,6 +44,7 @@ from crane_msgs_py.params import CraneParams
 from crane_sim.dynamics import load_excursion
 
 from ..planning.continuation import (
+    AxisState,
     Continuation,
     MotionState,
     braking_time,
@@ -76,14 +77,22 @@ MEASUREMENT_AGE = 0.5
 
 
 @dataclass(frozen=True)
+class JointReading:
+    """One actuated joint in ``joint_states``: its position (m; the hoist's: the rope length L1) and its
+    velocity (m/s)."""
+
+    position: float
+    velocity: float = 0.0
+
+
+@dataclass(frozen=True)
 class Measurement:
-    """``joint_states`` at ``stamp_ns``: the cart's (position m, velocity m/s), the swing (theta1, theta2,
-    dtheta1, dtheta2) and with a hoist the rope's (length m, rate m/s)."""
+    """``joint_states`` at ``stamp_ns``: each actuated joint's ``JointReading`` by its name (the cart's, and
+    those of the other axes the crane has) and the swing (theta1, theta2, dtheta1, dtheta2, rad and rad/s)."""
 
     stamp_ns: int
-    cart: tuple
+    joints: dict[str, JointReading]
     swing: tuple
-    hoist: tuple | None = None
 
 
 class KnotPlan(Plan):
@@ -210,27 +219,30 @@ def handover_state(running: Running, handover_ns: int, measured: Measurement | N
     ``measured`` (if it is recent and not after the handover) along it, else from the motion's start at
     rest (the model's own swing); the axes' servos track the reference steadily (``MotionState``).
     Without ``swing`` (what a shaper needs) the reference alone, at once."""
-    hoisting = HOIST_JOINT in running.joints
     if not swing:
-        refs = running.at(handover_ns)
-        return MotionState(tuple(float(x[0]) for x in refs[0][:3]),
-                           hoist=tuple(float(x[0]) for x in refs[1][:3]) if hoisting else None)
+        return MotionState(_references(running, handover_ns))
     if measured is not None and 0 <= handover_ns - measured.stamp_ns <= MEASUREMENT_AGE * 1e9:
         # the measured swing; the axes as their servos track the reference (their lag is tau times the
         # velocity: derived from a measured position it would carry the position's error over tau^2)
         t_m = measured.stamp_ns
-        refs = running.at(t_m)
-        state = MotionState(tuple(float(x[0]) for x in refs[0][:3]), tuple(measured.swing),
-                            hoist=tuple(float(x[0]) for x in refs[1][:3]) if hoisting else None)
+        state = MotionState(_references(running, t_m), tuple(measured.swing))
     else:  # the model's swing: the motion from its start, where it was at rest
         t_m = min(running.origin_ns, handover_ns)
-        refs = running.at(t_m)
-        cart = tuple(float(x[0]) for x in refs[0][:3])
-        hoist = tuple(float(x[0]) for x in refs[1][:3]) if hoisting else None
-        state = MotionState(cart, hoist=hoist)
+        state = MotionState(_references(running, t_m))
     # (the model's L1 is the rope's length: the hoist's reference carries it, else the parameter)
     return predict(state, lambda t: running.at(np.round(t * 1e9).astype(np.int64)), t_m * 1e-9,
                    handover_ns * 1e-9, params)
+
+
+def _references(running: Running, stamp_ns: int) -> dict:
+    """Each joint's reference at ``stamp_ns`` as an ``AxisState``, the servo tracking it steadily."""
+    return {name: AxisState(*(float(x[0]) for x in ref[:3])) for name, ref in zip(running.joints,
+                                                                                  running.at(stamp_ns))}
+
+
+def _rope(state: MotionState) -> float | None:
+    """The hoist reference's rope length (m) in ``state``; None without a hoist."""
+    return state.axis(HOIST_JOINT).position if state.has(HOIST_JOINT) else None
 
 
 def swing_of(state: MotionState, params: CraneParams) -> float:
@@ -244,20 +256,26 @@ def swing_of(state: MotionState, params: CraneParams) -> float:
 
 
 def _model(params: CraneParams, state: MotionState) -> CraneParams:
-    return params if state.hoist is None else params.replace(L1=state.hoist[0])
+    rope = _rope(state)
+    return params if rope is None else params.replace(L1=rope)
 
 
 def _variational(variational, method: str, state: MotionState, goal: dict, duration: float, params: CraneParams,
                  options: PlanOptions, free_end: bool = False) -> Plan:
-    """An NVF/RVF plan from ``state`` to rest at ``goal`` (per joint, absolute) or anywhere (``free_end``)."""
+    """An NVF/RVF plan from ``state`` to rest at ``goal`` (per joint, absolute) or anywhere (``free_end``).
+
+    Each axis's displacement is from where its model starts (``problem_start``): a travelling axis's
+    reference, the hoist's actual rope length (the model's L1); a free end's is where the axis's velocity
+    would carry it in half the duration (the problem's scale)."""
     start, model = problem_start(state, params)
-    cart = goal.get(CART_JOINT, state.cart[0]) - state.cart[0] if not free_end else state.cart[1] * duration / 2
-    if state.hoist is None:
-        displacement, opts = cart, options
+    ends = []
+    for name, s in state.axes.items():
+        origin = model.L1 if name == HOIST_JOINT else s.position
+        ends.append(goal.get(name, s.position) - origin if not free_end else s.velocity * duration / 2)
+    if len(ends) == 1:
+        displacement, opts = ends[0], options
     else:
-        hoist = (goal.get(HOIST_JOINT, state.hoist[0]) - model.L1 if not free_end
-                 else state.hoist[1] * duration / 2)
-        displacement, opts = (cart, hoist), hoisting_options(options)
+        displacement, opts = tuple(ends), hoisting_options(options)
     return variational(VariationalRequest('plan', method, displacement, duration, model, opts, start,
                                                   free_end))
 
@@ -271,8 +289,8 @@ def retarget(variational, running: Running, handover_ns: int, state: MotionState
                         'only')
     if method not in SHAPER_METHODS:
         return _variational(variational, method, state, goal, duration, params, options)
-    if running.hoist_moves or (state.hoist is not None and abs(goal.get(HOIST_JOINT, state.hoist[0])
-                                                              - state.hoist[0]) > 1e-9):
+    rope = _rope(state)
+    if running.hoist_moves or (rope is not None and abs(goal.get(HOIST_JOINT, rope) - rope) > 1e-9):
         raise PlanError(f'{method}: a shaper cannot retarget a motion while the rope length changes (its '
                         'delays follow the rope); use nvf or rvf')
     model = _model(params, state)
@@ -284,7 +302,7 @@ def retarget(variational, running: Running, handover_ns: int, state: MotionState
         return plan(method, d, T, model, options)
 
     new = shaped_change(plan_change, knots, t0, change, duration, info={'shaper_change_m': change})
-    return with_hoist_held(new, state.hoist and state.hoist[0])
+    return with_hoist_held(new, _rope(state))
 
 
 def stop(variational, running: Running, handover_ns: int, state: MotionState, method: str, params: CraneParams,
@@ -298,17 +316,19 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
         # (the shaped plan is relative to the motion's start, the knots absolute: the continuation, relative to
         # the reference at t0, is the same of both)
         new = Continuation.of(method, shaped_stop(shaped, t0, accel, jerk), t0, None, info={'stop': 'shaped'})
-        return with_hoist_held(new, state.hoist and state.hoist[0])
+        return with_hoist_held(new, _rope(state))
     # NVF: RVF's sensitivities forced to zero at a free end make it wander (metres past the goal)
     method = 'nvf'
     period = first_period(_model(params, state))
     # how hard it may brake: the axis limit, else STOP_BRAKING times the running motion's own peak
-    accel = amax if amax is not None else STOP_BRAKING * max(_peak_acceleration(running), abs(state.cart[2]))
-    shortest = max(STOP_SHORTEST * period, braking_time(state.cart[1], state.cart[2], accel, jmax))
-    if state.hoist is not None:
-        hv, ha, hj = options.limits_of(HOIST_JOINT)
-        if ha is not None:
-            shortest = max(shortest, braking_time(state.hoist[1], state.hoist[2], ha, hj))
+    cart = state.axis(CART_JOINT)
+    accel = amax if amax is not None else STOP_BRAKING * max(_peak_acceleration(running), abs(cart.acceleration))
+    shortest = max(STOP_SHORTEST * period, braking_time(cart.velocity, cart.acceleration, accel, jmax))
+    for name, s in state.axes.items():  # no sooner than the other axes can brake within their limits
+        if name != CART_JOINT:
+            _, limit, jerk = options.limits_of(name)
+            if limit is not None:
+                shortest = max(shortest, braking_time(s.velocity, s.acceleration, limit, jerk))
     last = None
     for duration in shortest * STOP_STEPS ** np.arange(STOP_TRIES):
         try:
@@ -318,7 +338,7 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
         if last.peaks()[1] <= accel * (1.0 + 1e-6):
             return last
     if last is None:
-        raise PlanError(f'{method}: no stop within the axis limits from {state.cart[1]:.3g} m/s')
+        raise PlanError(f'{method}: no stop within the axis limits from {cart.velocity:.3g} m/s')
     return last  # the longest tried: its peak above the braking target, within the axis limits
 
 
@@ -326,9 +346,7 @@ def settle(variational, state: MotionState, params: CraneParams, options: PlanOp
     """A short motion from the measured swing at rest (``state``) back to where it started, damping it."""
     if method in SHAPER_METHODS:
         raise PlanError(f'{method}: a shaper cannot damp a swing it did not cause; settle with nvf or rvf')
-    goal = {CART_JOINT: state.cart[0]}
-    if state.hoist is not None:
-        goal[HOIST_JOINT] = state.hoist[0]
+    goal = {name: s.position for name, s in state.axes.items()}
     return _lengthened(lambda T: _variational(variational, method, state, goal, T, params, options),
                        first_period(_model(params, state)))
 
@@ -353,9 +371,8 @@ def _lengthened(solve, duration: float) -> Plan:
 
 
 def joint_starts(plan: Plan, state: MotionState) -> list:
-    """Where the handover trajectory's positions start from, per joint: the cart reference at the handover,
-    and with a hoist the plan's hoist start (``AxesPlan.starts``: the actual rope length then)."""
-    if state.hoist is None:
-        return [state.cart[0]]
-    return [state.cart[0], plan.starts.get(HOIST_JOINT, state.hoist[0]) if isinstance(plan, AxesPlan)
-            else state.hoist[0]]
+    """Where the handover trajectory's positions start from, per joint: a travelling axis's reference at the
+    handover (the plan is relative to it), and the hoist's plan start (``AxesPlan.starts``: the actual rope
+    length then; without one its reference)."""
+    starts = plan.starts if isinstance(plan, AxesPlan) else {}
+    return [starts.get(name, s.position) if name == HOIST_JOINT else s.position for name, s in state.axes.items()]
