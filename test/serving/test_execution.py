@@ -96,3 +96,20 @@ def test_a_next_motion_ends_the_settle_window_at_its_start():
     ex.on_joint_state(START + 4 * S + S // 2, 0.2, 0.0)  # after the cut: the next motion's swing
     assert ex.window_end_ns == START + 4 * S and ex.phase(0) == DONE
     assert ex.residual == pytest.approx(excursion(0.0, 0.01), abs=1e-15)
+
+
+def test_a_stream_silent_during_the_motion_fails_it_naming_the_lost_stream():
+    ex = execution(stream_timeout=1.0)
+    for k in range(0, 1201, 20):  # 40 % of the 3 s motion streamed, then nothing
+        ex.on_stream_state(START + k * 1_000_000, START, 3.0)
+    last = START + 1200 * 1_000_000
+    assert ex.phase(last + S) == MOVING  # silent for exactly the timeout: not yet lost
+    assert ex.phase(last + S + 1) == FAILED
+    assert 'lost the reference stream at 40 %' in ex.failure and 'stream_state' in ex.failure
+
+
+def test_a_silent_stream_after_the_motion_only_closes_the_settle_window():
+    ex = execution(stream_timeout=0.5)
+    ex.on_stream_state(START + 3 * S, START, 3.0)  # the motion's last tick, then the streamer is gone
+    assert ex.phase(START + 4 * S) == SETTLING  # the settle window is timed, not failed
+    assert ex.phase(START + 5 * S) == DONE and not ex.failure

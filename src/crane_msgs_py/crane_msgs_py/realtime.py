@@ -8,6 +8,7 @@ before each deadline and spins for the rest. Pure Python, no ROS import.
 from __future__ import annotations
 
 import ctypes
+import json
 import os
 import signal
 import sys
@@ -169,6 +170,15 @@ class Lateness:
         """The samples since the last call (ns)."""
         window, self._window = self._window, []
         return np.asarray(window, dtype=float)
+
+    def dump(self, path: str, rate_hz: float, first_tick_ns: int | None) -> None:
+        """Write the full log (``keep_all``) as JSON {rate_hz, first_tick_ns (ROS time of the first tick),
+        lateness_us: [...]}, for the timing benchmarks; nothing without one."""
+        if self.all is None:
+            return
+        with open(path, 'w') as f:
+            json.dump({'rate_hz': rate_hz, 'first_tick_ns': first_tick_ns,
+                       'lateness_us': [x * 1e-3 for x in self.all]}, f)
 
 
 def lateness_summary_us(samples_ns: np.ndarray) -> dict:

@@ -2,9 +2,9 @@
 
 The motion rules are the pure core's (``reference_stream.ReferenceStream``),
 the parameters ``streaming.config``'s; this node translates messages, keeps
-time and reports. A trajectory published before the node started (a latched
-old plan) is refused here: only the transport knows when it was published.
-The loop runs on its own thread at absolute deadlines of the monotonic clock,
+time and reports. It streams nothing before it knows where the axes stand
+(``start_position``: ``joint_states`` at rest, at start-up and every
+``~/start``). The loop runs on its own thread at absolute deadlines of the monotonic clock,
 never waits on the executor, fills one pre-allocated message per tick (with
 network impairment on, through an ``impairment.Link``) and every ``rate /
 state_rate`` ticks publishes ``stream_state``. Modes (switched only at rest):
@@ -12,11 +12,11 @@ state_rate`` ticks publishes ``stream_state``. Modes (switched only at rest):
 ``cmd_vel`` (``streaming.operator``). ``~/stop`` stops without swing: in
 operator mode by a zero command, during a motion by a stop from its state
 (``serving.stops``) planned in a worker process (this process never loads
-CasADi) while the loop streams on, spliced in ``STOP_LEAD`` ahead.
+CasADi) while the loop streams on, spliced in ``STOP_LEAD`` ahead, or if
+none comes in time every axis's braking ramp (``braking_stop``).
 """
 from __future__ import annotations
 
-import json
 import threading
 import time
 
@@ -24,6 +24,7 @@ from crane_interfaces.msg import StreamState
 from geometry_msgs.msg import Twist
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
@@ -36,16 +37,20 @@ from crane_msgs_py.conversions import (
     stamp_ns,
     stream_state_message,
 )
-from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from crane_msgs_py.diagnostics import ERROR, OK, DiagnosticsPublisher
 from crane_msgs_py.node_parameters import Guard, declare
-from crane_msgs_py.qos import CMD_VEL_QOS, REFERENCE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
+from crane_msgs_py.qos import CMD_VEL_QOS, JOINT_STATES_QOS, REFERENCE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
 from crane_planner.serving.stops import StopWorker
+from crane_planner.streaming.braking_stop import brake
 from crane_planner.streaming.config import PARAMETERS, StreamerConfig
-from crane_planner.streaming.impairment import DelayLine, Link
+from crane_planner.streaming.impairment import Link
 from crane_planner.streaming.operator import OperatorStream
 from crane_planner.streaming.reference_stream import ReferenceStream, position_text
+from crane_planner.streaming.start_position import Hold, StartPosition
+from crane_planner.streaming.status import stream_status
+from crane_planner.streaming.trajectory_intake import trajectory_refusal
 
 STREAM_TASK = 'stream'
 TRAJECTORY_TASK = 'trajectory'
@@ -75,12 +80,12 @@ class StreamerNode(Node):
         self._state_every = max(1, round(p['rate'] / p['state_rate']))
 
         # Shared with the loop thread (the core is thread-safe); the loop owns the ticker.
-        # _running wakes the loop; the core's state decides what trajectories it takes.
-        hold = p['initial_position'] if len(self._joints) == 1 else (p['initial_position'],
-                                                                     p['initial_hoist_position'])
-        self._stream = ReferenceStream(self._period_ns, hold, p['start_tolerance'], stopped=not p['auto_start'])
-        if config.mode == 'operator':
-            self._operator = config.operator.stream(self._period_ns * 1e-9, hold)
+        # _running wakes the loop; the core's state decides what trajectories it takes. Nothing streams
+        # before the hold is known (start_position: the axes measured at rest, by default).
+        initial = (p['initial_position'], p['initial_hoist_position'])[:len(self._joints)]
+        self._start = StartPosition(self._joints, p['hold_source'], initial, p['initial_fallback_after'])
+        self._stream = ReferenceStream(self._period_ns, initial if len(initial) > 1 else initial[0],
+                                       p['start_tolerance'], stopped=True)
         self._running = threading.Event()
         self._created_ns = self.get_clock().now().nanoseconds
         self._lateness = Lateness(keep_all=bool(self._timing_log))
@@ -90,16 +95,15 @@ class StreamerNode(Node):
         self._link = Link()  # the loop's, with the impairment of the moment
         self.create_subscription(JointTrajectory, names.TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS)
         self.create_subscription(Twist, names.CMD_VEL_TOPIC, self._on_cmd_vel, CMD_VEL_QOS)
+        self.create_subscription(JointState, names.JOINT_STATES_TOPIC, self._on_joint_state, JOINT_STATES_QOS)
         self.create_service(Trigger, names.START_SERVICE, self._on_start)
         self.create_service(Trigger, names.STOP_SERVICE, self._on_stop)
         self.create_timer(1.0, self._report)
-        if p['auto_start']:
-            self._running.set()
         self._loop_thread = LoopThread(self, self._loop, 'reference-loop', p['sched_priority'])
         self._stops = StopWorker(self._joints, config.model)  # ~/stop's planner: a process started in the background
-        self.get_logger().info(f'streaming {p["output"]} on {self.resolve_topic_name(names.REFERENCE_TOPIC)} at '
-                               f'{p["rate"]:g} Hz, {", ".join(self._joints)} held at {self._hold_text()} m'
-                               + ('' if p['auto_start'] else ' (waiting for ~/start)'))
+        self.get_logger().info(f'{p["output"]} on {self.resolve_topic_name(names.REFERENCE_TOPIC)} at '
+                               f'{p["rate"]:g} Hz, joints {", ".join(self._joints)}: '
+                               + (self._begin() if p['auto_start'] else 'waiting for ~/start'))
 
     # -- parameters -------------------------------------------------------
 
@@ -144,23 +148,19 @@ class StreamerNode(Node):
         now_ns = self.get_clock().now().nanoseconds
         start_ns = stamp_ns(msg.header.stamp)
         try:
-            if info.get('source_timestamp', now_ns) < self._created_ns:
-                raise ValueError('published before this streamer started (a latched old plan is not replayed)')
-            if self._operator is not None:
-                raise ValueError('the streamer is in operator mode (it follows cmd_vel); set mode to trajectory '
-                                 'at rest to stream trajectories')
-            if self._stop_at_rest:
-                raise ValueError('the streamer is stopping (~/stop)')
+            refusal = trajectory_refusal(info.get('source_timestamp', now_ns), self._created_ns,
+                                         self._operator is not None, self._stop_at_rest)
+            if refusal:
+                raise ValueError(refusal)
             holds = (None, *self._stream.hold[1:]) if len(self._joints) > 1 else None  # a hoist left out: held
             motion = self._stream.accept(*joint_trajectory_columns(msg, self._joints, holds), start_ns, now_ns,
                                          sampled)
         except ValueError as exc:
             self.refused += 1
             self.get_logger().error(f'trajectory refused: {exc}')
-            self._diagnostics.report(TRAJECTORY_TASK, ERROR, f'trajectory refused: {exc}', error=str(exc),
-                                     hold_position=self._hold_text(), points=len(msg.points),
-                                     start_stamp=start_ns)
-            return
+            return self._diagnostics.report(TRAJECTORY_TASK, ERROR, f'trajectory refused: {exc}', error=str(exc),
+                                            hold_position=self._hold_text(), points=len(msg.points),
+                                            start_stamp=start_ns)
         self.accepted += 1
         self.get_logger().info(f'trajectory accepted: {motion.summary}')
         self._diagnostics.report(TRAJECTORY_TASK, OK, f'trajectory accepted: {motion.summary}',
@@ -170,21 +170,31 @@ class StreamerNode(Node):
     def _hold_text(self) -> str:
         return position_text(self._stream.hold)
 
+    def _on_joint_state(self, msg: JointState):
+        hold = self._start.on_joint_state(msg.name, msg.position, msg.velocity)
+        if hold is not None:
+            self._go(hold)
+
+    def _begin(self) -> str:
+        """A start: streaming from the hold once known (at once with hold_source initial_position)."""
+        hold = self._start.request(self.get_clock().now().nanoseconds)
+        return self._go(hold) if hold is not None else f'waiting for {self._start.waiting_for} (hold_source)'
+
+    def _go(self, hold: Hold) -> str:
+        self._stream.hold_at(hold.position if len(hold.position) > 1 else hold.position[0])
+        if self._config.mode == 'operator':  # a fresh operator stream there: a stick held before does not move it
+            self._operator = self._config.operator.stream(self._period_ns * 1e-9, self._stream.hold)
+        self._stream.resume()
+        self._running.set()
+        self.get_logger().info(f'streaming, hold {self._hold_text()} m ({hold.source}: {hold.reason})')
+        return f'streaming, hold {self._hold_text()} m ({hold.source}: {hold.reason})'
+
     # -- services ------------------------------------------------------------
 
     def _on_start(self, request, response):
-        response.success = True
-        if self._stop_at_rest:
-            response.success = False
-            response.message = 'stopping (~/stop): start again once stopped'
-        elif self._running.is_set():
-            response.message = 'already streaming'
-        else:
-            if self._operator is not None:  # a stick held before the stop does not move the crane now
-                self._operator.stop()
-            self._stream.resume()
-            self._running.set()
-            response.message = f'streaming, hold {self._hold_text()} m'
+        response.success = not self._stop_at_rest  # a start measures again: the axes may have moved meanwhile
+        response.message = ('stopping (~/stop): start again once stopped' if self._stop_at_rest else
+                            'already streaming' if self._running.is_set() else self._begin())
         self.get_logger().info(response.message)
         return response
 
@@ -193,6 +203,7 @@ class StreamerNode(Node):
         from its state. The stream stops (refusing trajectories until ~/start) once at rest."""
         response.success = True
         if not self._running.is_set():
+            self._start.cancel()
             response.message = 'already stopped'
         elif self._stop_at_rest:
             response.message = 'already stopping'
@@ -202,23 +213,29 @@ class StreamerNode(Node):
             response.message = (f'stopping: the command set to zero, braked and shaped (at rest within '
                                 f'{self._operator.delay():.3g} s of the braking), then stopped')
         elif self._operator is None and self._stream.streaming:
-            try:  # planned in the stop worker while the loop streams on
-                stop = self._stops.take_over(self._stream, lambda: self.get_clock().now().nanoseconds,
-                                             self._config.model)
-                response.message = ('stopping: the motion ends before a stop could take over (at rest), then '
-                                    'stopped' if stop is None else f'stopping without swing at {stop.end:.6g} m in '
-                                    f'{stop.duration:.3g} s ({stop.method}), then stopped')
-                self._stop_at_rest = True
-            except ValueError as exc:  # no stop without swing: hold where the stream is (a hard stop)
-                self._halt()
-                response.message = f'stopped during a motion, holding {self._hold_text()} m: no stop without ' \
-                                   f'swing could be planned ({exc})'
-                self.get_logger().warn(response.message)
+            response.message = self._stop_motion()
         else:
             self._halt()
             response.message = 'stopped'
         self.get_logger().info(response.message)
         return response
+
+    def _stop_motion(self) -> str:
+        """A stop without swing planned in the stop worker while the loop streams on; if none can be had in
+        time, every axis's jerk-limited braking ramp: never an abrupt hold."""
+        now, config = (lambda: self.get_clock().now().nanoseconds), self._config
+        try:
+            stop, how = self._stops.take_over(self._stream, now, config.model), 'without swing'
+        except ValueError as exc:
+            try:
+                stop = brake(self._stream, now, config.fault_deceleration, config.fault_jerk)
+            except ValueError as again:  # (the motion ended meanwhile: nothing to brake)
+                return self._halt() or f'stopped ({again})'
+            how = f'along the axes\' braking ramp (no stop without swing in time: {exc})'
+            self.get_logger().warn(f'~/stop {how}')
+        self._stop_at_rest = True
+        return 'stopping: the motion ends before a stop could take over (at rest), then stopped' if stop is None \
+            else f'stopping {how} at {stop.end:.6g} m in {stop.duration:.3g} s ({stop.method}), then stopped'
 
     def _halt(self):
         """Stop streaming now (the loop holds nothing: it waits for ~/start)."""
@@ -247,7 +264,7 @@ class StreamerNode(Node):
         while stream.running and not self._loop_thread.stopping.is_set():
             self._deliver(link.use(self._impairment))  # a new impairment: what was in flight on the old link
             k, deadline = ticker.tick, ticker.deadline
-            now = self._wait(deadline, link.line)
+            now = link.wait(deadline, lambda ns: sleep_until(ns, self._busy_wait_ns), self._deliver)
             lateness.add(now - deadline)
             self.ticks += 1
             operator = self._operator
@@ -285,15 +302,6 @@ class StreamerNode(Node):
         except Exception:  # the context is shut down (SIGINT): the reference's publish ends the loop
             pass
 
-    def _wait(self, deadline: int, line: DelayLine | None) -> int:
-        """Sleep until the tick's deadline, delivering delayed messages that fall due meanwhile."""
-        while line is not None and len(line):
-            due = round(line.next_due() * 1e9)
-            if due >= deadline:
-                break
-            self._deliver(line.deliver(sleep_until(due, self._busy_wait_ns) * 1e-9))
-        return sleep_until(deadline, self._busy_wait_ns)
-
     def _deliver(self, items):
         for stamp, position, velocity, acceleration in items:
             fill_reference(self._msg, stamp, position, velocity, acceleration)
@@ -311,38 +319,30 @@ class StreamerNode(Node):
     # -- diagnostics (executor thread) --------------------------------------
 
     def _report(self):
+        hold = self._start.poll(self.get_clock().now().nanoseconds)  # no joint_states: the initial fallback
+        if hold is not None:
+            self.get_logger().warn(self._go(hold))
         now = time.monotonic()
-        ticks, elapsed = self.ticks, now - self._window_start
-        rate = (ticks - self._ticks_window) / elapsed if elapsed > 0 else 0.0
-        self._ticks_window, self._window_start = ticks, now
-        summary = lateness_summary_us(self._lateness.take())
-        running = self._running.is_set()
+        rate = (self.ticks - self._ticks_window) / max(now - self._window_start, 1e-9)
+        self._ticks_window, self._window_start = self.ticks, now
         moving = self._stream.streaming if self._operator is None else not self._operator.at_rest
-        state = ('streaming' if moving else 'holding') if running else 'stopped'
-        if self._operator is not None and running:
-            state = f'operator, {state}'
-        error, stops = self._loop_thread.error, self._stops.status
-        unstoppable = stops not in ('ready', 'starting')  # a ~/stop during a motion would hold abruptly
-        level = ERROR if error else WARN if self.skipped or unstoppable else OK
-        message = f'the loop stopped: {error}' if error else f'{state} at {rate:.1f} Hz'
-        if unstoppable:
-            message += f'; no stop without swing: the stop planner process is not ready ({stops})'
+        status = stream_status(self._running.is_set(), moving, self._operator is not None, self._start,
+                               self._loop_thread.error, self._stops.status, self.skipped, rate)
         network = {f'network_{k}': getattr(self._impairment, k) for k in ('delay', 'jitter', 'distribution', 'loss',
                                                                             'reorder')}
         self._diagnostics.report(
-            STREAM_TASK, level, message, state=state, rate_hz=rate, target_rate_hz=1e9 / self._period_ns, **summary,
+            STREAM_TASK, status.level, status.message, state=status.state, rate_hz=rate,
+            target_rate_hz=1e9 / self._period_ns, **lateness_summary_us(self._lateness.take()),
             ticks=self.ticks, sent=self.sent, dropped=self._link.lost, reordered=self._link.reordered,
             skipped=self.skipped, hold_position=self._hold_text(), trajectories_accepted=self.accepted,
-            trajectories_refused=self.refused, mode=self._config.mode, commands=self.commands, stop_planner=stops,
-            **network)
+            trajectories_refused=self.refused, mode=self._config.mode, commands=self.commands,
+            stop_planner=self._stops.status, **network)
 
     def destroy_node(self):
         self._loop_thread.stop()
         self._stops.close()
-        if self._timing_log and self._lateness.all is not None:
-            with open(self._timing_log, 'w') as f:
-                json.dump({'rate_hz': 1e9 / self._period_ns, 'first_tick_ns': self._first_tick_ns,
-                           'lateness_us': [x * 1e-3 for x in self._lateness.all]}, f)
+        if self._timing_log:
+            self._lateness.dump(self._timing_log, 1e9 / self._period_ns, self._first_tick_ns)
         super().destroy_node()
 
 

@@ -9,14 +9,16 @@ which lines up with the reference's stamps) give the swing angles.
 the settle window after the end has been observed, the residual swing: the
 peak load excursion from ``joint_states`` stamped in
 [end, end + settle]. Without ``joint_states`` the swing and the residual
-are NaN and the window is timed by the streamer's clock. Pure Python, no
-ROS import.
+are NaN and the window is timed by the streamer's clock. A ``stream_state``
+silent for ``stream_timeout`` while the motion moves fails it: the stream
+is lost, and a goal must not wait for it. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
+from crane_msgs_py.names import STREAM_STATE_TOPIC
 from crane_sim.dynamics import load_excursion
 
 #: ``Execution.phase`` values.
@@ -38,6 +40,10 @@ class Execution:
         late_joint_states: how long (s) past the window's end the node waits
             for the ``joint_states`` that close it (the sim stamps plant time,
             which runs its playout delay behind the clock).
+        stream_timeout: how long (s) ``stream_state`` may be silent while the
+            motion moves before the stream counts as lost: the streamer died or
+            stopped, the axes run their fault reaction, and the goal fails
+            saying so instead of waiting for a motion that no longer streams.
     """
 
     duration: float
@@ -47,6 +53,7 @@ class Execution:
     L2: float
     start_timeout: float = 1.0
     late_joint_states: float = 1.0
+    stream_timeout: float = 1.0
 
     def __post_init__(self):
         self.motion_start_ns: int | None = None  # the streamer's first tick of this motion
@@ -137,6 +144,12 @@ class Execution:
                 return FAILED
             return WAITING
         if self.progress < 1.0:
+            silent = (now_ns - self.stream_ns) * 1e-9
+            if silent > self.stream_timeout:
+                self._failure = (f'lost the reference stream at {100 * self.progress:.0f} % of the motion: no '
+                                 f'{STREAM_STATE_TOPIC} for {silent:.2g} s (the streamer stopped or died; the axes '
+                                 'brake to rest by their fault reaction, the next goal starts where they stand)')
+                return FAILED
             return MOVING
         window_end = self.window_end_ns
         if self._state_ns is not None and self._state_ns >= window_end:

@@ -22,6 +22,7 @@ from crane_msgs_py.params import (
 
 from .impairment import DISTRIBUTIONS, Impairment
 from .operator import OPERATOR_SHAPERS, OperatorStream
+from .start_position import HOLD_SOURCES
 
 MODES = ('trajectory', 'operator')
 
@@ -36,14 +37,28 @@ PARAMETERS = {
     'state_rate': (50.0, 'publishing rate of stream_state (Hz), at most rate; fixed at start-up',
                    {**parameter_range(1.0, 1000.0), 'read_only': True}),
     'auto_start': (True, 'start streaming at start-up (else wait for ~/start)', {'read_only': True}),
-    'initial_position': (0.0, 'hold position (m) before the first motion', {'read_only': True}),
+    'hold_source': ('joint_states', 'where the hold position comes from at start-up and at every ~/start: '
+                    'joint_states (the axes\' measured position, at rest; nothing is streamed before it is known, '
+                    'so the first sample is where the axis stands) or initial_position (the configured positions, '
+                    'for a bench without feedback)',
+                    {'additional_constraints': f'one of {", ".join(HOLD_SOURCES)}', 'read_only': True}),
+    'initial_fallback_after': (0.0, 'with hold_source joint_states: hold initial_position if no joint_states at '
+                               'all arrive within this many seconds of a start (0 = never: wait for them)',
+                               {**parameter_range(0.0, 3600.0), 'read_only': True}),
+    'initial_position': (0.0, 'hold position (m) of the cart with hold_source initial_position (or its fallback)',
+                         {'read_only': True}),
     'joints': (['cart'], 'the streamed joints: [cart] or [cart, hoist] (the reference then carries a column '
                          'per joint, float64_array [cart, hoist]); fixed at start-up',
                {'additional_constraints': '[cart] or [cart, hoist]', 'read_only': True}),
     'initial_hoist_position': (CraneParams.L1, 'with a hoist: its hold position (m, the upper cable\'s length) '
-                                               'before the first motion', {'read_only': True}),
+                                               'with hold_source initial_position (or its fallback)',
+                               {'read_only': True}),
     'start_tolerance': (1e-6, 'largest distance (m) between a trajectory\'s first position and the hold '
                         'position; farther is a jump and the trajectory is refused', parameter_range(0.0, 1.0)),
+    'fault_deceleration': (0.5, 'a ~/stop during a motion when no stop without swing can be had in time (the stop '
+                           'planner dead, or late every time): every axis brakes along its fastest ramp within this '
+                           'deceleration (m/s^2) and fault_jerk, never an abrupt hold', parameter_range(1e-3, 100.0)),
+    'fault_jerk': (5.0, 'the jerk limit (m/s^3) of that braking ramp', parameter_range(1e-3, 1e4)),
     'busy_wait': (1e-4, 'the last part (s) of each tick period spent spinning instead of sleeping, for '
                   'wake-up precision at the cost of CPU', parameter_range(0.0, 1e-3)),
     'sched_priority': (50, 'SCHED_FIFO priority of the loop thread, 1..99 (as ros2_control\'s controller '
@@ -109,12 +124,15 @@ class OperatorConfig:
 @dataclass(frozen=True)
 class StreamerConfig:
     """The streamer's parameters checked together: the link's impairment, the crane model (of the operator's
-    shaper and of a ~/stop), the mode and operator mode's settings."""
+    shaper and of a ~/stop), the mode and operator mode's settings, and the axes' braking ramp (m/s^2, m/s^3)
+    of a ~/stop that cannot be one without swing."""
 
     impairment: Impairment
     model: CraneParams
     mode: str
     operator: OperatorConfig
+    fault_deceleration: float = 0.5
+    fault_jerk: float = 5.0
 
     @classmethod
     def of(cls, values: dict, current: 'StreamerConfig | None' = None, at_rest: bool = True) -> 'StreamerConfig':
@@ -124,6 +142,7 @@ class StreamerConfig:
                                 distribution=values['network.distribution'], loss=values['network.loss'],
                                 reorder=values['network.reorder'], seed=values['network.seed'])
         model = CraneParams(**{name: values[name] for name in PARAMETER_NAMES})
+        check_choice('hold_source', values['hold_source'], HOLD_SOURCES)
         check_choice('mode', values['mode'], MODES)
         check_choice('operator_shaper', values['operator_shaper'], OPERATOR_SHAPERS)
         shortest, longest = (list(values['operator.hoist_range']) + [0.0, 0.0])[:2]
@@ -134,7 +153,7 @@ class StreamerConfig:
                   AxisLimits(values['operator.max_hoist_velocity'], values['operator.max_hoist_acceleration'],
                              values['operator.max_hoist_jerk']))
         operator = OperatorConfig(values['operator_shaper'], values['cmd_timeout'], limits, (shortest, longest), model)
-        config = cls(impairment, model, values['mode'], operator)
+        config = cls(impairment, model, values['mode'], operator, values['fault_deceleration'], values['fault_jerk'])
         if current is not None and config.changes_mode(current) and not at_rest:
             raise ParameterError('mode and the operator settings change only with the crane at rest (no motion '
                                  'streaming, the operator\'s command played out)')

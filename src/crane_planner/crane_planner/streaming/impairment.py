@@ -163,3 +163,14 @@ class Link:
         self.impairment = impairment
         self.line = DelayLine(impairment) if impairment is not None and impairment.active else None
         return flushed
+
+    def wait(self, deadline_ns: int, sleep_until, deliver) -> int:
+        """Sleep until ``deadline_ns`` (``sleep_until(ns)`` returns the time woken, ns), handing ``deliver`` the
+        delayed items that fall due meanwhile; the time woken at the deadline (ns)."""
+        line = self.line
+        while line is not None and len(line):
+            due = round(line.next_due() * 1e9)
+            if due >= deadline_ns:
+                break
+            deliver(line.deliver(sleep_until(due) * 1e-9))
+        return sleep_until(deadline_ns)
