@@ -7,6 +7,8 @@ import pytest
 from crane_planner.serving.crane_view import CraneView, StreamSample, joint_sample
 from crane_planner.serving.execution import Execution
 from crane_planner.serving.goals import Goals
+from crane_planner.serving.moves import MoveError
+from crane_planner.serving.service import check_executable
 from crane_planner.serving.transitions import JointReading, Running
 from serving.fake_clock import FakeClock
 
@@ -91,3 +93,22 @@ def test_a_motion_sent_as_soon_as_possible_whose_goal_ended_before_it_started_is
     goals.send(goal, Execution(1.0, 1.0, T0, 0.6, 0.2), running)
     goals.remove(goal)
     assert view.in_motion() is None
+
+
+def test_a_motion_streaming_before_this_planner_sent_any_is_foreign_until_it_ends():
+    S = 1_000_000_000
+    now = [10 * S]
+    goals = Goals(lambda: now[0])
+    view = CraneView(lambda: now[0], goals)
+    view.on_stream_state(StreamSample(now[0], 'streaming', {'cart': 0.2}, 9 * S, 4.0, 9 * S))
+    assert view.foreign_motion() == pytest.approx(3.0)
+    with pytest.raises(MoveError, match='did not send.*ends in 3 s'):
+        check_executable(None, {'cart': 0.2}, foreign=view.foreign_motion())
+    now[0] = 13 * S + 1
+    view.on_stream_state(StreamSample(now[0], 'streaming', {'cart': 0.6}, 9 * S, 4.0, 9 * S))
+    assert view.foreign_motion() is None  # (its last ticks: over by the clock)
+    goals.running = object()  # once this planner has sent a motion, the streamer's is its own
+    goals.running = None
+    now[0] = 10 * S
+    view.on_stream_state(StreamSample(now[0], 'streaming', {'cart': 0.2}, 9 * S, 4.0, 9 * S))
+    assert view.foreign_motion() is None

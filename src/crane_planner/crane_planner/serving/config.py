@@ -59,6 +59,9 @@ PARAMETERS = {
     'publish_lead': (0.3, 'an executed trajectory is sent to the streamer this long (s) before its start '
                           'time, so that a goal canceled before then streams nothing (one starting as '
                           'soon as possible is sent at once)', parameter_range(0.0, 10.0)),
+    'stream_timeout': (1.0, 'an executed goal whose stream_state is silent this long (s) while its motion moves is '
+                            'aborted naming the lost stream (the streamer died or stopped; the axes brake to rest '
+                            'by their fault reaction)', parameter_range(0.05, 60.0)),
     'max_duration': (60.0, 'longest motion served (s), > 0', parameter_range(0.0, 3600.0)),
     'max_displacement': (10.0, 'largest |goal - start| served (m), > 0',
                          parameter_range(0.0, 1e4)),
@@ -135,6 +138,7 @@ class Config:
     settle_method: str = 'nvf'
     handover_priority: int = 40
     handover_warmup: float = 0.02
+    stream_timeout: float = 1.0
 
     @property
     def bounds(self) -> MoveBounds:
@@ -167,7 +171,8 @@ class Config:
                    int(v['solver_processes']), joints, check_nonnegative('publish_lead', v['publish_lead']),
                    check_positive('handover_lead', v['handover_lead']),
                    check_positive('shaper_handover_lead', v['shaper_handover_lead']), v['settle_method'],
-                   int(v['handover_priority']), check_nonnegative('handover_warmup', v['handover_warmup']))
+                   int(v['handover_priority']), check_nonnegative('handover_warmup', v['handover_warmup']),
+                   check_positive('stream_timeout', v['stream_timeout']))
 
     def warmups(self) -> list[VariationalRequest]:
         """Requests that build the NVF/RVF solvers of this configuration.

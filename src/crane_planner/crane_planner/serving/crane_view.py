@@ -133,6 +133,18 @@ class CraneView:
             self._sleep(0.002)
         return True
 
+    def foreign_motion(self) -> float | None:
+        """Seconds left (> 0) of a motion the streamer streams that this planner never sent (it started during
+        it, e.g. restarted mid-move), else None. The streamer has its knots, this planner does not: it cannot
+        hand it over, so it lets it finish and takes the crane's state from stream_state after it."""
+        heard = self.heard()
+        with self._goals.lock:
+            sent_any = self._goals.running is not None or self._goals.ever_sent
+        if heard is None or heard.state != STREAMING or sent_any:
+            return None
+        left = (heard.motion_start_ns + round(heard.motion_duration * 1e9) - self._clock()) * 1e-9
+        return left if left > 0.0 else None
+
     def in_motion(self) -> Running | None:
         """The motion the streamer is streaming (or about to), if any: the last one sent, unless it has
         ended, or the streamer says it holds though the motion should have started 0.1 s ago (refused)."""

@@ -124,7 +124,19 @@ class Goals:
         self.lock = threading.Lock()
         self._goals: list[Goal] = []
         self._arriving: dict = {}  # key of the request -> its goal, until accepted
-        self.running: Running | None = None
+        #: whether this planner has sent a motion since it started (a motion streaming before is not its own)
+        self.ever_sent = False
+        self._running: Running | None = None
+
+    @property
+    def running(self) -> Running | None:
+        """The motion last sent to the streamer (None: none, or it was not taken)."""
+        return self._running
+
+    @running.setter
+    def running(self, running: Running | None) -> None:
+        self._running = running
+        self.ever_sent |= running is not None
 
     def __len__(self) -> int:
         with self.lock:

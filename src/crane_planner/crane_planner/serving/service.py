@@ -180,7 +180,7 @@ class MoveService:
             plan = plan_move(self.planner, checked, config.bounds, config.params, config.options)
             if execute:  # after planning: a preview and a goal of the same bad move give the same reason
                 heard = self.view.heard()
-                check_executable(checked, hold, heard is not None and heard.operator)
+                check_executable(checked, hold, heard is not None and heard.operator, self.view.foreign_motion())
         except ValueError as exc:
             exc.values = values
             raise
@@ -267,7 +267,8 @@ class MoveService:
             self._sleep(min(FEEDBACK_PERIOD, max(0.0, (due - self.clock()) * 1e-9)))
         now = self.clock()
         origin = streamed_origin(checked.start_ns, now)
-        execution = Execution(plan.duration, settle, origin or now, config.params.L1, config.params.L2)
+        execution = Execution(plan.duration, settle, origin or now, config.params.L1, config.params.L2,
+                              stream_timeout=config.stream_timeout)
         if not self.goals.send(goal, execution, planned.trajectory.running(origin, plan), canceled):
             if goal.state in (GoalState.PREEMPTED, GoalState.TAKEN_OVER):
                 return self._end(goal, 'abort', 'preempted by a newer goal before its motion started: nothing '
@@ -334,7 +335,8 @@ class MoveService:
         NotSent that the goal gave way or was canceled meanwhile."""
         result = self._preempting(move, running, lead_scale, arrived_ns)
         config = self.config()
-        execution = Execution(result.plan.duration, settle, result.handover_ns, config.params.L1, config.params.L2)
+        execution = Execution(result.plan.duration, settle, result.handover_ns, config.params.L1, config.params.L2,
+                              stream_timeout=config.stream_timeout)
         if not self.goals.send(goal, execution):  # (before it is sent: the first stream_state of it finds it)
             raise NotSent()
         self._publish(result.trajectory)  # at once: the handover is due in milliseconds
@@ -467,7 +469,8 @@ class MoveService:
         plan, handover, state = done.plan, done.handover_ns, done.state
         trajectory = self._trajectory(plan, state, running.joints, handover)
         stop = trajectory.running(handover, plan)
-        self.goals.stopping(goal, stop, Execution(plan.duration, settle, handover, config.params.L1, config.params.L2))
+        self.goals.stopping(goal, stop, Execution(plan.duration, settle, handover, config.params.L1,
+                                                  config.params.L2, stream_timeout=config.stream_timeout))
         self._publish(trajectory)
         # a stop ending after the motion would have (one near its end) is streamed with its change delayed to
         # the tick at or after its stamp: what a next handover must continue
@@ -514,14 +517,19 @@ def knots_of(plan: Plan, config: Config):
     return knot_times(plan) if config.sample_period == 0.0 else time_grid(plan.duration, config.sample_period)
 
 
-def check_executable(move: CheckedMove, hold: dict | None, operator: bool = False) -> None:
-    """What the streamer would refuse, refused before anything is sent."""
+def check_executable(move: CheckedMove, hold: dict | None, operator: bool = False,
+                     foreign: float | None = None) -> None:
+    """What the streamer would refuse, refused before anything is sent (``foreign``: seconds left of a motion
+    the streamer streams that this planner did not send, ``CraneView.foreign_motion``)."""
     if hold is None:
         raise MoveError('goal', f'no streamer heard on {STREAM_STATE_TOPIC} within {STREAM_FRESH:g} s: nothing '
                                 'would stream the motion (is crane_streamer running and started?)')
     if operator:
         raise MoveError('goal', 'the streamer is in operator mode (it follows cmd_vel): set its mode to '
                                 'trajectory, at rest, to execute moves')
+    if foreign is not None:
+        raise MoveError('goal', f'the streamer is streaming a motion this planner did not send (it was started '
+                                f'during it): the motion ends in {foreign:.3g} s; send the goal after that')
     for joint, start in zip(move.joints, move.starts):
         if joint not in hold:
             raise MoveError('joint_names', f'the streamer does not stream {joint} (it streams '
