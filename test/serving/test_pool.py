@@ -219,3 +219,38 @@ def test_upkeep_takes_the_idle_instance_ranked_highest():
     ranks = {'a': 1, 'b': 3, 'c': 2}
     assert pool.take_idle(lambda i: True, keep=0, rank=lambda i: ranks[i.tag]).tag == 'b'
     assert pool.take_idle(lambda i: i.tag != 'c', keep=0, rank=lambda i: ranks[i.tag]).tag == 'a'
+
+
+def test_fill_replaces_the_idle_instances_found_broken_and_returns_them():
+    made = []
+
+    def create():
+        made.append(Closable())
+        return made[-1]
+
+    pool = SolverPool(create, size=3, grace=0.0)
+    assert pool.fill(ready_within=5.0, count=3)
+    broken = made[:2]  # e.g. worker processes that died while idle
+    assert pool.discard_idle(lambda s: s in broken) == broken
+    assert pool.discard_idle(lambda s: s in broken) == []  # out of the pool: found once
+    wait_for(lambda: len(made) == 5 and len(pool._idle) == 3)
+    assert not set(map(id, broken)) & set(map(id, pool._idle)) and pool.instances == 3
+
+
+def test_a_kept_full_pool_tries_a_failed_replacement_again():
+    attempts = []
+
+    def create():  # fails once after the first instance, as a worker's start beside a dying fork server
+        attempts.append(len(attempts))
+        if len(attempts) == 2:
+            raise OSError('no fork server')
+        return Closable()
+
+    pool = SolverPool(create, size=1, grace=0.0)
+    pool.retry_delays = (0.01,)
+    assert pool.fill(ready_within=5.0)
+    lent = pool.take(0.1)
+    lent.closed = True
+    pool.give_back(lent)
+    wait_for(lambda: len(pool._idle) == 1)
+    assert len(attempts) == 3 and pool.instances == 1

@@ -10,6 +10,8 @@ from __future__ import annotations
 import dataclasses
 import threading
 import time
+from collections import deque
+from dataclasses import dataclass
 
 from crane_msgs_py.params import CraneParams, check_count
 
@@ -17,11 +19,50 @@ from ..planning import dispatch
 from ..planning.dispatch import PlanOptions, VariationalRequest, variational_solver
 from ..planning.plan import Plan, PlanError
 from .pool import SolverPool
-from .workers import SolverProcess, solver_settings, start_fork_server
+from .workers import Death, SolverProcess, WorkerDied, WorkerLate, solver_settings, start_fork_server
 
 #: The axis limits of the warm-ups that build the limited NLPs of a configuration without limits
 #: (``Planner.toggled_limits``): a rest-to-rest plan they leave unbounded, and a fastest plan.
 SPARE_LIMITS = {'max_velocity': 0.25, 'max_acceleration': 0.5}
+
+#: The levels of a ``WorkerEvent``, numbered as diagnostic_msgs/DiagnosticStatus numbers its own, so that a
+#: node passes them on to /diagnostics as they are.
+OK, WARN = 0, 1
+
+
+@dataclass(frozen=True)
+class WorkerEvent:
+    """What became of a worker process that died, for the operator (``Planner(on_event=...)``).
+
+    ``action`` is what the planner did: 're-run' (its request solved again on solver process ``new_pid``),
+    'refused' (its request refused: too little time or no worker left, or it died under a re-run),
+    'replaced' (it died idle, building solvers or finishing a timed-out request) and, at level OK once a
+    new process is ready in its place, 'started' (``new_pid`` is then the new one's). Every death is
+    followed by a new process (the pool is kept full); the level is WARN but for 'started'.
+    """
+
+    level: int
+    action: str
+    death: Death
+    message: str
+    new_pid: int = 0
+
+    def values(self) -> dict:
+        """Its key values for a status: the dead process, how it ended, what was done."""
+        return {'pid': self.death.pid, 'signal': self.death.signal or 0, 'exit': self.death.cause,
+                'action': self.action, 'new_pid': self.new_pid}
+
+
+@dataclass(frozen=True)
+class _Due:
+    """When a request's answer is due (``time.monotonic()`` s; None: it has no budget), and that budget
+    for messages."""
+
+    at: float | None
+    budget: str
+
+    def left(self) -> float | None:
+        return None if self.at is None else self.at - time.monotonic()
 
 
 class Planner:
@@ -54,6 +95,15 @@ class Planner:
     worker processes start from a fork server, so a script using them needs
     the usual ``if __name__ == '__main__':`` guard (``multiprocessing``).
 
+    A worker process that dies is replaced (the pool is kept full): found
+    dead under a request, at the next request or by a watch on the idle ones
+    (``_watch_loop``). A request whose worker died while solving it is run
+    again once on another worker (a fresh one if one is ready in time) when
+    at least ``rerun_within`` s of its time are left and a worker frees up
+    before its answer is due; else it is refused naming the dead process and
+    how it ended. Each such event goes to ``on_event`` (a ``WorkerEvent``),
+    for the operator: a node's /diagnostics.
+
     Args:
         pool_size: most solver instances per key, >= 1 (settable); in this
             process, so only without worker processes.
@@ -61,6 +111,8 @@ class Planner:
             which the request is refused naming ``solver_pool_size``.
         processes: worker processes for NVF/RVF; 0 = solve in this process's
             threads.
+        on_event: called with a ``WorkerEvent`` (from whichever thread found
+            it) when a worker process died and when its replacement is ready.
     """
 
     #: With worker processes, a request is answered within ``max_solve_time`` + this (s),
@@ -75,8 +127,13 @@ class Planner:
     #: one in its budget, which a build alone can exhaust. RVF's are left out: its NLP is several times
     #: as costly to build, and every start-up would pay for it.
     toggled_limits = True
+    #: With worker processes, a request whose worker died is run again only if at least this much (s) of its
+    #: time is left: a warm solve takes tens of milliseconds, a shorter remainder would only end late.
+    rerun_within = 0.1
+    #: With worker processes, how often (s) the idle ones are looked at for one that died.
+    watch_period = 0.5
 
-    def __init__(self, pool_size: int = 8, pool_wait: float = 0.3, processes: int = 0):
+    def __init__(self, pool_size: int = 8, pool_wait: float = 0.3, processes: int = 0, on_event=None):
         self.pool_wait = pool_wait
         self._pools: dict = {}  # VariationalSolver.key -> SolverPool
         self._seeds: dict = {}  # VariationalSolver.structure_of -> the first solver built for it
@@ -90,6 +147,9 @@ class Planner:
         self._built = threading.Event()  # no worker lacks what is wanted
         self._built.set()
         self._closing = threading.Event()
+        self._on_event = on_event
+        self._dead: deque = deque()  # the Deaths whose replacement is not ready yet, oldest first
+        self._watch = None  # the thread looking for idle workers that died (_watch_loop)
         self._processes = None
         if processes:
             self._processes = SolverPool(self._new_process, check_count('solver_processes', processes), 'process',
@@ -146,6 +206,10 @@ class Planner:
         """
         if self._processes is None:
             return True
+        with self._lock:
+            if self._watch is None:
+                self._watch = threading.Thread(target=self._watch_loop, name='solver-watch', daemon=True)
+                self._watch.start()
         return self._processes.fill(ready_within, self._processes.size if all_of_them else 1)
 
     def wait_built(self, timeout: float | None = None) -> bool:
@@ -181,25 +245,108 @@ class Planner:
         return self._variational(request)
 
     def _variational(self, request: VariationalRequest) -> Plan:
-        """An NVF/RVF request in a worker process (if there are workers), else in a thread."""
+        """An NVF/RVF request in a worker process (if there are workers), else in a thread; once again on
+        another worker if its worker dies solving it (``_rerun``)."""
         if self._processes is None:
             return self._in_threads(request)
-        t0 = time.monotonic()
         budget = request.options.max_solve_time
-        due = None if budget is None else budget + self.answer_margin
-        # a worker that has this NLP built, if one is idle; else any: a busy one may take as long as its
-        # request's budget, a build here would hold this process's interpreter lock for seconds
-        worker = self._processes.take(self.unbounded_wait if due is None else max(due - 0.05, 0.0),
-                                      prefer=lambda w: w.has(request))
+        due = _Due(None, 'no max_solve_time') if budget is None else _Due(
+            time.monotonic() + budget + self.answer_margin, f'max_solve_time {budget:g} s + {self.answer_margin:g} s')
         try:
-            timeout = None if due is None else max(due - (time.monotonic() - t0), 0.05)
-            return worker.solve(request, timeout)
+            return self._solve(request, self._take(request, due), due)
+        except WorkerDied as exc:
+            return self._rerun(request, due, exc.death)
+
+    def _take(self, request: VariationalRequest, due: _Due) -> SolverProcess:
+        """An idle worker, waiting until shortly before the answer is due; those found dead are replaced
+        first. One that has this NLP built if one is idle, else any: a busy one may take as long as its
+        request's budget, a build here would hold this process's interpreter lock for seconds."""
+        self._reap_idle()
+        left = due.left()
+        try:
+            return self._processes.take(self.unbounded_wait if left is None else max(left - 0.05, 0.0),
+                                        prefer=lambda w: w.has(request))
+        except PlanError as exc:
+            dead = list(self._dead)
+            if not dead:
+                raise
+            raise PlanError(f'{exc}; {len(dead)} of them not ready yet, starting in place of solver processes '
+                            f'that died ({", ".join(f"{d.pid}: {d.cause}" for d in dead)})') from None
+
+    def _solve(self, request: VariationalRequest, worker: SolverProcess, due: _Due) -> Plan:
+        """The request on ``worker``, answered before it is due; the worker goes back to the pool (a late
+        one once its answer is in, so no caller waits behind it; a dead one to be replaced)."""
+        try:
+            left = due.left()
+            return worker.solve(request, None if left is None else max(left, 0.05))
+        except WorkerDied as exc:
+            self._dead.append(exc.death)  # (before it goes back: its replacement reports this one)
+            raise
         finally:
-            if worker.late:  # back to the pool once its answer is in, so no caller waits behind it
-                threading.Thread(target=lambda: (worker.finish_late(), self._processes.give_back(worker)),
-                                 daemon=True).start()
+            if worker.late:
+                threading.Thread(target=self._finish_late, args=(worker,), daemon=True).start()
             else:
                 self._processes.give_back(worker)
+
+    def _rerun(self, request: VariationalRequest, due: _Due, death: Death) -> Plan:
+        """The request again, once, after its worker died solving it: on a worker that is idle or becomes
+        so before the answer is due, if ``rerun_within`` s are left; else refused naming the death."""
+        left = due.left()
+        if left is not None and left < self.rerun_within:
+            raise self._refused(death, f'{max(left, 0.0):.2f} s of its time ({due.budget}) was left, too little '
+                                       'to solve it again')
+        try:
+            worker = self._take(request, due)
+        except PlanError:
+            raise self._refused(death, 'no other solver process was free before its answer was due '
+                                       f'({due.budget})') from None
+        self._report(WARN, 're-run', death, f'{death} while solving an {request.method.upper()} request; re-run '
+                     f'on solver process {worker.pid}; {_REPLACED}', worker.pid)
+        try:
+            return self._solve(request, worker, due)
+        except WorkerDied as again:
+            raise self._refused(again.death, f'it was re-running a request after {death}') from None
+        except WorkerLate as exc:  # the time the dead one took was missing
+            raise PlanError(f'{death} while solving; its re-run on solver process {worker.pid}: {exc}') from None
+
+    def _refused(self, death: Death, reason: str) -> PlanError:
+        """The refusal of a request whose worker died solving it, reported."""
+        message = f'{death} while solving; {reason}: refused'
+        self._report(WARN, 'refused', death, f'{message}; {_REPLACED}')
+        return PlanError(message)
+
+    def _finish_late(self, worker: SolverProcess) -> None:
+        """Back to the pool once a timed-out request's answer is in (reported if it died meanwhile)."""
+        death = worker.finish_late()
+        if death is not None:
+            self._dead.append(death)
+            self._report(WARN, 'replaced', death, f'{death} while finishing a request that had timed out; '
+                                                  f'{_REPLACED}')
+        self._processes.give_back(worker)
+
+    # -- workers that die ----------------------------------------------------------------------------
+
+    def _reap_idle(self) -> None:
+        """Take the idle workers that died out of the pool (it starts new ones), and report them."""
+        for worker in self._processes.discard_idle(SolverProcess.gone):
+            death = worker.died()
+            self._dead.append(death)
+            self._report(WARN, 'replaced', death, f'{death} while idle; {_REPLACED}')
+
+    def _watch_loop(self) -> None:
+        """Every ``watch_period`` s, the idle workers that died replaced: a killed worker is replaced before
+        a request finds it dead (a busy one's death is found by its request, a building one's by the upkeep)."""
+        while not self._closing.wait(self.watch_period):
+            self._reap_idle()
+
+    def _report(self, level: int, action: str, death: Death, message: str, new_pid: int = 0) -> None:
+        """``on_event`` told, if given; a failure of it never reaches the request."""
+        if self._on_event is None:
+            return
+        try:
+            self._on_event(WorkerEvent(level, action, death, message, new_pid))
+        except Exception:
+            pass
 
     # -- the worker processes' solvers ---------------------------------------------------------------
 
@@ -227,8 +374,19 @@ class Planner:
                     self._twins_starting = False
         with self._lock:
             self._workers.append(worker)
+        self._started(worker)
         self._keep_up()
         return worker
+
+    def _started(self, worker: SolverProcess) -> None:
+        """A new worker ready: if it replaces one that died, reported (level OK: the pool is whole again
+        once every dead one has its replacement)."""
+        try:
+            death = self._dead.popleft()
+        except IndexError:  # one of the first ones
+            return
+        self._report(OK, 'started', death, f'solver process {worker.pid} started in place of solver process '
+                                           f'{death.pid}, which died ({death.cause})', worker.pid)
 
     def _wanted(self) -> list:
         """What every worker should have built: the warm-ups and ``warm_threads``' requests."""
@@ -266,7 +424,10 @@ class Planner:
                 continue
             try:
                 worker.warm(worker.needs(wanted)[:1])
-            except PlanError:  # it was killed: the pool replaces it, and the replacement is looked at
+            except WorkerDied as exc:  # the pool replaces it, and the replacement is looked at
+                self._dead.append(exc.death)
+                self._report(WARN, 'replaced', exc.death, f'{exc}; {_REPLACED}')
+            except PlanError:  # it was killed (too slow): the pool replaces it too
                 pass
             finally:
                 self._processes.give_back(worker)
@@ -297,6 +458,10 @@ class Planner:
         with self._lock:
             self._seeds.setdefault(structure, solver)
         return solver
+
+
+#: What every report of a death ends with: the pool is kept full.
+_REPLACED = 'replaced: a new solver process is starting in its place'
 
 
 def toggled_limits(requests) -> list[VariationalRequest]:

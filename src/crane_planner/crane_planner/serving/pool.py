@@ -10,13 +10,16 @@ existing one stays busy for ``grace`` seconds (each instance holds a few
 MB). A request that finds ``size`` instances busy waits at most ``wait``
 seconds for one to come back, then is refused: answering late would break
 the planner's answer-time promise. ``fill`` makes all ``size`` up front and
-keeps them (an instance that reports itself ``closed`` is dropped and
-replaced): for instances too slow to make on demand, such as worker
-processes (``workers.SolverProcess``). Pure Python, no ROS import.
+keeps them (an instance that reports itself ``closed``, or that
+``discard_idle`` finds broken, is dropped and replaced; a replacement that
+fails to start is tried again a few times): for instances too slow to make
+on demand, such as worker processes (``workers.SolverProcess``). Pure
+Python, no ROS import.
 """
 from __future__ import annotations
 
 import threading
+import time
 from contextlib import contextmanager
 
 from crane_msgs_py.params import check_count
@@ -27,6 +30,10 @@ from ..planning.plan import PlanError
 class SolverPool:
     """Up to ``size`` solvers made by ``create()``, each lent to one caller at a time; thread-safe.
 
+    Kept full (``fill``), a replacement whose ``create()`` fails is tried again after each of
+    ``retry_delays`` (s): a worker process's start can fail while its fork server restarts, and a pool
+    one short would have the next request start a process on its own time.
+
     Args:
         create: makes a new instance (called outside the pool's lock).
         size: most instances at once, >= 1; may be changed while in use
@@ -36,6 +43,8 @@ class SolverPool:
             one is made (about as long as a typical NVF/RVF solve: a short wait usually finds one idle).
         hint: what the refusal advises when all stay busy.
     """
+
+    retry_delays = (0.5, 2.0, 5.0)
 
     def __init__(self, create, size: int, name: str = 'solver', grace: float = 0.02,
                  hint: str = 'raise solver_pool_size'):
@@ -146,6 +155,24 @@ class SolverPool:
             self._upkept.add(id(self._idle[k]))
             return self._idle.pop(k)
 
+    def discard_idle(self, broken) -> list:
+        """Take out the idle instances for which ``broken(instance)`` is true (e.g. a worker process that
+        died while idle), replaced after ``fill`` as closed ones are; they are returned for the caller to
+        close and report. Cheap checks only: ``broken`` runs under the pool's lock."""
+        with self._cond:
+            found = [solver for solver in self._idle if broken(solver)]
+            if not found:
+                return []
+            self._idle = [solver for solver in self._idle if not any(solver is f for f in found)]
+            # as give_back does: a kept-full pool replaces them, up to its size
+            replace = min(len(found), max(self._size - self._count + len(found), 0)) \
+                if self._keep_full and not self._closing else 0
+            self._count -= len(found) - replace
+            self._cond.notify_all()
+        for _ in range(replace):
+            self._make_spare_in_background()
+        return found
+
     def _pop(self, prefer):
         """The most recently returned idle instance (its warm start is the freshest), or the most recent
         one ``prefer`` likes."""
@@ -159,10 +186,17 @@ class SolverPool:
         threading.Thread(target=self._make_spare, daemon=True).start()
 
     def _make_spare(self):
-        try:
-            spare = self._create()
-        except Exception:  # the request that needs one will build it and report why
-            spare = None
+        spare = None
+        for delay in (0.0, *(self.retry_delays if self._keep_full else ())):
+            if delay:
+                time.sleep(delay)
+            if self._closing:
+                break
+            try:
+                spare = self._create()
+                break
+            except Exception:  # the request that needs one will build it and report why
+                pass
         self.give_back(spare)
 
     def give_back(self, solver) -> None:

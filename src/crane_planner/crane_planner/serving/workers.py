@@ -18,6 +18,15 @@ of the caller's threads, e.g. rclpy's), so a new worker costs little beyond
 building its solvers. A worker ignores SIGINT (Ctrl-C is the parent's to
 handle) and ends when its parent's end of the pipe closes.
 
+A worker can die under a request (the kernel's OOM killer, an operator's
+``kill -9``, a crash in native code): ``solve`` then raises ``WorkerDied``
+(a PlanError) carrying a ``Death``, the process's pid and, as far as it is
+known, the signal that ended it, so the caller can say what happened and
+decide whether to run the request again elsewhere. The fork server can die
+too: Python starts it again on the next worker start, but one killed a moment
+earlier is not reaped yet and still looks alive, so that start fails; it is
+tried again (``_start``) once the dead server can be seen as dead.
+
 Pure Python, no ROS import.
 """
 from __future__ import annotations
@@ -26,7 +35,9 @@ import multiprocessing
 import os
 import signal
 import threading
+import time
 from collections import OrderedDict
+from dataclasses import dataclass
 
 from crane_msgs_py.params import ParameterError
 
@@ -200,6 +211,64 @@ def _serve(conn, warmups) -> None:
         return
 
 
+@dataclass(frozen=True)
+class Death:
+    """A worker process that ended without being asked to, as its caller learns of it.
+
+    ``exitcode`` is ``multiprocessing``'s: negative for the signal that ended it, 255 when the fork server
+    (the worker's parent, which reports the status) died too, None if it had not been reported yet.
+    """
+
+    pid: int
+    exitcode: int | None
+
+    #: the exit code ``multiprocessing`` gives a worker whose fork server is gone (our workers never exit so)
+    SERVER_GONE = 255
+
+    @property
+    def signal(self) -> int | None:
+        """The number of the signal that ended it, if it is known."""
+        return -self.exitcode if self.exitcode is not None and self.exitcode < 0 else None
+
+    @property
+    def cause(self) -> str:
+        """How it ended, as far as is known: 'signal 9', 'exit code 1' or why that is unknown."""
+        if self.signal is not None:
+            return f'signal {self.signal}'
+        if self.exitcode == self.SERVER_GONE:
+            return 'exit status unknown: its fork server died too'
+        if self.exitcode is None:
+            return 'exit status not reported'
+        return f'exit code {self.exitcode}'
+
+    def __str__(self) -> str:
+        return f'the solver process {self.pid} died ({self.cause})'
+
+
+class WorkerDied(PlanError):
+    """The worker died before answering (its pipe closed): a PlanError saying so, with the ``death``.
+
+    A PlanError, so that a caller that only refuses (``stops.StopWorker``) needs nothing new; the
+    planner catches it to run the request again on another worker."""
+
+    def __init__(self, death: Death, doing: str):
+        super().__init__(f'{death} while {doing}')
+        self.death = death
+        self.doing = doing
+
+
+class WorkerLate(PlanError):
+    """The worker did not answer within the caller's timeout (it is ``late`` until ``finish_late``)."""
+
+
+#: Waits (s) before starting a worker again when its start failed for want of a live fork server: a
+#: server killed a moment ago is not reaped yet, so Python sends the request to it and reads EOF; a
+#: moment later it is seen dead and started anew.
+START_RETRIES = (0.05, 0.2, 0.5, 1.0)
+#: Longest wait (s) for a dead worker's exit status (its fork server reports it within milliseconds).
+STATUS_WAIT = 0.5
+
+
 class SolverProcess:
     """One worker process; ``solve`` sends it a request and waits for the answer. One caller at a time.
 
@@ -211,11 +280,7 @@ class SolverProcess:
     """
 
     def __init__(self, warmups=(), start_timeout: float = 60.0):
-        ctx = _context()
-        self._conn, child = ctx.Pipe()
-        self._process = ctx.Process(target=_serve, args=(child, list(warmups)), name='crane-solver', daemon=True)
-        self._process.start()
-        child.close()
+        self._conn, self._process = self._start(list(warmups))
         self.closed = False
         #: a request timed out and its answer is still to come (``finish_late``)
         self.late = False
@@ -232,9 +297,45 @@ class SolverProcess:
             self.close()
             raise PlanError(f'a solver process did not start within {start_timeout:g} s')
 
+    @staticmethod
+    def _start(warmups: list):
+        """(our end of the pipe, the started process); a start that finds the fork server just died is
+        tried again after ``START_RETRIES`` (see the module's docstring), then PlanError."""
+        ctx = _context()
+        for delay in (*START_RETRIES, None):
+            conn, child = ctx.Pipe()
+            process = ctx.Process(target=_serve, args=(child, warmups), name='crane-solver', daemon=True)
+            try:
+                process.start()
+                return conn, process
+            except (EOFError, OSError) as exc:
+                conn.close()
+                if delay is None:
+                    raise PlanError(f'a solver process could not be started: {type(exc).__name__}: {exc}') from None
+                time.sleep(delay)
+            finally:
+                child.close()
+
     @property
     def pid(self) -> int:
         return self._process.pid
+
+    def gone(self) -> bool:
+        """Whether an idle worker (no answer owed, not ``late``) has died: its end of the pipe can be read
+        only at EOF then. For a pool to drop dead workers before a request is sent to one."""
+        if self.closed:
+            return True
+        try:
+            return self._conn.poll(0)
+        except (EOFError, OSError):
+            return True
+
+    def died(self) -> Death:
+        """Close a worker found dead and say how it ended (its status waited for up to ``STATUS_WAIT`` s)."""
+        self._process.join(STATUS_WAIT)
+        death = Death(self.pid, self._process.exitcode)
+        self.close(kill=death.exitcode is None)  # (a process already reported dead is not signalled again)
+        return death
 
     @property
     def alive(self) -> bool:
@@ -250,7 +351,8 @@ class SolverProcess:
 
     def warm(self, requests, limit: float = 600.0) -> None:
         """Have the worker run ``requests`` to build their solvers (a failed one only means building on
-        first use); PlanError if it does not finish within ``limit`` s (it is then killed) or dies."""
+        first use); PlanError if it does not finish within ``limit`` s (it is then killed), WorkerDied if
+        it dies."""
         requests = list(requests)
         try:
             self._conn.send(('warm', requests))
@@ -260,7 +362,7 @@ class SolverProcess:
                 self.structures.update(_structure(r) for r in requests)
                 return
         except (EOFError, OSError):
-            pass
+            raise WorkerDied(self.died(), 'building solvers') from None
         self.close(kill=True)
         raise PlanError(f'a solver process did not finish building its solvers within {limit:g} s')
 
@@ -269,8 +371,8 @@ class SolverProcess:
         raised here.
 
         PlanError too if the worker does not answer within ``timeout`` seconds
-        (None = no limit; it is then ``late`` until ``finish_late``), or if it
-        dies (it is then ``closed``; a kept-full pool replaces it).
+        (None = no limit; it is then ``late`` until ``finish_late``), and
+        WorkerDied if it dies (it is then ``closed``; a kept-full pool replaces it).
         """
         if not callable(request):  # (a callable request, a stop, is run whole in the worker: no CasADi here)
             self.structures.add(_structure(request))  # built by this request if it was not
@@ -278,28 +380,28 @@ class SolverProcess:
             self._conn.send(request)
             if not self._conn.poll(timeout):
                 self.late = True
-                raise PlanError(f'no answer within {timeout:.2f} s (the solver was still building or solving)')
+                raise WorkerLate(f'no answer within {timeout:.2f} s (the solver was still building or solving)')
             kind, value = self._conn.recv()
         except (EOFError, OSError):
-            self.close(kill=True)
-            code = self._process.exitcode
-            raise PlanError(f'the solver process ended while solving (exit code {code}) and was restarted') from None
+            raise WorkerDied(self.died(), 'solving') from None
         if kind == 'plan':
             return value
         if kind in _ERRORS:
             raise _ERRORS[kind](value)
         raise RuntimeError(value)
 
-    def finish_late(self, limit: float = 60.0) -> None:
-        """Wait for the answer of a timed-out request and drop it; kill the worker if it takes over ``limit`` s."""
+    def finish_late(self, limit: float = 60.0) -> Death | None:
+        """Wait for the answer of a timed-out request and drop it; kill the worker if it takes over ``limit`` s.
+        How it ended if it died meanwhile (it is then ``closed``), else None."""
         try:
             if self._conn.poll(limit):
                 self._conn.recv()
                 self.late = False
-                return
+                return None
         except (EOFError, OSError):
-            pass
+            return self.died()
         self.close(kill=True)
+        return None
 
     def close(self, kill: bool = False) -> None:
         """Stop the worker: at once with ``kill``, else after its current request; idempotent."""
