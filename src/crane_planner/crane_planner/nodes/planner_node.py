@@ -59,7 +59,10 @@ class PlannerNode(Node):
         self._diagnostics = DiagnosticsPublisher(self)
         self._config = Config.from_values(values)  # bad overrides: ParameterError, see main()
         Guard(self, PARAMETERS, Config.from_values, self._apply, self._diagnostics)
-        self._planner = Planner(self._config.solver_pool_size, processes=self._config.solver_processes)
+        # a solver process that died (what was done) and its replacement: on /diagnostics (serving.planner.WorkerEvent)
+        self._planner = Planner(self._config.solver_pool_size, processes=self._config.solver_processes,
+                                on_event=lambda e: self._diagnostics.report('solver_processes', e.level, e.message,
+                                                                            **e.values()))
         self._planner.warmups = self._config.warmups()
         service.start_processes(self._planner, self._config, self.get_logger())  # before any request comes
         self._trajectory = self.create_publisher(JointTrajectory, names.TRAJECTORY_TOPIC, TRAJECTORY_QOS)
