@@ -22,6 +22,7 @@ from ..planning.dispatch import PlanOptions, check_request
 from ..planning.hoisting import QuinticPlan
 from ..planning.methods import METHODS
 from ..planning.plan import AxesPlan, Plan, PlanError
+from .workers import WorkerDied
 
 
 class MoveError(PlanError):
@@ -195,7 +196,7 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
             plan = planner.fastest(move.method, move.displacement, params, options, hoist=hoist)
         else:
             plan = planner.plan(move.method, move.displacement, move.duration, params, options, hoist=hoist)
-    except MoveError:
+    except (MoveError, WorkerDied):  # (a dead solver process is not the request's fault: said as it is)
         raise
     except PlanError as exc:  # ParameterError too: a bad request, named by the field it concerns
         raise MoveError('duration' if move.duration is not None else 'duration (fastest)', str(exc)) from None
