@@ -21,6 +21,8 @@ JOINT_STATES_TOPIC = 'joint_states'
 MARKERS_TOPIC = 'crane_markers'
 #: The streamer's reference at its state rate (crane_interfaces/StreamState).
 STREAM_STATE_TOPIC = 'stream_state'
+#: The sim's axis controller: tracking, or its fault reaction to a lost reference stream (crane_interfaces/AxisStatus).
+AXIS_STATUS_TOPIC = 'axis_status'
 #: Absolute, as diagnostic_aggregator and rqt_robot_monitor expect.
 DIAGNOSTICS_TOPIC = '/diagnostics'
 

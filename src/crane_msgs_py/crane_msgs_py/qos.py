@@ -55,6 +55,13 @@ CMD_VEL_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1,
     reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
 
+#: ``axis_status``: a state that changes seldom, published on each change and once a second: reliable and
+#: transient local with depth 1, so a reader that joins late (a supervisor, a test) gets the newest state at
+#: once, as ``trajectory`` is latched.
+AXIS_STATUS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
 #: ``crane_markers``: reliable (RViz2's MarkerArray display subscribes reliable; a best-effort
 #: publisher would not match it), volatile, a short queue: a late frame is worth nothing.
 MARKERS_QOS = QoSProfile(
