@@ -12,7 +12,9 @@ pattern, as long as it arrives within ``delay``.
 Per step ``[t0, t1]`` the acceleration is the newest stamped <= t0 - delay
 (``zoh``), or interpolated between the samples bracketing t0 - delay and
 t1 - delay (``linear``). Without a sample newer than ``timeout`` the
-acceleration falls back to 0 (the stream stopped: never hold an acceleration).
+acceleration falls back to 0 (the stream stopped: never hold an acceleration)
+and ``timeouts`` counts it; the sim node's axis controller
+(``axis_controller``) then brakes the reference to rest instead.
 
 An acceleration sample later than that comes after steps that needed it and
 held an older one instead. Nothing would ever make up their deficit: the

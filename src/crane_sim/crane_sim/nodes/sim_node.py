@@ -10,9 +10,16 @@ measured, unstamped ones put on a grid) and handed to the loop through a queue;
 the loop plays them out by their stamps, ``playout_delay`` behind
 (``playout.ReferencePlayout``): the plant's time runs that far behind the
 clock, and ``joint_states`` carry plant time, so they line up with the
-reference stamps. The loop alone touches the simulator, so parameter changes
-and resets are handed over too. The EventsExecutor keeps the 1 kHz
-subscription at a fraction of the CPU the Python executors need.
+reference stamps. Between the playouts and the plant sits the axis
+controller (``axis_controller.AxisController``): it passes the playouts'
+reference on while it tracks, and when the stream is lost (the playouts'
+``reference_timeout``) it brakes every axis's reference to rest along the
+fault reaction's ramp (``fault_deceleration``, ``fault_jerk``) and holds
+until a stream starts where the axes stand; its state goes to
+``axis_status`` (crane_interfaces/AxisStatus) and ``/diagnostics``. The loop
+alone touches the simulator and the controller, so parameter changes and
+resets are handed over too. The EventsExecutor keeps the 1 kHz subscription
+at a fraction of the CPU the Python executors need.
 """
 from __future__ import annotations
 
@@ -22,6 +29,7 @@ import time
 from collections import deque
 
 import numpy as np
+from crane_interfaces.msg import AxisStatus
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -36,9 +44,11 @@ from crane_msgs_py.conversions import (
     fill_joint_state,
     joint_state_message,
     read_reference,
+    set_stamp,
 )
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (
+    AXIS_STATUS_TOPIC,
     CART_JOINT,
     DEFAULT_FRAME_ID,
     JOINT_STATES_TOPIC,
@@ -59,10 +69,12 @@ from crane_msgs_py.params import (
     ParameterError,
     check_choice,
     check_nonnegative,
+    check_positive,
 )
-from crane_msgs_py.qos import JOINT_STATES_QOS, MARKERS_QOS, REFERENCE_EVERY_SAMPLE_QOS
+from crane_msgs_py.qos import AXIS_STATUS_QOS, JOINT_STATES_QOS, MARKERS_QOS, REFERENCE_EVERY_SAMPLE_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
+from crane_sim.axis_controller import FAULT_STATES, AxisController, AxisState, FaultConfig, Offer
 from crane_sim.dynamics import mass_positions
 from crane_sim.measurement import AngleNoise
 from crane_sim.playout import ReferencePlayout
@@ -97,8 +109,17 @@ PARAMETERS = {
                        {'additional_constraints': f'auto, {OUTPUT_JOINT_TRAJECTORY} or {OUTPUT_FLOAT64_ARRAY}',
                         'read_only': True}),
     'reference_timeout': (0.5, 'a reference older than this (s) on arrival is stale and ignored; without a '
-                          'fresh one for this long the reference acceleration falls back to 0',
-                          float_range(1e-3, 10.0)),
+                          'fresh one for this long the stream is lost: the fault reaction brakes every axis to '
+                          'rest (fault_deceleration) and holds', float_range(1e-3, 10.0)),
+    'fault_deceleration': (0.5, 'fault reaction to a lost reference stream: every axis (the hoist too) brakes its '
+                           'reference from its velocity and acceleration then to rest at this deceleration '
+                           '(m/s^2), jerk-limited by fault_jerk, as a drive\'s quick stop, then holds; may change '
+                           'while running (the next fault uses it)', float_range(1e-3, 100.0)),
+    'fault_jerk': (5.0, 'fault reaction: the jerk limit (m/s^3) of its braking ramp; may change while running',
+                   float_range(1e-3, 1e4)),
+    'resume_tolerance': (1e-3, 'after a fault the axes resume only from a reference that starts where they '
+                         'stand: within this distance (m) of each held position; others are refused and counted '
+                         '(refused_after_fault)', float_range(1e-9, 1.0)),
     'playout_delay': (0.2, 'the plant runs this far (s) behind the clock and applies each reference at its '
                       'stamp (a jitter buffer: every sample arriving within the delay counts for exactly its '
                       'own interval); joint_states are stamped with plant time', float_range(0.0, 1.0)),
@@ -138,10 +159,16 @@ class SimNode(Node):
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._check, self._apply, self._diagnostics)
         self._noise = AngleNoise(p['noise'], p['seed'])
-        self._markers = crane_markers_message(p['frame_id'])
+        self._frame_id = p['frame_id']
+        self._markers = crane_markers_message(self._frame_id)
         self._markers_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, MARKERS_QOS)
         self._joint_state = joint_state_message(self._sim.joint_names)
         self._joint_states = self.create_publisher(JointState, JOINT_STATES_TOPIC, JOINT_STATES_QOS)
+        self._fault_config = self._fault_config_of(p)  # the loop hands it to the controller
+        self._controller = AxisController(self._sim.axes, self._axis_positions(), self._fault_config)
+        self._axis_status = self.create_publisher(AxisStatus, AXIS_STATUS_TOPIC, AXIS_STATUS_QOS)
+        self._plant_clock = (self.get_clock().now().nanoseconds, 0)  # ROS ns of plant time 0, playout delay ns
+        self._refused_reported = 0
 
         # Handed from the executor to the loop; deque append/popleft are atomic.
         self._inbox: deque = deque(maxlen=1000)   # (stamp ns, then position, acceleration per axis), checked
@@ -182,7 +209,18 @@ class SimNode(Node):
         if not values['playout_delay'] < values['reference_timeout']:
             raise ParameterError(f'playout_delay {values["playout_delay"]} s must be shorter than '
                                  f'reference_timeout {values["reference_timeout"]} s')
+        for name in ('fault_deceleration', 'fault_jerk', 'resume_tolerance'):
+            check_positive(name, values[name])
         return CraneParams(**{name: values[name] for name in PARAMETER_NAMES})
+
+    @staticmethod
+    def _fault_config_of(values: dict) -> FaultConfig:
+        return FaultConfig(values['fault_deceleration'], values['fault_jerk'], values['resume_tolerance'],
+                           values['reference_timeout'])
+
+    def _axis_positions(self) -> list[float]:
+        """Where each axis of the plant stands now (m)."""
+        return [self._sim.axis_state(name)[0] for name in self._sim.axes]
 
     def _playout_args_of(self, values: dict) -> tuple:
         source = 'position' if self._reference_type == OUTPUT_FLOAT64_ARRAY else values['reference_source']
@@ -199,6 +237,7 @@ class SimNode(Node):
         if values['noise'] != self._noise.std:
             self._noise = AngleNoise(values['noise'], self._noise.seed)
         self._playout_args = self._playout_args_of(values)  # the loop swaps its playout when this changes
+        self._fault_config = self._fault_config_of(values)  # and hands this to the controller
         self._intake.configure(*self._intake_args_of(values))
 
     # -- references (executor thread) ----------------------------------------
@@ -256,25 +295,30 @@ class SimNode(Node):
     def _on_reset(self, request, response):
         self._reset_requested.set()
         response.success = True
-        response.message = 'plant at rest where the cart is, from the next step'
+        response.message = 'plant at rest where the cart is, from the next step; a fault reaction cleared: ' \
+                           'waiting for a first reference'
         return response
 
     # -- the loop (its own thread) -------------------------------------------
 
     def _loop(self):
         sim, ticker, counts, lateness = self._sim, self._ticker, self.counts, self._lateness
-        inbox = self._inbox
+        inbox, controller = self._inbox, self._controller
         ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
         epoch_ros = ros_now + (epoch - time.monotonic_ns())  # ROS time of step 0
         dt_ns, dt = ticker.period, ticker.period * 1e-9
         playout_args, playouts, timeouts = None, (), 0  # a playout per axis, in sim.axes order
+        seen = 0  # the cart's playout's timeouts handled: one more is a stream lost
         L2 = sim.params['L2']  # of the markers: the live plant's
         theta1, cart = sim.joint_names.index('theta1'), sim.joint_names.index(CART_JOINT)
         angles = slice(theta1, theta1 + 2)  # of theta1, theta2 in joint_state()
+        tracking = AxisState.TRACKING
+        self._publish_status(controller.status(), epoch_ros - round(self._playout_args[0] * 1e9))
         while not self._loop_thread.stopping.is_set():
             deadline = ticker.deadline
             now = sleep_until(deadline, 0)
             lateness.add(now - deadline)
+            t0 = ticker.tick * dt  # nominal time of the step since step 0
             if self._pending_params is not None:
                 params, self._pending_params = self._pending_params, None
                 sim.set_params(params)
@@ -283,7 +327,10 @@ class SimNode(Node):
                 playout_args = self._playout_args
                 timeouts += playouts[0].timeouts if playouts else 0
                 playouts = tuple(ReferencePlayout(*playout_args) for _ in sim.axes)
-                playout = playouts[0]  # the cart's: its timeouts are the stream's
+                playout, seen = playouts[0], 0  # the cart's: its timeouts are the stream's
+                self._plant_clock = (epoch_ros, round(playout.delay * 1e9))
+            if self._fault_config is not controller.config:
+                controller.config = self._fault_config
             if self._push is not None:
                 push, self._push = self._push, None
                 try:
@@ -295,15 +342,31 @@ class SimNode(Node):
                 sim.reset(CraneState(y=sim.state.y))
                 for one in playouts:
                     one.reset()
+                controller.reset(self._axis_positions(), t0)
             while inbox:
                 stamp, *sample = inbox.popleft()  # (position, acceleration) per axis
+                offer = Offer.ACCEPT if controller.state is tracking else controller.offer(sample[::2], t0)
+                if offer is Offer.REFUSE:  # a fault reaction holds: counted by the controller
+                    continue
+                if offer is Offer.START:  # a stream from rest where the references are
+                    for one in playouts:
+                        one.reset()
                 try:
                     for k, one in enumerate(playouts):
                         one.push((stamp - epoch_ros) * 1e-9, sample[2 * k], sample[2 * k + 1])
                 except SimulationError:  # not after the last one (a playout swapped meanwhile)
                     counts['out_of_order'] += 1
-            t0 = ticker.tick * dt  # nominal time of the step since step 0
-            sim.step(*zip(*(one.step(t0, t0 + dt) for one in playouts)))
+            t1 = t0 + dt
+            if controller.state is tracking:
+                tracked = [one.step(t0, t1) for one in playouts]
+                lost, seen = playout.timeouts > seen, playout.timeouts
+                sim.step(*zip(*controller.step(t0, t1, tracked, lost)))
+            else:  # at rest, or the fault reaction: the playouts have nothing to play
+                sim.step(*zip(*controller.step(t0, t1)))
+            if controller.changes:
+                for change in controller.take_changes():
+                    self._publish_status(controller.status(change.new, self._ros_seconds),
+                                         self._plant_ns(change.time))
             counts['steps'] += 1
             counts['timeouts'] = timeouts + playout.timeouts
             if ticker.tick % self._publish_every == 0:
@@ -323,6 +386,28 @@ class SimNode(Node):
                 counts['published'] += 1
             counts['skipped'] += ticker.advance(time.monotonic_ns())
 
+    # -- the axis controller's reports ----------------------------------------
+
+    def _plant_ns(self, t: float) -> int:
+        """ROS time (ns) of plant time ``t`` (s since step 0): the stamp of the references played then."""
+        epoch_ros, delay_ns = self._plant_clock
+        return epoch_ros + round(t * 1e9) - delay_ns
+
+    def _ros_seconds(self, t: float) -> float:
+        return self._plant_ns(t) * 1e-9
+
+    def _publish_status(self, status, stamp_ns: int):
+        """``axis_status`` with the controller's ``status`` (an ``axis_controller.Status``), stamped
+        ``stamp_ns``; a fresh message each time: the loop and the executor both publish."""
+        msg = AxisStatus(state=status.state.value, joint_names=list(self._sim.axes),
+                         position=[float(p) for p in status.positions], message=status.message)
+        set_stamp(msg.header.stamp, stamp_ns)
+        msg.header.frame_id = self._frame_id
+        try:
+            self._axis_status.publish(msg)
+        except Exception:  # the context is shut down (SIGINT): nothing to report to
+            pass
+
     # -- diagnostics (executor thread) ----------------------------------------
 
     def _report(self):
@@ -338,11 +423,19 @@ class SimNode(Node):
         p50, p99 = np.percentile(latency, [50, 99]) if latency.size else (math.nan, math.nan)
         state = self._sim.state
         error = self._loop_thread.error
-        level = ERROR if error else WARN if counts['skipped'] else OK
+        controller = self._controller
+        axes = controller.status(clock=self._ros_seconds)
+        faulted = axes.state in FAULT_STATES
+        level = ERROR if error else WARN if counts['skipped'] or faulted else OK
         message = (f'the loop stopped: {error}' if error else
                    f'stepping at {(counts["steps"] - steps0) / elapsed:.1f} Hz, {ignored} references ignored')
+        if faulted and not error:
+            message = f'{axes.message}; {message}'
+        self._report_refusals(controller)
+        self._publish_status(axes, self.get_clock().now().nanoseconds - self._plant_clock[1])
         self._diagnostics.report(
-            SIM_TASK, level, message, step_rate_hz=(counts['steps'] - steps0) / elapsed,
+            SIM_TASK, level, message, **self._axes_values(controller, axes),
+            step_rate_hz=(counts['steps'] - steps0) / elapsed,
             joint_states_rate_hz=(counts['published'] - published0) / elapsed,
             **lateness_summary_us(self._lateness.take()), **counts, ignored=ignored,
             reference_latency_p50_ms=p50, reference_latency_p99_ms=p99,
@@ -352,6 +445,35 @@ class SimNode(Node):
             interpolation=self._interpolation, y=state.y, theta1=state.theta1, theta2=state.theta2,
             load_excursion=self._sim.load_excursion, **self._sim.params,
             **({'hoist_L1': self._sim.L1} if self._sim.hoist else {}))
+
+    def _axes_values(self, controller: AxisController, axes) -> dict:
+        """The axis controller's key values: its state, each axis's reference (held, or now), refusals; during a
+        fault reaction when the stream was lost (ROS time, ns: plant time, as joint_states') and each axis's
+        braking."""
+        values = {'axis_state': axes.state.value, 'refused_after_fault': controller.refused,
+                  **{f'{name}_reference': p for name, p in zip(controller.axes, axes.positions)}}
+        fault = controller.fault
+        if axes.state in FAULT_STATES and fault is not None:
+            values['fault_stamp_ns'] = self._plant_ns(fault.lost_at)  # (an integer: 9 digits of seconds are not)
+            for name, origin, braking, stop in zip(controller.axes, fault.origins, fault.brakings, fault.stops):
+                values.update({f'{name}_braking_from': origin, f'{name}_braking_velocity': braking.v0,
+                               f'{name}_braking_acceleration': braking.a0, f'{name}_stop': stop})
+            values.update(fault_deceleration=fault.brakings[0].D, fault_jerk=fault.brakings[0].J)
+        return values
+
+    def _report_refusals(self, controller: AxisController):
+        """A warning (at most once a report) when references were refused since the last: how far the newest
+        starts from where the axes hold."""
+        refused, refusal = controller.refused, controller.last_refusal
+        if refused <= self._refused_reported or refusal is None:
+            return
+        new, self._refused_reported = refused - self._refused_reported, refused
+        where = 'hold' if refusal.state is AxisState.FAULT_HOLD else 'will stop (still braking)'
+        offsets = ', '.join(f'{name} {d * 1e3:+.3f} mm' for name, d in zip(controller.axes, refusal.offsets))
+        self.get_logger().warn(
+            f'{new} reference(s) refused after the reference stream was lost: the newest is off where the axes '
+            f'{where} by {offsets} (resume_tolerance {controller.config.resume_tolerance * 1e3:g} mm); '
+            'a stream resumes only from where the axes stand (or after ~/reset)')
 
     def destroy_node(self):
         self._loop_thread.stop()

@@ -1,0 +1,180 @@
+"""ROS: the sim's fault reaction to a lost reference stream, with the real executables and a real SIGKILL.
+
+The planner executes a move; the streamer is killed (SIGKILL to its process
+group: no last word) at 40 % of it. The sim, like a drive whose cyclic
+setpoints stop, brakes every axis's reference to rest at
+``fault_deceleration`` (jerk-limited) once no fresh sample has come for
+``reference_timeout``, holds, and says so on ``axis_status`` and
+``/diagnostics``; a streamer started again holds where the cart stands, and
+the sim resumes from it. Everything is judged from what the nodes publish
+(``joint_states`` and ``axis_status`` in plant time), never from how fast
+this host runs: the timeouts below only guard against a hang.
+"""
+import os
+import signal
+import threading
+
+import numpy as np
+import pytest
+
+from crane_msgs_py.braking import stopping_distance
+from crane_msgs_py.params import CraneParams
+
+NS = '/crane_faults'
+T = 4.0          # s of the move
+GOAL = 0.6       # m
+KILL_AT = 0.4    # of the move
+PLANT = CraneParams()
+#: the sim's defaults (config/sim.yaml): its fault reaction and its playout
+D, J, DELAY, TIMEOUT = 0.5, 5.0, 0.2, 0.5
+
+
+class Recorder:
+    """joint_states (stamp ns, cart position m, cart velocity m/s) and axis_status messages, on a node and an
+    executor of their own with deep queues, so this process's stalls lose nothing."""
+
+    def __init__(self):
+        import rclpy
+        from crane_interfaces.msg import AxisStatus
+        from rclpy.executors import SingleThreadedExecutor
+        from sensor_msgs.msg import JointState
+
+        from crane_msgs_py.names import AXIS_STATUS_TOPIC, JOINT_STATES_TOPIC
+        from crane_msgs_py.qos import AXIS_STATUS_QOS, JOINT_STATES_QOS, recording
+        from crane_msgs_py.runner import spinning
+        self.states, self.statuses, self._lock = [], [], threading.Lock()
+        self.node = rclpy.create_node('crane_faults_recorder', namespace=NS)
+        self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state,
+                                      recording(JOINT_STATES_QOS, 30.0, 50.0))
+        self.node.create_subscription(AxisStatus, AXIS_STATUS_TOPIC, self._on_status,
+                                      recording(AXIS_STATUS_QOS, 30.0, 10.0))
+        self._executor = SingleThreadedExecutor()
+        self._executor.add_node(self.node)
+        self._spinning = spinning(self._executor)
+        self._spinning.__enter__()
+
+    def _on_state(self, msg):
+        from crane_msgs_py.conversions import stamp_ns
+        k = list(msg.name).index('cart')
+        with self._lock:
+            self.states.append((stamp_ns(msg.header.stamp), msg.position[k], msg.velocity[k]))
+
+    def _on_status(self, msg):
+        from crane_msgs_py.conversions import stamp_ns
+        with self._lock:
+            self.statuses.append((stamp_ns(msg.header.stamp), msg.state, tuple(msg.position), msg.message,
+                                  tuple(msg.joint_names)))
+
+    def rows(self, begin_ns: int = 0) -> np.ndarray:
+        with self._lock:
+            return np.array([r for r in self.states if r[0] >= begin_ns]).reshape(-1, 3)
+
+    def status_list(self) -> list:
+        with self._lock:
+            return list(self.statuses)
+
+    def close(self):
+        self._spinning.__exit__(None, None, None)
+        self.node.destroy_node()
+
+
+@pytest.fixture(scope='module')
+def crane(start_crane):
+    with start_crane(NS) as driver:
+        recorder = Recorder()
+        try:
+            yield driver, recorder
+        finally:
+            recorder.close()
+
+
+def states_after(driver, recorder, predicate, timeout: float, what: str):
+    driver.wait_until(lambda: predicate(recorder.status_list()), timeout, f'axis_status never said {what}')
+    return recorder.status_list()
+
+
+def kill_streamer(driver) -> tuple[int, int]:
+    """SIGKILL the streamer's process group (its stop worker too): ROS times (ns) just before and after. The
+    process leaves the node group: it is meant to be dead."""
+    proc = next(p for p in driver.nodes.processes if p.name == 'streamer')
+    before = driver.now_ns()
+    os.killpg(proc.popen.pid, signal.SIGKILL)
+    after = driver.now_ns()
+    driver.nodes.processes.remove(proc)
+    proc.popen.wait(timeout=10.0)
+    return before, after
+
+
+def test_a_killed_streamer_makes_the_sim_brake_to_rest_hold_and_resume_from_a_new_one(crane):
+    from crane_msgs_py.conversions import joint_trajectory_to_arrays
+    from crane_msgs_py.diagnostics import WARN, level_of, status_values
+    from crane_planner.tools.processes import STREAMER
+    driver, recorder = crane
+    states_after(driver, recorder, lambda s: bool(s) and s[-1][1] == 'tracking', 60.0, 'tracking')
+
+    start, _, trajectory = driver.move('zv', None, GOAL, T)
+    _, _, _, acceleration = joint_trajectory_to_arrays(trajectory)
+    a_cap = float(np.max(np.abs(acceleration)))  # the plan's largest: what the stream's last sample can hold
+    driver.sleep(max(0.0, (start + round(KILL_AT * T * 1e9) - driver.now_ns()) * 1e-9))
+    mark = driver.planner.diagnostics.mark()
+    kill_before, kill_after = kill_streamer(driver)
+
+    # the fault reaction, in order: stopping, then holding
+    statuses = states_after(driver, recorder, lambda s: any(x[1] == 'fault_hold' for x in s), 30.0, 'fault_hold')
+    states = [x[1] for x in statuses]
+    stopping, holding = states.index('fault_stopping'), states.index('fault_hold')
+    assert stopping < holding and set(states[:stopping]) <= {'idle', 'tracking'}, states
+    assert statuses[holding][4] == ('cart',)
+    origin, held = statuses[stopping][2][0], statuses[holding][2][0]
+    assert 'reference stream lost at' in statuses[holding][3] and 'holding cart at' in statuses[holding][3]
+    # the sim's own account on /diagnostics, at WARN while it holds (it reports once a second)
+    report = driver.planner.diagnostics.wait_for(
+        lambda s: status_values(s).get('axis_state') == 'fault_hold', 15.0, after=mark, name='crane_sim: sim',
+        hardware_id=f'{NS}/crane_sim')
+    assert report is not None, 'no fault_hold status of the sim on /diagnostics within 15 s'
+    assert level_of(report) == WARN and 'reference stream lost at' in report.message
+    values = {k: float(v) for k, v in status_values(report).items() if k.startswith(('cart_', 'fault_'))}
+    v_b, a_b = values['cart_braking_velocity'], values['cart_braking_acceleration']
+    fault_ns = statuses[stopping][0]  # the change's stamp: plant time, as joint_states'
+    assert int(status_values(report)['fault_stamp_ns']) == fault_ns
+
+    # at rest within 3 s of the kill (plant time: the stamps of joint_states, the references' clock)
+    rest_ns = kill_after + 3_000_000_000
+    driver.wait_until(lambda: len(recorder.rows(rest_ns + 500_000_000)) > 0, 30.0, 'no joint_states past the stop')
+    rows = recorder.rows(kill_before - round(DELAY * 1e9))
+    after_rest = rows[rows[:, 0] >= rest_ns]
+    assert len(after_rest) >= 20 and np.all(np.abs(after_rest[:, 2]) < 1e-3), after_rest[:5]
+    # where the sim holds: the servo (Eq. 6) brings the cart exactly onto the held reference
+    y_rest = after_rest[-1, 1]
+    assert y_rest == pytest.approx(held, abs=1e-6)
+
+    # the braking: the closed form from the reference's state when the stream was declared lost, which was
+    # no later than the timeout after the last sample (stamped before the kill returned)
+    assert fault_ns <= kill_after + round(TIMEOUT * 1e9) + 2_000_000
+    assert values['cart_braking_from'] == pytest.approx(origin, abs=1e-9)
+    assert held - origin == pytest.approx(stopping_distance(v_b, a_b, D, J), abs=1e-6)
+    measured = np.interp(fault_ns, rows[:, 0], rows[:, 2])  # the cart's, a servo lag behind the reference
+    assert measured == pytest.approx(v_b, abs=PLANT.tau * a_cap + 0.02 * a_cap + 1e-3)
+
+    # how far it went after the kill: what it travels until the stream is declared lost (playout_delay, the
+    # delay the plant runs behind the clock, then reference_timeout), then the stop at fault_deceleration.
+    # The stream's last acceleration holds until it is declared lost (the playout cannot tell a late
+    # sample from a lost one), so the speed may still grow after the kill: the bound takes the largest
+    # measured, plus the servo's lag (Eq. 6: the reference leads the cart by tau * a) and a sample's worth.
+    y_kill = np.interp(kill_before - DELAY * 1e9, rows[:, 0], rows[:, 1])
+    v_bound = float(np.max(np.abs(rows[:, 2]))) + PLANT.tau * a_cap + 1e-3
+    window = DELAY + TIMEOUT + (kill_after - kill_before) * 1e-9 + 1e-3
+    bound = v_bound * window + stopping_distance(v_bound, a_cap, D, J) + PLANT.tau * v_bound
+    travelled = y_rest - y_kill
+    assert 0.0 < travelled <= bound, (travelled, bound)
+
+    # a streamer started again holds where the cart stands (joint_states at rest): the sim resumes from it
+    count = len(recorder.status_list())
+    driver.nodes.start(*STREAMER, namespace=NS)
+    statuses = states_after(driver, recorder, lambda s: any(x[1] == 'tracking' for x in s[count:]), 90.0,
+                            'tracking again')
+    resumed = next(x for x in statuses[count:] if x[1] == 'tracking')
+    assert resumed[2][0] == pytest.approx(held, abs=1e-9)  # from rest where it held: no jump
+    driver.wait_until(lambda: len(recorder.rows(resumed[0])) >= 10, 30.0, 'no joint_states after the resume')
+    later = recorder.rows(resumed[0])
+    assert np.all(np.abs(later[:, 1] - held) < 1e-6)  # the new stream holds it there

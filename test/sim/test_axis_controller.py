@@ -1,0 +1,312 @@
+"""The sim's axis controller (crane_sim.axis_controller): the fault reaction to a lost reference stream.
+
+Driven as the sim node's loop drives it: samples stamped on a 1 ms grid go
+through ``offer`` into real ``ReferencePlayout``s, whose timeout declares the
+stream lost; the controller's reference accelerations drive a real
+``CraneSimulator`` (Eqs. 18-19 with the servo of Eq. 6). The plant's
+stopping distance is checked against ``braking.stopping_distance`` (itself
+checked against ruckig) plus the servo's lag.
+"""
+import itertools
+
+import pytest
+
+from crane_msgs_py.braking import Braking, stopping_distance
+from crane_msgs_py.params import CraneParams, ParameterError
+from crane_sim.axis_controller import (
+    FAULT_STATES,
+    TRANSITIONS,
+    AxisController,
+    AxisState,
+    FaultConfig,
+    IllegalTransition,
+    Offer,
+    check_transition,
+)
+from crane_sim.playout import ReferencePlayout
+from crane_sim.simulator import CraneSimulator
+
+DT = 1e-3
+DELAY, TIMEOUT = 0.2, 0.5
+D, J = 0.5, 5.0
+S = AxisState
+PLANT = CraneParams()
+
+
+class Rig:
+    """Playouts -> controller -> plant, step by step as the sim node's loop does it; samples arrive on time
+    (stamped at the step they arrive in) and are played ``DELAY`` later."""
+
+    def __init__(self, axes=('cart',), source='acceleration', config=None):
+        self.sim = CraneSimulator(PLANT, dt=DT, axes=axes)
+        self.playouts = [ReferencePlayout(DELAY, TIMEOUT, 'zoh', source) for _ in axes]
+        self.controller = AxisController(axes, self.positions(), config or FaultConfig(D, J, 1e-3, TIMEOUT))
+        self.k, self.seen, self.changes, self.offers = 0, 0, [], []
+        self.rows = []  # (t1, each axis's (position, velocity, acceleration) of the plant) after each step
+
+    def positions(self):
+        return [self.sim.axis_state(a)[0] for a in self.sim.axes]
+
+    @property
+    def t(self) -> float:
+        return self.k * DT
+
+    def run(self, until: float, sample=None):
+        """Step up to plant time ``until`` (s); ``sample(t)``: the sample stamped t, [(position, acceleration)]
+        per axis, or None (none sent)."""
+        controller = self.controller
+        while self.t < until - 1e-9:
+            t0, t1 = self.t, self.t + DT
+            pairs = sample(t0) if sample else None
+            if pairs is not None:
+                offer = controller.offer([p for p, _ in pairs], t0)
+                self.offers.append(offer)
+                if offer is Offer.START:
+                    for one in self.playouts:
+                        one.reset()
+                if offer is not Offer.REFUSE:
+                    for one, (p, a) in zip(self.playouts, pairs):
+                        one.push(t0, p, a)
+            if controller.state is S.TRACKING:
+                tracked = [one.step(t0, t1) for one in self.playouts]
+                lost, self.seen = self.playouts[0].timeouts > self.seen, self.playouts[0].timeouts
+                ramps = controller.step(t0, t1, tracked, lost)
+            else:
+                ramps = controller.step(t0, t1)
+            self.sim.step(*zip(*ramps))
+            self.changes += controller.take_changes()
+            self.rows.append((t1, [self.sim.axis_state(a) for a in self.sim.axes]))
+            self.k += 1
+        return self
+
+    def at(self, t: float, axis: int = 0):
+        """The plant's (position, velocity, acceleration) of an axis at the end of the step ending at ``t``."""
+        return next(state[axis] for t1, state in self.rows if abs(t1 - t) < DT / 2)
+
+
+def accelerating(t: float):
+    """The cart's reference: 0.3 m/s^2 for a second, then 0.1 m/s^2 (still accelerating when the stream dies)."""
+    if t < 1.0:
+        return [(0.15 * t * t, 0.3)]
+    return [(0.15 + 0.3 * (t - 1.0) + 0.05 * (t - 1.0) ** 2, 0.1)]
+
+
+def until(t_end, reference):
+    """``reference`` for stamps before ``t_end``, then nothing: the streamer killed at ``t_end``."""
+    return lambda t: reference(t) if t < t_end - 1e-9 else None
+
+
+def lost_stream(kill: float = 1.5, axes=('cart',), reference=accelerating, **kwargs) -> Rig:
+    rig = Rig(axes, **kwargs).run(kill + DELAY + TIMEOUT + 3.0, until(kill, reference))
+    assert [c.new for c in rig.changes] == [S.TRACKING, S.FAULT_STOPPING, S.FAULT_HOLD]
+    return rig
+
+
+# --------------------------------------------------------------------------- the state machine
+
+
+def test_only_the_listed_transitions_are_legal():
+    for old, new in itertools.product(S, S):
+        if new in TRANSITIONS[old]:
+            check_transition(old, new)
+        else:
+            with pytest.raises(IllegalTransition, match=f'from {old.value} to {new.value}'):
+                check_transition(old, new)
+    # a fault is always reported stopping first, and left only by a resume or a reset
+    assert S.FAULT_HOLD not in TRANSITIONS[S.TRACKING] and S.TRACKING not in TRANSITIONS[S.FAULT_STOPPING]
+    assert all(S.IDLE in TRANSITIONS[s] for s in S)
+
+
+def test_an_illegal_change_raises_and_leaves_the_state():
+    controller = AxisController(['cart'], [0.0])
+    with pytest.raises(IllegalTransition):
+        controller._change(S.FAULT_HOLD, 0.0)
+    assert controller.state is S.IDLE and not controller.changes
+
+
+def test_before_a_first_reference_it_rests_and_takes_the_first_wherever_it_starts():
+    rig = Rig().run(1.0)
+    assert rig.controller.state is S.IDLE and rig.at(1.0) == (0.0, 0.0, 0.0)
+    assert rig.controller.offer([0.25], 1.0) is Offer.START  # no fault: no position check
+    assert rig.controller.state is S.TRACKING and rig.controller.offer([7.0], 1.0) is Offer.ACCEPT
+
+
+# --------------------------------------------------------------------------- the fault reaction
+
+
+def test_a_lost_stream_brakes_the_reference_and_the_cart_stops_within_the_stopping_distance():
+    rig = lost_stream()
+    fault, (_, stopping, holding) = rig.controller.fault, rig.changes
+    # declared lost when the newest sample (stamped 1.499 s) is older than the timeout at the playout time
+    assert stopping.time == pytest.approx(1.499 + DELAY + TIMEOUT, abs=1.01 * DT)
+    # from the reference's velocity and acceleration then: the zoh-held 0.1 m/s^2 kept accelerating it (to a
+    # step: which step a stamp on the grid falls in is the rounding's)
+    braking = fault.brakings[0]
+    assert braking.a0 == pytest.approx(0.1, abs=1e-12)
+    assert braking.v0 == pytest.approx(0.3 + 0.1 * (stopping.time - DELAY - 1.0), abs=0.2 * DT + 1e-12)
+    assert holding.time - stopping.time == pytest.approx(braking.duration, abs=DT)
+    # the plant travels the reference's stopping distance plus the servo's lag (Eq. 6: the reference leads
+    # the cart by tau * v), which comes to rest exactly where the reference holds
+    y_f, v_f, _ = rig.at(stopping.time)
+    y_end, v_end, a_end = rig.at(rig.t)
+    travelled, expected = y_end - y_f, stopping_distance(braking.v0, braking.a0, D, J)
+    assert abs(travelled - expected) <= PLANT.tau * abs(v_f) + 1e-9
+    assert travelled == pytest.approx(expected + PLANT.tau * v_f, abs=1e-9)
+    assert y_end == pytest.approx(fault.stops[0], abs=1e-9) and abs(v_end) < 1e-9 and abs(a_end) < 1e-9
+    # the servo never demands more than the ramp: |a| within D once the first phase has eased a0 off
+    braking_rows = [s[0] for t, s in rig.rows if stopping.time < t <= holding.time]
+    assert max(abs(a) for _, _, a in braking_rows) <= max(D, abs(braking.a0)) + 1e-9
+
+
+def test_the_braking_follows_the_closed_form_step_by_step():
+    """The reference at every step's end is the closed form's (the ramps match its integrals exactly)."""
+    rig = Rig().run(1.5, accelerating)
+    controller = rig.controller
+    ramps = controller.step(rig.t, rig.t + DT, [(0.0, 0.0)], lost=True)  # lost now, from the reference's state
+    braking = controller.fault.brakings[0]
+    origin, v = controller.fault.origins[0], braking.v0
+    for n in range(1, 900):
+        r0, r1 = ramps[0]
+        v += DT * (r0 + r1) / 2  # what the plant's servo got
+        ramps = controller.step(rig.t + n * DT, rig.t + (n + 1) * DT)
+        ref = controller.references[0]
+        p1, v1, _ = braking.state((n + 1) * DT)
+        assert (ref.position, ref.velocity) == pytest.approx((origin + p1, v1), abs=1e-12)
+        assert v == pytest.approx(braking.velocity(n * DT), abs=1e-12)
+    assert controller.state is S.FAULT_HOLD
+
+
+def test_it_holds_without_a_reference():
+    rig = lost_stream()
+    held = rig.controller.fault.stops[0]
+    rig.run(rig.t + 5.0)  # nothing arrives
+    assert rig.controller.state is S.FAULT_HOLD
+    y, v, a = rig.at(rig.t)
+    assert y == pytest.approx(held, abs=1e-9) and abs(v) < 1e-9
+
+
+def test_a_sample_far_from_where_the_axes_stand_is_refused_and_counted():
+    rig = lost_stream()
+    controller = rig.controller
+    held = controller.fault.stops[0]
+    before = rig.at(rig.t)
+    rig.run(rig.t + 0.5, lambda t: [(held + 2e-3, 0.2)])  # a stream that does not start where the cart stands
+    assert controller.state is S.FAULT_HOLD and controller.refused == 500
+    assert set(rig.offers[-500:]) == {Offer.REFUSE}
+    assert controller.last_refusal.state is S.FAULT_HOLD
+    assert controller.last_refusal.offsets == pytest.approx((2e-3,), abs=1e-12)
+    assert rig.at(rig.t)[0] == pytest.approx(before[0], abs=1e-12)  # it did not move the cart
+
+
+def test_samples_while_stopping_are_refused_even_where_it_will_stop():
+    rig = Rig().run(1.5, accelerating)
+    rig.run(1.5 + DELAY + TIMEOUT + 0.1)  # lost, braking
+    controller = rig.controller
+    assert controller.state is S.FAULT_STOPPING
+    stop = controller.fault.stops[0]
+    assert controller.offer([stop], rig.t) is Offer.REFUSE
+    assert controller.last_refusal.state is S.FAULT_STOPPING and controller.last_refusal.offsets == (0.0,)
+
+
+def test_a_stream_starting_where_the_axes_stand_resumes_from_rest():
+    rig = lost_stream()
+    controller = rig.controller
+    held = controller.fault.stops[0]
+    start = rig.t
+
+    def move(t):  # a new stream 0.5 mm off where the cart holds, accelerating at 0.2 m/s^2 for 0.5 s
+        s = t - start
+        return [(held + 5e-4 + 0.1 * s * s, 0.2)] if s < 0.5 else [(held + 5e-4 + 0.025 + 0.1 * (s - 0.5), 0.0)]
+
+    rig.run(start + 1.0, move)
+    assert [c.new for c in rig.changes[-1:]] == [S.TRACKING] and controller.fault is None
+    assert rig.offers[0] is Offer.START and rig.offers[-1] is Offer.ACCEPT
+    # from rest where it held: the new stream's accelerations, played DELAY later
+    ref = controller.references[0]
+    assert ref.velocity == pytest.approx(0.1, abs=1e-9)
+    assert ref.position == pytest.approx(held + 0.025 + 0.1 * (1.0 - DELAY - 0.5), abs=1e-9)
+
+
+def test_reset_clears_a_fault_and_waits_for_a_first_reference():
+    rig = lost_stream()
+    controller = rig.controller
+    rig.sim.reset(rig.sim.state)
+    controller.reset(rig.positions(), rig.t)
+    assert controller.state is S.IDLE and controller.fault is None
+    assert controller.offer([3.0], rig.t) is Offer.START  # anywhere: a first reference again
+
+
+def test_both_axes_brake_and_hold_once_both_are_at_rest():
+    L1 = PLANT.L1
+
+    def reference(t):  # the cart as above; the hoist shortening the rope at 0.05 m/s^2 for 0.4 s, then coasting
+        hoist = (L1 - 0.025 * t * t, -0.05) if t < 0.4 else (L1 - 0.004 - 0.02 * (t - 0.4), 0.0)
+        return [*accelerating(t), hoist]
+
+    rig = lost_stream(axes=('cart', 'hoist'), reference=reference)
+    fault = rig.controller.fault
+    cart, hoist = fault.brakings
+    assert hoist.v0 == pytest.approx(-0.02, abs=0.05 * DT + 1e-12) and hoist.a0 == 0.0
+    assert fault.stopped_at - fault.lost_at == pytest.approx(max(cart.duration, hoist.duration), abs=DT)
+    for axis, braking, tau in ((0, cart, PLANT.tau), (1, hoist, PLANT.tau_hoist)):
+        y_f, v_f, _ = rig.at(fault.lost_at, axis)
+        y_end, v_end, _ = rig.at(rig.t, axis)
+        assert y_end - y_f == pytest.approx(stopping_distance(braking.v0, braking.a0, D, J) + tau * v_f, abs=1e-9)
+        assert y_end == pytest.approx(fault.stops[axis], abs=1e-9) and abs(v_end) < 1e-9
+    # a stream resumes only if it starts where every axis stands
+    held = fault.stops
+    assert rig.controller.offer([held[0], held[1] + 2e-3], rig.t) is Offer.REFUSE
+    assert rig.controller.last_refusal.offsets == pytest.approx((0.0, 2e-3), abs=1e-12)
+    assert rig.controller.offer([held[0] - 1e-4, held[1] + 1e-4], rig.t) is Offer.START
+
+
+def test_with_positions_only_the_playout_has_held_the_last_one_so_it_holds_there_at_once():
+    """A controller that only gets positions holds the last setpoint when they stop coming (the playout): by
+    the time the stream is declared lost the reference rests, so the braking has no length (but rounding's,
+    within the step); the fault is still reported (stopping, then holding) and the stream resumes from the
+    last position."""
+    def positions(t):
+        p, _ = accelerating(t)[0]
+        return [(p, 0.0)]
+
+    rig = lost_stream(source='position', reference=positions)
+    _, stopping, holding = rig.changes
+    assert stopping.time == rig.controller.fault.lost_at and holding.time - stopping.time <= DT + 1e-12
+    assert abs(rig.controller.fault.brakings[0].distance) < 1e-12
+    last = positions(1.499)[0][0]
+    assert rig.controller.fault.stops[0] == pytest.approx(last, abs=1e-9)
+    assert rig.at(rig.t)[0] == pytest.approx(last, abs=1e-9)
+    assert rig.controller.offer([last], rig.t) is Offer.START
+
+
+def test_the_status_says_when_the_stream_was_lost_and_where_each_axis_stops():
+    rig = Rig().run(1.5, accelerating).run(1.5 + DELAY + TIMEOUT + 0.1)
+    controller = rig.controller
+    fault = controller.fault
+    status = controller.status(clock=lambda t: 1000.0 + t)
+    assert status.state is S.FAULT_STOPPING and status.positions == fault.origins
+    assert f'reference stream lost at {1000.0 + fault.lost_at:.3f} s' in status.message
+    assert 'no fresh sample for 0.5 s' in status.message and 'braking at 0.5 m/s^2, jerk 5 m/s^3' in status.message
+    assert f'to stop at {fault.stops[0]:.6g} m' in status.message
+    rig.run(rig.t + 2.0)
+    status = controller.status()
+    assert status.state is S.FAULT_HOLD and status.positions == fault.stops
+    assert f'holding cart at {fault.stops[0]:.6g} m' in status.message and 'within 0.001 m' in status.message
+    # a change's status is that of its new state, whatever the state now
+    assert controller.status(S.FAULT_STOPPING).state is S.FAULT_STOPPING
+    assert controller.status(S.TRACKING).state is S.TRACKING and S.TRACKING not in FAULT_STATES
+
+
+def test_the_next_fault_uses_a_changed_configuration():
+    rig = Rig().run(1.5, accelerating)
+    rig.controller.config = FaultConfig(deceleration=2.0, jerk=50.0, resume_tolerance=1e-3, timeout=TIMEOUT)
+    rig.run(1.5 + DELAY + TIMEOUT + 2.0)
+    braking = rig.controller.fault.brakings[0]
+    assert (braking.D, braking.J) == (2.0, 50.0)
+    assert braking == Braking(braking.v0, braking.a0, 2.0, 50.0)
+
+
+@pytest.mark.parametrize('name', ['deceleration', 'jerk', 'resume_tolerance', 'timeout'])
+def test_the_configuration_needs_positive_values(name):
+    with pytest.raises(ParameterError, match=name):
+        FaultConfig(**{name: 0.0})
