@@ -25,6 +25,9 @@ from .transitions import JointReading, Measurement, Running
 
 #: How fresh (s) the last ``stream_state`` must be for the streamer to count as heard.
 STREAM_FRESH = 1.0
+#: How long (s) a goal waits for a streamer not heard: one just (re)started is matched by discovery within a
+#: participant announcement period of Fast DDS (3 s) if its first announcements were missed.
+DISCOVERY_WAIT = 3.5
 #: ``StreamState.state`` values (``crane_msgs_py.conversions``): streaming a motion, following cmd_vel.
 STREAMING, OPERATOR = 'streaming', 'operator'
 #: A motion the streamer says it does not stream this long (ns) after its origin was refused.
@@ -112,6 +115,16 @@ class CraneView:
         if stream is None or self._clock() - stream[0] > self._fresh * 1e9:
             return None
         return stream[1]
+
+    def wait_heard(self, timeout: float) -> StreamSample | None:
+        """The streamer's newest state, waiting up to ``timeout`` s for one if none was heard within ``fresh``:
+        a streamer just (re)started is found once discovery has matched it, which takes a moment."""
+        deadline = self._monotonic() + timeout
+        heard = self.heard()
+        while heard is None and self._monotonic() < deadline:
+            self._sleep(0.02)
+            heard = self.heard()
+        return heard
 
     def hold(self) -> dict | None:
         """Where the streamer holds each joint (m), if it was heard within ``fresh`` s."""

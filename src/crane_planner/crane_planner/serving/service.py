@@ -30,7 +30,7 @@ from ..planning.plan import Plan, time_grid
 from ..streaming.knots import knot_times
 from . import transitions
 from .config import Config
-from .crane_view import STREAM_FRESH, CraneView, StreamSample
+from .crane_view import DISCOVERY_WAIT, CraneView, StreamSample
 from .execution import DONE, FAILED, MOVING, WAITING, Execution
 from .goals import Goal, Goals, GoalState, TakeOver
 from .handover import (
@@ -168,7 +168,9 @@ class MoveService:
         values = {'service': service, 'method': move.method or config.method,
                   'start': move.start[0] if move.start else math.nan,
                   'goal': move.goal[0] if move.goal else math.nan, 'duration': move.duration}
-        hold = self.view.hold()
+        # a goal waits a moment for a streamer not heard yet (one just restarted is being discovered)
+        heard = self.view.wait_heard(DISCOVERY_WAIT) if execute else self.view.heard()
+        hold = None if heard is None else heard.hold
         try:
             checked = check_move(move, config.bounds, hold, config.params.L1)
             cart = checked.axes[CART_JOINT]
@@ -179,7 +181,6 @@ class MoveService:
                     values.update({f'{name}_start': axis_move.start, f'{name}_goal': axis_move.goal})
             plan = plan_move(self.planner, checked, config.bounds, config.params, config.options)
             if execute:  # after planning: a preview and a goal of the same bad move give the same reason
-                heard = self.view.heard()
                 check_executable(checked, hold, heard is not None and heard.operator, self.view.foreign_motion())
         except ValueError as exc:
             exc.values = values
@@ -522,7 +523,7 @@ def check_executable(move: CheckedMove, hold: dict | None, operator: bool = Fals
     """What the streamer would refuse, refused before anything is sent (``foreign``: seconds left of a motion
     the streamer streams that this planner did not send, ``CraneView.foreign_motion``)."""
     if hold is None:
-        raise MoveError('goal', f'no streamer heard on {STREAM_STATE_TOPIC} within {STREAM_FRESH:g} s: nothing '
+        raise MoveError('goal', f'no streamer heard on {STREAM_STATE_TOPIC} for {DISCOVERY_WAIT:g} s: nothing '
                                 'would stream the motion (is crane_streamer running and started?)')
     if operator:
         raise MoveError('goal', 'the streamer is in operator mode (it follows cmd_vel): set its mode to '

@@ -15,6 +15,7 @@ from typing import Callable
 
 import numpy as np
 import rclpy
+from crane_interfaces.msg import StreamState
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.parameter import Parameter
@@ -28,6 +29,7 @@ from crane_msgs_py.conversions import (
     joint_state_to_arrays,
     move_message,
     read_reference,
+    read_stream_state,
     samples_to_joint_trajectory,
     stamp_ns,
 )
@@ -42,11 +44,18 @@ from crane_msgs_py.names import (
     RESET_SERVICE,
     SETTLE_SERVICE,
     SIM_NODE,
+    STREAM_STATE_TOPIC,
     STREAMER_NODE,
     TRAJECTORY_TOPIC,
     service_of,
 )
-from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS, TRAJECTORY_QOS, recording
+from crane_msgs_py.qos import (
+    JOINT_STATES_QOS,
+    REFERENCE_EVERY_SAMPLE_QOS,
+    STREAM_STATE_QOS,
+    TRAJECTORY_QOS,
+    recording,
+)
 from crane_msgs_py.runner import spinning
 
 from .processes import PLANNER, SIM, STREAMER, NodeGroup
@@ -114,6 +123,9 @@ class CraneHarness:
                                       recording(JOINT_STATES_QOS, 10.0, 50.0), callback_group=group)
         self.node.create_subscription(JointTrajectory, TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS,
                                       callback_group=group)
+        self._stream_state: tuple | None = None  # (received ns, read_stream_state of the newest)
+        self.node.create_subscription(StreamState, STREAM_STATE_TOPIC, self._on_stream_state, STREAM_STATE_QOS,
+                                      callback_group=group)
         self._trajectory_pub = self.node.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
         self._reference_sub = None  # (node, spinning, rows) while the 1 kHz reference is kept (keep_references)
         self._executor = MultiThreadedExecutor(num_threads=3)
@@ -128,6 +140,17 @@ class CraneHarness:
         joints = (msg.position[names.index(j)] if j in names else math.nan for j in ACTUATED_JOINTS)
         with self._lock:
             self._states.append((stamp_ns(msg.header.stamp), *pos, *joints))
+
+    def _on_stream_state(self, msg):
+        self._stream_state = (self.now_ns(), read_stream_state(msg))
+
+    def stream_hold(self, joint: str = 'cart', fresh: float = 0.5) -> float | None:
+        """Where the streamer holds (or streams) ``joint`` now (m), from a ``stream_state`` received within
+        ``fresh`` s; None if none was."""
+        state = self._stream_state
+        if state is None or self.now_ns() - state[0] > fresh * 1e9:
+            return None
+        return state[1][2].get(joint)
 
     def references(self) -> list:
         """The references kept so far (``keep_references``): rows of (stamp ns, position, velocity,

@@ -1,15 +1,16 @@
-"""ROS: the sim's fault reaction to a lost reference stream, with the real executables and a real SIGKILL.
+"""ROS: faults through the real executables, with real processes and real signals.
 
-The planner executes a move; the streamer is killed (SIGKILL to its process
-group: no last word) at 40 % of it. The sim, like a drive whose cyclic
-setpoints stop, brakes every axis's reference to rest at
-``fault_deceleration`` (jerk-limited) once no fresh sample has come for
-``reference_timeout``, holds, and says so on ``axis_status`` and
-``/diagnostics``; a streamer started again holds where the cart stands, and
-the sim resumes from it. Everything is judged from what the nodes publish
-(``joint_states`` and ``axis_status`` in plant time), never from how fast
-this host runs: the timeouts below only guard against a hang.
+A streamer killed mid-move: the sim, like a drive whose cyclic setpoints stop, brakes every axis's
+reference to rest at ``fault_deceleration`` (jerk-limited) once no fresh sample has come for
+``reference_timeout``, holds, and says so on ``axis_status`` and ``/diagnostics``; the planner aborts the
+goal naming the lost stream; a streamer started again holds where the cart stands, the sim resumes from it
+and the next goal runs. A planner killed mid-move (the streamer finishes the motion; a restarted planner
+serves the next goal from where the crane stands), the two restarted in either order, and joint_states lost
+during a goal (it ends saying it could not measure the residual). Everything is judged from what the nodes
+publish (``joint_states`` and ``axis_status`` in plant time, ``stream_state``), never from how fast this host
+runs: the timeouts only guard against a hang.
 """
+import math
 import os
 import signal
 import threading
@@ -21,6 +22,8 @@ from crane_msgs_py.braking import stopping_distance
 from crane_msgs_py.params import CraneParams
 
 NS = '/crane_faults'
+STATUS_ABORTED = 6  # action_msgs/GoalStatus
+LOST_STREAM = 'lost the reference stream'
 T = 4.0          # s of the move
 GOAL = 0.6       # m
 KILL_AT = 0.4    # of the move
@@ -105,7 +108,7 @@ def kill_streamer(driver) -> tuple[int, int]:
     return before, after
 
 
-def test_a_killed_streamer_makes_the_sim_brake_to_rest_hold_and_resume_from_a_new_one(crane):
+def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new_one_start_where_it_stands(crane):
     from crane_msgs_py.conversions import joint_trajectory_to_arrays
     from crane_msgs_py.diagnostics import WARN, level_of, status_values
     from crane_planner.tools.processes import STREAMER
@@ -118,6 +121,11 @@ def test_a_killed_streamer_makes_the_sim_brake_to_rest_hold_and_resume_from_a_ne
     driver.sleep(max(0.0, (start + round(KILL_AT * T * 1e9) - driver.now_ns()) * 1e-9))
     mark = driver.planner.diagnostics.mark()
     kill_before, kill_after = kill_streamer(driver)
+    # the planner: the goal aborted, naming the lost stream (its stream_timeout, 1 s, after the last word)
+    status, result = driver.outcome(start, timeout=20.0)
+    aborted_after = (driver.now_ns() - kill_after) * 1e-9
+    assert status == STATUS_ABORTED and LOST_STREAM in result.message, result.message
+    assert aborted_after < 3.0, f'aborted {aborted_after:.2f} s after the streamer died'
 
     # the fault reaction, in order: stopping, then holding
     statuses = states_after(driver, recorder, lambda s: any(x[1] == 'fault_hold' for x in s), 30.0, 'fault_hold')
@@ -178,3 +186,100 @@ def test_a_killed_streamer_makes_the_sim_brake_to_rest_hold_and_resume_from_a_ne
     driver.wait_until(lambda: len(recorder.rows(resumed[0])) >= 10, 30.0, 'no joint_states after the resume')
     later = recorder.rows(resumed[0])
     assert np.all(np.abs(later[:, 1] - held) < 1e-6)  # the new stream holds it there
+    # the planner finds the new streamer by itself and serves the next goal from where the crane stands
+    assert streamed_hold(driver) == pytest.approx(y_rest, abs=1e-3)
+    result = driver.planner.result(driver.planner.send_execute('nvf', None, 0.2, 3.0, settle=0.5), timeout=30.0)
+    assert result.success, result.message  # (the load still swings from the fault's braking: no anti-sway stop)
+    assert streamed_hold(driver) == pytest.approx(0.2, abs=1e-9)
+    settle, _ = driver.settle()  # the swing damped for the next test
+    end = driver.trajectory(settle).points[-1].time_from_start
+    driver.sleep(max(0.0, (settle + end.sec * 1e9 + end.nanosec - driver.now_ns()) * 1e-9 + 0.3))
+
+
+def kill(driver, name: str) -> int:
+    """SIGKILL the node ``name`` (planner, streamer or sim) and its process group (its solver processes
+    too); the ROS time (ns) it was killed at."""
+    proc = next(p for p in driver.nodes.processes if p.name.startswith(name))
+    killed = driver.now_ns()
+    os.killpg(proc.popen.pid, signal.SIGKILL)
+    proc.popen.wait(10.0)
+    driver.nodes.processes.remove(proc)  # (the harness's waits watch the others)
+    return killed
+
+
+def restart(driver, name: str, **params):
+    from crane_planner.tools.processes import PLANNER, SIM, STREAMER
+    executable = {'planner': PLANNER, 'streamer': STREAMER, 'sim': SIM}[name]
+    count = sum(p.name.startswith(name) for p in driver.nodes.processes)
+    driver.nodes.start(*executable, name=f'{name}-{driver.now_ns()}', namespace=NS, params=params or None)
+    assert sum(p.name.startswith(name) for p in driver.nodes.processes) == count + 1
+
+
+def wait_planner_up(driver, mark):
+    """Wait until the planner started after ``mark`` (``diagnostics.mark()``) has warmed up and serves."""
+    driver.wait_until(lambda: driver.planner.diagnostics.wait_for(name='crane_planner: solvers', timeout=0.1,
+                                                                  after=mark) is not None,
+                      120.0, 'the restarted planner did not warm up')
+    driver.wait_until(lambda: driver.planner.wait_for_service(0.1), 60.0, 'the restarted planner does not serve')
+
+
+def streamed_hold(driver) -> float:
+    """Where the streamer holds the cart now (its stream_state), waiting for one to be heard."""
+    driver.wait_until(lambda: driver.stream_hold() is not None, 30.0, 'no stream_state from the streamer')
+    return driver.stream_hold()
+
+
+def test_a_planner_killed_mid_move_lets_the_motion_finish_and_a_restarted_one_serves_from_where_it_stands(crane):
+    crane, _ = crane
+    here = streamed_hold(crane)
+    start, _, _ = crane.move('nvf', None, here + 0.4, 3.0, settle=1.0)
+    crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.0))
+    kill(crane, 'planner')
+    end = start + 3_000_000_000
+    crane.sleep(max(0.0, (end - crane.now_ns()) * 1e-9 + 2.5))
+    from crane_planner.tools.harness import state_columns
+    from crane_sim.metrics import residual_load_mm
+    rows = state_columns(crane.states_between(end, end + 2_000_000_000, timeout=10.0))
+    t = (rows['stamp'] - end) * 1e-9
+    residual = residual_load_mm(t, rows['theta1'], rows['theta2'], PLANT.L1, PLANT.L2, after=t[0])
+    assert residual <= 0.5, f'residual {residual:.3f} mm after the planner died mid-move'
+    assert rows['cart'][-1] == pytest.approx(here + 0.4, abs=1e-4)  # the streamer finished the motion
+
+    mark = crane.planner.diagnostics.mark()
+    restart(crane, 'planner')
+    wait_planner_up(crane, mark)
+    result = crane.planner.result(crane.planner.send_execute('zv', None, here, 3.0, settle=1.0), timeout=30.0)
+    assert result.success, result.message
+    assert streamed_hold(crane) == pytest.approx(here, abs=1e-9)
+
+
+@pytest.mark.parametrize('first', ['streamer', 'planner'])
+def test_streamer_and_planner_restarted_in_either_order_serve_the_next_goal(crane, first):
+    crane, _ = crane
+    here = streamed_hold(crane)
+    second = 'planner' if first == 'streamer' else 'streamer'
+    for name in (first, second):
+        kill(crane, name)
+    mark = crane.planner.diagnostics.mark()
+    for name in (first, second):
+        restart(crane, name)
+    wait_planner_up(crane, mark)
+    crane.wait_until(lambda: crane.stream_hold() is not None, 60.0, 'the restarted streamer never streamed')
+    assert crane.stream_hold() == pytest.approx(here, abs=1e-3)
+    goal = round(crane.stream_hold() + 0.1, 6)
+    result = crane.planner.result(crane.planner.send_execute('zv', None, goal, 2.0, settle=1.0), timeout=60.0)
+    assert result.success, result.message
+    assert streamed_hold(crane) == pytest.approx(goal, abs=1e-9)
+
+
+def test_joint_states_lost_during_a_goal_end_it_saying_the_residual_was_not_measured(crane):
+    crane, _ = crane
+    here = streamed_hold(crane)
+    handle = crane.planner.send_execute('zv', None, here - 0.3, 2.0, settle=1.0)
+    crane.sleep(1.0)
+    kill(crane, 'sim')
+    response = crane._wait(handle.get_result_async(), 30.0, 'the goal\'s result')
+    assert response.result.success, response.result.message  # the motion was streamed to its end
+    assert math.isnan(response.result.residual_swing)
+    assert 'residual not measured' in response.result.message
+    restart(crane, 'sim')  # the module ends with three nodes, as it started (a fresh plant: at rest at 0 m)
