@@ -272,6 +272,57 @@ def test_streamer_and_planner_restarted_in_either_order_serve_the_next_goal(cran
     assert streamed_hold(crane) == pytest.approx(goal, abs=1e-9)
 
 
+def stop_planner_processes(streamer_pid: int) -> list[int]:
+    """The streamer's stop planner: its fork server (a child running multiprocessing.forkserver) and the
+    worker under it, from /proc."""
+    tree = {}
+    for entry in filter(str.isdigit, os.listdir('/proc')):
+        try:
+            with open(f'/proc/{entry}/stat') as f:
+                tree.setdefault(int(f.read().rsplit(')', 1)[1].split()[1]), []).append(int(entry))
+        except (OSError, ValueError, IndexError):
+            continue
+
+    def forkserver(pid: int) -> bool:
+        try:
+            with open(f'/proc/{pid}/cmdline', 'rb') as f:
+                return b'multiprocessing.forkserver' in f.read()
+        except OSError:
+            return False
+    servers = [p for p in tree.get(streamer_pid, []) if forkserver(p)]
+    return servers + [w for server in servers for w in tree.get(server, [])]
+
+
+def test_a_stop_with_no_stop_planner_brakes_along_the_jerk_limited_ramp_never_an_abrupt_hold(crane):
+    """The streamer's stop planner killed: a ~/stop during a motion cannot be one without swing, so every axis
+    brakes along its ramp (fault_deceleration 0.5 m/s^2, fault_jerk 5 m/s^3): the reference's acceleration
+    never steps by more than the jerk limit allows in one tick (a hold would step by the whole of it)."""
+    crane, _ = crane
+    streamer = next(p for p in crane.nodes.processes if p.name.startswith('streamer'))
+    here = streamed_hold(crane)
+    crane.keep_references(True)
+    start, _, _ = crane.move('nvf', None, here + 0.5, 3.0, settle=0.5)
+    victims = stop_planner_processes(streamer.popen.pid)
+    assert victims, 'no stop planner process under the streamer'
+    for pid in victims:
+        os.kill(pid, signal.SIGKILL)
+    crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.2))
+    called = crane.now_ns()
+    response = crane.call_streamer('stop')
+    assert response.success and 'braking ramp' in response.message, response.message
+    crane.outcome(start, timeout=30.0)
+    crane.sleep(2.0)
+    rows = crane.keep_references(False)
+    after = rows[rows[:, 0] >= called]
+    steps = np.abs(np.diff(after[:, 3]))
+    assert np.max(steps) <= 5.0 * 1e-3 * (1 + 1e-6) + 1e-9, f'acceleration step {np.max(steps):.4g} m/s^2'
+    assert after[-1, 2] == 0.0 and after[-1, 3] == 0.0  # at rest
+    assert here < after[-1, 1] < here + 0.5  # braked short of the goal
+    response = crane.call_streamer('start')  # streaming again from where the axes stand
+    assert response.success, response.message
+    crane.wait_until(lambda: crane.stream_hold() is not None, 30.0, 'the streamer did not start again')
+
+
 def test_joint_states_lost_during_a_goal_end_it_saying_the_residual_was_not_measured(crane):
     crane, _ = crane
     here = streamed_hold(crane)
