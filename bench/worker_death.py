@@ -50,15 +50,6 @@ def main() -> int:
     return 0 if result['pass'] else 1
 
 
-def cpu_ticks(pid: int) -> int:
-    try:
-        with open(f'/proc/{pid}/stat') as f:
-            fields = f.read().rsplit(')', 1)[1].split()
-    except OSError:
-        return 0
-    return int(fields[11]) + int(fields[12])
-
-
 def wait_until(predicate, timeout: float = 300.0) -> None:
     deadline = time.monotonic() + timeout
     while not predicate():
@@ -98,6 +89,7 @@ def one_kill(planner, move, model, options, kill: str) -> dict:
     from multiprocessing import forkserver
 
     from crane_planner.planning import PlanOptions
+    from crane_planner.tools.processes import cpu_ticks
     done = {}
 
     def ask():

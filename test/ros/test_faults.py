@@ -273,24 +273,10 @@ def test_streamer_and_planner_restarted_in_either_order_serve_the_next_goal(cran
 
 
 def stop_planner_processes(streamer_pid: int) -> list[int]:
-    """The streamer's stop planner: its fork server (a child running multiprocessing.forkserver) and the
-    worker under it, from /proc."""
-    tree = {}
-    for entry in filter(str.isdigit, os.listdir('/proc')):
-        try:
-            with open(f'/proc/{entry}/stat') as f:
-                tree.setdefault(int(f.read().rsplit(')', 1)[1].split()[1]), []).append(int(entry))
-        except (OSError, ValueError, IndexError):
-            continue
-
-    def forkserver(pid: int) -> bool:
-        try:
-            with open(f'/proc/{pid}/cmdline', 'rb') as f:
-                return b'multiprocessing.forkserver' in f.read()
-        except OSError:
-            return False
-    servers = [p for p in tree.get(streamer_pid, []) if forkserver(p)]
-    return servers + [w for server in servers for w in tree.get(server, [])]
+    """The streamer's stop planner: its fork server and the worker under it, from /proc."""
+    from crane_planner.tools.processes import fork_servers, process_children
+    servers = fork_servers(streamer_pid)
+    return servers + [w for server in servers for w in process_children().get(server, [])]
 
 
 def test_a_stop_with_no_stop_planner_brakes_along_the_jerk_limited_ramp_never_an_abrupt_hold(crane):

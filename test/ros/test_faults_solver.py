@@ -15,6 +15,8 @@ import time
 
 import pytest
 
+from crane_planner.tools.processes import cpu_ticks, fork_servers, process_children
+
 NS = '/crane_faults'
 SOLVER_PROCESSES = 2
 #: Hang guard (s) for a start, a build or an answer on this small shared host.
@@ -23,43 +25,11 @@ GUARD = 180.0
 HOPELESS = (0.0, 5.0, 0.5)
 
 
-def children() -> dict:
-    """Every process's children, from /proc (ppid -> [pid])."""
-    tree = {}
-    for entry in os.listdir('/proc'):
-        if entry.isdigit():
-            try:
-                with open(f'/proc/{entry}/stat') as f:
-                    ppid = int(f.read().rsplit(')', 1)[1].split()[1])
-            except (OSError, ValueError, IndexError):
-                continue
-            tree.setdefault(ppid, []).append(int(entry))
-    return tree
-
-
-def cmdline(pid: int) -> str:
-    try:
-        with open(f'/proc/{pid}/cmdline', 'rb') as f:
-            return f.read().replace(b'\0', b' ').decode(errors='replace')
-    except OSError:
-        return ''
-
-
 def solver_processes(node_pid: int) -> list[int]:
-    """The planner's solver processes: the children of its fork server (a child running
-    multiprocessing.forkserver; its other child is multiprocessing's resource tracker)."""
-    tree = children()
-    servers = [p for p in tree.get(node_pid, []) if 'multiprocessing.forkserver' in cmdline(p)]
-    return sorted(w for server in servers for w in tree.get(server, []))
-
-
-def cpu_ticks(pid: int) -> int:
-    try:
-        with open(f'/proc/{pid}/stat') as f:
-            fields = f.read().rsplit(')', 1)[1].split()
-    except OSError:
-        return 0
-    return int(fields[11]) + int(fields[12])
+    """The planner's solver processes: the children of its fork server (its other child is multiprocessing's
+    resource tracker)."""
+    tree = process_children()
+    return sorted(w for server in fork_servers(node_pid) for w in tree.get(server, []))
 
 
 def wait_until(nodes, predicate, what: str, timeout: float = GUARD, interval: float = 0.02):
@@ -128,7 +98,7 @@ def test_solver_processes_killed_mid_request_are_reported_replaced_and_the_next_
     wait_until(nodes, lambda: any(cpu_ticks(p) >= before[p] + 3 for p in workers), 'a solver process solving')
     victims = list(workers)
     if fork_server:
-        victims += [p for p in children().get(process.popen.pid, []) if 'multiprocessing.forkserver' in cmdline(p)]
+        victims += fork_servers(process.popen.pid)
     for pid in victims:
         os.kill(pid, signal.SIGKILL)
     request.join(GUARD)

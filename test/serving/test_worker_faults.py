@@ -23,6 +23,7 @@ from crane_planner.planning.dispatch import VariationalRequest
 from crane_planner.serving import Planner
 from crane_planner.serving.planner import OK, WARN
 from crane_planner.serving.workers import Death
+from crane_planner.tools.processes import cpu_ticks
 
 MODEL = CraneParams()
 OPTIONS = PlanOptions(max_solve_time=1.0)
@@ -43,16 +44,6 @@ def wait_until(predicate, timeout=GUARD):
         assert timeout > 0, 'condition not met in time'
         event.wait(0.05)
         timeout -= 0.05
-
-
-def cpu_ticks(pid: int) -> int:
-    """The process's user + system CPU time in clock ticks (0 once it is gone)."""
-    try:
-        with open(f'/proc/{pid}/stat') as f:
-            fields = f.read().rsplit(')', 1)[1].split()
-    except OSError:
-        return 0
-    return int(fields[11]) + int(fields[12])
 
 
 class Request:

@@ -63,7 +63,7 @@ def test_a_motion_braked_at_40_percent_never_steps_its_acceleration_and_stops_wh
 
 def test_an_axis_at_rest_holds_and_a_ramp_of_no_time_still_has_two_knots():
     stop = braking_stop(np.array([[0.3], [0.0], [0.0]]), 0, D, J)
-    assert stop.duration == 0.0 and len(stop.t) == 2 and stop.ends == (0.3,) and stop.end == 0.3
+    assert stop.duration == 0.0 and len(stop.t) == 2 and stop.end == 0.3 and stop.position[-1, 0] == 0.3
 
 
 def test_a_motion_ending_before_the_handover_is_left_to_end_at_rest():

@@ -56,6 +56,7 @@ from crane_msgs_py.realtime import set_fifo
 from ..planning.plan import PlanError
 from ..streaming.hermite import QuinticHermite
 from ..streaming.knots import knot_columns, knot_times
+from ..streaming.stop_trajectory import StopTrajectory
 from .workers import WARM_NICE, SolverProcess, start_fork_server
 
 #: How far ahead (s) of its request a stop takes over (its NVF stop is planned in tens of milliseconds).
@@ -66,27 +67,6 @@ ANSWER_MARGIN = 0.005
 ATTEMPTS = 3
 #: Longest wait (s) for a worker's answer: past it the stop is refused (the worker finishes it unheard).
 ANSWER_TIMEOUT = 1.0
-
-
-@dataclass(frozen=True)
-class StopTrajectory:
-    """A stop's trajectory from its handover: knot times ``t`` (s), per joint columns (absolute)."""
-
-    t: np.ndarray
-    position: np.ndarray
-    velocity: np.ndarray
-    acceleration: np.ndarray
-    handover_ns: int
-    duration: float
-    method: str
-    end: float
-
-    def arrays(self) -> tuple:
-        """(t, position, velocity, acceleration) as ``ReferenceStream.accept`` takes them (one joint: 1-D)."""
-        columns = (self.position, self.velocity, self.acceleration)
-        if self.position.shape[1] == 1:
-            columns = tuple(c[:, 0] for c in columns)
-        return (self.t, *columns)
 
 
 @dataclass(frozen=True)
@@ -223,11 +203,14 @@ class StopWorker:
         joints: the streamed joints, the cart's first.
         params: the crane model of the rehearsal.
         start_timeout: longest wait (s) for the worker to be ready.
+        answer_timeout: longest wait (s) for a stop's answer (``ANSWER_TIMEOUT``); past it the stop is refused
+            and the streamer brakes instead.
     """
 
-    def __init__(self, joints, params: CraneParams, start_timeout: float = 60.0):
+    def __init__(self, joints, params: CraneParams, start_timeout: float = 60.0,
+                 answer_timeout: float = ANSWER_TIMEOUT):
         self.joints = tuple(joints)
-        self.start_timeout = start_timeout
+        self.start_timeout, self.answer_timeout = start_timeout, answer_timeout
         self._worker: SolverProcess | None = None
         self._status = 'starting'
         self._closed = False
@@ -301,7 +284,7 @@ class StopWorker:
 
     def _solve(self, worker: SolverProcess, request: StopRequest, params: CraneParams) -> StopTrajectory:
         try:
-            return worker.solve(request, ANSWER_TIMEOUT)
+            return worker.solve(request, self.answer_timeout)
         except PlanError:
             if worker.closed:  # it died
                 self._restart(worker, params)

@@ -18,48 +18,22 @@ reproduces it exactly. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from crane_msgs_py.braking import Braking
 
 from .reference_stream import ReferenceStream
+from .stop_trajectory import StopTrajectory
 
 #: How far ahead (s) of the request the ramp takes over, tried in turn: the stream refuses a stop's handover
 #: that reaches it after its stamp, so a busy executor thread gets the next, longer lead.
 LEADS = (0.005, 0.02, 0.08)
-
-
-@dataclass(frozen=True)
-class BrakingStop:
-    """The ramps from the handover: knot times ``t`` (s), per joint columns (absolute m, m/s, m/s^2), the
-    handover (ns of ROS time), how long the slowest axis brakes (s), where each axis stops (``ends``, m) and
-    the cart (``end``, as a ``stops.StopTrajectory`` says)."""
-
-    t: np.ndarray
-    position: np.ndarray
-    velocity: np.ndarray
-    acceleration: np.ndarray
-    handover_ns: int
-    duration: float
-    ends: tuple
-    method: str = 'braking ramp'
-
-    @property
-    def end(self) -> float:
-        return self.ends[0]
-
-    def arrays(self) -> tuple:
-        """(t, position, velocity, acceleration) as ``ReferenceStream.accept`` takes them (one joint: 1-D)."""
-        columns = (self.position, self.velocity, self.acceleration)
-        if self.position.shape[1] == 1:
-            columns = tuple(c[:, 0] for c in columns)
-        return (self.t, *columns)
+#: ``StopTrajectory.method`` of a braking.
+METHOD = 'braking ramp'
 
 
 def braking_stop(state: np.ndarray, handover_ns: int, deceleration: float, jerk: float,
-                 period: float = 1e-3) -> BrakingStop:
+                 period: float = 1e-3) -> StopTrajectory:
     """Every axis braked from ``state`` (rows position, velocity, acceleration; a column per joint) at
     ``handover_ns`` within ``deceleration`` (m/s^2) and ``jerk`` (m/s^3); an axis already at rest holds.
     ``period``: the knot spacing of a braking that takes no time (two knots are needed)."""
@@ -69,11 +43,11 @@ def braking_stop(state: np.ndarray, handover_ns: int, deceleration: float, jerk:
     t = sorted({0.0, max(duration, period)} | {p.start + p.duration for ramp in ramps for p in ramp.phases})
     columns = np.array([[ramp.state(x) for ramp in ramps] for x in t])  # (knots, joints, p v a)
     position = state[0] + columns[:, :, 0]
-    return BrakingStop(np.array(t), position, columns[:, :, 1], columns[:, :, 2], int(handover_ns), duration,
-                       tuple(float(x) for x in position[-1]))
+    return StopTrajectory(np.array(t), position, columns[:, :, 1], columns[:, :, 2], int(handover_ns), duration,
+                          METHOD, float(position[-1, 0]))
 
 
-def brake(stream: ReferenceStream, now, deceleration: float, jerk: float) -> BrakingStop | None:
+def brake(stream: ReferenceStream, now, deceleration: float, jerk: float) -> StopTrajectory | None:
     """Brake what ``stream`` streams along every axis's ramp: the stop accepted as the stream's handover,
     ``LEADS`` ahead of ``now()`` (ns) in turn; None if the motion ends first (it ends at rest by itself).
     ValueError if no motion streams or the stream refused every lead."""

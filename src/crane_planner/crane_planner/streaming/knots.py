@@ -90,3 +90,4 @@ def knot_columns(plan, times, starts) -> tuple:
     samples = [axis.evaluate(times) for axis in axes]
     return (np.column_stack([s0 + s.position for s, s0 in zip(samples, starts)]),
             np.column_stack([s.velocity for s in samples]), np.column_stack([s.acceleration for s in samples]))
+

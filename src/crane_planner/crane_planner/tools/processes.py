@@ -186,3 +186,44 @@ def _signal_group(popen: subprocess.Popen, sig):
         os.killpg(popen.pid, sig)
     except ProcessLookupError:
         pass
+
+
+# -- other processes, read from /proc (Linux): the fault tests and benchmarks find and watch solver processes
+
+def process_children() -> dict:
+    """Every process's children (ppid -> [pid]), from /proc."""
+    tree: dict = {}
+    for entry in filter(str.isdigit, os.listdir('/proc')):
+        try:
+            with open(f'/proc/{entry}/stat') as f:
+                ppid = int(f.read().rsplit(')', 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):  # (it ended meanwhile)
+            continue
+        tree.setdefault(ppid, []).append(int(entry))
+    return tree
+
+
+def cmdline(pid: int) -> str:
+    """The process's command line ('' once it is gone)."""
+    try:
+        with open(f'/proc/{pid}/cmdline', 'rb') as f:
+            return f.read().replace(b'\0', b' ').decode(errors='replace')
+    except OSError:
+        return ''
+
+
+def fork_servers(pid: int) -> list[int]:
+    """The process's multiprocessing fork servers (its children running ``multiprocessing.forkserver``; the
+    solver and stop worker processes are their children)."""
+    return [p for p in process_children().get(pid, []) if 'multiprocessing.forkserver' in cmdline(p)]
+
+
+def cpu_ticks(pid: int) -> int:
+    """The process's user + system CPU time in clock ticks (0 once it is gone): whether it works, without
+    timing it."""
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            fields = f.read().rsplit(')', 1)[1].split()
+    except OSError:
+        return 0
+    return int(fields[11]) + int(fields[12])
