@@ -309,6 +309,34 @@ def test_a_stop_with_no_stop_planner_brakes_along_the_jerk_limited_ramp_never_an
     crane.wait_until(lambda: crane.stream_hold() is not None, 30.0, 'the streamer did not start again')
 
 
+def test_a_link_stall_mid_move_brakes_the_axes_and_the_streamer_starts_again_where_they_stand(crane):
+    """Every reference lost for 1.2 s mid-move (the streamer's network.loss 1): the sim's fault reaction brakes
+    the axes and holds; the streamer, told so on axis_status, drops the motion and starts again from where they
+    stand; the goal aborts saying the motion was dropped; the sim resumes and the next goal runs."""
+    crane, recorder = crane
+    here = streamed_hold(crane)
+    count = len(recorder.status_list())
+    start, _, _ = crane.move('nvf', None, here + 0.4, 3.0, settle=0.5)
+    crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.0))
+    crane.set_parameters('streamer', {'network.loss': 1.0})
+    crane.sleep(1.2)
+    crane.set_parameters('streamer', {'network.loss': 0.0})
+    status, result = crane.outcome(start, timeout=30.0)
+    assert status == STATUS_ABORTED and 'stopped streaming the motion' in result.message, result.message
+    states_after(crane, recorder, lambda s: any(x[1] == 'tracking' for x in s[count:] if 'fault_hold' in
+                                                 [y[1] for y in s[count:]]), 30.0, 'tracking after the fault')
+    seen = [x[1] for x in recorder.status_list()[count:]]
+    assert seen.index('fault_stopping') < seen.index('fault_hold') < len(seen) - 1 - seen[::-1].index('tracking')
+    held = next(x for x in recorder.status_list()[count:] if x[1] == 'fault_hold')[2][0]
+    assert here < held < here + 0.4 + 0.2
+    assert streamed_hold(crane) == pytest.approx(held, abs=1e-3)  # the stream starts where the axes stand
+    result = crane.planner.result(crane.planner.send_execute('zv', None, here, 2.0, settle=0.5), timeout=30.0)
+    assert result.success, result.message
+    settle, _ = crane.settle()
+    end = crane.trajectory(settle).points[-1].time_from_start
+    crane.sleep(max(0.0, (settle + end.sec * 1e9 + end.nanosec - crane.now_ns()) * 1e-9 + 0.3))
+
+
 def test_joint_states_lost_during_a_goal_end_it_saying_the_residual_was_not_measured(crane):
     crane, _ = crane
     here = streamed_hold(crane)

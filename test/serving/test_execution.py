@@ -113,3 +113,15 @@ def test_a_silent_stream_after_the_motion_only_closes_the_settle_window():
     ex.on_stream_state(START + 3 * S, START, 3.0)  # the motion's last tick, then the streamer is gone
     assert ex.phase(START + 4 * S) == SETTLING  # the settle window is timed, not failed
     assert ex.phase(START + 5 * S) == DONE and not ex.failure
+
+
+def test_a_streamer_holding_before_the_motions_end_has_dropped_it():
+    ex = execution()
+    for k in range(0, 1201, 20):
+        ex.on_stream_state(START + k * 1_000_000, START, 3.0)
+    ex.on_stream_state(START + 1220 * 1_000_000, START, 3.0, streaming=False)  # a ~/stop, say
+    assert ex.phase(START + 1221 * 1_000_000) == FAILED and 'stopped streaming the motion at 41 %' in ex.failure
+    done = execution()
+    done.on_stream_state(START + 2996 * 1_000_000, START, 3.0)
+    done.on_stream_state(START + 2998 * 1_000_000, START, 3.0, streaming=False)  # its last tick: not dropped
+    assert not done.failure

@@ -20,7 +20,7 @@ from __future__ import annotations
 import threading
 import time
 
-from crane_interfaces.msg import StreamState
+from crane_interfaces.msg import AxisStatus, StreamState
 from geometry_msgs.msg import Twist
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -28,18 +28,9 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from crane_msgs_py import names
-from crane_msgs_py.conversions import (
-    fill_reference,
-    fill_stream_state,
-    joint_trajectory_columns,
-    reference_message,
-    stamp_ns,
-    stream_state_message,
-)
+from crane_msgs_py import conversions, names, qos
 from crane_msgs_py.diagnostics import ERROR, OK, DiagnosticsPublisher
 from crane_msgs_py.node_parameters import Guard, declare
-from crane_msgs_py.qos import CMD_VEL_QOS, JOINT_STATES_QOS, REFERENCE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
 from crane_planner.serving.stops import StopWorker
@@ -63,7 +54,7 @@ class StreamerNode(Node):
         super().__init__(names.STREAMER_NODE, **kwargs)
         p = declare(self, PARAMETERS)
         self._joints = names.check_joints(p['joints'])  # ValueError: see main()
-        self._msg = reference_message(p['output'], joint=list(self._joints))  # ParameterError: unknown output
+        self._msg = conversions.reference_message(p['output'], joint=list(self._joints))  # (ParameterError)
         self._operator: OperatorStream | None = None  # the operator mode's stream while in that mode
         self._stop_at_rest = False  # a ~/stop waits for the crane to come to rest
         self._config = config = self._config_of(p)  # ParameterError on a bad override
@@ -74,9 +65,9 @@ class StreamerNode(Node):
         self._timing_log = p['timing_log']
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._config_of, self._apply, self._diagnostics)
-        self._publisher = self.create_publisher(type(self._msg), names.REFERENCE_TOPIC, REFERENCE_QOS)
-        self._state_msg = stream_state_message(self._joints)
-        self._state_pub = self.create_publisher(StreamState, names.STREAM_STATE_TOPIC, STREAM_STATE_QOS)
+        self._publisher = self.create_publisher(type(self._msg), names.REFERENCE_TOPIC, qos.REFERENCE_QOS)
+        self._state_msg = conversions.stream_state_message(self._joints)
+        self._state_pub = self.create_publisher(StreamState, names.STREAM_STATE_TOPIC, qos.STREAM_STATE_QOS)
         self._state_every = max(1, round(p['rate'] / p['state_rate']))
 
         # Shared with the loop thread (the core is thread-safe); the loop owns the ticker.
@@ -87,15 +78,16 @@ class StreamerNode(Node):
         self._stream = ReferenceStream(self._period_ns, initial if len(initial) > 1 else initial[0],
                                        p['start_tolerance'], stopped=True)
         self._running = threading.Event()
-        self._created_ns = self.get_clock().now().nanoseconds
+        self._created_ns = self._synced_ns = self.get_clock().now().nanoseconds
         self._lateness = Lateness(keep_all=bool(self._timing_log))
         self._first_tick_ns = None
         self.ticks = self.sent = self.skipped = self.accepted = self.refused = self.commands = self._ticks_window = 0
         self._window_start = time.monotonic()
         self._link = Link()  # the loop's, with the impairment of the moment
-        self.create_subscription(JointTrajectory, names.TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS)
-        self.create_subscription(Twist, names.CMD_VEL_TOPIC, self._on_cmd_vel, CMD_VEL_QOS)
-        self.create_subscription(JointState, names.JOINT_STATES_TOPIC, self._on_joint_state, JOINT_STATES_QOS)
+        self.create_subscription(JointTrajectory, names.TRAJECTORY_TOPIC, self._on_trajectory, qos.TRAJECTORY_QOS)
+        self.create_subscription(Twist, names.CMD_VEL_TOPIC, self._on_cmd_vel, qos.CMD_VEL_QOS)
+        self.create_subscription(JointState, names.JOINT_STATES_TOPIC, self._on_joint_state, qos.JOINT_STATES_QOS)
+        self.create_subscription(AxisStatus, names.AXIS_STATUS_TOPIC, self._on_axis_status, qos.AXIS_STATUS_QOS)
         self.create_service(Trigger, names.START_SERVICE, self._on_start)
         self.create_service(Trigger, names.STOP_SERVICE, self._on_stop)
         self.create_timer(1.0, self._report)
@@ -146,15 +138,15 @@ class StreamerNode(Node):
     def _on_trajectory(self, msg: JointTrajectory, info: dict):
         sampled = self._stream.last_tick  # first: a handover takes over at the tick after it
         now_ns = self.get_clock().now().nanoseconds
-        start_ns = stamp_ns(msg.header.stamp)
+        start_ns = conversions.stamp_ns(msg.header.stamp)
         try:
             refusal = trajectory_refusal(info.get('source_timestamp', now_ns), self._created_ns,
                                          self._operator is not None, self._stop_at_rest)
             if refusal:
                 raise ValueError(refusal)
             holds = (None, *self._stream.hold[1:]) if len(self._joints) > 1 else None  # a hoist left out: held
-            motion = self._stream.accept(*joint_trajectory_columns(msg, self._joints, holds), start_ns, now_ns,
-                                         sampled)
+            columns = conversions.joint_trajectory_columns(msg, self._joints, holds)
+            motion = self._stream.accept(*columns, start_ns, now_ns, sampled)
         except ValueError as exc:
             self.refused += 1
             self.get_logger().error(f'trajectory refused: {exc}')
@@ -180,7 +172,15 @@ class StreamerNode(Node):
         hold = self._start.request(self.get_clock().now().nanoseconds)
         return self._go(hold) if hold is not None else f'waiting for {self._start.waiting_for} (hold_source)'
 
+    def _on_axis_status(self, msg: AxisStatus):
+        """Axes braked to rest by their fault reaction refuse this stream: it starts again where they stand."""
+        since = conversions.stamp_ns(msg.header.stamp) > self._synced_ns  # (not a fault from before it began)
+        if msg.state == 'fault_hold' and self._running.is_set() and since:
+            self._halt()
+            self.get_logger().warn(f'the axes ran their fault reaction ({msg.message}): {self._begin()}')
+
     def _go(self, hold: Hold) -> str:
+        self._synced_ns = self.get_clock().now().nanoseconds
         self._stream.hold_at(hold.position if len(hold.position) > 1 else hold.position[0])
         if self._config.mode == 'operator':  # a fresh operator stream there: a stick held before does not move it
             self._operator = self._config.operator.stream(self._period_ns * 1e-9, self._stream.hold)
@@ -282,7 +282,7 @@ class StreamerNode(Node):
             if k % self._state_every == 0:
                 self._publish_state(stamp, position, velocity, acceleration)
             if link.line is None:
-                fill_reference(msg, stamp, position, velocity, acceleration)
+                conversions.fill_reference(msg, stamp, position, velocity, acceleration)
                 if not self._publish(msg, publisher):
                     return
             else:
@@ -294,7 +294,7 @@ class StreamerNode(Node):
     def _publish_state(self, stamp: int, position: float, velocity: float, acceleration: float):
         motion, operator = self._stream.last_motion, self._operator
         streaming = self._stream.streaming if operator is None else not operator.at_rest
-        fill_stream_state(self._state_msg, stamp, streaming, position, velocity, acceleration,
+        conversions.fill_stream_state(self._state_msg, stamp, streaming, position, velocity, acceleration,
                           motion.start_ns if motion else 0, motion.duration if motion else 0.0, operator is not None,
                           motion.origin_ns if motion else 0)
         try:
@@ -304,7 +304,7 @@ class StreamerNode(Node):
 
     def _deliver(self, items):
         for stamp, position, velocity, acceleration in items:
-            fill_reference(self._msg, stamp, position, velocity, acceleration)
+            conversions.fill_reference(self._msg, stamp, position, velocity, acceleration)
             self._publish(self._msg, self._publisher)
 
     def _publish(self, msg, publisher) -> bool:

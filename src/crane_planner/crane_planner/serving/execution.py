@@ -21,6 +21,9 @@ from dataclasses import dataclass
 from crane_msgs_py.names import STREAM_STATE_TOPIC
 from crane_sim.dynamics import load_excursion
 
+#: A streamer holding this long (ns) before the motion's end has dropped it (its last ticks are sampled at or
+#: past the end: a stream_state just before it may say holding by a tick).
+DROPPED_BEFORE_END_NS = 5_000_000
 #: ``Execution.phase`` values.
 WAITING, MOVING, SETTLING, DONE, FAILED = 'waiting', 'moving', 'settling', 'done', 'failed'
 
@@ -68,10 +71,15 @@ class Execution:
     # -- inputs -------------------------------------------------------------------
 
     def on_stream_state(self, stamp_ns: int, motion_start_ns: int, motion_duration: float,
-                        motion_origin_ns: int | None = None) -> None:
+                        motion_origin_ns: int | None = None, streaming: bool = True) -> None:
         """A ``stream_state``: its tick's stamp and the current (or last) motion's start, duration and origin
-        (when its first knot is streamed; default its start)."""
+        (when its first knot is streamed; default its start), and whether it streams a motion: one that holds
+        before this motion's end has dropped it (its ~/stop, or the axes' fault reaction)."""
         self.stream_ns = stamp_ns
+        end = self.end_ns
+        if end is not None and not streaming and stamp_ns < end - DROPPED_BEFORE_END_NS and not self._failure:
+            self._failure = (f'the streamer stopped streaming the motion at {100 * self.progress:.0f} %: it holds '
+                             '(a ~/stop, or the axes braked to rest by their fault reaction: see its log)')
         if (self.motion_start_ns is None and motion_start_ns >= self.start_ns - 1_000_000
                 and abs(motion_duration - self.duration) < 1e-6):
             self.motion_start_ns = motion_start_ns  # ours: started at or after its start, as long as planned

@@ -30,7 +30,7 @@ from ..planning.plan import Plan, time_grid
 from ..streaming.knots import knot_times
 from . import transitions
 from .config import Config
-from .crane_view import DISCOVERY_WAIT, CraneView, StreamSample
+from .crane_view import DISCOVERY_WAIT, HOLDING, CraneView, StreamSample
 from .execution import DONE, FAILED, MOVING, WAITING, Execution
 from .goals import Goal, Goals, GoalState, TakeOver
 from .handover import (
@@ -151,7 +151,7 @@ class MoveService:
         self.view.on_stream_state(sample)
         for execution in self.goals.executions():
             execution.on_stream_state(sample.stamp_ns, sample.motion_start_ns, sample.motion_duration,
-                                      sample.motion_origin_ns)
+                                      sample.motion_origin_ns, sample.state != HOLDING)
 
     def on_joint_state(self, measured: Measurement) -> None:
         self.view.on_joint_state(measured)

@@ -365,8 +365,10 @@ class SimNode(Node):
                 sim.step(*zip(*controller.step(t0, t1)))
             if controller.changes:
                 for change in controller.take_changes():
-                    self._publish_status(controller.status(change.new, self._ros_seconds),
-                                         self._plant_ns(change.time))
+                    status = controller.status(change.new, self._ros_seconds)
+                    self._publish_status(status, self._plant_ns(change.time))
+                    if change.new in FAULT_STATES or change.old in FAULT_STATES:  # said when it happens, too
+                        self.get_logger().warn(f'axes {change.new.value}: {status.message}')
             counts['steps'] += 1
             counts['timeouts'] = timeouts + playout.timeouts
             if ticker.tick % self._publish_every == 0:
