@@ -28,7 +28,7 @@ def measured_residual_mm(driver, start_ns: int) -> tuple[float, np.ndarray]:
     from crane_sim.metrics import residual_load_mm
     end_ns = start_ns + round((T + SETTLE + 0.05) * 1e9)
     driver.sleep(max(0.0, (end_ns - driver.now_ns()) * 1e-9))
-    rec = driver.states_between(start_ns, end_ns, timeout=10.0)
+    rec = driver.states_between(start_ns, end_ns, timeout=30.0)  # a hang guard: the plant may lag the clock
     assert len(rec) > 40 * (T + SETTLE), f'only {len(rec)} joint_states'
     t = (rec[:, 0] - start_ns) * 1e-9
     return float(residual_load_mm(t, rec[:, 1], rec[:, 2], rec[:, 4], NOMINAL.L2, after=T, until=T + SETTLE)), rec

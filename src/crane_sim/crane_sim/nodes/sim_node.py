@@ -171,7 +171,10 @@ class SimNode(Node):
         self._refused_reported = 0
 
         # Handed from the executor to the loop; deque append/popleft are atomic.
-        self._inbox: deque = deque(maxlen=1000)   # (stamp ns, then position, acceleration per axis), checked
+        # (stamp ns, then position, acceleration per axis), checked. Room for 10 s of a 1 kHz stream: a loop
+        # that falls behind on a busy host catches up on every sample; one dropped here would be a gap that
+        # the fault reaction takes for a lost stream.
+        self._inbox: deque = deque(maxlen=10_000)
         self._pending_params: CraneParams | None = None
         self._reset_requested = threading.Event()
         self._push: float | None = None  # a push for the loop to apply (m)
