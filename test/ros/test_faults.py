@@ -29,7 +29,7 @@ GOAL = 0.6       # m
 KILL_AT = 0.4    # of the move
 PLANT = CraneParams()
 #: the sim's defaults (config/sim.yaml): its fault reaction and its playout
-D, J, DELAY, TIMEOUT = 0.5, 5.0, 0.2, 0.5
+D, J, DELAY, TIMEOUT = 0.5, 5.0, 0.2, 1.0
 
 
 class Recorder:
@@ -191,9 +191,7 @@ def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new
     result = driver.planner.result(driver.planner.send_execute('nvf', None, 0.2, 3.0, settle=0.5), timeout=30.0)
     assert result.success, result.message  # (the load still swings from the fault's braking: no anti-sway stop)
     assert streamed_hold(driver) == pytest.approx(0.2, abs=1e-9)
-    settle, _ = driver.settle()  # the swing damped for the next test
-    end = driver.trajectory(settle).points[-1].time_from_start
-    driver.sleep(max(0.0, (settle + end.sec * 1e9 + end.nanosec - driver.now_ns()) * 1e-9 + 0.3))
+    driver.reset_sim()  # the swing gone for the next test: the plant at rest where the cart is
 
 
 def kill(driver, name: str) -> int:
@@ -294,32 +292,36 @@ def test_a_stop_with_no_stop_planner_brakes_along_the_jerk_limited_ramp_never_an
         os.kill(pid, signal.SIGKILL)
     crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.2))
     called = crane.now_ns()
-    response = crane.call_streamer('stop')
-    assert response.success and 'braking ramp' in response.message, response.message
-    crane.outcome(start, timeout=30.0)
-    crane.sleep(2.0)
-    rows = crane.keep_references(False)
+    try:
+        response = crane.call_streamer('stop')
+        assert response.success and 'braking ramp' in response.message, response.message
+        crane.outcome(start, timeout=30.0)
+        crane.sleep(2.0)
+    finally:
+        rows = crane.keep_references(False)
+        response = crane.call_streamer('start')  # streaming again from where the axes stand
+        assert response.success, response.message
+        crane.wait_until(lambda: crane.stream_hold() is not None, 30.0, 'the streamer did not start again')
     after = rows[rows[:, 0] >= called]
-    steps = np.abs(np.diff(after[:, 3]))
+    # per tick (1 ms): a sample the recording missed (best effort) spans two
+    ticks = np.maximum(np.round(np.diff(after[:, 0]) * 1e-6), 1.0)
+    steps = np.abs(np.diff(after[:, 3])) / ticks
     assert np.max(steps) <= 5.0 * 1e-3 * (1 + 1e-6) + 1e-9, f'acceleration step {np.max(steps):.4g} m/s^2'
     assert after[-1, 2] == 0.0 and after[-1, 3] == 0.0  # at rest
     assert here < after[-1, 1] < here + 0.5  # braked short of the goal
-    response = crane.call_streamer('start')  # streaming again from where the axes stand
-    assert response.success, response.message
-    crane.wait_until(lambda: crane.stream_hold() is not None, 30.0, 'the streamer did not start again')
 
 
 def test_a_link_stall_mid_move_brakes_the_axes_and_the_streamer_starts_again_where_they_stand(crane):
-    """Every reference lost for 1.2 s mid-move (the streamer's network.loss 1): the sim's fault reaction brakes
+    """Every reference lost for 2 s mid-move (the streamer's network.loss 1): the sim's fault reaction brakes
     the axes and holds; the streamer, told so on axis_status, drops the motion and starts again from where they
     stand; the goal aborts saying the motion was dropped; the sim resumes and the next goal runs."""
     crane, recorder = crane
     here = streamed_hold(crane)
     count = len(recorder.status_list())
-    start, _, _ = crane.move('nvf', None, here + 0.4, 3.0, settle=0.5)
+    start, _, _ = crane.move('nvf', None, here + 0.4, 5.0, settle=0.5)
     crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.0))
     crane.set_parameters('streamer', {'network.loss': 1.0})
-    crane.sleep(1.2)
+    crane.sleep(2.0)  # longer than the sim's reference_timeout (1 s)
     crane.set_parameters('streamer', {'network.loss': 0.0})
     status, result = crane.outcome(start, timeout=30.0)
     assert status == STATUS_ABORTED and 'stopped streaming the motion' in result.message, result.message
@@ -332,9 +334,7 @@ def test_a_link_stall_mid_move_brakes_the_axes_and_the_streamer_starts_again_whe
     assert streamed_hold(crane) == pytest.approx(held, abs=1e-3)  # the stream starts where the axes stand
     result = crane.planner.result(crane.planner.send_execute('zv', None, here, 2.0, settle=0.5), timeout=30.0)
     assert result.success, result.message
-    settle, _ = crane.settle()
-    end = crane.trajectory(settle).points[-1].time_from_start
-    crane.sleep(max(0.0, (settle + end.sec * 1e9 + end.nanosec - crane.now_ns()) * 1e-9 + 0.3))
+    crane.reset_sim()  # the swing gone for the next test
 
 
 def test_joint_states_lost_during_a_goal_end_it_saying_the_residual_was_not_measured(crane):

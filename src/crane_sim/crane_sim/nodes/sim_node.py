@@ -108,7 +108,9 @@ PARAMETERS = {
                        f"'{OUTPUT_FLOAT64_ARRAY}'; fixed at start-up",
                        {'additional_constraints': f'auto, {OUTPUT_JOINT_TRAJECTORY} or {OUTPUT_FLOAT64_ARRAY}',
                         'read_only': True}),
-    'reference_timeout': (0.5, 'a reference older than this (s) on arrival is stale and ignored; without a '
+    # 1 s: a drive's watchdog is tighter, but a busy 2-core host stalls this process for up to about a second,
+    # and a stall taken for a lost stream stops the motion
+    'reference_timeout': (1.0, 'a reference older than this (s) on arrival is stale and ignored; without a '
                           'fresh one for this long the stream is lost: the fault reaction brakes every axis to '
                           'rest (fault_deceleration) and holds', float_range(1e-3, 10.0)),
     'fault_deceleration': (0.5, 'fault reaction to a lost reference stream: every axis (the hoist too) brakes its '
