@@ -77,11 +77,13 @@ def test_a_stop_before_the_hold_is_known_asks_nothing_more():
 
 
 def test_transitions_are_explicit():
-    assert Phase.KNOWN not in TRANSITIONS[Phase.KNOWN]
-    start = StartPosition(('cart',), 'initial_position', (0.0,))
-    start.request(0)
+    assert Phase.IDLE not in TRANSITIONS[Phase.IDLE]
+    start = StartPosition(('cart',), 'joint_states', (0.0,))
     with pytest.raises(IllegalPhase):
-        start._to(Phase.KNOWN)
+        start._to(Phase.IDLE)  # (nothing was asked)
+    told = StartPosition(('cart',), 'initial_position', (0.0,))
+    told.request(0)
+    assert told.request(1).position == (0.0,)  # a ~/stop and ~/start of a streamer without feedback
 
 
 def test_bad_settings_are_refused_naming_them():

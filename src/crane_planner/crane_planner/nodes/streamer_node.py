@@ -186,8 +186,8 @@ class StreamerNode(Node):
             self._operator = self._config.operator.stream(self._period_ns * 1e-9, self._stream.hold)
         self._stream.resume()
         self._running.set()
-        self.get_logger().info(f'streaming, hold {self._hold_text()} m ({hold.source}: {hold.reason})')
-        return f'streaming, hold {self._hold_text()} m ({hold.source}: {hold.reason})'
+        self.get_logger().info(message := f'streaming, hold {self._hold_text()} m ({hold.source}: {hold.reason})')
+        return message
 
     # -- services ------------------------------------------------------------
 

@@ -40,7 +40,7 @@ class Phase(enum.Enum):
 TRANSITIONS = {
     Phase.IDLE: {Phase.WAITING, Phase.KNOWN},
     Phase.WAITING: {Phase.WAITING, Phase.KNOWN, Phase.IDLE},
-    Phase.KNOWN: {Phase.WAITING, Phase.IDLE},
+    Phase.KNOWN: {Phase.KNOWN, Phase.WAITING, Phase.IDLE},  # every start learns the hold again
 }
 
 
