@@ -26,9 +26,12 @@ from crane_msgs_py.params import PARAMETER_NAMES
 #: Order of the model parameter vector ``p`` of every model here (CraneParams' fields).
 PARAMETERS = PARAMETER_NAMES
 SWING_STATES = ('theta1', 'theta2', 'dtheta1', 'dtheta2')
+#: The spatial crane's swing (contract "The spatial crane"): in-plane and out-of-plane angles, then their rates.
+SPATIAL_SWING_STATES = ('theta1', 'theta2', 'phi1', 'phi2', 'dtheta1', 'dtheta2', 'dphi1', 'dphi2')
 #: Each axis's states: position, velocity, acceleration and (with its servo) reference acceleration;
 #: the hoist's position is its displacement from the start length L1.
 CART_STATES = ('y', 'v', 'a', 'a_ref')
+BRIDGE_STATES = ('yb', 'vb', 'ab', 'ab_ref')
 HOIST_STATES = ('h', 'hv', 'ha', 'ha_ref')
 
 
@@ -57,6 +60,30 @@ def swing_accelerations(theta1, theta2, dtheta1, dtheta2, a, L1, L2, m1, m2, g, 
     r2 -= c2 * dtheta2 / (m2 * L2)
     det = L1 * L2 * (m1 + m2 * s2 ** 2)
     return (m22 * r1 - m12 * r2) / det, (m11 * r2 - m21 * r1) / det
+
+
+def _lagrange_terms(masses, q, dq, r, dr, ddr, gravity):
+    """(M, bias) of Lagrange's equations M q'' + bias = Q of point masses at prescribed-motion positions.
+
+    ``masses``: pairs (m_i, p_i(q, r)) with q the free coordinates and r(t)
+    the prescribed ones (rates dr, accelerations ddr). With J_i = dp_i/dq,
+    d/dt dT/dq' - dT/dq = sum m_i J_i^T p_i'' for T = sum m_i |p_i'|^2 / 2,
+    and p_i'' = J_i q'' + rest_i (the chain rule's other terms, in q', r', r''),
+    so M = sum m_i J_i^T J_i and bias = sum m_i J_i^T (rest_i + ``gravity``),
+    the potential's gradient being m_i J_i^T times the gravity vector
+    (g along the up axis). Differentiating T this way keeps the expressions a
+    quarter the size of differentiating the Lagrangian twice.
+    """
+    coords, rates = ca.vertcat(q, r), ca.vertcat(dq, dr)
+    M, bias = 0, 0
+    for m, pos in masses:
+        J = ca.jacobian(pos, q)
+        velocity = ca.jtimes(pos, coords, rates)
+        # the acceleration of the mass without its q'' part: J q'' is added by M q'' below
+        rest = ca.jtimes(velocity, ca.vertcat(coords, dr), ca.vertcat(rates, ddr))
+        M += m * J.T @ J
+        bias += m * J.T @ (rest + gravity)
+    return M, bias
 
 
 @functools.lru_cache(maxsize=1)
@@ -88,15 +115,7 @@ def hoisting_swing() -> ca.Function:
     (th1, th2), (y, L1) = ca.vertsplit(q), ca.vertsplit(r)
     p1 = ca.vertcat(y - L1 * ca.sin(th1), -L1 * ca.cos(th1))
     p2 = p1 - L2 * ca.vertcat(ca.sin(th1 + th2), ca.cos(th1 + th2))
-    coords, rates = ca.vertcat(q, r), ca.vertcat(dq, dr)
-    M, bias = 0, 0
-    for m, pos in ((m1, p1), (m2, p2)):
-        J = ca.jacobian(pos, q)
-        velocity = ca.jtimes(pos, coords, rates)
-        # the acceleration of the mass without its q'' part: J q'' is added by M q'' below
-        rest = ca.jtimes(velocity, ca.vertcat(coords, dr), ca.vertcat(rates, ddr))
-        M += m * J.T @ J
-        bias += m * J.T @ (rest + ca.vertcat(0, g))  # gravity: dV/dq = m J^T (0, g)
+    M, bias = _lagrange_terms(((m1, p1), (m2, p2)), q, dq, r, dr, ddr, ca.vertcat(0, g))
     rest = bias - ca.vertcat(-c1 * dq[0], -c2 * dq[1])
     det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
     dd1 = -(M[1, 1] * rest[0] - M[0, 1] * rest[1]) / det
@@ -108,6 +127,66 @@ def hoisting_swing() -> ca.Function:
                        [dd1, dd2], ['theta1', 'theta2', 'dtheta1', 'dtheta2', 'a', 'L1', 'dL1', 'ddL1', 'L2', 'm1',
                                     'm2', 'g', 'c1', 'c2'], ['ddtheta1', 'ddtheta2'])
 
+
+def cable_direction(a, b):
+    """u(a, b) = (-sin a cos b, sin b, -cos a cos b): a cable's unit vector (contract "The spatial crane").
+
+    ``a`` the in-plane angle of Eqs. 18-19 (positive when the load lags a
+    positive cart acceleration: x1 = x - L1 sin theta1), ``b`` the angle out of
+    the x-z plane, positive towards +y.
+    """
+    return ca.vertcat(-ca.sin(a) * ca.cos(b), ca.sin(b), -ca.cos(a) * ca.cos(b))
+
+
+def _inverse2(X):
+    """The inverse of a 2x2 matrix by its adjugate (for the positive definite blocks of a mass matrix)."""
+    det = X[0, 0] * X[1, 1] - X[0, 1] * X[1, 0]
+    return ca.vertcat(ca.horzcat(X[1, 1], -X[0, 1]), ca.horzcat(-X[1, 0], X[0, 0])) / det
+
+
+@functools.lru_cache(maxsize=1)
+def spatial_swing() -> ca.Function:
+    """(theta1'', theta2'', phi1'', phi2'') of the spatial crane, from its Lagrangian (contract "The spatial crane").
+
+    The suspension point s(t) = (x, y, 0) (cart and bridge) and the upper
+    cable's length L1(t) are prescribed; the four swing coordinates are
+    q = (theta1, theta2, phi1, phi2), the lower cable's angles relative to the
+    upper's: p1 = s + L1 u(theta1, phi1), p2 = p1 + L2 u(theta1 + theta2,
+    phi1 + phi2) (``cable_direction``). Lagrange's equations of the two point
+    masses (``_lagrange_terms``, as in ``hoisting_swing``) read
+    M q'' = Q - sum m_i J_i^T (rest_i + g e_z), with the joint damping of the
+    dissipation function D = c1 (theta1'^2 + phi1'^2)/2 + c2 (theta2'^2 +
+    phi2'^2)/2, Q = -dD/dq' (the planar damping in each direction). M is
+    solved in blocks, theta and phi: A = M_thth, B = M_thph, C = M_phph, the
+    Schur complement S = C - B^T A^-1 B; A and S are positive definite (M is,
+    for positive masses and cables off the horizontal), so both 2x2
+    inversions are safe. With phi1 = phi2 = 0 and y'' = 0 the phi rows vanish
+    (every term carries sin phi or y'') and the theta rows are
+    ``hoisting_swing``'s (and with L1 constant Eqs. 18-19), tested; crane_sim's
+    Newton-projected derivation agrees (tested). Inputs theta1, theta2, phi1,
+    phi2, their rates, ax (= x''), ay (= y''), L1, dL1, ddL1, L2, m1, m2, g,
+    c1, c2; outputs ddtheta1, ddtheta2, ddphi1, ddphi2.
+    """
+    q, dq = ca.SX.sym('q', 4), ca.SX.sym('dq', 4)
+    r, dr, ddr = ca.SX.sym('r', 3), ca.SX.sym('dr', 3), ca.SX.sym('ddr', 3)
+    L2, m1, m2, g, c1, c2 = (ca.SX.sym(n) for n in ('L2', 'm1', 'm2', 'g', 'c1', 'c2'))
+    th1, th2, ph1, ph2 = ca.vertsplit(q)
+    x, y, L1 = ca.vertsplit(r)
+    p1 = ca.vertcat(x, y, 0) + L1 * cable_direction(th1, ph1)
+    p2 = p1 + L2 * cable_direction(th1 + th2, ph1 + ph2)
+    M, bias = _lagrange_terms(((m1, p1), (m2, p2)), q, dq, r, dr, ddr, ca.vertcat(0, 0, g))
+    rhs = ca.vertcat(-c1 * dq[0], -c2 * dq[1], -c1 * dq[2], -c2 * dq[3]) - bias
+    A, B, C = M[:2, :2], M[:2, 2:], M[2:, 2:]
+    Ainv = _inverse2(A)
+    ddphi = _inverse2(C - B.T @ Ainv @ B) @ (rhs[2:] - B.T @ Ainv @ rhs[:2])
+    ddtheta = Ainv @ (rhs[:2] - B @ ddphi)
+    # the suspension point's velocity cancels (a uniformly moving frame is Galilean) but not symbolically
+    dd = ca.cse(ca.substitute(ca.vertcat(ddtheta, ddphi), dr[:2], ca.DM.zeros(2)))
+    names = ['theta1', 'theta2', 'phi1', 'phi2', 'dtheta1', 'dtheta2', 'dphi1', 'dphi2', 'ax', 'ay', 'L1', 'dL1',
+             'ddL1', 'L2', 'm1', 'm2', 'g', 'c1', 'c2']
+    return ca.Function('spatial_swing', [*ca.vertsplit(q), *ca.vertsplit(dq), ddr[0], ddr[1], L1, dr[2], ddr[2],
+                                         L2, m1, m2, g, c1, c2],
+                       ca.vertsplit(dd), names, ['ddtheta1', 'ddtheta2', 'ddphi1', 'ddphi2'])
 
 @dataclass(frozen=True)
 class CraneOde:
@@ -121,6 +200,7 @@ class CraneOde:
         servo: True for the tau > 0 form (Eq. 6 included).
         robust: parameters whose sensitivities are in the state.
         hoist, hoist_servo: the hoist is an axis (``crane_ode``), with its servo.
+        bridge: the bridge is an axis: the spatial crane, swing ``SPATIAL_SWING_STATES``.
     """
 
     states: tuple
@@ -132,6 +212,12 @@ class CraneOde:
     robust: tuple = ()
     hoist: bool = False
     hoist_servo: bool = False
+    bridge: bool = False
+
+    @property
+    def swing_states(self) -> tuple:
+        """The swing's states: the planar crane's, or with a bridge the spatial crane's."""
+        return SPATIAL_SWING_STATES if self.bridge else SWING_STATES
 
     def index(self, name: str) -> int:
         return self.states.index(name)
@@ -140,7 +226,7 @@ class CraneOde:
         return ca.Function('f', [self.x, self.u, self.p], [self.f], ['x', 'u', 'p'], ['xdot'])
 
 
-def crane_ode(servo: bool, hoist: bool = False, hoist_servo: bool = False) -> CraneOde:
+def crane_ode(servo: bool, hoist: bool = False, hoist_servo: bool = False, bridge: bool = False) -> CraneOde:
     """The crane of Eqs. 18-19 driven by the cart acceleration, in the form of Eqs. 7-8.
 
     With ``servo`` the cart acceleration obeys Eq. 6, tau a' = a_ref - a, and
@@ -151,35 +237,49 @@ def crane_ode(servo: bool, hoist: bool = False, hoist_servo: bool = False) -> Cr
     ``L1``, so a sensitivity to L1 is one to an offset of the rope length),
     the swing from ``hoisting_swing`` (the Lagrangian with L1(t)), and a
     second input, the hoist's jerk, or with ``hoist_servo`` its reference
-    jerk, the hoist's acceleration following Eq. 6 with tau_hoist. States:
-    the cart's, then ``HOIST_STATES`` (``ha_ref`` only with ``hoist_servo``),
-    then the swing.
+    jerk, the hoist's acceleration following Eq. 6 with tau_hoist.
+
+    With ``bridge`` the suspension point also travels along y, driven like
+    the cart (the same servo, tau): the spatial crane, its swing
+    ``SPATIAL_SWING_STATES`` from ``spatial_swing`` (with or without the hoist).
+
+    States: the cart's, then ``BRIDGE_STATES`` (with a bridge), then
+    ``HOIST_STATES`` (with a hoist; ``a_ref``, ``ab_ref`` only with ``servo``,
+    ``ha_ref`` only with ``hoist_servo``), then the swing. Inputs: one per axis
+    in the same order (``crane_msgs_py.axes.AXES``).
     """
     cart_names = CART_STATES if servo else CART_STATES[:3]
+    bridge_names = (BRIDGE_STATES if servo else BRIDGE_STATES[:3]) if bridge else ()
     hoist_names = (HOIST_STATES if hoist_servo else HOIST_STATES[:3]) if hoist else ()
-    names = cart_names + hoist_names + SWING_STATES
+    swing = SPATIAL_SWING_STATES if bridge else SWING_STATES
+    names = cart_names + bridge_names + hoist_names + swing
     x = ca.SX.sym('x', len(names))
-    u = ca.SX.sym('u', 2 if hoist else 1)
+    u = ca.SX.sym('u', 1 + bridge + hoist)
     p = ca.SX.sym('p', len(PARAMETERS))
     s = dict(zip(names, ca.vertsplit(x)))
     par = dict(zip(PARAMETERS, ca.vertsplit(p)))
     L1, L2, m1, m2, g, c1, c2 = (par[k] for k in ('L1', 'L2', 'm1', 'm2', 'g', 'c1', 'c2'))
-    if hoist:
-        dd1, dd2 = hoisting_swing()(s['theta1'], s['theta2'], s['dtheta1'], s['dtheta2'], s['a'], L1 + s['h'],
-                                    s['hv'], s['ha'], L2, m1, m2, g, c1, c2)
-    else:
-        dd1, dd2 = swing_accelerations(s['theta1'], s['theta2'], s['dtheta1'], s['dtheta2'], s['a'],
-                                       L1, L2, m1, m2, g, c1, c2)
-    if servo:
-        rows = [s['v'], s['a'], (s['a_ref'] - s['a']) / par['tau'], u[0]]
-    else:
-        rows = [s['v'], s['a'], u[0]]
-    if hoist and hoist_servo:
-        rows += [s['hv'], s['ha'], (s['ha_ref'] - s['ha']) / par['tau_hoist'], u[1]]
+    if bridge:
+        rope = (L1 + s['h'], s['hv'], s['ha']) if hoist else (L1, 0.0, 0.0)
+        dd = spatial_swing()(*(s[n] for n in SPATIAL_SWING_STATES), s['a'], s['ab'], *rope, L2, m1, m2, g, c1, c2)
     elif hoist:
-        rows += [s['hv'], s['ha'], u[1]]
-    f = ca.vertcat(*rows, s['dtheta1'], s['dtheta2'], dd1, dd2)
-    return CraneOde(names, x, u, p, f, servo, hoist=hoist, hoist_servo=hoist_servo)
+        dd = hoisting_swing()(s['theta1'], s['theta2'], s['dtheta1'], s['dtheta2'], s['a'], L1 + s['h'],
+                              s['hv'], s['ha'], L2, m1, m2, g, c1, c2)
+    else:
+        dd = swing_accelerations(s['theta1'], s['theta2'], s['dtheta1'], s['dtheta2'], s['a'],
+                                 L1, L2, m1, m2, g, c1, c2)
+    axes = [(CART_STATES, servo, par['tau'])]
+    if bridge:
+        axes.append((BRIDGE_STATES, servo, par['tau']))
+    if hoist:
+        axes.append((HOIST_STATES, hoist_servo, par['tau_hoist']))
+    rows = []
+    for k, ((y, v, a, a_ref), has_servo, tau) in enumerate(axes):
+        # Eq. 6 with the servo: tau a' = a_ref - a, the input the reference's jerk; else the axis's jerk
+        rows += [s[v], s[a], (s[a_ref] - s[a]) / tau, u[k]] if has_servo else [s[v], s[a], u[k]]
+    rates = [s[n] for n in swing[len(swing) // 2:]]
+    f = ca.vertcat(*rows, *rates, *dd)
+    return CraneOde(names, x, u, p, f, servo, hoist=hoist, hoist_servo=hoist_servo, bridge=bridge)
 
 
 def _closure(seed: set, edges: dict) -> set:
@@ -221,7 +321,7 @@ def sensitivity_states(ode: CraneOde, parameter: str) -> tuple:
     used_by = {j: [i for i in range(n) if j in uses[i]] for j in range(n)}
     direct = {i for i in range(n) if not jp[i].is_zero()}
     dependent = _closure(direct, used_by)
-    swing = {ode.index(name) for name in SWING_STATES}
+    swing = {ode.index(name) for name in ode.swing_states}
     relevant = _closure(swing, uses)
     if parameter == 'tau' and not ode.hoist:
         relevant -= swing
@@ -281,4 +381,4 @@ def augment(ode: CraneOde, robust) -> CraneOde:
         names += [f'd{ode.states[i]}/d{q}' for i in sel]
     x = ca.vertcat(ode.x, *blocks)
     f = ca.vertcat(ode.f, *sdot)
-    return CraneOde(tuple(names), x, ode.u, ode.p, f, ode.servo, robust, ode.hoist, ode.hoist_servo)
+    return CraneOde(tuple(names), x, ode.u, ode.p, f, ode.servo, robust, ode.hoist, ode.hoist_servo, ode.bridge)
