@@ -3,18 +3,20 @@ import math
 
 import pytest
 
-from crane_msgs_py.axes import AXES, AXIS_NAMES, CART, HOIST, Axis, AxisLimits, axis, check_axes
+from crane_msgs_py.axes import AXES, AXIS_NAMES, BRIDGE, CART, HOIST, Axis, AxisLimits, axis, check_axes
 from crane_msgs_py.names import ACTUATED_JOINTS, CART_JOINT, HOIST_JOINT, SIM_JOINTS, check_joints
 from crane_msgs_py.params import ParameterError
 
 
 def test_the_names_of_the_contract_come_from_the_registry():
-    assert AXIS_NAMES == ACTUATED_JOINTS == ('cart', 'hoist') and AXES == (CART, HOIST)
+    assert AXIS_NAMES == ACTUATED_JOINTS == ('cart', 'bridge', 'hoist') and AXES == (CART, BRIDGE, HOIST)
     assert (CART_JOINT, HOIST_JOINT, SIM_JOINTS[0]) == ('cart', 'hoist', 'cart')
     assert axis('hoist') is HOIST and CART.direction == (1.0, 0.0, 0.0) and HOIST.direction is None
     assert (CART.cmd_vel, HOIST.cmd_vel, HOIST.cmd_vel_sign) == ('linear.x', 'linear.z', -1.0)
-    with pytest.raises(ParameterError, match="no axis 'bridge'"):
-        axis('bridge')
+    assert axis('bridge') is BRIDGE and BRIDGE.direction == (0.0, 1.0, 0.0) and BRIDGE.cmd_vel == 'linear.y'
+    assert BRIDGE.limit_names == ('max_bridge_velocity', 'max_bridge_acceleration', 'max_bridge_jerk')
+    with pytest.raises(ParameterError, match="no axis 'trolley'"):
+        axis('trolley')
 
 
 def test_a_new_travel_axis_is_a_record():
@@ -27,12 +29,13 @@ def test_a_new_travel_axis_is_a_record():
         Axis('slew', 'rotation')
 
 
-@pytest.mark.parametrize('joints', [['cart'], ['cart', 'hoist']])
+@pytest.mark.parametrize('joints', [['cart'], ['cart', 'hoist'], ['cart', 'bridge'], ['cart', 'bridge', 'hoist']])
 def test_joints_are_the_cart_then_others_in_registry_order(joints):
     assert check_joints(joints) == check_axes(joints) == tuple(joints)
 
 
-@pytest.mark.parametrize('joints', [[], ['hoist'], ['hoist', 'cart'], ['cart', 'cart'], ['cart', 'bridge']])
+@pytest.mark.parametrize('joints', [[], ['hoist'], ['hoist', 'cart'], ['cart', 'cart'], ['cart', 'hoist', 'bridge'],
+                                    ['bridge']])
 def test_other_joint_lists_are_refused_naming_the_parameter(joints):
     with pytest.raises(ParameterError, match=r'joints must be \[cart\]'):
         check_joints(joints)

@@ -85,10 +85,12 @@ class Axis:
 
 #: The cart: travel along the rail (the paper's axis).
 CART = Axis('cart', 'travel', 'x', cmd_vel='linear.x', limit_prefix='')
+#: The bridge: travel along its runway, across the cart's rail (the spatial crane's second horizontal axis).
+BRIDGE = Axis('bridge', 'travel', 'y', cmd_vel='linear.y')
 #: The hoist: the upper cable's length L1 (m). ``cmd_vel``'s linear.z is the load's vertical velocity, + up.
 HOIST = Axis('hoist', 'hoist', cmd_vel='linear.z', cmd_vel_sign=-1.0)
 #: Every axis a setup may have, in their order in every array of actuated joints. The first is always there.
-AXES = (CART, HOIST)
+AXES = (CART, BRIDGE, HOIST)
 AXIS_NAMES = tuple(a.name for a in AXES)
 _BY_NAME = {a.name: a for a in AXES}
 

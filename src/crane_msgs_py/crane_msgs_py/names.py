@@ -7,7 +7,7 @@ Topics are relative so that a whole setup runs in one namespace
 """
 from __future__ import annotations
 
-from .axes import AXIS_NAMES, CART, HOIST, check_axes
+from .axes import AXIS_NAMES, BRIDGE, CART, HOIST, check_axes
 
 #: Default node names.
 PLANNER_NODE = 'crane_planner'
@@ -41,6 +41,7 @@ CMD_VEL_TOPIC = 'cmd_vel'  # streamer in operator mode: geometry_msgs/Twist
 CART_JOINT = CART.name
 SIM_JOINTS = (CART.sim_joint, 'theta1', 'theta2')
 HOIST_JOINT = HOIST.name
+BRIDGE_JOINT = BRIDGE.name
 #: The actuated joints a setup may have, in their order in every array (contract "Joints and hoisting").
 ACTUATED_JOINTS = AXIS_NAMES
 

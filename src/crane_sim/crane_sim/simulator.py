@@ -32,7 +32,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from crane_msgs_py.axes import AXIS_NAMES, axis, check_axes
-from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
+from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import (
     PARAMETER_NAMES,
     CraneParams,
@@ -44,6 +44,7 @@ from crane_msgs_py.params import (
 )
 
 from .dynamics import SwingModel, hoisting_accelerations, load_excursion
+from .spatial import SPATIAL_SWING_NAMES, SpatialPendulum
 
 
 @dataclass(frozen=True)
@@ -59,6 +60,7 @@ class AxisServo:
 
 #: The simulator's physics of each axis of ``crane_msgs_py.axes``, by axis name.
 SERVOS = {CART_JOINT: AxisServo(('y', 'v', 'a'), 'tau'),
+          BRIDGE_JOINT: AxisServo(('yb', 'vb', 'ab'), 'tau'),
           HOIST_JOINT: AxisServo(('L1', 'dL1', 'ddL1'), 'tau_hoist', start='L1')}
 #: The swing's rows: the cable angles and their rates.
 SWING_NAMES = ('theta1', 'theta2', 'dtheta1', 'dtheta2')
@@ -70,8 +72,10 @@ HOIST_STATE_NAMES = SERVOS[HOIST_JOINT].rows
 
 
 def joint_names_of(axes) -> tuple:
-    """The joints the ROS node publishes for ``axes``: each axis's position, then theta1 and theta2."""
-    return (*(axis(a).sim_joint for a in axes), 'theta1', 'theta2')
+    """The joints the ROS node publishes for ``axes``: each axis's position, then theta1 and theta2, and with a
+    bridge phi1 and phi2 (contract "The spatial crane")."""
+    swing = SPATIAL_SWING_NAMES if BRIDGE_JOINT in axes else SPATIAL_SWING_NAMES[:2]
+    return (*(axis(a).sim_joint for a in axes), *swing)
 
 
 #: Joint names the ROS node publishes (positions y, theta1, theta2) ...
@@ -472,6 +476,9 @@ def _references(references) -> tuple[tuple, dict]:
         axes = check_axes([a for a in AXIS_NAMES if a in refs], 'references')
     except ParameterError as exc:
         raise SimulationError(str(exc)) from None
+    if BRIDGE_JOINT in axes:  # the batch stepper is the planar crane's
+        raise SimulationError('references: the batch simulation is of the planar crane (cart, hoist); a crane '
+                              'with a bridge is simulated by CraneSimulator')
     return axes, refs
 
 
@@ -613,16 +620,98 @@ class CraneState:
         return np.array([getattr(self, name) for name in STATE_NAMES])
 
 
+class _PointStepper:
+    """One plant's step for the real-time simulator, in plain floats: each axis's servo exactly
+    (:func:`servo_weights`), the swing by RK4 on the spatial model (``crane_sim.spatial``) fed with the
+    cart's and the bridge's exact accelerations and the hoist's exact length at the stage times 0, h/2, h.
+
+    The same scheme as ``_Stepper`` (whose planar model it reduces to with no bridge: the two
+    cross-check to rounding), at a tenth of its cost for one plant."""
+
+    def __init__(self, plants: PlantBatch, h: float, axes: tuple):
+        self.h = h
+        self.model = SpatialPendulum(*(float(getattr(plants, n)[0]) for n in ('L2', 'm1', 'm2', 'g', 'c1', 'c2')))
+        self.L1 = float(plants.L1[0])
+
+        def weights(tau, step):
+            return [[float(w) for w in row] for row in servo_weights(tau, step)[:, :, 0]]
+
+        self.servos = [weights(getattr(plants, SERVOS[a].tau), h) for a in axes]
+        self.cart = axes.index(CART_JOINT)
+        self.bridge = axes.index(BRIDGE_JOINT) if BRIDGE_JOINT in axes else None
+        self.hoist = axes.index(HOIST_JOINT) if HOIST_JOINT in axes else None
+        if self.hoist is not None:  # the hoist's servo over the first half too: RK4's midpoint needs L1 there
+            self.hoist_half = weights(plants.tau_hoist, 0.5 * h)
+
+    def step(self, axes: list, q: list, v: list, r0, r1) -> None:
+        """Advance ``axes`` (per axis [position, rate, acceleration]) and the swing's absolute angles ``q``
+        and rates ``v`` in place by one step, each axis's reference acceleration going from r0[k] to r1[k]."""
+        h = self.h
+        hoisted = tuple(axes[self.hoist]) if self.hoist is not None else None  # (L1, L1', L1'') before the step
+        ends = []
+        for k, W in enumerate(self.servos):
+            x = axes[k]
+            a, b, c = x[2], r0[k], r1[k]
+            e = [W[0][j] * a + W[1][j] * b + W[2][j] * c for j in range(5)]
+            x[0] += h * x[1] + e[4]
+            x[1] += e[3]
+            x[2] = e[2]
+            ends.append(e)
+        ax = ends[self.cart]
+        ay = ends[self.bridge] if self.bridge is not None else (0.0, 0.0, 0.0)
+        if self.hoist is not None:
+            k, W = self.hoist, self.hoist_half
+            L, dL, ddL = hoisted
+            e, mid = ends[k], 0.5 * (r0[k] + r1[k])
+            half = [W[0][j] * ddL + W[1][j] * r0[k] + W[2][j] * mid for j in (3, 4)]
+            stage = ((L, dL, e[0]), (L + 0.5 * h * dL + half[1], dL + half[0], e[1]),
+                     (L + h * dL + e[4], dL + e[3], e[2]))
+        else:
+            stage = ((self.L1, 0.0, 0.0),) * 3
+        f, h2 = self.model.accelerations, 0.5 * h
+        k1 = f(q, v, ax[0], ay[0], *stage[0])
+        q2 = [q[j] + h2 * v[j] for j in range(4)]
+        v2 = [v[j] + h2 * k1[j] for j in range(4)]
+        k2 = f(q2, v2, ax[1], ay[1], *stage[1])
+        q3 = [q[j] + h2 * v2[j] for j in range(4)]
+        v3 = [v[j] + h2 * k2[j] for j in range(4)]
+        k3 = f(q3, v3, ax[1], ay[1], *stage[1])
+        q4 = [q[j] + h * v3[j] for j in range(4)]
+        v4 = [v[j] + h * k3[j] for j in range(4)]
+        k4 = f(q4, v4, ax[2], ay[2], *stage[2])
+        h6 = h / 6.0
+        for j in range(4):
+            q[j] += h6 * (v[j] + 2.0 * (v2[j] + v3[j]) + v4[j])
+            v[j] += h6 * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
+
+
+@dataclass(frozen=True)
+class SpatialSwing:
+    """The swing of the spatial crane (contract "The spatial crane"): both cables' in-plane angles
+    ``theta1``, ``theta2`` (as in Eqs. 18-19) and out-of-plane angles ``phi1``, ``phi2`` (towards +y), the
+    lower cable's relative to the upper's, and their rates."""
+
+    theta1: float = 0.0
+    theta2: float = 0.0
+    phi1: float = 0.0
+    phi2: float = 0.0
+    dtheta1: float = 0.0
+    dtheta2: float = 0.0
+    dphi1: float = 0.0
+    dphi2: float = 0.0
+
+
 class CraneSimulator:
-    """One plant stepped in real time, with the same step as :func:`simulate`.
+    """One plant stepped in real time, with the scheme of :func:`simulate` on the spatial model.
 
     Args:
         params: plant parameters (attributes or keys L1 L2 m1 m2 g tau c1 c2).
         dt: integration step (s).
         state: initial :class:`CraneState` (default at rest at y = 0).
-        axes: the axes driven (names of ``crane_msgs_py.axes``, the cart first); with the hoist the
-            upper cable's length is an axis too, driven through the servo ``tau_hoist``; it starts at the
-            plant's L1 (later changes of L1 do not move it; ``reset`` keeps it where it is).
+        axes: the axes driven (names of ``crane_msgs_py.axes``, the cart first); with the bridge the
+            suspension point moves along y too and the load swings in both directions (``phi1``, ``phi2``);
+            with the hoist the upper cable's length is an axis too, driven through the servo ``tau_hoist``;
+            it starts at the plant's L1 (later changes of L1 do not move it; ``reset`` keeps it where it is).
     """
 
     def __init__(self, params, dt: float = 1e-3, state: CraneState | None = None, axes=(CART_JOINT,)):
@@ -633,12 +722,9 @@ class CraneSimulator:
             raise SimulationError(str(exc)) from None
         self.axes = self.layout.axes
         self.hoist = HOIST_JOINT in self.axes
-        layout = self.layout
-        self._state_rows = [layout.index(name) for name in STATE_NAMES]
-        # of joint_state: each axis's position and rate, then the angles' (theta2 from the internal phi)
-        self._joint_rows = [layout.rows(a)[:2] for a in self.axes]
+        self.spatial = BRIDGE_JOINT in self.axes
+        self._axes = None
         self.set_params(params)
-        self._x = None
         self.reset(state)
 
     def set_params(self, params):
@@ -647,28 +733,40 @@ class CraneSimulator:
         if len(plants) != 1:
             raise ParameterError(f'CraneSimulator simulates one plant, got {len(plants)}')
         self._plants = plants
-        self._stepper = _Stepper(plants, self.dt, self.layout)
+        self._stepper = _PointStepper(plants, self.dt, self.axes)
 
     @property
     def params(self) -> dict:
         """The current plant parameters as a dict."""
         return self._plants.member(0)
 
-    def reset(self, state: CraneState | None = None, t: float = 0.0):
-        """Back to ``state`` (default at rest at y = 0) at time ``t``; every other axis at rest where it is."""
-        s = (state or CraneState()).as_array()
-        if not np.all(np.isfinite(s)):
+    def reset(self, state: CraneState | None = None, t: float = 0.0, swing: SpatialSwing | None = None):
+        """Back to ``state`` (default at rest at y = 0) at time ``t``, the swing ``swing`` if given (else
+        ``state``'s, in the x-z plane); every other axis at rest where it is."""
+        s = state or CraneState()
+        if not np.all(np.isfinite(s.as_array())):
             raise SimulationError(f'state must be finite, got {state}')
-        x = np.zeros((len(self.layout), 1))
-        x[self._state_rows, 0] = s
-        for name in self.axes[1:]:  # (the first, the cart, is in ``state``)
-            position, start = self.layout.rows(name)[0], SERVOS[name].start
-            if self._x is not None:
-                x[position] = self.axis_state(name)[0]
-            elif start is not None:
-                x[position] = getattr(self._plants, start)[0]
-        self._x = _to_internal(x, self.layout)
+        old = self._axes
+        axes = []
+        for k, name in enumerate(self.axes):
+            if name == CART_JOINT:
+                axes.append([s.y, s.v, s.a])
+            elif old is not None:
+                axes.append([old[k][0], 0.0, 0.0])
+            else:
+                start = SERVOS[name].start
+                axes.append([0.0 if start is None else float(getattr(self._plants, start)[0]), 0.0, 0.0])
+        self._axes = axes
+        w = swing or SpatialSwing(theta1=s.theta1, theta2=s.theta2, dtheta1=s.dtheta1, dtheta2=s.dtheta2)
+        if not all(math.isfinite(getattr(w, f.name)) for f in fields(w)):
+            raise SimulationError(f'swing must be finite, got {swing}')
+        self._set_swing(w)
         self._t0, self._steps = float(t), 0
+
+    def _set_swing(self, w: SpatialSwing) -> None:
+        # the stepper's absolute angles: the lower cable's (theta1 + theta2, phi1 + phi2)
+        self._q = [w.theta1, w.phi1, w.theta1 + w.theta2, w.phi1 + w.phi2]
+        self._v = [w.dtheta1, w.dphi1, w.dtheta1 + w.dtheta2, w.dphi1 + w.dphi2]
 
     @property
     def t(self) -> float:
@@ -679,38 +777,44 @@ class CraneSimulator:
         """Advance one ``dt``; each axis's reference acceleration goes linearly from ``begin`` to ``end``
         (held at ``begin`` if None): one value per axis of ``axes`` in its order (a number alone: the cart's).
 
-        Returns nothing: building :attr:`state` costs a sixth of a step, and
+        Returns nothing: building :attr:`state` costs more than a step's arithmetic, and
         the real-time loop reads it only every 20th step."""
-        r0 = np.array(begin, dtype=float).reshape(-1, 1)
-        r1 = r0 if end is None else np.array(end, dtype=float).reshape(-1, 1)
-        if r0.shape[0] != len(self.axes) or r1.shape[0] != len(self.axes):
+        r0 = [float(v) for v in np.atleast_1d(begin)]
+        r1 = r0 if end is None else [float(v) for v in np.atleast_1d(end)]
+        if len(r0) != len(self.axes) or len(r1) != len(self.axes):
             raise SimulationError(f'a step needs a reference acceleration per axis ({", ".join(self.axes)}), '
                                   f'got {begin} to {end}')
-        if not (np.all(np.isfinite(r0)) and np.all(np.isfinite(r1))):
+        if not all(math.isfinite(v) for v in r0 + r1):
             raise SimulationError(f'reference acceleration must be finite, got {begin} to {end}')
-        self._x = self._stepper.step(self._x, r0, r1)
+        self._stepper.step(self._axes, self._q, self._v, r0, r1)
         self._steps += 1
 
     @property
+    def swing(self) -> SpatialSwing:
+        """Both cables' angles (relative, as published) and their rates."""
+        (a1, b1, a2, b2), (da1, db1, da2, db2) = self._q, self._v
+        return SpatialSwing(a1, a2 - a1, b1, b2 - b1, da1, da2 - da1, db1, db2 - db1)
+
+    @property
     def state(self) -> CraneState:
-        """The cart's and the swing's state."""
-        return CraneState(*(float(v) for v in _to_public(self._x, self.layout)[self._state_rows, 0]))
+        """The cart's and the swing's in-plane state."""
+        w = self.swing
+        y, v, a = self._axes[0]
+        return CraneState(y, v, a, w.theta1, w.theta2, w.dtheta1, w.dtheta2)
 
     def axis_state(self, name: str) -> tuple[float, float, float]:
         """The axis's position, rate and acceleration now."""
-        return tuple(float(self._x[i, 0]) for i in self.layout.rows(name))
+        return tuple(self._axes[self.axes.index(name)])
 
     def push(self, excursion: float) -> None:
-        """Set the load swinging, as a push would: the load displaced ``excursion`` (m) horizontally with
-        both cables in line (theta2 = 0) and released from rest; every axis keeps its state."""
+        """Set the load swinging, as a push would: the load displaced ``excursion`` (m) along x with both
+        cables in line (theta2 = 0) and released from rest; every axis keeps its state."""
         excursion = float(excursion)
         length = self.L1 + float(self._plants.L2[0])
         if not (math.isfinite(excursion) and abs(excursion) < length):
             raise SimulationError(f'a push must displace the load less than the cables\' length '
                                   f'({length:g} m), got {excursion} m')
-        x = _to_public(self._x, self.layout)
-        x[[self.layout.index(name) for name in SWING_NAMES], 0] = (math.asin(excursion / length), 0.0, 0.0, 0.0)
-        self._x = _to_internal(x, self.layout)
+        self._set_swing(SpatialSwing(theta1=math.asin(excursion / length)))
 
     @property
     def L1(self) -> float:
@@ -719,18 +823,30 @@ class CraneSimulator:
 
     @property
     def joint_names(self) -> tuple:
-        """The joints of ``joint_state``: each axis's (``axes``), then theta1 and theta2."""
+        """The joints of ``joint_state``: each axis's (``axes``), then the swing's."""
         return joint_names_of(self.axes)
+
+    def mass_positions(self) -> tuple:
+        """(p1, p2): both masses' positions (m) in ``crane_base`` now."""
+        s = (self._axes[0][0], self._axes[self.axes.index(BRIDGE_JOINT)][0] if self.spatial else 0.0, 0.0)
+        return self._stepper.model.positions(s, self._q, self.L1)
 
     @property
     def load_excursion(self) -> float:
-        """Horizontal offset (m) of the load from its rest position below the cart."""
+        """Horizontal offset (m) of the load from its rest position below the suspension point: in the
+        x-z plane signed (positive when it lags), with a bridge its norm (contract)."""
+        if self.spatial:
+            p1, p2 = self._stepper.model.positions((0.0, 0.0, 0.0), self._q, self.L1)
+            return math.hypot(p2[0], p2[1])
         s = self.state
         return float(load_excursion(s.theta1, s.theta2, self.L1, self._plants.L2[0]))
 
     def joint_state(self) -> tuple[list[float], list[float]]:
-        """Positions and velocities of ``joint_names`` (each axis, theta1, theta2), for sensor_msgs/JointState."""
-        x, s = self._x[:, 0], self.state
-        positions = [float(x[p]) for p, _ in self._joint_rows]
-        velocities = [float(x[v]) for _, v in self._joint_rows]
-        return positions + [s.theta1, s.theta2], velocities + [s.dtheta1, s.dtheta2]
+        """Positions and velocities of ``joint_names`` (each axis, then the swing), for sensor_msgs/JointState."""
+        w = self.swing
+        positions = [x[0] for x in self._axes] + [w.theta1, w.theta2]
+        velocities = [x[1] for x in self._axes] + [w.dtheta1, w.dtheta2]
+        if self.spatial:
+            positions += [w.phi1, w.phi2]
+            velocities += [w.dphi1, w.dphi2]
+        return positions, velocities

@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from crane_msgs_py.axes import AXES
+from crane_msgs_py.axes import CART, HOIST
 from crane_msgs_py.params import CraneParams
 
 from ..planning.model import modal_properties
@@ -66,7 +66,7 @@ class OperatorStream:
         self.axes = len(start)
         if len(limits) != self.axes:
             raise PlanError(f'{self.axes} axes need {self.axes} limits')
-        for axis, lim in zip(AXES, limits):
+        for axis, lim in zip((CART, HOIST), limits):  # (cart,) or (cart, hoist): see ``start``
             lim = axis.limits(*lim)  # named as the axis names them
             lim.require(('max_velocity', 'max_acceleration'), 'operator mode', PlanError)
         self.limits = tuple(limits)
