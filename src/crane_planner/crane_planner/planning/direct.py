@@ -22,7 +22,7 @@ from .collocation import CollocationPlan, Transcription
 from .free_time import FreeTimeSearch
 from .ipopt import Instance, IterationCallback
 from .plan import AxesPlan, PlanError
-from .problem import AXIS_STATES, PROBLEM_PARAMETERS, Form, breakpoints, displacements
+from .problem import AXIS_STATES, PROBLEM_PARAMETERS, Form, axis_displacements, breakpoints, displacements
 from .variational import VariationalSolver
 
 
@@ -38,6 +38,7 @@ class DirectSolver(VariationalSolver):
     """
 
     route = 'direct'
+    handles_bridge = True
     #: The type of IPOPT's per-iteration callback (``IterationCallback`` or a subclass).
     iteration_callback = IterationCallback
     #: IPOPT iteration cap: high, so that time is what bounds a solve.
@@ -89,7 +90,7 @@ class DirectSolver(VariationalSolver):
         with self._transcriptions_lock:
             tr = self._transcriptions.get(key)
             if tr is None:
-                tr = self._transcriptions[key] = Transcription(self.problem(form), self.intervals_for(form.hoist),
+                tr = self._transcriptions[key] = Transcription(self.problem(form), self.intervals_for(form),
                                                                free_time or self.has_limits, free_time=free_time)
         return tr
 
@@ -176,8 +177,7 @@ class DirectSolver(VariationalSolver):
         return dict(lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
 
     def _solve(self, displacement, duration, params, frac, start: dict | None = None, free_end: bool = False):
-        hoisting = displacements(displacement)[1] is not None
-        form = Form.of(params, hoisting)
+        form = Form.of_request(params, displacement)
         t_build, built = time.perf_counter(), form not in self._instances
         inst = self._instance(form)
         build_time = time.perf_counter() - t_build if built else 0.0
@@ -186,7 +186,7 @@ class DirectSolver(VariationalSolver):
         pvec = np.concatenate([pb.parameters(displacement, duration, params, self.weights, start), frac])
         sx, su = pb.scales(pvec[:len(PROBLEM_PARAMETERS)])
         sx, su = np.array(sx, dtype=float).ravel(), np.array(su, dtype=float).ravel()
-        args = dict(p=pvec, **self.bounds(tr, displacement, duration, sx, self.axis_limits(hoisting), start, free_end))
+        args = dict(p=pvec, **self.bounds(tr, displacement, duration, sx, self.axis_limits(form), start, free_end))
         t0 = time.perf_counter()
         # plans from a state keep their own warm start: a rest-to-rest solution is a poor start for a
         # stop, and a stop's would spoil the next rest-to-rest request
@@ -216,7 +216,7 @@ class DirectSolver(VariationalSolver):
                 'solve_time_s': solve_time, 'build_time_s': build_time,
                 'objective': float(sol['f']) * duration * su[0] ** 2, 'intervals': tr.intervals,
                 'robust': list(self.robust), 'sensitivities': list(pb.robust), 'servo_model': form.servo}
-        if hoisting:
+        if form.hoist:
             info['hoist_servo_model'] = form.hoist_servo
         if start is not None:
             info['from_state'] = True
@@ -225,13 +225,13 @@ class DirectSolver(VariationalSolver):
     def plan_of(self, tr, w, sx, displacement, duration, frac, params, info,
                 free_end: bool = False) -> CollocationPlan | AxesPlan:
         """The CollocationPlan of the solution ``w`` (states scaled by ``sx``) lasting ``duration`` s; with a
-        hoist an AxesPlan of the cart's and the hoist's. With ``free_end`` (a stop) each axis's displacement
+        bridge or a hoist an AxesPlan of every axis's. With ``free_end`` (a stop) each axis's displacement
         is where the solution ends."""
         pb = tr.problem
         nodes = tr.interval_nodes(w) * sx  # (N, d+1, nx), SI units
         x = {n: nodes[:, :, i] for i, n in enumerate(pb.states)}
         plans = {}
-        for axis, D in zip(pb.axes, displacements(displacement)):
+        for axis, D in pb.displacements_of(displacement).items():
             pos, vel, acc = pb.reference(x, params.tau, axis, params.tau_hoist)
             if free_end:
                 D = pos[-1, -1]
@@ -241,15 +241,13 @@ class DirectSolver(VariationalSolver):
         if len(plans) == 1:
             return plans['cart']
         return AxesPlan(method=self.method, displacement=plans['cart'].displacement, duration=float(duration),
-                        info=info, axes=plans, starts={'cart': 0.0, 'hoist': params.L1})
+                        info=info, axes=plans, starts={axis: params.L1 if axis == 'hoist' else 0.0 for axis in plans})
 
     @staticmethod
     def sign(displacement):
-        """What a warm start is kept with: the cart's sign; with a hoist the signs of both axes."""
-        D, Dh = displacements(displacement)
-        if Dh is not None:
-            return math.copysign(1.0, D), math.copysign(1.0, Dh)
-        return math.copysign(1.0, D)
+        """What a warm start is kept with: the cart's sign; with more axes the signs of all."""
+        signs = tuple(math.copysign(1.0, d) for d in axis_displacements(displacement).values())
+        return signs if len(signs) > 1 else signs[0]
 
     @staticmethod
     def warm_start(warm: tuple, displacement) -> dict | None:
@@ -260,7 +258,8 @@ class DirectSolver(VariationalSolver):
         scaled variables a request of the other sign is then as warm as one
         of the same sign. A hoist breaks the symmetry: a solution whose axes
         moved in other directions is no start (from one, RVF needs far more
-        iterations than from the quintic guess), so None then.
+        iterations than from the quintic guess), so None then (and with a
+        bridge, whose mirror would take each axis's states apart).
         """
         sign, start = warm
         now = DirectSolver.sign(displacement)
@@ -274,7 +273,9 @@ class DirectSolver(VariationalSolver):
                          start=None, free_end=False) -> str:
         tr, solver = inst.transcription, inst.solver
         D, Dh = displacements(displacement)
+        Db = axis_displacements(displacement).get('bridge')
         where = (('a stop, ' if free_end else '') + f'D={D:g} m, '
+                 + (f'bridge {Db:+g} m, ' if Db is not None else '')
                  + (f'hoist {Dh:+g} m, ' if Dh is not None else '') + f'T={duration:g} s')
         status = stats['return_status']
         if status == 'Maximum_WallTime_Exceeded':
@@ -286,10 +287,10 @@ class DirectSolver(VariationalSolver):
         if not self.has_limits:
             return f'{self.method} solver did not converge for {where} (IPOPT status {status})'
         # Name the limit: the ones that fail on their own, else all of them.
-        values = {n: v for limits in self.axis_limits(Dh is not None) for n, v in zip(limits.names, limits)
+        values = {n: v for limits in self.axis_limits(tr.problem.axes) for n, v in zip(limits.names, limits)
                   if v is not None}
         present, failing = list(values), []
-        if Dh is None and len(present) > 1:  # with a hoist not probed one by one: every limit of both is named
+        if tr.problem.axes == ('cart',) and len(present) > 1:  # several axes not probed one by one: all named
             for name in present:
                 if not self._may_retry(t0):
                     break

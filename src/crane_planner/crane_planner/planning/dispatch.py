@@ -62,6 +62,9 @@ class PlanOptions:
         hoist_robust: the parameters RVF is made insensitive to while
             hoisting (it replaces ``robust`` then): the payload's cable ``L2``
             by default, since the upper cable's length is what the hoist sets.
+        max_bridge_velocity, max_bridge_acceleration, max_bridge_jerk: the
+            bridge axis's limits on its reference (m/s, m/s^2, m/s^3), None =
+            no limit (or ``limits['bridge']``).
         hoist_shaper: how a shaper follows the rope length while hoisting
             (``hoisting.HOIST_SHAPER_DESIGNS``): ``adaptive`` (default) or
             designed at the ``start``, ``middle`` or ``end`` length.
@@ -83,6 +86,9 @@ class PlanOptions:
     hoist_robust: tuple[str, ...] = ('L2',)
     hoist_shaper: str = 'adaptive'
     limits: Mapping[str, AxisLimits] | tuple[AxisLimits, ...] = ()
+    max_bridge_velocity: float | None = None
+    max_bridge_acceleration: float | None = None
+    max_bridge_jerk: float | None = None
 
     def __post_init__(self):
         self._set_limits()
@@ -183,7 +189,8 @@ def check_axis_limits(plan, options: PlanOptions, axis_name: str = CART_JOINT) -
 class VariationalRequest:
     """A checked NVF/RVF request, as a solver runs it (and a worker process receives it).
 
-    ``operation`` ``plan``: from 0 to ``displacement`` (m) in ``duration`` (s),
+    ``operation`` ``plan``: from 0 to ``displacement`` (m; a number, the cart's; the pair of the cart's and
+    the hoist's; or by axis name, ``problem.axis_displacements``) in ``duration`` (s),
     from rest or from ``start`` (SI values of the problem's states by name,
     ``continuation.problem_start``), with ``free_end`` to rest anywhere (a stop);
     ``fastest``: the shortest plan within the options' limits (``duration`` None).
@@ -191,7 +198,7 @@ class VariationalRequest:
 
     operation: str
     method: str
-    displacement: float
+    displacement: float | tuple | Mapping
     duration: float | None
     params: CraneParams
     options: PlanOptions
@@ -213,12 +220,15 @@ Variational = Callable[[VariationalRequest], Plan]
 
 def plan(method: str, displacement: float, duration: float, params: CraneParams | None = None,
          options: PlanOptions | None = None, variational: Variational | None = None,
-         hoist: tuple[float, float] | None = None) -> Plan:
+         hoist: tuple[float, float] | None = None, bridge: float | None = None) -> Plan:
     """A rest-to-rest plan from 0 to ``displacement`` (m) in ``duration`` (s).
 
     With ``hoist`` = (L1_start, L1_goal) (m) the rope length moves too: an
     ``AxesPlan`` of the cart and the hoist, planned on the model with L1 =
-    L1_start (contract "Joints and hoisting"). Shapers are planned here;
+    L1_start (contract "Joints and hoisting"). With ``bridge`` (m, its
+    displacement) the bridge moves too, all axes planned together on the
+    spatial crane (NVF/RVF only, contract "The spatial crane"): an
+    ``AxesPlan`` of every axis moved. Shapers are planned here;
     NVF/RVF by ``variational`` (default: a new solver, see the module
     docstring). Raises PlanError (or its ParameterError sibling, both
     ValueError) with a message naming the problem.
@@ -226,6 +236,7 @@ def plan(method: str, displacement: float, duration: float, params: CraneParams 
     params = params or CraneParams()
     options = options or PlanOptions()
     displacement, duration = check_request(method, displacement, duration)
+    bridge = bridge_request(method, bridge)
     if hoist is not None:
         params, hoist_displacement = hoisting_request(params, options, hoist)
         if method in SHAPER_METHODS:
@@ -247,13 +258,15 @@ def plan(method: str, displacement: float, duration: float, params: CraneParams 
                              options.limits_of(CART_JOINT))
         check_axis_limits(shaped, options)
         return shaped
+    if bridge is not None:
+        displacement = with_bridge(displacement, bridge)
     # the variational solvers bound v and a_ref everywhere as path constraints
     return (variational or _new_solver)(VariationalRequest('plan', method, displacement, duration, params, options))
 
 
 def fastest(method: str, displacement: float, params: CraneParams | None = None,
             options: PlanOptions | None = None, variational: Variational | None = None,
-            hoist: tuple[float, float] | None = None) -> Plan:
+            hoist: tuple[float, float] | None = None, bridge: float | None = None) -> Plan:
     """The shortest rest-to-rest plan of ``displacement`` (m) within the options' axis limits.
 
     Needs max_velocity or max_acceleration (a motion without either could
@@ -263,11 +276,14 @@ def fastest(method: str, displacement: float, params: CraneParams | None = None,
     params = params or CraneParams()
     options = options or PlanOptions()
     check_request(method, displacement, 1.0)
+    bridge = bridge_request(method, bridge)
     if hoist is not None:
         params, hoist_displacement = hoisting_request(params, options, hoist)
         if method in SHAPER_METHODS:
             raise PlanError('the fastest shaped plan with a hoist is not offered: give a duration, or use nvf/rvf')
         displacement, options = (float(displacement), hoist_displacement), hoisting_options(options)
+    elif bridge is not None:
+        displacement = float(displacement)
     else:
         limits = options.limits_of(CART_JOINT)
         displacement = check_fastest_request(displacement, limits)  # before a solver is asked
@@ -275,7 +291,33 @@ def fastest(method: str, displacement: float, params: CraneParams | None = None,
             return fastest_shaped(method, displacement, *shaper_design(params, options), limits, options.base)
     if options.solver != 'direct':
         raise PlanError('the fastest NVF/RVF plan needs the direct solver (free final time)')
+    if bridge is not None:
+        displacement = with_bridge(displacement, bridge)
     return (variational or _new_solver)(VariationalRequest('fastest', method, displacement, None, params, options))
+
+
+def bridge_request(method: str, bridge) -> float | None:
+    """The bridge's displacement (m) of a request, checked; None without one."""
+    if bridge is None:
+        return None
+    try:
+        bridge = float(bridge)
+    except (TypeError, ValueError):
+        raise PlanError(f'the bridge displacement must be a number (m), got {bridge!r}') from None
+    if not math.isfinite(bridge):
+        raise PlanError(f'the bridge displacement must be finite, got {bridge}')
+    if method in SHAPER_METHODS:
+        raise PlanError('the shapers do not plan the bridge yet: use nvf or rvf')
+    return bridge
+
+
+def with_bridge(displacement, bridge: float) -> dict:
+    """``displacement`` (the cart's, or the pair of the cart's and the hoist's) with the bridge's, by axis name.
+
+    Only variational requests have one (imported here: CasADi loads with them, see ``variational_solver``).
+    """
+    from .problem import axis_displacements
+    return {**axis_displacements(displacement), 'bridge': bridge}
 
 
 def hoisting_request(params: CraneParams, options: PlanOptions, hoist) -> tuple[CraneParams, float]:

@@ -18,7 +18,7 @@ from .collocation import CollocationPlan
 from .ipopt import Instance
 from .limits import check_fastest_request, shortest_duration_bound
 from .plan import PlanError
-from .problem import PROBLEM_PARAMETERS, Form, displacements
+from .problem import PROBLEM_PARAMETERS, Form, axis_displacements, displacements
 from .profiles import quintic_duration
 
 
@@ -35,8 +35,8 @@ class FreeTimeSearch:
         self._instances = {}  # Form -> Instance of the free-time NLP
 
     def fastest(self, displacement, params: CraneParams) -> CollocationPlan:
-        """The shortest plan of ``displacement`` (m; with a hoist the pair of the cart's and the hoist's)
-        within the solver's axis limits (each axis's own).
+        """The shortest plan of ``displacement`` (m; with a hoist the pair of the cart's and the hoist's, or
+        by axis name, ``problem.axis_displacements``) within the solver's axis limits (each axis's own).
 
         It starts from its own last solution; the first time (or if that
         fails) from the quintic guess at T_0 = 1.3 times the shortest quintic
@@ -46,20 +46,20 @@ class FreeTimeSearch:
         stop at that budget: a PlanError names it.
         """
         solver = self.solver
-        D, Dh = displacements(displacement)
-        hoisting = Dh is not None
-        if hoisting:
-            limits = solver.hoist_limits
-            if not limits.bounds_speed:
-                raise PlanError(f'the fastest plan with a hoist needs {limits.names[0]} or {limits.names[1]} (or both)')
-            if D == 0.0 and Dh == 0.0:
+        moves = axis_displacements(displacement)
+        if len(moves) > 1:
+            for name, limits in zip(moves, solver.axis_limits(tuple(moves))):
+                if name != 'cart' and not limits.bounds_speed:
+                    raise PlanError(f'the fastest plan with a {name} needs {limits.names[0]} or {limits.names[1]} '
+                                    '(or both)')
+            if not any(moves.values()):
                 raise PlanError('the fastest plan needs a nonzero displacement')
-            displacement = (D, Dh)
+            displacement = (moves['cart'], moves['hoist']) if tuple(moves) == ('cart', 'hoist') else moves
         else:
-            displacement = check_fastest_request(D, solver.limits)
-        form = Form.of(params, hoisting)
+            displacement = check_fastest_request(moves['cart'], solver.limits)
+        form = Form.of_request(params, displacement)
         bound = max(shortest_duration_bound(d, limits)
-                    for d, limits in zip(displacements(displacement), solver.axis_limits(hoisting)))
+                    for d, limits in zip(axis_displacements(displacement).values(), solver.axis_limits(form)))
         t_build = time.perf_counter()
         inst = self._instance(form)
         build_time = time.perf_counter() - t_build
@@ -83,20 +83,21 @@ class FreeTimeSearch:
                 start = warm
             else:
                 quintic = max(quintic_duration(d, *limits) if limits.bounds_speed else 0.0
-                              for d, limits in zip(displacements(displacement), solver.axis_limits(form.hoist)))
+                              for d, limits in zip(axis_displacements(displacement).values(),
+                                                   solver.axis_limits(form)))
                 T0 = max(self.quintic_margin * quintic, 1.5 * bound)
                 if attempt == 0:  # first: from the quintic's guess, no fixed NLP needed
-                    start = {'x0': np.append(tr.guess(displacement, solver.mesh(T0, params, form.hoist)), 1.0)}
+                    start = {'x0': np.append(tr.guess(displacement, solver.mesh(T0, params, form)), 1.0)}
                 else:  # else a fixed-duration solution: durations until one solves
                     T0, solves = self._fixed_solution(displacement, T0, params, attempt)
                     fixed_solves += solves
                     start = {'x0': np.append(np.array(solver.last_solution(form)['x0']).ravel(), 1.0)}
                 inst.T0 = T0
-            frac = solver.mesh(T0, params, form.hoist)
+            frac = solver.mesh(T0, params, form)
             pvec = np.concatenate([pb.parameters(displacement, T0, params, solver.weights), frac])
             sx, _ = pb.scales(pvec[:len(PROBLEM_PARAMETERS)])
             sx = np.array(sx, dtype=float).ravel()
-            args = solver.bounds(tr, displacement, T0, sx, solver.axis_limits(form.hoist))
+            args = solver.bounds(tr, displacement, T0, sx, solver.axis_limits(form))
             args['lbx'][-1] = bound / T0 * (1.0 - 1e-9)  # sigma: no motion beats the bound
             with inst.callback.solving(solver.deadline):
                 sol = nlp(p=pvec, **args, **start)
@@ -124,8 +125,8 @@ class FreeTimeSearch:
         for solves in range(1, 31):
             self._check_deadline(displacement, attempt)
             try:
-                hoisting = displacements(displacement)[1] is not None
-                self.solver._solve(displacement, T0, params, self.solver.mesh(T0, params, hoisting))  # under its lock
+                form = Form.of_request(params, displacement)
+                self.solver._solve(displacement, T0, params, self.solver.mesh(T0, params, form))  # under its lock
                 return T0, solves
             except PlanError:
                 T0 *= 1.5

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import casadi as ca
@@ -24,9 +25,10 @@ import numpy as np
 from numpy.polynomial import polynomial as poly
 from scipy.optimize import brentq
 
+from crane_msgs_py.axes import AXIS_NAMES
 from crane_msgs_py.params import CraneParams
 
-from .dynamics import CART_STATES, HOIST_STATES, PARAMETERS, augment, crane_ode
+from .dynamics import BRIDGE_STATES, CART_STATES, HOIST_STATES, PARAMETERS, augment, crane_ode
 from .profiles import QUINTIC
 
 #: Smallest position scale (m): a request for D = 0 is still well scaled.
@@ -34,7 +36,7 @@ P_MIN = 1e-3
 
 #: Entries of the NLP parameter vector of ``Problem`` (the mesh fractions follow in a transcription).
 PROBLEM_PARAMETERS = ('T', 'P', *PARAMETERS, 'acceleration_weight', 'sensitivity_weight',
-                      'reference_jerk_weight', 'P_hoist', 'hoist_weight')
+                      'reference_jerk_weight', 'P_hoist', 'hoist_weight', 'P_bridge', 'bridge_weight')
 
 
 @dataclass(frozen=True)
@@ -64,6 +66,8 @@ class Weights:
     #: w_h: the hoist's jerk (and reference jerk) counts w_h times the cart's in the cost,
     #: w_h jerk_h^2/2: 1 weighs a metre of hoisting like a metre of travel.
     hoist: float = 1.0
+    #: w_b: the same for the bridge's jerk (and reference jerk): 1 weighs it like the cart's.
+    bridge: float = 1.0
 
 
 def _state_scale(name: str, T, P, g, params: dict):
@@ -71,30 +75,64 @@ def _state_scale(name: str, T, P, g, params: dict):
     if '/' in name:  # 'd<state>/d<q>'
         state, q = name[1:].split('/d')
         return _state_scale(state, T, P, g, params) / (T if q == 'tau' else params[q])
-    H = params.get('P_hoist', P)
+    H, B = params.get('P_hoist', P), params.get('P_bridge', P)
+    # the swing in the x-z plane (theta) is driven by the cart, out of it (phi) by the bridge
     return {'y': P, 'v': P / T, 'a': P / T ** 2, 'a_ref': P / T ** 2,
+            'yb': B, 'vb': B / T, 'ab': B / T ** 2, 'ab_ref': B / T ** 2,
             'h': H, 'hv': H / T, 'ha': H / T ** 2, 'ha_ref': H / T ** 2,
             'theta1': P / (g * T ** 2), 'theta2': P / (g * T ** 2),
-            'dtheta1': P / (g * T ** 3), 'dtheta2': P / (g * T ** 3)}[name]
+            'dtheta1': P / (g * T ** 3), 'dtheta2': P / (g * T ** 3),
+            'phi1': B / (g * T ** 2), 'phi2': B / (g * T ** 2),
+            'dphi1': B / (g * T ** 3), 'dphi2': B / (g * T ** 3)}[name]
+
+
+def axis_displacements(displacement) -> dict[str, float]:
+    """{axis name: D} of a request's ``displacement``, in ``crane_msgs_py.axes.AXES`` order.
+
+    ``displacement`` is a number (the cart alone), a pair (the cart's and the
+    hoist's, the form before the bridge), or a mapping by axis name (any of
+    the axes; the cart's is 0 if not given).
+    """
+    if isinstance(displacement, Mapping):
+        unknown = [name for name in displacement if name not in AXIS_NAMES]
+        if unknown:
+            raise ValueError(f'no axis {unknown[0]!r}; the axes are {", ".join(AXIS_NAMES)}')
+        given = dict(displacement, cart=displacement.get('cart', 0.0))
+        return {name: float(given[name]) for name in AXIS_NAMES if name in given}
+    d = np.atleast_1d(np.asarray(displacement, dtype=float))
+    return {'cart': float(d[0]), **({'hoist': float(d[1])} if d.size > 1 else {})}
 
 
 def displacements(displacement) -> tuple[float, float | None]:
-    """(cart D, hoist D or None) of a request's ``displacement``: a number (the cart alone) or a pair."""
-    d = np.atleast_1d(np.asarray(displacement, dtype=float))
-    return float(d[0]), (float(d[1]) if d.size > 1 else None)
+    """(cart D, hoist D or None) of a request's ``displacement`` (``axis_displacements``)."""
+    d = axis_displacements(displacement)
+    return d['cart'], d.get('hoist')
 
 
 @dataclass(frozen=True)
 class Form:
-    """Which model a problem is built on: the cart's servo (tau > 0), a hoist axis, the hoist's servo."""
+    """Which model a problem is built on: the cart's (and bridge's) servo (tau > 0), a hoist axis, the hoist's
+    servo, a bridge axis (the spatial crane)."""
 
     servo: bool
     hoist: bool = False
     hoist_servo: bool = False
+    bridge: bool = False
 
     @classmethod
-    def of(cls, params: CraneParams, hoist: bool) -> 'Form':
-        return cls(params.tau > 0.0, hoist, hoist and params.tau_hoist > 0.0)
+    def of(cls, params: CraneParams, hoist: bool, bridge: bool = False) -> 'Form':
+        return cls(params.tau > 0.0, hoist, hoist and params.tau_hoist > 0.0, bridge)
+
+    @classmethod
+    def of_request(cls, params: CraneParams, displacement) -> 'Form':
+        """The form of a request's ``displacement`` (``axis_displacements``): its axes beside the cart."""
+        axes = axis_displacements(displacement)
+        return cls.of(params, 'hoist' in axes, 'bridge' in axes)
+
+    @property
+    def axes(self) -> tuple:
+        """The axes planned, in ``crane_msgs_py.axes.AXES`` order."""
+        return ('cart',) + (('bridge',) if self.bridge else ()) + (('hoist',) if self.hoist else ())
 
     @classmethod
     def coerce(cls, form) -> 'Form':
@@ -103,7 +141,10 @@ class Form:
 
 
 #: Each axis's states (``dynamics``), by axis name.
-AXIS_STATES = {'cart': CART_STATES, 'hoist': HOIST_STATES}
+AXIS_STATES = {'cart': CART_STATES, 'bridge': BRIDGE_STATES, 'hoist': HOIST_STATES}
+#: Each axis's position scale and cost weight among ``PROBLEM_PARAMETERS``.
+AXIS_SCALES = {'cart': 'P', 'bridge': 'P_bridge', 'hoist': 'P_hoist'}
+AXIS_WEIGHTS = {'bridge': 'bridge_weight', 'hoist': 'hoist_weight'}
 
 
 class Problem:
@@ -116,22 +157,24 @@ class Problem:
     with the servo, where u is the reference jerk). With a hoist (``form``)
     its jerk and reference jerk enter the same way, weighted by w_h
     (``Weights.hoist``), and it also goes from rest to rest: x(T) has its
-    displacement D_h.
+    displacement D_h. With a bridge likewise (w_b, ``Weights.bridge``, its
+    acceleration under w_a like the cart's), on the spatial crane.
 
     Attributes:
         ode: the (augmented) crane model.
         states: state names; ``nx`` of them, ``nu`` inputs (one per axis).
-        axes: ``('cart',)`` or ``('cart', 'hoist')``.
+        axes: the axes planned (``Form.axes``): ``('cart',)``, ``('cart', 'hoist')``, ``('cart', 'bridge')``,
+            ``('cart', 'bridge', 'hoist')``.
         P: symbolic parameter vector, entries ``PROBLEM_PARAMETERS``.
         F: dX/ds = F(X, U, P) in scaled variables.
         G: the cost integrand in scaled units; J = T (P/T^3)^2 int_0^1 G ds.
     """
 
     def __init__(self, robust: tuple, form: Form):
-        ode = crane_ode(form.servo, form.hoist, form.hoist_servo)
+        ode = crane_ode(form.servo, form.hoist, form.hoist_servo, form.bridge)
         self.ode = augment(ode, robust) if robust else ode
         self.form, self.servo = form, form.servo
-        self.axes = ('cart', 'hoist') if form.hoist else ('cart',)
+        self.axes = form.axes
         self.robust = self.ode.robust
         self.states = self.ode.states
         self.nx, self.nu = len(self.states), len(self.axes)
@@ -141,7 +184,7 @@ class Problem:
         par = dict(zip(PROBLEM_PARAMETERS, ca.vertsplit(P)))
         T, Ps, g = par['T'], par['P'], par['g']
         sx = ca.vertcat(*[_state_scale(s, T, Ps, g, par) for s in self.states])
-        su = ca.vertcat(Ps, par['P_hoist'])[:self.nu] / T ** 3
+        su = ca.vertcat(*[par[AXIS_SCALES[axis]] for axis in self.axes]) / T ** 3
         x, u = sx * X, su * U
         p = ca.vertcat(*[par[q] for q in PARAMETERS])
         f = ca.substitute(ca.substitute(self.ode.f, self.ode.x, x), ca.vertcat(self.ode.u, self.ode.p),
@@ -153,18 +196,26 @@ class Problem:
                  + par['sensitivity_weight'] * ca.sumsqr(sens)) / 2
         if form.servo:
             gcost += par['reference_jerk_weight'] * u[0] ** 2 / 2
+        if form.bridge:
+            k = self.axes.index('bridge')
+            bridge_jerk = (s['ab_ref'] - s['ab']) / par['tau'] if form.servo else u[k]
+            gcost += par['bridge_weight'] * (bridge_jerk ** 2 + par['acceleration_weight'] * s['ab'] ** 2) / 2
+            if form.servo:
+                gcost += par['bridge_weight'] * par['reference_jerk_weight'] * u[k] ** 2 / 2
         if form.hoist:
-            hoist_jerk = (s['ha_ref'] - s['ha']) / par['tau_hoist'] if form.hoist_servo else u[1]
+            k = self.axes.index('hoist')
+            hoist_jerk = (s['ha_ref'] - s['ha']) / par['tau_hoist'] if form.hoist_servo else u[k]
             gcost += par['hoist_weight'] * hoist_jerk ** 2 / 2
             if form.hoist_servo:
-                gcost += par['hoist_weight'] * par['reference_jerk_weight'] * u[1] ** 2 / 2
+                gcost += par['hoist_weight'] * par['reference_jerk_weight'] * u[k] ** 2 / 2
         self.X, self.U, self.P = X, U, P
         self.F = ca.Function('F', [X, U, P], [T * f / sx])
         self.G = ca.Function('G', [X, U, P], [gcost / su[0] ** 2])
         self.scales = ca.Function('scales', [P], [sx, su])
         # reference velocity and acceleration of each axis (for the axis limits), scaled by P/T and P/T^2
         ref_v, ref_a = [], []
-        for axis, scale in zip(self.axes, (Ps, par['P_hoist'])):
+        for axis in self.axes:
+            scale = par[AXIS_SCALES[axis]]
             _, v, a = self.reference(s, par['tau'], axis, par['tau_hoist'])
             ref_v.append(v / (scale / T))
             ref_a.append(a / (scale / T ** 2))
@@ -174,25 +225,33 @@ class Problem:
                    start: dict | None = None) -> np.ndarray:
         """The NLP parameter vector (``PROBLEM_PARAMETERS``) of a request.
 
-        The position scales P and P_hoist are the displacements, and with a
-        ``start`` (SI state values by name, see ``boundary``) also what the
-        start's velocity, acceleration and swing would carry the axis in T,
-        so a stop (D ~ 0) or a settle (D = 0, the swing alone) is well scaled too.
+        The position scales P, P_bridge and P_hoist are the displacements, and
+        with a ``start`` (SI state values by name, see ``boundary``) also what
+        the start's velocity, acceleration and swing would carry the axis in T
+        (the cart's the swing in the x-z plane, the bridge's the swing out of
+        it), so a stop (D ~ 0) or a settle (D = 0, the swing alone) is well
+        scaled too.
         """
-        D, Dh = displacements(displacement)
-        P, H = max(abs(D), P_MIN), max(abs(Dh or 0.0), P_MIN)
+        D = self.displacements_of(displacement)
+        scale = {axis: max(abs(D.get(axis, 0.0)), P_MIN) for axis in AXIS_SCALES}
         if start:
             T, g = duration, params.g
             x = {k: abs(v) for k, v in start.items()}
-            P = max(P, x.get('y', 0.0), x.get('v', 0.0) * T, x.get('a', 0.0) * T ** 2, x.get('a_ref', 0.0) * T ** 2,
-                    *(g * T ** 2 * x.get(n, 0.0) for n in ('theta1', 'theta2')),
-                    *(g * T ** 3 * x.get(n, 0.0) for n in ('dtheta1', 'dtheta2')))
-            H = max(H, x.get('h', 0.0), x.get('hv', 0.0) * T, x.get('ha', 0.0) * T ** 2, x.get('ha_ref', 0.0) * T ** 2)
-        values = dict(params.as_dict(), T=duration, P=P,
+            swing = {'cart': ('theta', 'dtheta'), 'bridge': ('phi', 'dphi'), 'hoist': ()}
+            for axis, (y, v, a, a_ref) in AXIS_STATES.items():
+                angles = [g * T ** (2 + k) * x.get(f'{n}{i}', 0.0) for k, n in enumerate(swing[axis]) for i in (1, 2)]
+                scale[axis] = max(scale[axis], x.get(y, 0.0), x.get(v, 0.0) * T, x.get(a, 0.0) * T ** 2,
+                                  x.get(a_ref, 0.0) * T ** 2, *angles)
+        values = dict(params.as_dict(), T=duration, P=scale['cart'],
                       acceleration_weight=weights.acceleration, sensitivity_weight=weights.sensitivity,
-                      reference_jerk_weight=weights.reference_jerk, P_hoist=H,
-                      hoist_weight=weights.hoist)
+                      reference_jerk_weight=weights.reference_jerk, P_hoist=scale['hoist'],
+                      hoist_weight=weights.hoist, P_bridge=scale['bridge'], bridge_weight=weights.bridge)
         return np.array([values[k] for k in PROBLEM_PARAMETERS], dtype=float)
+
+    def displacements_of(self, displacement) -> dict[str, float]:
+        """{axis: D} of every axis of this problem (``axis_displacements``; an axis not given: 0)."""
+        given = axis_displacements(displacement)
+        return {axis: given.get(axis, 0.0) for axis in self.axes}
 
     def reference(self, x: dict, tau: float, axis: str = 'cart', tau_hoist: float = 0.0) -> tuple:
         """Reference position, velocity, acceleration of ``axis`` from states in SI units (``x`` by name).
@@ -217,15 +276,13 @@ class Problem:
         s = 1 rest at D (and the hoist at D_h); with ``free_end`` the axes'
         positions are free (NaN): a stop.
         """
-        D, Dh = displacements(displacement)
         x0 = np.zeros(self.nx)
         for name, value in (start or {}).items():
             if name in self.states and '/' not in name:
                 x0[self.states.index(name)] = value / sx[self.states.index(name)]
         xT = np.zeros(self.nx)
-        ends = [('y', D)] + ([('h', Dh or 0.0)] if self.form.hoist else [])
-        for name, value in ends:
-            i = self.states.index(name)
+        for axis, value in self.displacements_of(displacement).items():
+            i = self.states.index(AXIS_STATES[axis][0])
             xT[i] = np.nan if free_end else value / sx[i]
         return x0, xT
 
@@ -240,10 +297,9 @@ class Problem:
         swing fading out linearly. In scaled units a state's s-derivative is
         the next state, and theta1 ~ a/g, dtheta1 ~ jerk/g are A and U.
         """
-        D, Dh = displacements(displacement)
-        axes = [('y', 'v', 'a', 'a_ref', D)] + ([('h', 'hv', 'ha', 'ha_ref', Dh or 0.0)] if self.form.hoist else [])
         guess, U = {}, []
-        for y, v, a, a_ref, d in axes:
+        for axis, d in self.displacements_of(displacement).items():
+            y, v, a, a_ref = AXIS_STATES[axis]
             k = d / max(abs(d), P_MIN)
             if x0 is None:
                 q = [k * poly.polyval(s, QUINTIC[i]) for i in range(4)]
@@ -256,8 +312,11 @@ class Problem:
             guess.update({y: q[0], v: q[1], a: q[2], a_ref: q[2]})
             U.append(q[3])
         guess.update(theta1=guess['a'], dtheta1=U[0])
+        if self.form.bridge:  # phi is positive towards +y: the load lags a bridge acceleration at phi1 ~ -ab/g
+            k = self.axes.index('bridge')
+            guess.update(phi1=-guess['ab'], dphi1=-U[k])
         if x0 is not None:
-            for n in ('theta1', 'theta2', 'dtheta1', 'dtheta2'):
+            for n in self.ode.swing_states:
                 guess[n] = guess.get(n, 0.0 * s) + x0[self.states.index(n)] * (1.0 - s)
         X = np.array([guess.get(n, 0.0 * s) for n in self.states])
         return X, np.array(U)

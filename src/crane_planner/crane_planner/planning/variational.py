@@ -17,7 +17,7 @@ from crane_msgs_py.params import CraneParams
 from .limits import axis_limit_error
 from .methods import VARIATIONAL_METHODS
 from .plan import Plan, PlanError
-from .problem import Form, Problem, Weights, displacements, graded_mesh, servo_layer, uniform_mesh
+from .problem import Form, Problem, Weights, axis_displacements, graded_mesh, servo_layer, uniform_mesh
 
 
 class VariationalSolver:
@@ -36,11 +36,15 @@ class VariationalSolver:
     handles_time_budget = True
     #: Whether the route plans a hoist axis beside the cart.
     handles_hoist = True
+    #: Whether the route plans the bridge beside the cart (the spatial crane); a route says so itself.
+    handles_bridge = False
     #: Collocation intervals when PlanOptions.intervals is None.
     default_intervals = 30
     #: ... and with a hoist: its NLP costs several times as much per interval, and 24 intervals leave the
     #: same residual swing on the nominal hoisting move as 30, in less time.
     default_hoist_intervals = 24
+    #: ... and on the spatial crane (a bridge, with or without the hoist): twice the states of the planar crane.
+    default_bridge_intervals = 24
     weights = Weights()
     #: End intervals of the servo mesh, as a multiple of the boundary-layer width (see ``mesh``).
     layer_resolution = 0.25
@@ -55,9 +59,11 @@ class VariationalSolver:
         self.method, self.options, self.overrides = method, options, overrides
         self.intervals = options.intervals or self.default_intervals
         self.hoist_intervals = options.intervals or self.default_hoist_intervals
+        self.bridge_intervals = options.intervals or self.default_bridge_intervals
         self.robust = tuple(options.robust) if method == 'rvf' else ()
-        #: the cart's limits, then the hoist's (``AxisLimits``)
+        #: the cart's limits, the hoist's and the bridge's (``AxisLimits``)
         self.limits, self.hoist_limits = options.limits_of(CART_JOINT), options.limits_of(HOIST_JOINT)
+        self.bridge_limits = options.limits_of('bridge')
         #: the budget (s) of one solve, None = the route's own cap
         self.max_solve_time = options.max_solve_time
         self._problems = {}
@@ -88,11 +94,17 @@ class VariationalSolver:
 
     @property
     def has_limits(self) -> bool:
-        return self.limits.any or self.hoist_limits.any
+        return self.limits.any or self.hoist_limits.any or self.bridge_limits.any
 
-    def axis_limits(self, hoisting: bool) -> list[AxisLimits]:
-        """The ``AxisLimits`` of each axis planned, the cart's first."""
-        return [self.limits, self.hoist_limits] if hoisting else [self.limits]
+    def axis_limits(self, axes) -> list[AxisLimits]:
+        """The ``AxisLimits`` of each axis planned, in ``axes``' order: axis names, a ``problem.Form``, or
+        ``hoisting`` (a bool: the cart's, then the hoist's with a hoist)."""
+        if isinstance(axes, Form):
+            axes = axes.axes
+        elif isinstance(axes, bool):
+            axes = ('cart', 'hoist') if axes else ('cart',)
+        by_axis = {CART_JOINT: self.limits, 'bridge': self.bridge_limits, HOIST_JOINT: self.hoist_limits}
+        return [by_axis[a] for a in axes]
 
     def problem(self, form) -> Problem:
         """The ``Problem`` of a ``problem.Form`` (or of ``servo``, a bool, without a hoist)."""
@@ -101,8 +113,8 @@ class VariationalSolver:
             self._problems[form] = Problem(self.robust, form)
         return self._problems[form]
 
-    def mesh(self, duration: float, params: CraneParams, hoisting: bool = False) -> np.ndarray:
-        """Interval fractions of T.
+    def mesh(self, duration: float, params: CraneParams, form=False) -> np.ndarray:
+        """Interval fractions of T for the model ``form`` (a ``problem.Form``, or ``hoisting``, a bool).
 
         With the servo the optimum has boundary layers of width
         ``problem.servo_layer`` at both ends. A uniform mesh that does not
@@ -110,16 +122,19 @@ class VariationalSolver:
         made ``layer_resolution`` layers wide, growing geometrically into the
         uniform interior.
         """
-        taus = [t for t in (params.tau, params.tau_hoist if hoisting else 0.0) if t > 0.0]
-        intervals = self.intervals_for(hoisting)
+        form = form if isinstance(form, Form) else Form.of(params, bool(form))
+        taus = [t for t in (params.tau, params.tau_hoist if form.hoist else 0.0) if t > 0.0]
+        intervals = self.intervals_for(form)
         if not taus:
             return uniform_mesh(intervals)
         layer = servo_layer(min(taus), self.weights) * self.layer_resolution
         return graded_mesh(intervals, layer / duration)
 
-    def intervals_for(self, hoisting: bool) -> int:
-        """Collocation intervals of the model without or with a hoist."""
-        return self.hoist_intervals if hoisting else self.intervals
+    def intervals_for(self, form) -> int:
+        """Collocation intervals of the model ``form`` (a ``problem.Form``, or ``hoisting``, a bool)."""
+        if isinstance(form, Form) and form.bridge:
+            return self.bridge_intervals
+        return self.hoist_intervals if (form.hoist if isinstance(form, Form) else form) else self.intervals
 
     def solve(self, displacement, duration: float, params: CraneParams, start: dict | None = None,
               free_end: bool = False) -> Plan:
@@ -131,19 +146,27 @@ class VariationalSolver:
 
         ``displacement`` is the cart's (a number), or the cart's and the
         hoist's (a pair: the hoist from the model's L1 to L1 + the second,
-        an ``AxesPlan``). Raises PlanError naming the solver status if the
-        solver does not converge, or the axis limit that makes the request
-        infeasible.
+        an ``AxesPlan``), or a mapping by axis name (``problem.axis_displacements``:
+        with a ``bridge`` the spatial crane, an ``AxesPlan``). Raises PlanError
+        naming the solver status if the solver does not converge, or the axis
+        limit that makes the request infeasible.
         """
-        D, Dh = displacements(displacement)
+        try:
+            moves = axis_displacements(displacement)
+        except ValueError as exc:
+            raise PlanError(str(exc)) from None
+        D, Dh = moves['cart'], moves.get('hoist')
         if Dh is not None and not self.handles_hoist:
             raise PlanError(f'the {self.route} solver does not plan a hoist; use the direct solver')
+        if 'bridge' in moves and not self.handles_bridge:
+            raise PlanError(f'the {self.route} solver does not plan the bridge; use the direct solver')
         if start is not None and self.route != 'direct':
             raise PlanError(f'planning from a moving state needs the direct solver, not the {self.route} one')
-        if Dh is not None and start is None and not free_end:
-            err = axis_limit_error(Dh, duration, self.hoist_limits)
-            if err is not None:
-                raise err
+        if start is None and not free_end:
+            for name, limits in (('hoist', self.hoist_limits), ('bridge', self.bridge_limits)):
+                err = axis_limit_error(moves[name], duration, limits) if name in moves else None
+                if err is not None:
+                    raise err
         if 'tau' in self.robust and params.tau == 0.0:
             raise PlanError('robust parameter tau needs a model with tau > 0 (the servo of Eq. 6); '
                             'with tau = 0 the model has no servo dynamics to be insensitive to')
@@ -156,7 +179,7 @@ class VariationalSolver:
         err = axis_limit_error(D, duration, self.limits) if start is None and not free_end else None
         if err is not None:  # (from a state the rest-to-rest conditions do not apply: IPOPT decides)
             raise err
-        frac = self.mesh(duration, params, Dh is not None)
+        frac = self.mesh(duration, params, Form.of_request(params, displacement))
         with self._lock:
             if start is None and not free_end:
                 return self._solve(displacement, duration, params, frac)
