@@ -102,13 +102,15 @@ class Plan(ABC):
 
 @dataclass(kw_only=True)
 class AxesPlan(Plan):
-    """A plan of several actuated axes moving together (the cart and the hoist, contract "Joints and hoisting").
+    """A plan of several actuated axes moving together (the cart with the bridge and/or the hoist, contract
+    "Joints and hoisting", "The spatial crane").
 
     As a ``Plan`` it is the cart's reference (so everything that reads a
     cart plan reads this one); ``axes`` holds every axis's own plan by joint
-    name, ``cart`` first. The hoist's plan is relative like the cart's: its
-    displacement is L1_goal - L1_start, and ``starts['hoist']`` is L1_start
-    (m), where the ROS layer and the CSV put it.
+    name in ``crane_msgs_py.axes.AXES`` order, ``cart`` first, all of the
+    same duration. The bridge's plan is relative like the cart's (``starts``
+    0). The hoist's too: its displacement is L1_goal - L1_start, and
+    ``starts['hoist']`` is L1_start (m), where the ROS layer and the CSV put it.
     """
 
     axes: dict
