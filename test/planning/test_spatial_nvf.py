@@ -12,7 +12,7 @@ import pytest
 
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import PlanError
-from crane_planner.planning.dispatch import PlanOptions, SolverCache, plan
+from crane_planner.planning.dispatch import PlanOptions, SolverCache, fastest, plan
 from crane_planner.planning.plan import AxesPlan
 from crane_planner.planning.problem import axis_displacements
 from crane_sim.simulator import CraneSimulator
@@ -107,11 +107,28 @@ def test_the_bridge_limits_hold_and_an_infeasible_one_is_named():
         plan('nvf', 0.3, 3.0, NOMINAL, PlanOptions(max_bridge_velocity=0.05), variational=SOLVERS, bridge=0.2)
 
 
+def test_the_fastest_spatial_plan_meets_a_limit_of_one_axis_and_leaves_no_swing():
+    """1.0 m x 0.8 m within cart 0.5 m/s, 1 m/s^2 and bridge 0.3 m/s, 0.8 m/s^2: the shortest NVF plan (3.47 s)
+    holds every limit, and the bridge's, the slower axis, binds."""
+    options = PlanOptions(max_velocity=0.5, max_acceleration=1.0, max_bridge_velocity=0.3,
+                          max_bridge_acceleration=0.8)
+    p = fastest('nvf', 1.0, NOMINAL, options, variational=SOLVERS, bridge=0.8)
+    check_rest_to_rest(p, {'cart': 1.0, 'bridge': 0.8})
+    for name, (vmax, amax) in (('cart', (0.5, 1.0)), ('bridge', (0.3, 0.8))):
+        v, a, _ = p.axes[name].peaks()
+        assert v <= vmax * (1 + 1e-6) and a <= amax * (1 + 1e-6), name
+    v, a, _ = p.axes['bridge'].peaks()
+    assert v == pytest.approx(0.3, rel=1e-4) or a == pytest.approx(0.8, rel=1e-4)
+    assert residual_mm(p.axes, p.duration, NOMINAL)[0] <= 0.1
+
+
 def test_a_bridge_request_is_refused_by_the_shapers_and_checked():
     with pytest.raises(PlanError, match='bridge'):
         plan('zv', 0.3, 3.0, NOMINAL, bridge=0.2)
     with pytest.raises(PlanError, match='bridge'):
         plan('nvf', 0.3, 3.0, NOMINAL, bridge=float('nan'))
+    with pytest.raises(PlanError, match='does not plan the bridge'):
+        plan('nvf', 0.3, 3.0, NOMINAL, PlanOptions(solver='indirect'), bridge=0.2)
 
 
 def test_displacements_by_axis_name():
