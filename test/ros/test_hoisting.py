@@ -22,16 +22,19 @@ def hoist_crane(start_crane):
         yield driver
 
 
-def measured_residual_mm(driver, start_ns: int) -> tuple[float, np.ndarray]:
+def measured_residual_mm(driver, start_ns: int) -> tuple[float, dict]:
     """The peak load excursion (mm) over SETTLE s after the motion, from joint_states with their rope length;
-    and the record (stamp, theta1, theta2, cart, hoist)."""
+    and the record's columns by name (``state_columns``)."""
+    from crane_planner.tools.harness import state_columns
     from crane_sim.metrics import residual_load_mm
     end_ns = start_ns + round((T + SETTLE + 0.05) * 1e9)
     driver.sleep(max(0.0, (end_ns - driver.now_ns()) * 1e-9))
     rec = driver.states_between(start_ns, end_ns, timeout=30.0)  # a hang guard: the plant may lag the clock
     assert len(rec) > 40 * (T + SETTLE), f'only {len(rec)} joint_states'
     t = (rec[:, 0] - start_ns) * 1e-9
-    return float(residual_load_mm(t, rec[:, 1], rec[:, 2], rec[:, 4], NOMINAL.L2, after=T, until=T + SETTLE)), rec
+    rec = state_columns(rec)
+    return float(residual_load_mm(t, rec['theta1'], rec['theta2'], rec['hoist'], NOMINAL.L2, after=T,
+                                  until=T + SETTLE)), rec
 
 
 @pytest.mark.parametrize('method, cart, hoist', [('zv', (0.0, 0.3), (0.47, 0.27)),
@@ -48,9 +51,10 @@ def test_a_move_that_hoists_streams_both_joints_and_leaves_no_swing(hoist_crane,
         assert t[-1] == pytest.approx(T, abs=1e-9) and abs(v[-1]) < 1e-9
     residual, rec = measured_residual_mm(driver, start_ns)
     # the sim's rope followed the hoist (joint_states' hoist column), and the cart its goal
-    assert rec[0, 4] == pytest.approx(hoist[0], abs=1e-4) and rec[-1, 4] == pytest.approx(hoist[1], abs=1e-4)
-    assert rec[-1, 3] == pytest.approx(cart[1], abs=1e-4)
-    assert np.ptp(rec[:, 4]) == pytest.approx(abs(hoist[1] - hoist[0]), abs=1e-3)
+    rope = rec['hoist']
+    assert rope[0] == pytest.approx(hoist[0], abs=1e-4) and rope[-1] == pytest.approx(hoist[1], abs=1e-4)
+    assert rec['cart'][-1] == pytest.approx(cart[1], abs=1e-4)
+    assert np.ptp(rope) == pytest.approx(abs(hoist[1] - hoist[0]), abs=1e-3)
     # no residual swing, and the action's result says the same (it reads the rope length too)
     assert residual < 0.3, residual
     result = driver.move_result(start_ns)

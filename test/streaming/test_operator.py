@@ -125,3 +125,38 @@ def test_operator_limits_must_be_finite_and_positive():
         AxisLimits(1.0, 1.0, -1.0)
     with pytest.raises(PlanError, match='operator_shaper'):
         OperatorStream(DT, (0.0,), (CART,), 'fast', PARAMS)
+
+
+def test_a_diagonal_stick_with_a_bridge_is_shaped_on_both_travel_axes_and_leaves_no_swing():
+    """cmd_vel linear.x and linear.y to the cart and the bridge, both shaped: released after 2 s, the load (on
+    crane_sim's spatial crane) swings less than 2 mm, where the rate limits alone leave centimetres."""
+    from types import SimpleNamespace
+
+    from crane_planner.streaming.operator import twist_velocities
+    from crane_sim.simulator import CraneSimulator
+    twist = SimpleNamespace(linear=SimpleNamespace(x=0.2, y=-0.15, z=0.1))
+    assert twist_velocities(twist, ('cart', 'bridge', 'hoist')) == (0.2, -0.15, -0.1)
+
+    def run(shaper):
+        clock = [0.0]
+        op = OperatorStream(DT, (0.1, -0.2), (CART, CART), shaper, PARAMS, clock=lambda: clock[0],
+                            joints=('cart', 'bridge'))
+        sim = CraneSimulator(PARAMS, dt=DT, axes=('cart', 'bridge'))
+        sim.reset()
+        swing, previous = [], None
+        for k in range(round(8.0 / DT)):
+            clock[0] = k * DT
+            if k % 50 == 0 and k * DT < 2.0:
+                op.command(*twist_velocities(twist, op.joints))
+            p, v, a = op.sample()
+            if previous is not None:
+                sim.step(previous, a)
+            previous = a
+            swing.append(sim.load_excursion)
+        return 1e3 * max(swing[round(6.0 / DT):]), p, op
+
+    unshaped, _, _ = run('none')
+    shaped, p, op = run('zv')
+    assert unshaped > 10.0 and shaped < 2.0, (shaped, unshaped)
+    # each axis at its commanded speed from the first command to the last one's timeout (1.95 + 0.5 s)
+    assert p == pytest.approx((0.1 + 0.2 * 2.45, -0.2 - 0.15 * 2.45), abs=1e-6) and op.at_rest

@@ -256,17 +256,22 @@ def joint_state_to_arrays(msg: JointState, names) -> tuple[np.ndarray, np.ndarra
 
 
 #: Marker ids of ``crane_markers``: the cart, the two cables (one strip), the two masses.
-CART_MARKER, CABLES_MARKER, MASS1_MARKER, MASS2_MARKER = range(4)
+CART_MARKER, CABLES_MARKER, MASS1_MARKER, MASS2_MARKER, BRIDGE_MARKER = range(5)
+#: Length (m) of the bridge's girder as drawn, along x (the trolley's rail).
+BRIDGE_SPAN = 2.0
 
 
-def crane_markers_message(frame_id: str = DEFAULT_FRAME_ID) -> MarkerArray:
-    """A reusable MarkerArray drawing the crane in ``frame_id`` (x along the rail, z up): a cart
-    (cube), the cables (one line strip cart - m1 - m2) and the masses (spheres); fill with
+def crane_markers_message(frame_id: str = DEFAULT_FRAME_ID, bridge: bool = False) -> MarkerArray:
+    """A reusable MarkerArray drawing the crane in ``frame_id`` (x along the rail, y along the runway, z up):
+    a cart (the trolley, a cube), the cables (one line strip suspension point - m1 - m2), the masses (spheres)
+    and with ``bridge`` the bridge's girder (a long box along x through the trolley); fill with
     ``fill_crane_markers``."""
     shapes = [(CART_MARKER, Marker.CUBE, (0.10, 0.06, 0.04), (0.3, 0.3, 0.35)),
               (CABLES_MARKER, Marker.LINE_STRIP, (0.006, 0.0, 0.0), (0.1, 0.1, 0.1)),
               (MASS1_MARKER, Marker.SPHERE, (0.04, 0.04, 0.04), (0.2, 0.45, 0.8)),
               (MASS2_MARKER, Marker.SPHERE, (0.05, 0.05, 0.05), (0.85, 0.35, 0.1))]
+    if bridge:
+        shapes.append((BRIDGE_MARKER, Marker.CUBE, (BRIDGE_SPAN, 0.04, 0.03), (0.9, 0.7, 0.1)))
     msg = MarkerArray()
     for marker_id, kind, (sx, sy, sz), (r, g, b) in shapes:
         m = Marker()
@@ -281,16 +286,19 @@ def crane_markers_message(frame_id: str = DEFAULT_FRAME_ID) -> MarkerArray:
     return msg
 
 
-def fill_crane_markers(msg: MarkerArray, stamp: int, cart: float, x1: float, z1: float, x2: float, z2: float):
-    """Write the stamp and the cart and mass positions (m, ``crane_sim.dynamics.mass_positions``) in place."""
+def fill_crane_markers(msg: MarkerArray, stamp: int, suspension, p1, p2):
+    """Write the stamp, the suspension point (the trolley, on the bridge) and both masses' positions (m,
+    (x, y, z) in the crane frame) in place."""
     markers = msg.markers
     for m in markers:
         set_stamp(m.header.stamp, stamp)
-    markers[CART_MARKER].pose.position.x = cart
-    a, b, c = markers[CABLES_MARKER].points
-    a.x, a.z, b.x, b.z, c.x, c.z = cart, 0.0, x1, z1, x2, z2
-    for m, x, z in ((markers[MASS1_MARKER], x1, z1), (markers[MASS2_MARKER], x2, z2)):
-        m.pose.position.x, m.pose.position.z = x, z
+    for point, (x, y, z) in zip(markers[CABLES_MARKER].points, (suspension, p1, p2)):
+        point.x, point.y, point.z = x, y, z
+    for marker, (x, y, z) in ((markers[CART_MARKER], suspension), (markers[MASS1_MARKER], p1),
+                              (markers[MASS2_MARKER], p2)):
+        marker.pose.position.x, marker.pose.position.y, marker.pose.position.z = x, y, z
+    if len(markers) > BRIDGE_MARKER:
+        markers[BRIDGE_MARKER].pose.position.y = suspension[1]
 
 
 def move_message(goal, duration: float, start=(), method: str = '', joint_names=(), start_ns: int = 0) -> Move:

@@ -826,10 +826,19 @@ class CraneSimulator:
         """The joints of ``joint_state``: each axis's (``axes``), then the swing's."""
         return joint_names_of(self.axes)
 
-    def mass_positions(self) -> tuple:
-        """(p1, p2): both masses' positions (m) in ``crane_base`` now."""
-        s = (self._axes[0][0], self._axes[self.axes.index(BRIDGE_JOINT)][0] if self.spatial else 0.0, 0.0)
-        return self._stepper.model.positions(s, self._q, self.L1)
+    @property
+    def suspension(self) -> tuple[float, float, float]:
+        """The suspension point (m) in ``crane_base``: (cart, bridge or 0, 0)."""
+        return self._axes[0][0], self._axes[self.axes.index(BRIDGE_JOINT)][0] if self.spatial else 0.0, 0.0
+
+    def mass_positions(self, angles=None) -> tuple:
+        """(p1, p2): both masses' positions (m) in ``crane_base`` now, or with the swing angles ``angles``
+        (theta1, theta2[, phi1, phi2], as ``joint_state`` publishes them: e.g. measured ones)."""
+        q = self._q
+        if angles is not None:
+            theta1, theta2, phi1, phi2 = (*angles, 0.0, 0.0)[:4]
+            q = (theta1, phi1, theta1 + theta2, phi1 + phi2)
+        return self._stepper.model.positions(self.suspension, q, self.L1)
 
     @property
     def load_excursion(self) -> float:

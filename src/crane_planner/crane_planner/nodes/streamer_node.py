@@ -35,9 +35,9 @@ from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_
 from crane_msgs_py.runner import LoopThread, run
 from crane_planner.serving.stops import StopWorker
 from crane_planner.streaming.braking_stop import brake
-from crane_planner.streaming.config import PARAMETERS, StreamerConfig
+from crane_planner.streaming.config import INITIAL_POSITIONS, PARAMETERS, StreamerConfig
 from crane_planner.streaming.impairment import Link
-from crane_planner.streaming.operator import OperatorStream
+from crane_planner.streaming.operator import OperatorStream, twist_velocities
 from crane_planner.streaming.reference_stream import ReferenceStream, position_text
 from crane_planner.streaming.start_position import Hold, StartPosition
 from crane_planner.streaming.status import stream_status
@@ -73,7 +73,7 @@ class StreamerNode(Node):
         # Shared with the loop thread (the core is thread-safe); the loop owns the ticker.
         # _running wakes the loop; the core's state decides what trajectories it takes. Nothing streams
         # before the hold is known (start_position: the axes measured at rest, by default).
-        initial = (p['initial_position'], p['initial_hoist_position'])[:len(self._joints)]
+        initial = tuple(p[INITIAL_POSITIONS[joint]] for joint in self._joints)
         self._start = StartPosition(self._joints, p['hold_source'], initial, p['initial_fallback_after'])
         self._stream = ReferenceStream(self._period_ns, initial if len(initial) > 1 else initial[0],
                                        p['start_tolerance'], stopped=True)
@@ -118,7 +118,7 @@ class StreamerNode(Node):
             if self._operator is not None:  # (at rest: the stream holds where the operator left the axes)
                 position = self._operator.position
                 self._stream.hold_at(position if len(position) > 1 else position[0])
-            self._operator = (config.operator.stream(self._period_ns * 1e-9, self._stream.hold)
+            self._operator = (config.operator.stream(self._period_ns * 1e-9, self._stream.hold, self._joints)
                               if config.mode == 'operator' else None)
             following = f': following {self.resolve_topic_name(names.CMD_VEL_TOPIC)}, shaper {config.operator.shaper}'
             self.get_logger().info(f'mode {config.mode}' + (following if self._operator else ''))
@@ -129,9 +129,9 @@ class StreamerNode(Node):
     def _on_cmd_vel(self, msg: Twist):
         operator = self._operator
         self.commands += 1
-        # stopping or stopped: commands wait for ~/start; the hoist's position is the rope's length: + up shortens it
+        # stopping or stopped: commands wait for ~/start
         if operator is not None and not self._stop_at_rest and self._running.is_set():
-            operator.command(msg.linear.x, -msg.linear.z)
+            operator.command(*twist_velocities(msg, self._joints))
 
     # -- trajectories (executor thread) -------------------------------------
 
@@ -183,7 +183,7 @@ class StreamerNode(Node):
         self._synced_ns = self.get_clock().now().nanoseconds
         self._stream.hold_at(hold.position if len(hold.position) > 1 else hold.position[0])
         if self._config.mode == 'operator':  # a fresh operator stream there: a stick held before does not move it
-            self._operator = self._config.operator.stream(self._period_ns * 1e-9, self._stream.hold)
+            self._operator = self._config.operator.stream(self._period_ns * 1e-9, self._stream.hold, self._joints)
         self._stream.resume()
         self._running.set()
         self.get_logger().info(message := f'streaming, hold {self._hold_text()} m ({hold.source}: {hold.reason})')

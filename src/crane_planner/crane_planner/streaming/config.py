@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from crane_msgs_py.axes import AxisLimits
+from crane_msgs_py.axes import AXES, AXIS_NAMES, LIMIT_QUANTITIES
 from crane_msgs_py.names import OUTPUT_JOINT_TRAJECTORY, OUTPUTS
 from crane_msgs_py.params import (
     PARAMETER_DESCRIPTIONS,
@@ -25,6 +25,21 @@ from .operator import OPERATOR_SHAPERS, OperatorStream
 from .start_position import HOLD_SOURCES
 
 MODES = ('trajectory', 'operator')
+#: Each axis's hold position parameter and its default (the cart's predates the others and has no prefix).
+INITIAL_POSITIONS_DEFAULTS = {'cart': ('initial_position', 0.0), 'bridge': ('initial_bridge_position', 0.0),
+                              'hoist': ('initial_hoist_position', CraneParams.L1)}
+INITIAL_POSITIONS = {joint: name for joint, (name, _) in INITIAL_POSITIONS_DEFAULTS.items()}
+_HOLD_WHAT = {'cart': 'hold position (m) of the cart', 'bridge': 'with a bridge: its hold position (m)',
+              'hoist': "with a hoist: its hold position (m, the upper cable's length)"}
+#: Operator mode's limit of each kind of axis, by quantity (velocity m/s, acceleration m/s^2, jerk m/s^3).
+OPERATOR_LIMITS = {'travel': (0.3, 0.5, 5.0), 'hoist': (0.2, 0.5, 5.0)}
+_LIMIT_RANGES = ((1e-6, 100.0), (1e-6, 1000.0), (1e-6, 1e6))
+#: ``operator.<limit>`` of every axis of the registry, as the axis names its limits.
+OPERATOR_LIMIT_PARAMETERS = {
+    f'operator.{name}': (default, f'operator mode: the {a.name}\'s {quantity} limit ({unit})', parameter_range(*rng))
+    for a in AXES
+    for name, unit, default, rng, (quantity, _) in zip(a.limit_names, a.limit_units, OPERATOR_LIMITS[a.kind],
+                                                        _LIMIT_RANGES, LIMIT_QUANTITIES)}
 
 
 #: name -> (default, description, descriptor fields; a range as (lo, hi)).
@@ -45,14 +60,11 @@ PARAMETERS = {
     'initial_fallback_after': (0.0, 'with hold_source joint_states: hold initial_position if no joint_states at '
                                'all arrive within this many seconds of a start (0 = never: wait for them)',
                                {**parameter_range(0.0, 3600.0), 'read_only': True}),
-    'initial_position': (0.0, 'hold position (m) of the cart with hold_source initial_position (or its fallback)',
-                         {'read_only': True}),
-    'joints': (['cart'], 'the streamed joints: [cart] or [cart, hoist] (the reference then carries a column '
-                         'per joint, float64_array [cart, hoist]); fixed at start-up',
-               {'additional_constraints': '[cart] or [cart, hoist]', 'read_only': True}),
-    'initial_hoist_position': (CraneParams.L1, 'with a hoist: its hold position (m, the upper cable\'s length) '
-                                               'with hold_source initial_position (or its fallback)',
-                               {'read_only': True}),
+    **{name: (default, f'{_HOLD_WHAT[joint]} with hold_source initial_position (or its fallback)', {'read_only': True})
+       for joint, (name, default) in INITIAL_POSITIONS_DEFAULTS.items()},
+    'joints': (['cart'], 'the streamed joints: [cart], [cart, hoist], [cart, bridge] or [cart, bridge, hoist] (the '
+                         'reference then carries a column per joint, float64_array in that order); fixed at start-up',
+               {'additional_constraints': 'cart, then any of bridge, hoist in this order', 'read_only': True}),
     'start_tolerance': (1e-6, 'largest distance (m) between a trajectory\'s first position and the hold '
                         'position; farther is a jump and the trajectory is refused', parameter_range(0.0, 1.0)),
     'fault_deceleration': (0.5, 'a ~/stop during a motion when no stop without swing can be had in time (the stop '
@@ -86,15 +98,7 @@ PARAMETERS = {
                         {'additional_constraints': f'one of {", ".join(OPERATOR_SHAPERS)}'}),
     'cmd_timeout': (0.5, 'operator mode: a command older than this (s) counts as zero, so a lost joystick stops '
                          'the crane (without swing)', parameter_range(0.001, 10.0)),
-    'operator.max_velocity': (0.3, 'operator mode: the cart\'s velocity limit (m/s)', parameter_range(1e-6, 100.0)),
-    'operator.max_acceleration': (0.5, 'operator mode: the cart\'s acceleration limit (m/s^2)',
-                                  parameter_range(1e-6, 1000.0)),
-    'operator.max_jerk': (5.0, 'operator mode: the cart\'s jerk limit (m/s^3)', parameter_range(1e-6, 1e6)),
-    'operator.max_hoist_velocity': (0.2, 'operator mode: the hoist\'s velocity limit (m/s)',
-                                    parameter_range(1e-6, 100.0)),
-    'operator.max_hoist_acceleration': (0.5, 'operator mode: the hoist\'s acceleration limit (m/s^2)',
-                                        parameter_range(1e-6, 1000.0)),
-    'operator.max_hoist_jerk': (5.0, 'operator mode: the hoist\'s jerk limit (m/s^3)', parameter_range(1e-6, 1e6)),
+    **OPERATOR_LIMIT_PARAMETERS,
     'operator.hoist_range': ([0.1, 3.0], 'operator mode: the shortest and longest rope (m) the hoist may reach',
                              {'additional_constraints': '[shortest, longest], 0 < shortest < longest'}),
     **{name: (getattr(CraneParams, name), f'crane model of the operator shaper and of a ~/stop: '
@@ -105,8 +109,8 @@ PARAMETERS = {
 
 @dataclass(frozen=True)
 class OperatorConfig:
-    """Operator mode's settings: the online shaper, ``cmd_timeout`` (s), the limits of the cart and the hoist
-    (``AxisLimits``), the hoist's range (shortest, longest rope, m) and the crane model."""
+    """Operator mode's settings: the online shaper, ``cmd_timeout`` (s), the limits of every axis of the registry
+    (``AxisLimits``, in ``AXES`` order), the hoist's range (shortest, longest rope, m) and the crane model."""
 
     shaper: str
     cmd_timeout: float
@@ -114,11 +118,13 @@ class OperatorConfig:
     hoist_range: tuple
     model: CraneParams
 
-    def stream(self, period: float, hold) -> OperatorStream:
-        """Operator mode's stream at ``period`` (s) from the axes held at ``hold`` (one joint: a float)."""
+    def stream(self, period: float, hold, joints=('cart',)) -> OperatorStream:
+        """Operator mode's stream at ``period`` (s) of ``joints`` from the axes held at ``hold`` (one joint: a
+        float)."""
         start = hold if isinstance(hold, tuple) else (hold,)
-        return OperatorStream(period, start, self.limits[:len(start)], self.shaper, self.model, self.cmd_timeout,
-                              self.hoist_range)
+        limits = [self.limits[AXIS_NAMES.index(name)] for name in joints]
+        return OperatorStream(period, start, limits, self.shaper, self.model, self.cmd_timeout, self.hoist_range,
+                              joints=joints)
 
 
 @dataclass(frozen=True)
@@ -148,10 +154,7 @@ class StreamerConfig:
         shortest, longest = (list(values['operator.hoist_range']) + [0.0, 0.0])[:2]
         if len(values['operator.hoist_range']) != 2 or not 0.0 < shortest < longest:
             raise ParameterError('operator.hoist_range must be [shortest, longest] with 0 < shortest < longest (m)')
-        limits = (AxisLimits(values['operator.max_velocity'], values['operator.max_acceleration'],
-                             values['operator.max_jerk']),
-                  AxisLimits(values['operator.max_hoist_velocity'], values['operator.max_hoist_acceleration'],
-                             values['operator.max_hoist_jerk']))
+        limits = tuple(a.limits(*(values[f'operator.{name}'] for name in a.limit_names)) for a in AXES)
         operator = OperatorConfig(values['operator_shaper'], values['cmd_timeout'], limits, (shortest, longest), model)
         config = cls(impairment, model, values['mode'], operator, values['fault_deceleration'], values['fault_jerk'])
         if current is not None and config.changes_mode(current) and not at_rest:

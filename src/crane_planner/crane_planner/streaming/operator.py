@@ -1,10 +1,12 @@
 """The streamer's operator mode: a joystick's velocity command, jerk-limited and shaped online at every tick.
 
-Each tick the newest command (cart velocity; hoist velocity, + = the rope
-longer) goes to ruckig's velocity interface, which gives every axis a
-jerk-limited time-optimal profile within its limits: the *base*. A command
-older than ``cmd_timeout`` counts as zero, so a lost joystick stops the
-crane. The cart's base is then shaped online: the published reference is
+Each tick the newest command (a velocity per axis: the cart's, the bridge's,
+the hoist's, + = the rope longer) goes to ruckig's velocity interface, which
+gives every axis a jerk-limited time-optimal profile within its limits: the
+*base*. A command older than ``cmd_timeout`` counts as zero, so a lost
+joystick stops the crane. Each travel axis's base is then shaped online (the
+same shaper: the swing's modes are the same in both horizontal directions):
+the published reference is
 sum_i A_i b(t - t_i) over the impulses of ``design(shaper, omegas)``, read
 from a buffer of the base's past ticks (quintic Hermite between two ticks,
 so a delay need not be a whole number of ticks). The shaper follows the
@@ -21,10 +23,11 @@ from __future__ import annotations
 
 import math
 import time
+from operator import attrgetter
 
 import numpy as np
 
-from crane_msgs_py.axes import CART, HOIST
+from crane_msgs_py.axes import CART, HOIST, axis, check_axes
 from crane_msgs_py.params import CraneParams
 
 from ..planning.model import modal_properties
@@ -40,14 +43,22 @@ HISTORY = 60.0
 LENGTH_STEP = 1e-4
 
 
+def twist_velocities(twist, joints) -> tuple:
+    """The velocity of each of ``joints`` a ``geometry_msgs/Twist`` commands: its axis's ``cmd_vel`` field times
+    its ``cmd_vel_sign`` (the hoist's position is the rope's length: + up shortens it)."""
+    return tuple(axis(j).cmd_vel_sign * float(attrgetter(axis(j).cmd_vel)(twist)) for j in joints)
+
+
 class OperatorStream:
     """Velocity commands to a shaped, jerk-limited reference, one tick at a time.
 
     Args:
         period: tick period (s).
-        start: the axes' positions (m) to start from at rest: (cart,) or (cart, hoist length).
+        start: the axes' positions (m) to start from at rest, in ``joints`` order (the hoist's: its length).
         limits: an ``AxisLimits`` per axis (``crane_msgs_py.axes``), each with a finite velocity and
             acceleration limit (ruckig needs them); no jerk limit = none.
+        joints: the axes' names (``crane_msgs_py.axes``, in its order); default (cart,) or (cart, hoist)
+            by the length of ``start``.
         shaper: one of ``OPERATOR_SHAPERS``.
         params: the crane model the shaper is designed on (L1 = the rope length without a hoist).
         cmd_timeout: a command older than this (s) counts as zero.
@@ -56,19 +67,24 @@ class OperatorStream:
     """
 
     def __init__(self, period: float, start, limits, shaper: str, params: CraneParams, cmd_timeout: float = 0.5,
-                 hoist_range: tuple = (0.05, math.inf), clock=time.monotonic):
+                 hoist_range: tuple = (0.05, math.inf), clock=time.monotonic, joints=None):
         from ruckig import ControlInterface, InputParameter, OutputParameter, Ruckig
         if shaper not in OPERATOR_SHAPERS:
             raise PlanError(f'operator_shaper must be one of {", ".join(OPERATOR_SHAPERS)}, got {shaper!r}')
         self.period, self.shaper, self.params, self.cmd_timeout = float(period), shaper, params, float(cmd_timeout)
         self.clock, self.hoist_range = clock, hoist_range
         start = tuple(float(x) for x in start)
+        self.joints = check_axes((CART.name, HOIST.name)[:len(start)] if joints is None else joints,
+                                 'operator joints')
         self.axes = len(start)
-        if len(limits) != self.axes:
-            raise PlanError(f'{self.axes} axes need {self.axes} limits')
-        for axis, lim in zip((CART, HOIST), limits):  # (cart,) or (cart, hoist): see ``start``
-            lim = axis.limits(*lim)  # named as the axis names them
+        if len(limits) != self.axes or len(self.joints) != self.axes:
+            raise PlanError(f'{len(self.joints)} axes ({", ".join(self.joints)}) need a start and limits each')
+        for name, lim in zip(self.joints, limits):
+            lim = axis(name).limits(*lim)  # named as the axis names them
             lim.require(('max_velocity', 'max_acceleration'), 'operator mode', PlanError)
+        #: the shaped axes (travel) and the hoist's index (None: no hoist)
+        self._travel = [k for k, name in enumerate(self.joints) if axis(name).kind == 'travel']
+        self._hoist = self.joints.index(HOIST.name) if HOIST.name in self.joints else None
         self.limits = tuple(limits)
         self._otg = Ruckig(self.axes, self.period)
         inp = self._input = InputParameter(self.axes)
@@ -82,19 +98,19 @@ class OperatorStream:
         self._output = OutputParameter(self.axes)
         self._command = (0.0, (0.0,) * self.axes)  # (time s, velocity per axis)
         n = int(math.ceil(HISTORY / self.period)) + 2
-        self._base = np.empty((n, 3))  # the cart's base (p, v, a) per tick, a ring
-        self._base[:] = (start[0], 0.0, 0.0)
+        self._base = np.zeros((n, len(self._travel), 3))  # each travel axis's base (p, v, a) per tick, a ring
+        self._base[:, :, 0] = [start[k] for k in self._travel]
         self._n, self._k = n, 0  # ring size, ticks sampled
         self._length = None
         self._impulses = (np.ones(1), np.zeros(1))  # amplitudes, delays (ticks)
         self._blocked = 0  # the direction the hoist is stopped in at a bound of its range (-1, 0, 1)
-        self._moved = -(10 ** 9)  # the last tick the cart's base moved (never yet)
+        self._moved = -(10 ** 9)  # the last tick a travel axis's base moved (never yet)
         self.position = start
 
     # -- inputs (the executor) ---------------------------------------------------------------
 
     def command(self, *velocity: float, now: float | None = None) -> None:
-        """The joystick's velocity per axis (m/s): the cart's, then the hoist's (its length's rate)."""
+        """The joystick's velocity per axis of ``joints`` (m/s; the hoist's: its length's rate)."""
         v = tuple(float(x) if math.isfinite(float(x)) else 0.0 for x in velocity)[:self.axes]
         self._command = (self.clock() if now is None else now, v + (0.0,) * (self.axes - len(v)))
 
@@ -110,42 +126,48 @@ class OperatorStream:
         if now - stamp > self.cmd_timeout:
             return [0.0] * self.axes
         target = [max(-lim.max_velocity, min(lim.max_velocity, v)) for v, lim in zip(velocity, self.limits)]
-        if self.axes > 1:  # stop the rope where braking from its rate ends at the range's bound
+        h = self._hoist
+        if h is not None:  # stop the rope where braking from its rate ends at the range's bound
             inp = self._input
-            length, rate = inp.current_position[1], abs(inp.current_velocity[1])
-            limit = self.limits[1]
+            length, rate = inp.current_position[h], abs(inp.current_velocity[h])
+            limit = self.limits[h]
             # braking from the rate at the acceleration limit, reached at the jerk limit; once braking for a
             # bound, the hoist stays stopped until the stick points away from it (else it would creep on)
             accel, jerk = limit.max_acceleration, limit.max_jerk or math.inf
             margin = rate * (rate / accel + accel / jerk) / 2 + rate * self.period * 2
-            direction = (target[1] > 0.0) - (target[1] < 0.0)
+            direction = (target[h] > 0.0) - (target[h] < 0.0)
             at_bound = (direction < 0 and length - margin <= self.hoist_range[0]) or (
                 direction > 0 and length + margin >= self.hoist_range[1])
             if direction and (at_bound or direction == self._blocked):
-                target[1], self._blocked = 0.0, direction
+                target[h], self._blocked = 0.0, direction
             else:
                 self._blocked = 0
         return target
 
     def sample(self, now: float | None = None) -> tuple:
-        """The next tick's reference: (position, velocity, acceleration), floats with one axis, tuples with two."""
+        """The next tick's reference: (position, velocity, acceleration), floats with one axis, else tuples in
+        ``joints`` order."""
         inp, out = self._input, self._output
         inp.target_velocity = self.target(self.clock() if now is None else now)
         self._otg.update(inp, out)
         out.pass_to_input(inp)
         p, v, a = out.new_position, out.new_velocity, out.new_acceleration
         k = self._k = self._k + 1
-        self._base[k % self._n] = (p[0], v[0], a[0])
-        if abs(v[0]) > 1e-12 or abs(a[0]) > 1e-12:
-            self._moved = k  # the last tick the cart's base moved
-        if self.axes > 1:
-            self._redesign(p[1])
-        cart = self._shaped(k)
+        ring = self._base[k % self._n]
+        for i, j in enumerate(self._travel):
+            ring[i] = (p[j], v[j], a[j])
+            if abs(v[j]) > 1e-12 or abs(a[j]) > 1e-12:
+                self._moved = k
+        if self._hoist is not None:
+            self._redesign(p[self._hoist])
+        shaped = self._shaped(k)
+        out = [(p[j], v[j], a[j]) for j in range(self.axes)]  # the hoist's base as it is
+        for i, j in enumerate(self._travel):
+            out[j] = shaped[i]
+        self.position = tuple(o[0] for o in out)
         if self.axes == 1:
-            self.position = (cart[0],)
-            return cart
-        self.position = (cart[0], p[1])
-        return (cart[0], p[1]), (cart[1], v[1]), (cart[2], a[1])
+            return out[0]
+        return tuple(zip(*out))
 
     @property
     def at_rest(self) -> bool:
@@ -176,12 +198,16 @@ class OperatorStream:
         if self._length is None or abs(length - self._length) > LENGTH_STEP:
             self.design_for(length)
 
-    def _shaped(self, k: int) -> tuple:
+    def _shaped(self, k: int) -> list:
+        """Each travel axis's shaped (p, v, a) at tick ``k``."""
         if self._length is None:
             self.design_for(self.params.L1)
+        return [self._shaped_axis(k, i) for i in range(len(self._travel))]
+
+    def _shaped_axis(self, k: int, i: int) -> tuple:
         amplitudes, delays = self._impulses
         p = v = a = 0.0
-        base, n, h = self._base, self._n, self.period
+        base, n, h = self._base[:, i], self._n, self.period
         first = k - n + 2  # the oldest tick kept
         for A, d in zip(amplitudes, delays):
             t = k - d  # the base's time (ticks) this impulse reads

@@ -26,7 +26,6 @@ from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.client import PlannerClient
 from crane_msgs_py.conversions import (
-    joint_state_to_arrays,
     move_message,
     read_reference,
     read_stream_state,
@@ -61,8 +60,9 @@ from crane_msgs_py.runner import spinning
 from .processes import PLANNER, SIM, STREAMER, NodeGroup
 
 #: The columns of the joint_states rows the harness keeps (``states_between``, ``last_state``): the stamp (ns),
-#: the swing angles, then every actuated joint's position (NaN for one the setup does not have).
-STATE_COLUMNS = ('stamp', 'theta1', 'theta2', *ACTUATED_JOINTS)
+#: the in-plane swing angles, every actuated joint's position, then the out-of-plane angles (NaN for what the
+#: setup does not have: a joint it lacks, phi without a bridge). Read them by name (``state_columns``).
+STATE_COLUMNS = ('stamp', 'theta1', 'theta2', *ACTUATED_JOINTS, 'phi1', 'phi2')
 
 
 def state_columns(rows: np.ndarray) -> dict[str, np.ndarray]:
@@ -135,11 +135,10 @@ class CraneHarness:
 
     # -- callbacks
     def _on_state(self, msg):
-        pos, _ = joint_state_to_arrays(msg, STATE_COLUMNS[1:3])  # the angles
         names = list(msg.name)
-        joints = (msg.position[names.index(j)] if j in names else math.nan for j in ACTUATED_JOINTS)
+        row = (msg.position[names.index(j)] if j in names else math.nan for j in STATE_COLUMNS[1:])
         with self._lock:
-            self._states.append((stamp_ns(msg.header.stamp), *pos, *joints))
+            self._states.append((stamp_ns(msg.header.stamp), *row))
 
     def _on_stream_state(self, msg):
         self._stream_state = (self.now_ns(), read_stream_state(msg))
@@ -442,14 +441,14 @@ class CraneHarness:
         self.wait_until(arrived, timeout, f'no joint_states stamped past the motion within {timeout:g} s', 0.02)
 
     def last_state(self) -> tuple | None:
-        """The newest joint_states row (``STATE_COLUMNS``: stamp ns, theta1, theta2, cart, hoist or NaN), None
+        """The newest joint_states row (``STATE_COLUMNS``), None
         before any."""
         with self._lock:
             return self._states[-1] if self._states else None
 
     def states_between(self, begin_ns: int, end_ns: int, timeout: float = 3.0) -> np.ndarray:
         """joint_states stamped in [begin, end] (dropping everything older than ``end_ns``): rows of
-        ``STATE_COLUMNS`` (stamp ns, theta1, theta2, cart, hoist or NaN; ``state_columns`` names them)."""
+        ``STATE_COLUMNS`` (``state_columns`` names them)."""
         self.wait_for_state_after(end_ns, timeout)
         with self._lock:
             rows = [r for r in self._states if begin_ns <= r[0] <= end_ns]

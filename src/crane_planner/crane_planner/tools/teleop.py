@@ -1,18 +1,21 @@
 """crane-teleop: a joystick for people without one: the keyboard or a script of stick positions on cmd_vel.
 
 Publishes ``geometry_msgs/Twist`` on ``cmd_vel`` (in ``--namespace``) at
-``--rate``: ``linear.x`` the cart's velocity (m/s), ``linear.z`` the load's
-vertical velocity (m/s, + = up), what the streamer follows in its operator
+``--rate``: ``linear.x`` the cart's velocity (m/s), ``linear.y`` the
+bridge's (m/s), ``linear.z`` the load's vertical velocity (m/s, + = up), what
+the streamer follows in its operator
 mode (``mode: operator``). With ``--script`` it plays stick positions and
 exits; the keyboard (the default, on a terminal) sets the stick until the
 next key. When the tool stops publishing, the streamer counts the command
 as zero after its ``cmd_timeout`` and brings the crane to rest, shaped.
 
-Script: segments ``VX[,VZ]:SECONDS`` separated by spaces, e.g.
-``"0.2:1 0.2,0.05:2 0:3"`` (forward, forward while lifting, release); a script starting with a minus
-sign is given as ``--script=-0.2:3``.
-Keys: a/d or left/right move the cart by --speed, w/s or up/down raise or
-lower the load by --hoist-speed, space releases the stick, q quits.
+Script: segments ``VX[,VZ]:SECONDS`` or ``VX,VY,VZ:SECONDS`` (with a bridge)
+separated by spaces, e.g. ``"0.2:1 0.2,0.05:2 0:3"`` (forward, forward while
+lifting, release) or ``"0.2,0.15,0:2 0:3"`` (diagonal, release); a script
+starting with a minus sign is given as ``--script=-0.2:3``.
+Keys: a/d or left/right move the cart by --speed, j/l the bridge by --speed,
+w/s or up/down raise or lower the load by --hoist-speed, space releases the
+stick, q quits.
 Exit 0; 1 if nothing subscribes to cmd_vel within ``--wait``; 2 on bad options (one line on stderr).
 """
 from __future__ import annotations
@@ -26,26 +29,29 @@ PROG = 'crane-teleop'
 #: Seconds of a released stick a script starts with, once the streamer subscribes.
 PRIME = 0.5
 
-#: Keys (and arrow-key escape sequences) -> (cart, load) stick directions; None releases.
-KEYS = {'a': (-1, 0), 'd': (1, 0), 'w': (0, 1), 's': (0, -1), '\x1b[D': (-1, 0), '\x1b[C': (1, 0),
-        '\x1b[A': (0, 1), '\x1b[B': (0, -1), ' ': None}
+#: Keys (and arrow-key escape sequences) -> (stick axis: 0 cart x, 1 bridge y, 2 load z; direction); None releases.
+KEYS = {'a': (0, -1), 'd': (0, 1), 'j': (1, -1), 'l': (1, 1), 'w': (2, 1), 's': (2, -1), '\x1b[D': (0, -1),
+        '\x1b[C': (0, 1), '\x1b[A': (2, 1), '\x1b[B': (2, -1), ' ': None}
 
 
-def parse_script(text: str) -> list[tuple[float, float, float]]:
-    """Segments (cart m/s, load m/s, seconds) of a script (see the module docstring); ValueError names the bad one."""
+def parse_script(text: str) -> list[tuple[float, float, float, float]]:
+    """Segments (cart m/s, bridge m/s, load m/s, seconds) of a script (see the module docstring); ValueError names
+    the bad one."""
     segments = []
     for part in text.split():
         try:
             stick, seconds = part.split(':')
             values = [float(x) for x in stick.split(',')]
-            if not 1 <= len(values) <= 2:
+            if not 1 <= len(values) <= 3:
                 raise ValueError
             duration = float(seconds)
         except ValueError:
-            raise ValueError(f'bad script segment {part!r}: write VX[,VZ]:SECONDS, e.g. 0.2,0.05:2') from None
+            raise ValueError(f'bad script segment {part!r}: write VX[,VZ]:SECONDS or VX,VY,VZ:SECONDS, '
+                             f'e.g. 0.2,0.05:2') from None
         if not all(math.isfinite(x) for x in values) or not (math.isfinite(duration) and duration > 0.0):
             raise ValueError(f'bad script segment {part!r}: finite velocities and a duration > 0 s')
-        segments.append((values[0], values[1] if len(values) > 1 else 0.0, duration))
+        x, y, z = values if len(values) == 3 else (values[0], 0.0, values[1] if len(values) > 1 else 0.0)
+        segments.append((x, y, z, duration))
     if not segments:
         raise ValueError('the script has no segment')
     return segments
@@ -54,12 +60,13 @@ def parse_script(text: str) -> list[tuple[float, float, float]]:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0].split(': ', 1)[1])
     p.add_argument('--namespace', default='/', help='namespace of the streamer (default /)')
-    p.add_argument('--script', metavar='"VX[,VZ]:S ..."', help='play these stick positions and exit (default: '
-                                                                'the keyboard)')
+    p.add_argument('--script', metavar='"VX[,VZ]:S | VX,VY,VZ:S ..."',
+                   help='play these stick positions and exit (default: the keyboard)')
     p.add_argument('--rate', type=float, default=20.0, help='publishing rate (Hz, default 20)')
     p.add_argument('--wait', type=float, default=10.0, metavar='S',
                    help='seconds to wait for the streamer to subscribe before a script plays (default 10)')
-    p.add_argument('--speed', type=float, default=0.2, help='keyboard: the cart speed of a key (m/s, default 0.2)')
+    p.add_argument('--speed', type=float, default=0.2,
+                   help='keyboard: the cart\'s and the bridge\'s speed of a key (m/s, default 0.2)')
     p.add_argument('--hoist-speed', type=float, default=0.1,
                    help='keyboard: the load speed of a key (m/s, default 0.1)')
     return p
@@ -88,9 +95,9 @@ def main(argv=None) -> int:
     publisher = node.create_publisher(Twist, CMD_VEL_TOPIC, 10)
     period = 1.0 / args.rate
 
-    def publish(cart: float, load: float):
+    def publish(cart: float, bridge: float, load: float):
         msg = Twist()
-        msg.linear.x, msg.linear.z = float(cart), float(load)
+        msg.linear.x, msg.linear.y, msg.linear.z = float(cart), float(bridge), float(load)
         publisher.publish(msg)
 
     try:
@@ -107,23 +114,23 @@ def main(argv=None) -> int:
             # after the publisher sees it): the first segment is then heard from its start
             end = time.monotonic() + PRIME
             while time.monotonic() < end:
-                publish(0.0, 0.0)
+                publish(0.0, 0.0, 0.0)
                 time.sleep(period)
             print(f'{PROG}: playing {len(segments)} segment(s) on {node.resolve_topic_name(CMD_VEL_TOPIC)}',
                   file=sys.stderr)
-            for cart, load, seconds in segments:
+            for *stick, seconds in segments:
                 end = time.monotonic() + seconds
                 while time.monotonic() < end:
-                    publish(cart, load)
+                    publish(*stick)
                     time.sleep(min(period, max(0.0, end - time.monotonic())))
-            publish(0.0, 0.0)
+            publish(0.0, 0.0, 0.0)
             return 0
         return _keyboard(publish, period, args.speed, args.hoist_speed)
     except KeyboardInterrupt:
         return 0
     finally:
         try:
-            publish(0.0, 0.0)
+            publish(0.0, 0.0, 0.0)
         except Exception:
             pass
         node.destroy_node()
@@ -137,8 +144,10 @@ def _keyboard(publish, period: float, speed: float, hoist_speed: float) -> int:
     import tty
     fd = sys.stdin.fileno()
     saved = termios.tcgetattr(fd)
-    stick = (0.0, 0.0)
-    print(f'{PROG}: a/d or arrows move the cart, w/s or arrows the load, space releases, q quits', file=sys.stderr)
+    stick = [0.0, 0.0, 0.0]
+    speeds = (speed, speed, hoist_speed)
+    print(f'{PROG}: a/d or arrows move the cart, j/l the bridge, w/s or arrows the load, space releases, q quits',
+          file=sys.stderr)
     try:
         tty.setcbreak(fd)
         while True:
@@ -149,12 +158,13 @@ def _keyboard(publish, period: float, speed: float, hoist_speed: float) -> int:
                 if key in ('q', '\x03'):
                     return 0
                 if key in KEYS:
-                    direction = KEYS[key]
-                    stick = (0.0, 0.0) if direction is None else (direction[0] * speed if direction[0] else stick[0],
-                                                                  direction[1] * hoist_speed if direction[1]
-                                                                  else stick[1])
-                    print(f'\r{PROG}: cart {stick[0]:+.2f} m/s, load {stick[1]:+.2f} m/s   ', end='',
-                          file=sys.stderr, flush=True)
+                    if KEYS[key] is None:
+                        stick = [0.0, 0.0, 0.0]
+                    else:
+                        k, direction = KEYS[key]
+                        stick[k] = direction * speeds[k]
+                    print(f'\r{PROG}: cart {stick[0]:+.2f} m/s, bridge {stick[1]:+.2f} m/s, load {stick[2]:+.2f} m/s  ',
+                          end='', file=sys.stderr, flush=True)
             publish(*stick)
     finally:
         termios.tcsetattr(fd, termios.TCSADRAIN, saved)

@@ -49,7 +49,6 @@ from crane_msgs_py.conversions import (
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.names import (
     AXIS_STATUS_TOPIC,
-    CART_JOINT,
     DEFAULT_FRAME_ID,
     JOINT_STATES_TOPIC,
     MARKERS_TOPIC,
@@ -75,7 +74,6 @@ from crane_msgs_py.qos import AXIS_STATUS_QOS, JOINT_STATES_QOS, MARKERS_QOS, RE
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
 from crane_sim.axis_controller import FAULT_STATES, AxisController, AxisState, FaultConfig, Offer
-from crane_sim.dynamics import mass_positions
 from crane_sim.measurement import AngleNoise
 from crane_sim.playout import ReferencePlayout
 from crane_sim.reference_intake import ReferenceIntake
@@ -91,10 +89,12 @@ _TYPE_NAMES = {'trajectory_msgs/msg/JointTrajectory': OUTPUT_JOINT_TRAJECTORY,
 PARAMETERS = {
     **{name: (getattr(CraneParams, name), f'true plant: {PARAMETER_DESCRIPTIONS[name]}; may change while running',
               float_range(0.0, 10.0 if name.startswith('tau') else 1e4)) for name in PARAMETER_NAMES},
-    'joints': (['cart'], "the actuated joints: [cart], or [cart, hoist] (the upper cable's length follows the "
-                         "reference's hoist column through tau_hoist, from L1 at start-up; joint_states then carry "
-                         'cart, hoist, theta1, theta2); fixed at start-up',
-               {'additional_constraints': '[cart] or [cart, hoist]', 'read_only': True}),
+    'joints': (['cart'], "the actuated joints: [cart], [cart, hoist], [cart, bridge] or [cart, bridge, hoist] "
+                         "(a column of the reference each; with the hoist the upper cable's length follows it "
+                         'through tau_hoist, from L1 at start-up; with the bridge the suspension point moves along '
+                         'y and the load swings in both directions: joint_states then carry phi1, phi2 after '
+                         'theta1, theta2); fixed at start-up',
+               {'additional_constraints': 'cart, then any of bridge, hoist in this order', 'read_only': True}),
     'step': (1e-3, 'integration step (s), also the real-time loop period; fixed at start-up',
              {**float_range(1e-4, 0.1), 'read_only': True}),
     'publish_rate': (50.0, 'joint_states rate (Hz) in simulated time; fixed at start-up',
@@ -162,7 +162,7 @@ class SimNode(Node):
         Guard(self, PARAMETERS, self._check, self._apply, self._diagnostics)
         self._noise = AngleNoise(p['noise'], p['seed'])
         self._frame_id = p['frame_id']
-        self._markers = crane_markers_message(self._frame_id)
+        self._markers = crane_markers_message(self._frame_id, bridge=self._sim.spatial)
         self._markers_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, MARKERS_QOS)
         self._joint_state = joint_state_message(self._sim.joint_names)
         self._joint_states = self.create_publisher(JointState, JOINT_STATES_TOPIC, JOINT_STATES_QOS)
@@ -314,9 +314,7 @@ class SimNode(Node):
         dt_ns, dt = ticker.period, ticker.period * 1e-9
         playout_args, playouts, timeouts = None, (), 0  # a playout per axis, in sim.axes order
         seen = 0  # the cart's playout's timeouts handled: one more is a stream lost
-        L2 = sim.params['L2']  # of the markers: the live plant's
-        theta1, cart = sim.joint_names.index('theta1'), sim.joint_names.index(CART_JOINT)
-        angles = slice(theta1, theta1 + 2)  # of theta1, theta2 in joint_state()
+        angles = slice(sim.joint_names.index('theta1'), None)  # of the swing's angles in joint_state()
         tracking = AxisState.TRACKING
         self._publish_status(controller.status(), epoch_ros - round(self._playout_args[0] * 1e9))
         while not self._loop_thread.stopping.is_set():
@@ -327,7 +325,6 @@ class SimNode(Node):
             if self._pending_params is not None:
                 params, self._pending_params = self._pending_params, None
                 sim.set_params(params)
-                L2 = params.L2
             if self._playout_args is not playout_args:
                 playout_args = self._playout_args
                 timeouts += playouts[0].timeouts if playouts else 0
@@ -382,9 +379,7 @@ class SimNode(Node):
                 plant_time = epoch_ros + (ticker.tick + 1) * dt_ns - round(playout.delay * 1e9)
                 fill_joint_state(self._joint_state, plant_time, positions, velocities)
                 # the crane as measured: the published angles, the live cable lengths (the hoist's now)
-                angle1, angle2 = positions[angles]
-                fill_crane_markers(self._markers, plant_time, positions[cart],
-                                   *mass_positions(positions[cart], angle1, angle2, sim.L1, L2))
+                fill_crane_markers(self._markers, plant_time, sim.suspension, *sim.mass_positions(positions[angles]))
                 try:
                     self._joint_states.publish(self._joint_state)
                     self._markers_pub.publish(self._markers)
