@@ -142,9 +142,8 @@ class Form:
 
 #: Each axis's states (``dynamics``), by axis name.
 AXIS_STATES = {'cart': CART_STATES, 'bridge': BRIDGE_STATES, 'hoist': HOIST_STATES}
-#: Each axis's position scale and cost weight among ``PROBLEM_PARAMETERS``.
+#: Each axis's position scale among ``PROBLEM_PARAMETERS``.
 AXIS_SCALES = {'cart': 'P', 'bridge': 'P_bridge', 'hoist': 'P_hoist'}
-AXIS_WEIGHTS = {'bridge': 'bridge_weight', 'hoist': 'hoist_weight'}
 
 
 class Problem:
@@ -313,8 +312,7 @@ class Problem:
             U.append(q[3])
         guess.update(theta1=guess['a'], dtheta1=U[0])
         if self.form.bridge:  # phi is positive towards +y: the load lags a bridge acceleration at phi1 ~ -ab/g
-            k = self.axes.index('bridge')
-            guess.update(phi1=-guess['ab'], dphi1=-U[k])
+            guess.update(phi1=-guess['ab'], dphi1=-U[self.axes.index('bridge')])
         if x0 is not None:
             for n in self.ode.swing_states:
                 guess[n] = guess.get(n, 0.0 * s) + x0[self.states.index(n)] * (1.0 - s)
