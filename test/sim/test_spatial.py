@@ -114,3 +114,24 @@ def test_a_straight_move_at_45_degrees_swings_as_the_planar_crane_along_it():
     p1, p2 = sim.mass_positions()
     assert p2[0] - sim.axis_state('cart')[0] == pytest.approx(p2[1] - sim.axis_state('bridge')[0], abs=1e-9)
     assert w.phi1 != 0.0 and w.theta1 != 0.0
+
+
+def test_the_batch_simulation_with_a_bridge_steps_each_plant_as_the_real_time_simulator():
+    t = np.arange(0.0, 2.5 + 1e-9, 1e-3)
+    _, a = quintic(t, 0.3, 2.0)
+    _, b = quintic(t, -0.2, 2.0)
+    plants = [DAMPED, DAMPED.replace(L1=0.4, tau=0.02)]
+    batch = simulate(t, {'cart': a, 'bridge': b}, plants, dt=1e-3, t_end=3.5, rest_dt=5e-3)
+    assert batch.phi1.shape == batch.theta1.shape == (2, batch.t.size)
+    for i, plant in enumerate(plants):
+        sim = CraneSimulator(plant, dt=1e-3, axes=('cart', 'bridge'))
+        for k in range(t.size - 1):
+            sim.step((a[k], b[k]), (a[k + 1], b[k + 1]))
+        k = np.searchsorted(batch.t, t[-1])
+        assert batch.t[k] == pytest.approx(t[-1])
+        w = sim.swing
+        for name in ('theta1', 'theta2', 'phi1', 'phi2', 'dphi2'):
+            assert getattr(batch, name)[i, k] == pytest.approx(getattr(w, name), abs=1e-12)
+        assert batch.yb[i, k] == pytest.approx(sim.axis_state('bridge')[0], abs=1e-12)
+        assert batch.load_excursion[i, k] == pytest.approx(sim.load_excursion, abs=1e-12)
+    assert batch.yb[0, -1] == pytest.approx(-0.2, abs=1e-6) and batch.load_excursion.max() > 0.01

@@ -44,7 +44,7 @@ from crane_msgs_py.params import (
 )
 
 from .dynamics import SwingModel, hoisting_accelerations, load_excursion
-from .spatial import SPATIAL_SWING_NAMES, SpatialPendulum
+from .spatial import SPATIAL_SWING_NAMES, SpatialPendulum, load_offset
 
 
 @dataclass(frozen=True)
@@ -64,6 +64,8 @@ SERVOS = {CART_JOINT: AxisServo(('y', 'v', 'a'), 'tau'),
           HOIST_JOINT: AxisServo(('L1', 'dL1', 'ddL1'), 'tau_hoist', start='L1')}
 #: The swing's rows: the cable angles and their rates.
 SWING_NAMES = ('theta1', 'theta2', 'dtheta1', 'dtheta2')
+#: With a bridge, the out-of-plane angles and their rates, after every axis's rows.
+OUT_OF_PLANE_NAMES = ('phi1', 'phi2', 'dphi1', 'dphi2')
 #: Names of the state rows of the cart alone, in order (``CraneState``'s).
 STATE_NAMES = (*SERVOS[CART_JOINT].rows, *SWING_NAMES)
 #: Names of the hoist's state rows, after ``STATE_NAMES`` when hoisting: the upper cable's length,
@@ -106,7 +108,8 @@ class Layout:
         axes = check_axes(self.axes, 'axes')
         object.__setattr__(self, 'axes', axes)
         object.__setattr__(self, 'names', (*SERVOS[axes[0]].rows, *SWING_NAMES,
-                                           *(name for a in axes[1:] for name in SERVOS[a].rows)))
+                                           *(name for a in axes[1:] for name in SERVOS[a].rows),
+                                           *(OUT_OF_PLANE_NAMES if BRIDGE_JOINT in axes else ())))
 
     def __len__(self) -> int:
         return len(self.names)
@@ -180,6 +183,10 @@ class PlantBatch:
 
     def swing_model(self) -> SwingModel:
         return SwingModel(self.L1, self.L2, self.m1, self.m2, self.g, self.c1, self.c2)
+
+    def at(self, i: int) -> 'PlantBatch':
+        """Plant ``i`` as a batch of one."""
+        return PlantBatch(**{f.name: getattr(self, f.name)[i:i + 1] for f in fields(self)})
 
     def member(self, i: int) -> dict:
         """Plant ``i`` as a plain dict of floats."""
@@ -256,21 +263,27 @@ def servo_weights(tau, h: float) -> np.ndarray:
 # re-stacking, and RK4 commutes with linear changes of variables, so the result
 # is the same. Rows of the internal state: y, v, a, theta1, phi, dtheta1, dphi.
 
+def _relative_pairs(layout: Layout) -> list[tuple[int, int]]:
+    """(upper, lower) rows of each angle and rate whose lower cable's value is relative to the upper's."""
+    pairs = [('theta1', 'theta2'), ('dtheta1', 'dtheta2')]
+    if 'phi1' in layout.names:
+        pairs += [('phi1', 'phi2'), ('dphi1', 'dphi2')]
+    return [(layout.index(a), layout.index(b)) for a, b in pairs]
+
+
 def _to_internal(x, layout: Layout):
-    """The stepper's form of public states ``x``: the lower cable's absolute angle phi = theta1 + theta2
-    and its rate in place of theta2 and dtheta2."""
+    """The stepper's form of public states ``x``: the lower cable's absolute angles (theta1 + theta2, and
+    phi1 + phi2 with a bridge) and their rates in place of the relative ones."""
     x = np.array(x, dtype=float)
-    angles, rates = layout.angles, layout.rates
-    x[angles.stop - 1] += x[angles.start]
-    x[rates.stop - 1] += x[rates.start]
+    for upper, lower in _relative_pairs(layout):
+        x[lower] += x[upper]
     return x
 
 
 def _to_public(x, layout: Layout):
     x = np.array(x, dtype=float)
-    angles, rates = layout.angles, layout.rates
-    x[angles.stop - 1] -= x[angles.start]
-    x[rates.stop - 1] -= x[rates.start]
+    for upper, lower in _relative_pairs(layout):
+        x[lower] -= x[upper]
     return x
 
 
@@ -431,8 +444,11 @@ class SimResult:
 
     @property
     def load_excursion(self) -> np.ndarray:
-        """Horizontal offset (m) of the load from its rest position below the cart, (n_batch, n)."""
+        """Horizontal offset (m) of the load from its rest position below the cart, (n_batch, n): signed
+        (positive when it lags) for the planar crane, with a bridge its norm (contract)."""
         L1 = self.plants.L1[:, None] if self.L1 is None else self.L1
+        if 'phi1' in self.states:
+            return np.hypot(*load_offset(self.theta1, self.theta2, self.phi1, self.phi2, L1, self.plants.L2[:, None]))
         return load_excursion(self.theta1, self.theta2, L1, self.plants.L2[:, None])
 
     def members(self, rows) -> 'SimResult':
@@ -476,9 +492,6 @@ def _references(references) -> tuple[tuple, dict]:
         axes = check_axes([a for a in AXIS_NAMES if a in refs], 'references')
     except ParameterError as exc:
         raise SimulationError(str(exc)) from None
-    if BRIDGE_JOINT in axes:  # the batch stepper is the planar crane's
-        raise SimulationError('references: the batch simulation is of the planar crane (cart, hoist); a crane '
-                              'with a bridge is simulated by CraneSimulator')
     return axes, refs
 
 
@@ -590,8 +603,10 @@ def simulate(t_ref, references, plants, *, dt: float = 1e-3, t_end: float | None
     out = np.empty((sum(keep), nrows, n))
     out[0] = x
     j = 1
-    stepper = _Stepper(p, dt, layout)
-    rest = _Stepper(p, rest_dt, layout) if n_steps > n_fine else None
+    # the planar crane's numpy batch, or with a bridge each plant's spatial step in plain floats
+    kind = _PointBatch if BRIDGE_JOINT in axes else _Stepper
+    stepper = kind(p, dt, layout)
+    rest = kind(p, rest_dt, layout) if n_steps > n_fine else None
     for k in range(n_steps):
         x = stepper.step(x, r_begin[k], r_end[k]) if k < n_fine else rest.step(x, r_rest, r_rest)
         if keep[k + 1]:
@@ -683,6 +698,28 @@ class _PointStepper:
         for j in range(4):
             q[j] += h6 * (v[j] + 2.0 * (v2[j] + v3[j]) + v4[j])
             v[j] += h6 * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
+
+
+class _PointBatch:
+    """The spatial crane's step (with a bridge) for a batch in :func:`simulate`: each plant by its own
+    :class:`_PointStepper`, on the internal state rows of ``layout`` (the lower cable's absolute angles)."""
+
+    def __init__(self, plants: PlantBatch, h: float, layout: Layout):
+        self._steppers = [_PointStepper(plants.at(i), h, layout.axes) for i in range(len(plants))]
+        self._axes = [layout.rows(a) for a in layout.axes]
+        self._angles = [layout.index(n) for n in ('theta1', 'phi1', 'theta2', 'phi2')]
+        self._rates = [layout.index(n) for n in ('dtheta1', 'dphi1', 'dtheta2', 'dphi2')]
+
+    def step(self, x, r0, r1):
+        out = np.array(x)
+        for i, stepper in enumerate(self._steppers):
+            axes = [[float(x[row, i]) for row in rows] for rows in self._axes]
+            q, v = [float(x[row, i]) for row in self._angles], [float(x[row, i]) for row in self._rates]
+            stepper.step(axes, q, v, r0[:, i], r1[:, i])
+            for rows, values in zip(self._axes, axes):
+                out[list(rows), i] = values
+            out[self._angles, i], out[self._rates, i] = q, v
+        return out
 
 
 @dataclass(frozen=True)
@@ -845,8 +882,8 @@ class CraneSimulator:
         """Horizontal offset (m) of the load from its rest position below the suspension point: in the
         x-z plane signed (positive when it lags), with a bridge its norm (contract)."""
         if self.spatial:
-            p1, p2 = self._stepper.model.positions((0.0, 0.0, 0.0), self._q, self.L1)
-            return math.hypot(p2[0], p2[1])
+            w = self.swing
+            return math.hypot(*load_offset(w.theta1, w.theta2, w.phi1, w.phi2, self.L1, self._plants.L2[0]))
         s = self.state
         return float(load_excursion(s.theta1, s.theta2, self.L1, self._plants.L2[0]))
 

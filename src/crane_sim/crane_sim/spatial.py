@@ -37,7 +37,7 @@ accelerations in terms of the lower's; put into the lower's rows they leave
 a 2x2 system (a Schur complement of the mass matrix, positive definite for
 positive masses and cables off the horizontal), solved by Cramer's rule.
 
-Plain ``math`` on floats: one plant stepped in real time costs the number of
+The accelerations in plain ``math`` on floats: one plant stepped in real time costs the number of
 operations, and numpy's per-call overhead on arrays of one would cost ten
 times more (the batch simulator, ``crane_sim.simulator.simulate``, keeps
 numpy for many plants).
@@ -47,14 +47,24 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 #: The spatial swing coordinates, in the contract's order (joint_states' order after the axes).
 SPATIAL_SWING_NAMES = ('theta1', 'theta2', 'phi1', 'phi2')
 
 
-def cable_direction(a: float, b: float) -> tuple[float, float, float]:
-    """u(a, b): the unit vector along a cable at in-plane angle ``a`` and out-of-plane angle ``b``."""
-    cb = math.cos(b)
-    return -math.sin(a) * cb, math.sin(b), -math.cos(a) * cb
+def cable_direction(a, b) -> tuple:
+    """u(a, b): the unit vector along a cable at in-plane angle ``a`` and out-of-plane angle ``b`` (floats or
+    arrays: numpy's functions, off the real-time step's path)."""
+    cb = np.cos(b)
+    return -np.sin(a) * cb, np.sin(b), -np.cos(a) * cb
+
+
+def load_offset(theta1, theta2, phi1, phi2, L1, L2) -> tuple:
+    """(dx, dy): the load m2's horizontal position relative to the suspension point (floats or arrays);
+    its norm is the spatial crane's swing (contract)."""
+    u1, u2 = cable_direction(theta1, phi1), cable_direction(theta1 + theta2, phi1 + phi2)
+    return L1 * u1[0] + L2 * u2[0], L1 * u1[1] + L2 * u2[1]
 
 
 @dataclass(frozen=True)
@@ -146,8 +156,8 @@ class SpatialPendulum:
         """(p1, p2): both masses' positions in ``crane_base`` for the suspension point ``s`` = (x, y, z)."""
         a1, b1, a2, b2 = angles
         u1, u2 = cable_direction(a1, b1), cable_direction(a2, b2)
-        p1 = tuple(s[i] + L1 * u1[i] for i in range(3))
-        return p1, tuple(p1[i] + self.L2 * u2[i] for i in range(3))
+        p1 = tuple(float(s[i] + L1 * u1[i]) for i in range(3))
+        return p1, tuple(float(p1[i] + self.L2 * u2[i]) for i in range(3))
 
     def energy(self, angles, rates, L1: float) -> float:
         """Kinetic plus potential energy (J) of both masses, the suspension point and L1 at rest."""
