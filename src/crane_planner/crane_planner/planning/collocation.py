@@ -210,6 +210,27 @@ class Transcription:
         lam = -mu / np.tile(self.B[1:], self.intervals)
         return self.node_times(frac), self.states(w), np.hstack([lam[:, :1], lam])
 
+    def mirror(self, axes) -> tuple[np.ndarray, np.ndarray]:
+        """(signs of the NLP variables, signs of the constraints) of this NLP's solution mirrored in ``axes``.
+
+        A travel axis's mirror (x -> -x for the cart, y -> -y for the bridge)
+        maps the crane onto itself: with u(a, b) = (-sin a cos b, sin b, -cos a
+        cos b) it negates the axis's states and input and the swing angles it
+        drives (``Problem.mirrored``), and leaves the rest and the cost (even in
+        each jerk and acceleration) alone. So the optimum of the mirrored
+        request is the optimum with those variables negated, the multipliers of
+        the constraints negated where the constraints are (residuals of the
+        negated states, each axis's limits); the free time's sigma stays.
+        """
+        pb, N, d = self.problem, self.intervals, self.degree
+        sx = np.array([-1.0 if pb.mirrored(name, axes) else 1.0 for name in pb.states])
+        su = np.array([-1.0 if axis in axes else 1.0 for axis in pb.axes])
+        w = np.concatenate([sx, np.tile(np.concatenate([sx, su]), N * d), [1.0] if self.free_time else []])
+        g = [np.tile(sx, N * d), sx]
+        if self.limits:  # per axis: the velocity, acceleration and jerk blocks (``__init__``)
+            g += [np.full(N * (3 * d + 3), s) for s in su]
+        return w, np.concatenate(g)
+
     def guess(self, displacement, frac: np.ndarray, x0: np.ndarray | None = None,
               xT: np.ndarray | None = None) -> np.ndarray:
         """The NLP variables of ``Problem.initial_guess`` (rest to rest, or from the scaled start ``x0``)."""

@@ -197,7 +197,7 @@ class DirectSolver(VariationalSolver):
             return dict(x0=tr.guess(displacement, frac, x0, xT))
 
         kept = getattr(inst, slot, None)
-        warm = self.warm_start(kept, displacement) if kept is not None else None
+        warm = self.warm_start(tr, kept, displacement) if kept is not None else None
         attempts = ([lambda: warm] if warm is not None else []) + [cold]
         for k, initial in enumerate(attempts):
             if k and not self._may_retry(t0):
@@ -245,29 +245,31 @@ class DirectSolver(VariationalSolver):
 
     @staticmethod
     def sign(displacement):
-        """What a warm start is kept with: the cart's sign; with more axes the signs of all."""
-        signs = tuple(math.copysign(1.0, d) for d in axis_displacements(displacement).values())
-        return signs if len(signs) > 1 else signs[0]
+        """What a warm start is kept with: the signs of every axis's displacement (``axis_displacements``' order)."""
+        return tuple(math.copysign(1.0, d) for d in axis_displacements(displacement).values())
 
     @staticmethod
-    def warm_start(warm: tuple, displacement) -> dict | None:
-        """The last solution, mirrored if D changed sign; None if it would not help.
+    def warm_start(tr: Transcription, warm: tuple, displacement) -> dict | None:
+        """The last solution of ``tr``, mirrored in each travel axis whose displacement changed sign; None if
+        the hoist's did (it has no mirror: lowering is not hoisting mirrored).
 
-        The crane is odd-symmetric (f(-x, -u) = -f(x, u), the cost is even),
-        so the solution for -D is minus that for D, multipliers included; in
-        scaled variables a request of the other sign is then as warm as one
-        of the same sign. A hoist breaks the symmetry: a solution whose axes
-        moved in other directions is no start (from one, RVF needs far more
-        iterations than from the quintic guess), so None then (and with a
-        bridge, whose mirror would take each axis's states apart).
+        The crane is symmetric in each travel axis (``Transcription.mirror``):
+        the solution for a request mirrored in some axes is the solution
+        with those axes' states, inputs and driven swing negated, multipliers
+        included; in scaled variables such a request is then as warm as one
+        of the same signs. (Exact rest to rest; from a state it mirrors the
+        start too, so it is a start point only, as a same-sign warm start is.)
         """
         sign, start = warm
         now = DirectSolver.sign(displacement)
         if sign == now:
             return start
-        if isinstance(now, tuple):
+        flipped = [axis for axis, was, new in zip(tr.problem.axes, sign, now, strict=True) if was != new]
+        if 'hoist' in flipped:
             return None
-        return {k: -v for k, v in start.items()}
+        w, g = tr.mirror(flipped)
+        return {'x0': w * np.asarray(start['x0']).ravel(), 'lam_x0': w * np.asarray(start['lam_x0']).ravel(),
+                'lam_g0': g * np.asarray(start['lam_g0']).ravel()}
 
     def _failure_message(self, stats, inst: Instance, displacement, duration, pvec, sx, cold, t0,
                          start=None, free_end=False) -> str:

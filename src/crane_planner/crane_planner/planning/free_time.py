@@ -77,7 +77,7 @@ class FreeTimeSearch:
         fixed_solves = 0
         for attempt in range(self.attempts):
             self._check_deadline(displacement, attempt)
-            warm = solver.warm_start(inst.warm, displacement) if inst.warm is not None else None
+            warm = solver.warm_start(tr, inst.warm, displacement) if inst.warm is not None else None
             if warm is not None:
                 T0 = inst.T0
                 start = warm

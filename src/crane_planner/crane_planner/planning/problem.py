@@ -220,6 +220,20 @@ class Problem:
             ref_a.append(a / (scale / T ** 2))
         self.reference_va = ca.Function('reference_va', [X, P], [ca.vertcat(*ref_v), ca.vertcat(*ref_a)])
 
+    #: The swing angles each travel axis drives (their rates and sensitivities follow their names).
+    DRIVEN_SWING = {'cart': ('theta1', 'theta2'), 'bridge': ('phi1', 'phi2')}
+
+    def mirrored(self, state: str, axes) -> bool:
+        """Whether the state ``state`` changes sign when the travel axes ``axes`` are mirrored
+        (``Transcription.mirror``): an axis's own states and the swing angles it drives (theta the cart's, phi
+        the bridge's), with their rates and sensitivities; the hoist's never (it has no mirror)."""
+        base = state[1:].split('/d')[0] if '/' in state else state  # 'd<s>/d<q>': that of s
+        for axis in axes:
+            angles = self.DRIVEN_SWING[axis]
+            if base in AXIS_STATES[axis] or base in angles or base in tuple('d' + a for a in angles):
+                return True
+        return False
+
     def parameters(self, displacement, duration: float, params: CraneParams, weights: Weights,
                    start: dict | None = None) -> np.ndarray:
         """The NLP parameter vector (``PROBLEM_PARAMETERS``) of a request.
