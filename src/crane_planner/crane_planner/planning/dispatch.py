@@ -20,13 +20,13 @@ from crane_msgs_py.axes import AXES, AXIS_NAMES, AxisLimits, axis
 from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams, ParameterError, check_choice, check_nonnegative, check_positive
 
-from .hoisting import HOIST_SHAPER_DESIGNS, check_hoist, shaped_hoisting_plan
+from .hoisting import HOIST_SHAPER_DESIGNS, check_hoist, shaped_hoisting_plan, travel_displacements
 from .limits import axis_limit_error, check_fastest_request
 from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
 from .model import modal_properties
-from .plan import Plan, PlanError
+from .plan import AxesPlan, Plan, PlanError
 from .profiles import BASES
-from .shaped import fastest_shaped, shaped_plan
+from .shaped import fastest_shaped, fastest_shaped_axes, shaped_axes, shaped_plan
 
 
 @dataclass(frozen=True)
@@ -226,9 +226,10 @@ def plan(method: str, displacement: float, duration: float, params: CraneParams 
     With ``hoist`` = (L1_start, L1_goal) (m) the rope length moves too: an
     ``AxesPlan`` of the cart and the hoist, planned on the model with L1 =
     L1_start (contract "Joints and hoisting"). With ``bridge`` (m, its
-    displacement) the bridge moves too, all axes planned together on the
-    spatial crane (NVF/RVF only, contract "The spatial crane"): an
-    ``AxesPlan`` of every axis moved. Shapers are planned here;
+    displacement) the bridge moves too (contract "The spatial crane"): an
+    ``AxesPlan`` of every axis moved; NVF/RVF plan all axes together on the
+    spatial crane, a shaper shapes each travel axis's share of one straight
+    move (``shaped.shaped_axes``). Shapers are planned here;
     NVF/RVF by ``variational`` (default: a new solver, see the module
     docstring). Raises PlanError (or its ParameterError sibling, both
     ValueError) with a message naming the problem.
@@ -236,7 +237,7 @@ def plan(method: str, displacement: float, duration: float, params: CraneParams 
     params = params or CraneParams()
     options = options or PlanOptions()
     displacement, duration = check_request(method, displacement, duration)
-    bridge = bridge_request(method, bridge)
+    bridge = bridge_request(bridge)
     if hoist is not None:
         params, hoist_displacement = hoisting_request(params, options, hoist)
         if method in SHAPER_METHODS:
@@ -246,14 +247,15 @@ def plan(method: str, displacement: float, duration: float, params: CraneParams 
             if err is not None:
                 raise err
             zeta = options.damping
-            both = shaped_hoisting_plan(method, displacement, hoist_displacement, duration, params, zeta,
-                                        options.hoist_shaper)
-            for name, one in both.axes.items():
-                check_axis_limits(one, options, name)
-            return both
+            return checked(shaped_hoisting_plan(method, displacement, hoist_displacement, duration, params, zeta,
+                                                options.hoist_shaper, bridge), options)
         displacement, options = (displacement, hoist_displacement), hoisting_options(options)
     elif method in SHAPER_METHODS:
         omegas, zetas = shaper_design(params, options)
+        if bridge is not None:
+            travel = travel_displacements(displacement, bridge)
+            return checked(travel_plan(shaped_axes(method, travel, duration, omegas, zetas, options.base,
+                                                   {name: options.limits_of(name) for name in travel})), options)
         shaped = shaped_plan(method, displacement, duration, omegas, zetas, options.base,
                              options.limits_of(CART_JOINT))
         check_axis_limits(shaped, options)
@@ -270,13 +272,14 @@ def fastest(method: str, displacement: float, params: CraneParams | None = None,
     """The shortest rest-to-rest plan of ``displacement`` (m) within the options' axis limits.
 
     Needs max_velocity or max_acceleration (a motion without either could
-    be arbitrarily fast). Shapers: ``shaped.fastest_shaped``; NVF/RVF: the
-    free-final-time NLP (``free_time``) by ``variational``.
+    be arbitrarily fast). Shapers: ``shaped.fastest_shaped`` (with a bridge
+    ``shaped.fastest_shaped_axes``: every axis within its limits, all ending
+    together); NVF/RVF: the free-final-time NLP (``free_time``) by ``variational``.
     """
     params = params or CraneParams()
     options = options or PlanOptions()
     check_request(method, displacement, 1.0)
-    bridge = bridge_request(method, bridge)
+    bridge = bridge_request(bridge)
     if hoist is not None:
         params, hoist_displacement = hoisting_request(params, options, hoist)
         if method in SHAPER_METHODS:
@@ -284,6 +287,10 @@ def fastest(method: str, displacement: float, params: CraneParams | None = None,
         displacement, options = (float(displacement), hoist_displacement), hoisting_options(options)
     elif bridge is not None:
         displacement = float(displacement)
+        if method in SHAPER_METHODS:
+            travel = travel_displacements(displacement, bridge)
+            return travel_plan(fastest_shaped_axes(method, travel, *shaper_design(params, options),
+                                                   {name: options.limits_of(name) for name in travel}, options.base))
     else:
         limits = options.limits_of(CART_JOINT)
         displacement = check_fastest_request(displacement, limits)  # before a solver is asked
@@ -296,7 +303,7 @@ def fastest(method: str, displacement: float, params: CraneParams | None = None,
     return (variational or _new_solver)(VariationalRequest('fastest', method, displacement, None, params, options))
 
 
-def bridge_request(method: str, bridge) -> float | None:
+def bridge_request(bridge) -> float | None:
     """The bridge's displacement (m) of a request, checked; None without one."""
     if bridge is None:
         return None
@@ -306,9 +313,22 @@ def bridge_request(method: str, bridge) -> float | None:
         raise PlanError(f'the bridge displacement must be a number (m), got {bridge!r}') from None
     if not math.isfinite(bridge):
         raise PlanError(f'the bridge displacement must be finite, got {bridge}')
-    if method in SHAPER_METHODS:
-        raise PlanError('the shapers do not plan the bridge yet: use nvf or rvf')
     return bridge
+
+
+def travel_plan(axes: dict) -> AxesPlan:
+    """The ``AxesPlan`` of the travel axes' shaped plans ``axes`` (by name, the cart's first): one straight
+    move, relative like the cart's."""
+    cart = axes[CART_JOINT]
+    return AxesPlan(method=cart.method, displacement=cart.displacement, duration=cart.duration, info=cart.info,
+                    axes=dict(axes), starts={name: 0.0 for name in axes})
+
+
+def checked(plan: AxesPlan, options: PlanOptions) -> AxesPlan:
+    """``plan`` if every axis's peaks are within its limits (``check_axis_limits``), else that PlanError."""
+    for name, one in plan.axes.items():
+        check_axis_limits(one, options, name)
+    return plan
 
 
 def with_bridge(displacement, bridge: float) -> dict:

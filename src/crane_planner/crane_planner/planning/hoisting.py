@@ -22,10 +22,11 @@ import numpy as np
 from crane_msgs_py.params import CraneParams
 
 from .dynamics import hoisting_swing
+from .limits import lead_axis
 from .model import modal_properties
 from .plan import AxesPlan, Plan, PlanError
 from .profiles import quintic, quintic_base
-from .shaped import ShapedPlan, shaped_plan
+from .shaped import ShapedPlan, along, shaped_plan
 from .shapers import SHAPERS, Shaper, cascade
 
 #: How the cart's shaper follows the rope length while hoisting: ``adaptive`` (fitted to the hoisting crane,
@@ -184,35 +185,56 @@ def design_length(choice: str, L_start: float, L_goal: float) -> float:
 
 
 def shaped_hoisting_plan(method: str, displacement: float, hoist_displacement: float, duration: float,
-                         params: CraneParams, zeta=None, shaper_design: str = 'adaptive') -> AxesPlan:
-    """The cart shaped by ``method`` and the hoist's quintic, from L1 = ``params.L1`` by ``hoist_displacement``.
+                         params: CraneParams, zeta=None, shaper_design: str = 'adaptive',
+                         bridge: float | None = None) -> AxesPlan:
+    """The cart (and the ``bridge``'s displacement, m) shaped by ``method`` and the hoist's quintic, from
+    L1 = ``params.L1`` by ``hoist_displacement``.
 
     ``shaper_design`` is one of ``HOIST_SHAPER_DESIGNS``; ``zeta`` the design
     damping ratio (None: the model's modal damping at the design length).
+    With a bridge the move is straight (``shaped.along``): both travel axes
+    take the one shaper, fitted or designed for the lead axis's move. The
+    adaptive shaper fits the swing linearized about rest, where the x-z
+    and y-z planes are uncoupled and alike, and its conditions are linear
+    in the displacement: one fit serves both axes.
     """
     if shaper_design not in HOIST_SHAPER_DESIGNS:
         raise PlanError(f'hoist shaper design must be one of {", ".join(HOIST_SHAPER_DESIGNS)}, '
                         f'got {shaper_design!r}')
     check_hoist(params.L1, hoist_displacement)
+    travel = travel_displacements(displacement, bridge)
+    lead = travel[lead_axis(travel)]
     hoist = QuinticPlan(method='quintic', displacement=float(hoist_displacement), duration=float(duration))
     if shaper_design == 'adaptive':
-        cart = adaptive_shaped_plan(method, displacement, duration, params, hoist, zeta)
+        shaped = adaptive_shaped_plan(method, lead, duration, params, hoist, zeta)
     else:
         at = params.replace(L1=design_length(shaper_design, params.L1, params.L1 + hoist_displacement))
         omegas, zetas = modal_properties(at)
-        cart = shaped_plan(method, displacement, duration, omegas, zetas if zeta is None else zeta)
-        cart.info['shaper_design'] = shaper_design
-    return AxesPlan(method=method, displacement=float(displacement), duration=float(duration), info=cart.info,
-                    axes={'cart': cart, 'hoist': hoist}, starts={'cart': 0.0, 'hoist': params.L1})
+        shaped = shaped_plan(method, lead, duration, omegas, zetas if zeta is None else zeta)
+        shaped.info['shaper_design'] = shaper_design
+    return AxesPlan(method=method, displacement=float(displacement), duration=float(duration), info=shaped.info,
+                    axes={**along(shaped, travel), 'hoist': hoist}, starts={'cart': 0.0, 'hoist': params.L1})
+
+
+def travel_displacements(displacement: float, bridge: float | None = None) -> dict[str, float]:
+    """The travel axes' displacements (m) by axis name: the cart's, and the bridge's if it moves."""
+    return {'cart': float(displacement), **({} if bridge is None else {'bridge': float(bridge)})}
+
+
+def quintic_axes_plan(displacements: dict, duration: float, starts: dict | None = None) -> AxesPlan:
+    """Every axis of ``displacements`` (m, by axis name, the cart's first) on the unshaped quintic over the
+    whole duration: what the shapers are measured against. ``starts``: as ``AxesPlan``'s."""
+    axes = {name: QuinticPlan(method='quintic', displacement=float(D), duration=float(duration))
+            for name, D in displacements.items()}
+    return AxesPlan(method='quintic', displacement=axes['cart'].displacement, duration=float(duration), info={},
+                    axes=axes, starts=dict(starts or {}))
 
 
 def quintic_hoisting_plan(displacement: float, hoist_displacement: float, duration: float,
-                          params: CraneParams) -> AxesPlan:
-    """Both axes on the unshaped quintic over the whole duration: what the shapers are measured against."""
-    axes = {'cart': QuinticPlan(method='quintic', displacement=float(displacement), duration=float(duration)),
-            'hoist': QuinticPlan(method='quintic', displacement=float(hoist_displacement), duration=float(duration))}
-    return AxesPlan(method='quintic', displacement=float(displacement), duration=float(duration), info={},
-                    axes=axes, starts={'cart': 0.0, 'hoist': params.L1})
+                          params: CraneParams, bridge: float | None = None) -> AxesPlan:
+    """The cart (and the bridge) and the hoist on the unshaped quintic (``quintic_axes_plan``)."""
+    return quintic_axes_plan({**travel_displacements(displacement, bridge), 'hoist': hoist_displacement}, duration,
+                             {'cart': 0.0, 'hoist': params.L1})
 
 
 def check_hoist(L_start: float, hoist_displacement: float) -> None:

@@ -8,6 +8,7 @@ of every fastest-plan search (``shortest_duration_bound``) are these bounds.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 from crane_msgs_py.axes import AxisLimits
 
@@ -24,6 +25,34 @@ def check_fastest_request(displacement: float, limits: AxisLimits) -> float:
     if displacement == 0.0:
         raise PlanError('the fastest plan needs a nonzero displacement')
     return displacement
+
+
+def lead_axis(displacements: Mapping[str, float]) -> str:
+    """The axis of a straight move that travels farthest (the first of them on a tie): the one the move's
+    path is planned along, the others following it in proportion (``path_limits``)."""
+    return max(displacements, key=lambda name: abs(float(displacements[name])))
+
+
+def path_limits(displacements: Mapping[str, float], limits: Mapping[str, AxisLimits]) -> AxisLimits:
+    """The lead axis's (``lead_axis``) limits that keep every axis of a straight move within its own.
+
+    On a straight move axis i's position is D_i / D_lead times the lead's at every instant, so its
+    velocity, acceleration and jerk are too: the lead's k-th limit is min_i limit_i,k |D_lead| / |D_i| over
+    the moving axes (the lead's own exactly as given, so a move of one axis keeps its limits bit for bit).
+    Named as the lead's. Axes absent from ``limits`` or standing still limit nothing.
+    """
+    lead = lead_axis(displacements)
+    reach = abs(float(displacements[lead]))
+    bound = [None, None, None]
+    for name, D in displacements.items():
+        if name not in limits or (float(D) == 0.0 and name != lead):  # (nothing moving: the lead's own)
+            continue
+        share = 1.0 if name == lead else reach / abs(float(D))
+        for k, limit in enumerate(limits[name]):
+            if limit is not None and (bound[k] is None or limit * share < bound[k]):
+                bound[k] = limit * share
+    names = limits[lead].names if lead in limits else AxisLimits().names
+    return AxisLimits.named(names, bound)
 
 
 def shortest_duration_bound(displacement: float, limits) -> float:

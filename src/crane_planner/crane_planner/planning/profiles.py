@@ -87,6 +87,16 @@ class BaseProfile:
         shift = _SHIFT_MASK * np.vander(dx, ORDER + 1, increasing=True)[:, _SHIFT_POWER]
         return np.einsum('imn,in->im', shift, self.coefficients[k])
 
+    def along(self, displacement: float) -> 'BaseProfile':
+        """The same motion in time, scaled to reach ``displacement`` (m): another axis's share of a straight move.
+
+        Every axis of a straight move follows one path parameter (this profile over its own displacement),
+        so the axes' positions keep the ratio of their displacements at every instant.
+        """
+        displacement = float(displacement)
+        scale = 0.0 if displacement == 0.0 else displacement / self.displacement
+        return BaseProfile(self.kind, displacement, self.duration, self.breaks, self.coefficients * scale)
+
     def stretched(self, duration: float) -> 'BaseProfile':
         """The same motion slowed down in time to last ``duration`` (s) (>= this one's): peaks fall as 1/s^k."""
         scale = float(duration) / self.duration

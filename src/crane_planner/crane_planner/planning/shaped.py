@@ -4,10 +4,20 @@ The reference is sum_i A_i q(t - t_i), q the base motion (``profiles``: the
 paper's quintic, or the jerk-limited time-optimal profile under axis limits)
 lasting T - t_N so that the whole motion ends exactly at the requested T (the
 paper's 1.789 s base for ZV and 2.192 s for NZV at T = 3 s).
+
+With several travel axes (the cart and the bridge, contract "The spatial
+crane") the move is straight: every axis's base is the same path scaled by
+its displacement (``BaseProfile.along``), convolved with the same shaper
+(linearized about rest the swing has the same two modes in x and in y), so
+the shaped reference stays on the straight line from start to goal. The
+path is planned for the axis moving farthest under limits that keep every
+axis within its own (``limits.path_limits``): ``shaped_axes``,
+``fastest_shaped_axes``.
 """
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,7 +25,7 @@ from numpy.polynomial.polynomial import polyder, polyval
 
 from crane_msgs_py.axes import AxisLimits
 
-from .limits import check_fastest_request, shortest_duration_bound
+from .limits import check_fastest_request, lead_axis, path_limits, shortest_duration_bound
 from .plan import Plan, PlanError
 from .profiles import ORDER, BaseProfile, limited_base, quintic_base
 from .shapers import Shaper, design
@@ -275,3 +285,45 @@ def _first_feasible(beyond, lo: float, hi: float, steps) -> float:
 
 #: Relative steps of ``_first_feasible``'s scans.
 _COARSE_STEP, _FINE_STEP = 0.1, 0.005
+
+
+def along(plan: ShapedPlan, displacements: Mapping[str, float]) -> dict[str, ShapedPlan]:
+    """Every axis's plan of a straight move (by axis name, in ``displacements``' order) whose lead axis
+    (``limits.lead_axis``) has the plan ``plan``: the same shaper on the same base path, scaled to each axis's
+    displacement, sum_i A_i (D / D_lead) q(t - t_i)."""
+    lead = lead_axis(displacements)
+    return {name: plan if name == lead else
+            ShapedPlan(method=plan.method, displacement=float(D), duration=plan.duration, info=dict(plan.info),
+                       shaper=plan.shaper, base=plan.base.along(D))
+            for name, D in displacements.items()}
+
+
+def shaped_axes(method: str, displacements: Mapping[str, float], duration: float, omegas, zeta,
+                base: str = 'quintic', limits: Mapping[str, AxisLimits] | None = None) -> dict[str, ShapedPlan]:
+    """``shaped_plan`` of a straight move of several travel axes: ``displacements`` (m) by axis name.
+
+    The lead axis's plan is ``shaped_plan``'s, its ``limits`` base under
+    ``limits.path_limits`` (every axis's ``limits``, by name), the others'
+    its shares (``along``).
+    """
+    lead = lead_axis(displacements)
+    lead_limits = path_limits(displacements, limits or {})
+    return along(shaped_plan(method, displacements[lead], duration, omegas, zeta, base, lead_limits), displacements)
+
+
+def fastest_shaped_axes(method: str, displacements: Mapping[str, float], omegas, zeta,
+                        limits: Mapping[str, AxisLimits], base: str = 'quintic') -> dict[str, ShapedPlan]:
+    """``fastest_shaped`` of a straight move of several travel axes: the shortest plan with every axis within
+    its own ``limits`` (by name), all ending together.
+
+    Each axis's peaks are |D_i / D_lead| times the lead's, so the lead's
+    fastest plan under ``limits.path_limits`` is the whole move's: the
+    binding limit is then the one of the axis (or axes) it came from.
+    """
+    lead = lead_axis(displacements)
+    lead_limits = path_limits(displacements, limits)
+    if not lead_limits.bounds_speed:
+        names = [n for name in displacements if name in limits for n in limits[name].names[:2]]
+        raise PlanError(f'the fastest plan needs a velocity or acceleration limit of a moving axis '
+                        f'({", ".join(names)})')
+    return along(fastest_shaped(method, displacements[lead], omegas, zeta, lead_limits, base), displacements)
