@@ -29,10 +29,10 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from crane_msgs_py.axes import AXIS_NAMES, CART, HOIST, axis
+from crane_msgs_py.axes import AXIS_NAMES, BRIDGE, CART, HOIST, axis
 from crane_msgs_py.params import CraneParams
 
-from .dynamics import PARAMETERS, crane_ode
+from .dynamics import PARAMETERS, SPATIAL_SWING_STATES, SWING_STATES, crane_ode
 from .model import modal_frequencies
 from .plan import Plan, PlanError
 from .problem import AXIS_STATES, Form
@@ -73,21 +73,29 @@ class MotionState:
     Attributes:
         axes: each axis's ``AxisState`` by its name (``crane_msgs_py.axes``), kept in
             ``AXES`` order; the cart's always, the others' if the crane has them.
-        swing: (theta1, theta2, dtheta1, dtheta2) in rad and rad/s.
+        swing: the swing states in the order of ``dynamics.crane_ode``'s (``swing_names``), rad and rad/s:
+            (theta1, theta2, dtheta1, dtheta2) on the planar crane, with a bridge the spatial crane's
+            (theta1, theta2, phi1, phi2, dtheta1, dtheta2, dphi1, dphi2); None = no swing.
     """
 
     axes: dict[str, AxisState] = field(default_factory=lambda: {CART.name: AxisState()})
-    swing: tuple = (0.0, 0.0, 0.0, 0.0)
+    swing: tuple | None = None
 
     def __post_init__(self):
         axes = dict(self.axes)
-        if CART.name not in axes or len(self.swing) != 4 or any(n not in AXIS_NAMES for n in axes) \
+        if CART.name not in axes or any(n not in AXIS_NAMES for n in axes) \
                 or not all(isinstance(s, AxisState) for s in axes.values()):
             raise PlanError(f'a motion state needs the {CART.name}\'s AxisState, optionally those of '
-                            f'{", ".join(AXIS_NAMES[1:])}, and the swing (theta1, theta2, dtheta1, dtheta2)')
-        if not all(math.isfinite(float(x)) for x in self.swing):
+                            f'{", ".join(AXIS_NAMES[1:])}')
+        names = swing_names(BRIDGE.name in axes)
+        swing = (0.0,) * len(names) if self.swing is None else tuple(float(x) for x in self.swing)
+        if len(swing) != len(names):
+            raise PlanError(f'a motion state {"with" if BRIDGE.name in axes else "without"} a {BRIDGE.name} needs '
+                            f'the swing ({", ".join(names)}), got {len(swing)} values')
+        if not all(math.isfinite(x) for x in swing):
             raise PlanError('a motion state must be finite')
         object.__setattr__(self, 'axes', {n: axes[n] for n in AXIS_NAMES if n in axes})
+        object.__setattr__(self, 'swing', swing)
 
     def has(self, name: str) -> bool:
         """Whether the crane has the axis ``name`` in this state."""
@@ -107,8 +115,14 @@ class MotionState:
         return max(abs(x) for x in moving) < 1e-9
 
 
-#: Each axis's servo time constant (Eq. 6) among ``CraneParams``' fields.
-SERVO_CONSTANTS = {CART.name: 'tau', HOIST.name: 'tau_hoist'}
+def swing_names(bridge: bool) -> tuple:
+    """The swing's states (``dynamics.crane_ode``'s order): the planar crane's, with a bridge the spatial one's."""
+    return SPATIAL_SWING_STATES if bridge else SWING_STATES
+
+
+#: Each axis's servo time constant (Eq. 6) among ``CraneParams``' fields (the bridge's servo is the cart's:
+#: ``dynamics.crane_ode``).
+SERVO_CONSTANTS = {CART.name: 'tau', BRIDGE.name: 'tau', HOIST.name: 'tau_hoist'}
 
 
 def _servo_start(p_lag: float | None, v: float, a: float, tau: float) -> tuple[float, float, float]:
@@ -146,7 +160,7 @@ def problem_start(state: MotionState, params: CraneParams) -> tuple[dict, CraneP
             if not s.position + lag > 0.0:
                 raise PlanError(f'the rope length must be > 0 m, got {s.position + lag:g} m')
             params = params.replace(L1=s.position + lag)
-    start.update(zip(('theta1', 'theta2', 'dtheta1', 'dtheta2'), (float(x) for x in state.swing)))
+    start.update(zip(swing_names(state.has(BRIDGE.name)), state.swing))
     return start, params
 
 
@@ -162,7 +176,7 @@ CHUNK = 64
 def _rk4_steps(form: Form) -> tuple[ca.Function, tuple]:
     """(steps, state names): ``CHUNK`` classic RK4 steps of the planning model in one call, x0 and the
     reference jerk per axis at each step's t, t + h/2 and t + h (columns) in, the state after them out."""
-    ode = crane_ode(form.servo, form.hoist, form.hoist_servo)
+    ode = crane_ode(form.servo, form.hoist, form.hoist_servo, form.bridge)
     f = ode.function()
     u0, um, u1 = (ca.SX.sym(n, ode.u.shape[0]) for n in ('u0', 'um', 'u1'))
     h = ca.SX.sym('h')
@@ -185,11 +199,12 @@ def predict(measured: MotionState, reference, t_measured: float, t_handover: flo
     at the times ``t`` (an array), a list in ``measured.axes``' order (the cart's first). The planning model
     (``dynamics.crane_ode``, Eqs. 18-19 with the servo of Eq. 6, the hoist's
     Lagrangian with one) is integrated by RK4 with the reference's jerk as
-    input. With ``t_handover`` before ``t_measured`` the measured state is
-    taken as it is (a measurement newer than the handover).
+    input; with a bridge the spatial crane's (``dynamics.spatial_swing``).
+    With ``t_handover`` before ``t_measured`` the measured state is taken as it
+    is (a measurement newer than the handover).
     """
-    hoist = measured.has(HOIST.name)
-    form = Form.of(params, hoist)
+    bridge = measured.has(BRIDGE.name)
+    form = Form.of(params, measured.has(HOIST.name), bridge)
     start, model = problem_start(measured, params)
     rk4, names = _rk4_steps(form)
     values = model.as_dict()
@@ -205,7 +220,7 @@ def predict(measured: MotionState, reference, t_measured: float, t_handover: flo
             x = np.asarray(rk4(x, u[:, k:k + CHUNK], p, h))[:, -1]  # (the state after every step: the last)
     s = dict(zip(names, x))
     refs = reference(np.array([t_handover])) if n else None
-    swing = tuple(float(s[k]) for k in ('theta1', 'theta2', 'dtheta1', 'dtheta2'))
+    swing = tuple(float(s[k]) for k in swing_names(bridge))
     axes = {}
     for k, (name, was) in enumerate(measured.axes.items()):
         ref = tuple(float(r[0]) for r in refs[k][:3]) if n else (was.position, was.velocity, was.acceleration)

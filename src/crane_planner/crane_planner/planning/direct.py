@@ -189,9 +189,11 @@ class DirectSolver(VariationalSolver):
         args = dict(p=pvec, **self.bounds(tr, displacement, duration, sx, self.axis_limits(form), start, free_end))
         t0 = time.perf_counter()
         # plans from a state keep their own warm start: a rest-to-rest solution is a poor start for a
-        # stop, and a stop's would spoil the next rest-to-rest request
-        slot = 'warm_state' if start is not None or free_end else 'warm'
-        x0, xT = (pb.boundary(displacement, sx, start, free_end) if slot == 'warm_state' else (None, None))
+        # stop, and a stop's would spoil the next rest-to-rest request; stops keep theirs apart from the
+        # other plans from a state (on the spatial crane a retarget's solution led IPOPT to a stop with the
+        # bridge running 28 m, a local optimum of the pendulum swinging wide)
+        slot = 'warm_stop' if free_end else 'warm_state' if start is not None else 'warm'
+        x0, xT = (pb.boundary(displacement, sx, start, free_end) if slot != 'warm' else (None, None))
 
         def cold():  # the initial guess; only computed when needed
             return dict(x0=tr.guess(displacement, frac, x0, xT))
