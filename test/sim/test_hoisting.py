@@ -110,8 +110,6 @@ def test_references_are_samples_of_the_same_times_of_known_axes_the_cart_among_t
         simulate(t, {'cart': np.zeros((2, 11)), 'hoist': np.zeros((3, 11))}, CraneParams())
     with pytest.raises(SimulationError, match='no axis trolley'):
         simulate(t, {'cart': np.zeros(11), 'trolley': np.zeros(11)}, CraneParams())
-    with pytest.raises(SimulationError, match='the batch simulation is of the planar crane'):
-        simulate(t, {'cart': np.zeros(11), 'bridge': np.zeros(11)}, CraneParams())
     with pytest.raises(SimulationError, match=r'references must be \[cart\]'):
         simulate(t, {'hoist': np.zeros(11)}, CraneParams())
 
