@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from crane_msgs_py.params import CraneParams
-from crane_planner.planning import PlanError, PlanOptions
+from crane_planner.planning import PlanError, PlanOptions, dispatch
 from crane_planner.serving import Planner
 
 from .evaluate import residual_load_mm, simulate_plans
@@ -62,6 +62,7 @@ def band(model: CraneParams, span_L1: float, points: int, span_L2: float | None 
 
 
 def _peaks(plan) -> tuple[float, float, float]:
+    """The cart's peak |v|, |a|, |jerk| (an ``AxesPlan``'s are its cart's)."""
     if hasattr(plan, 'peaks'):
         return plan.peaks()
     s = plan.evaluate(np.linspace(0.0, plan.duration, 20_001))
@@ -70,15 +71,18 @@ def _peaks(plan) -> tuple[float, float, float]:
 
 def choose(displacement: float, model: CraneParams, options: PlanOptions, methods, plants,
            tolerance_mm: float, settle: float, planner: Planner | None = None, progress=None,
-           hoist=None) -> Choice:
+           hoist=None, bridge: float | None = None) -> Choice:
     """Evaluate every method's fastest plan over ``plants``; pick the fastest within ``tolerance_mm``
-    (``hoist`` = (L1_start, L1_goal): hoisting while travelling, the plants' L1 their start lengths)."""
+    (``hoist`` = (L1_start, L1_goal): hoisting while travelling, the plants' L1 their start lengths; ``bridge``
+    (m): the bridge's displacement, the plants spatial and the residual the norm of the load's offset)."""
     planner = planner or Planner()
     candidates, plans = [], []
     # Every method's search at once: CasADi lets go of the GIL while it builds and solves, so
     # NVF's and RVF's first free-time NLPs (most of the time) share the cores instead of taking turns.
     with ThreadPoolExecutor(max_workers=max(1, len(methods))) as pool:
-        searches = [pool.submit(planner.fastest, method, displacement, model, options, hoist) for method in methods]
+        # dispatch with the planner's solvers, as Planner.fastest does, which takes no bridge (yet)
+        searches = [pool.submit(dispatch.fastest, method, displacement, model, options, planner.variational, hoist,
+                                bridge) for method in methods]
     for method, search in zip(methods, searches):
         c = Candidate(method)
         try:

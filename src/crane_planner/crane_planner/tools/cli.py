@@ -15,15 +15,23 @@ import time
 import numpy as np
 
 from crane_msgs_py.axes import AXES, LIMIT_QUANTITIES
-from crane_msgs_py.names import CART_JOINT
+from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
-from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, PlanOptions
+from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, PlanOptions, dispatch
 from crane_planner.planning.hoisting import HOIST_SHAPER_DESIGNS
 from crane_planner.planning.plan import AxesPlan
 from crane_planner.planning.profiles import BASES
 from crane_planner.serving import Planner
 
-from .evaluate import DEFAULT_SETTLE, plan_report, residual_load_mm, simulate_plan, simulate_plans, vary_parameter
+from .evaluate import (
+    DEFAULT_SETTLE,
+    OUT_OF_PLANE,
+    plan_report,
+    residual_load_mm,
+    simulate_plan,
+    simulate_plans,
+    vary_parameter,
+)
 from .progress import Progress
 
 PROG = 'crane-plan'
@@ -139,8 +147,15 @@ def _add_plant_options(p: argparse.ArgumentParser):
                    help=f'seconds observed after the motion (default {DEFAULT_SETTLE:g})')
 
 
+def _add_displacements(p: argparse.ArgumentParser):
+    p.add_argument('--displacement', type=_finite, required=True, metavar='D', help='cart displacement (m), along x')
+    p.add_argument('--bridge', type=_finite, metavar='DY',
+                   help='bridge displacement (m), along y: the crane is spatial, the move goes from 0 to (D, DY); '
+                        'residuals are the norm of the load\'s horizontal offset')
+
+
 def _add_task_options(p: argparse.ArgumentParser, fastest: bool = False):
-    p.add_argument('--displacement', type=_finite, required=True, metavar='D', help='cart displacement (m)')
+    _add_displacements(p)
     if not fastest:
         p.add_argument('--duration', type=_finite, required=True, metavar='T', help='motion duration (s), > 0')
         return
@@ -162,9 +177,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_plant_options(p)
     p.add_argument('--json', action='store_true', help='print the contract JSON object')
     p.add_argument('--csv', metavar='FILE',
-                   help='write time, position, velocity, acceleration, jerk, theta1, theta2 (1 ms); with --hoist '
-                        'also hoist_position (the rope length L1), hoist_velocity, hoist_acceleration')
-    p.add_argument('--plot', metavar='FILE', help='write a PNG of the plan profiles and the swing')
+                   help='write time, position, velocity, acceleration, jerk, theta1, theta2 (1 ms); with --bridge '
+                        'also bridge_position, bridge_velocity, bridge_acceleration; with --hoist also '
+                        'hoist_position (the rope length L1), hoist_velocity, hoist_acceleration; with --bridge '
+                        'then phi1, phi2')
+    p.add_argument('--plot', metavar='FILE',
+                   help='write a PNG of the plan profiles and the swing (with --bridge a top view of the load\'s path)')
 
     p = sub.add_parser('compare', help='make and evaluate plans of several methods')
     _add_task_options(p)
@@ -191,7 +209,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser('choose', help='per method: the fastest move within the axis limits and its worst swing '
                                       'over an uncertainty band; marks the fastest within a tolerance')
-    p.add_argument('--displacement', type=_finite, required=True, metavar='D', help='cart displacement (m)')
+    _add_displacements(p)
     p.add_argument('--span', type=_finite, default=0.2, metavar='R',
                    help='relative uncertainty of L1: plants at L1 x (1 +- R) (default 0.2)')
     p.add_argument('--span-L2', type=_finite, metavar='R',
@@ -248,11 +266,13 @@ def _plant(args, model: CraneParams) -> CraneParams:
 
 
 def _timed_plan(planner: Planner, method, args, model, options) -> tuple[Plan, float]:
+    # dispatch with the planner's solvers, as Planner.plan and .fastest do, which take no bridge (yet)
     t0 = time.perf_counter()
+    axes = {'hoist': args.hoist, 'bridge': args.bridge}
     if getattr(args, 'fastest', False):
-        plan = planner.fastest(method, args.displacement, model, options, hoist=args.hoist)
+        plan = dispatch.fastest(method, args.displacement, model, options, planner.variational, **axes)
     else:
-        plan = planner.plan(method, args.displacement, args.duration, model, options, hoist=args.hoist)
+        plan = dispatch.plan(method, args.displacement, args.duration, model, options, planner.variational, **axes)
     return plan, time.perf_counter() - t0
 
 
@@ -301,14 +321,19 @@ def _say(args, text: str):
 
 
 def _write_plan_csv(path: str, ev):
+    """The cart's reference and the simulated swing; then each further axis's reference (the hoist's position:
+    the rope length), in ``AXES`` order; with a bridge the out-of-plane swing last (contract)."""
     plan_s = ev.plan.evaluate(ev.sim.t)
     header = ['time', 'position', 'velocity', 'acceleration', 'jerk', 'theta1', 'theta2']
     cols = [ev.sim.t, plan_s.position, plan_s.velocity, plan_s.acceleration, plan_s.jerk, ev.sim.theta1[0],
             ev.sim.theta2[0]]
-    if isinstance(ev.plan, AxesPlan) and 'hoist' in ev.plan.axes:
-        hoist = ev.plan.evaluate_axis('hoist', ev.sim.t)
-        header += ['hoist_position', 'hoist_velocity', 'hoist_acceleration']
-        cols += [hoist.position, hoist.velocity, hoist.acceleration]
+    for name in ev.plan.joint_names[1:] if isinstance(ev.plan, AxesPlan) else ():
+        axis_s = ev.plan.evaluate_axis(name, ev.sim.t)
+        header += [f'{name}_position', f'{name}_velocity', f'{name}_acceleration']
+        cols += [axis_s.position, axis_s.velocity, axis_s.acceleration]
+    for name in OUT_OF_PLANE if 'phi1' in ev.sim.states else ():
+        header.append(name)
+        cols.append(ev.sim.states[name][0])
     with open(path, 'w', newline='') as f:
         w = csv.writer(f)
         w.writerow(header)
@@ -348,7 +373,7 @@ def cmd_compare(args) -> int:
         print(json.dumps(reports))
     else:
         hoisting = f' while L1 goes {args.hoist[0]:g} -> {args.hoist[1]:g} m' if args.hoist else ''
-        print(f'{args.displacement:g} m in {args.duration:g} s{hoisting}; model {_describe(model)}; '
+        print(f'{_describe_move(args)} in {args.duration:g} s{hoisting}; model {_describe(model)}; '
               f'plant {_describe(plant)}')
         _print_table(reports)
     if args.plot:
@@ -356,6 +381,13 @@ def cmd_compare(args) -> int:
         plot_compare(evaluations, args.plot)
         _say(args, f'wrote {args.plot}')
     return 0
+
+
+def _describe_move(args) -> str:
+    """The move's displacement: the cart's (m), with a bridge the pair (x, y)."""
+    if args.bridge is None:
+        return f'{args.displacement:g} m'
+    return f'({args.displacement:g}, {args.bridge:g}) m'
 
 
 def _describe(p: CraneParams) -> str:
@@ -459,12 +491,14 @@ def cmd_choose(args) -> int:
         raise UsageError(f'argument --tolerance-mm: must be >= 0, got {args.tolerance_mm}')
     _check_settle(args)
     model, options = _model_and_options(args)
-    if not options.limits_of(CART_JOINT).bounds_speed:
-        raise UsageError('choose needs axis limits: --max-velocity and/or --max-acceleration')
+    travel = [CART_JOINT] if args.bridge is None else [CART_JOINT, BRIDGE_JOINT]
+    if not any(options.limits_of(name).bounds_speed for name in travel):
+        raise UsageError('choose needs axis limits: --max-velocity and/or --max-acceleration'
+                         + ('' if args.bridge is None else ' (or the bridge\'s)'))
     plants = band(model, args.span, args.points, args.span_L2)
     with Progress(len(args.methods) + 1, 'choose', PROG) as progress:
         result = choose(args.displacement, model, options, args.methods, plants, args.tolerance_mm, args.settle,
-                        progress=progress.step, hoist=args.hoist)
+                        progress=progress.step, hoist=args.hoist, bridge=args.bridge)
     if args.json:
         print(json.dumps(result.as_json()))
     else:
@@ -479,8 +513,11 @@ def cmd_choose(args) -> int:
 def _print_choice(args, result):
     L1s = sorted({a for a, _ in result.plants})
     L2s = sorted({b for _, b in result.plants})
-    print(f'{args.displacement:g} m, limits v {args.max_velocity or "-"} m/s, a {args.max_acceleration or "-"} m/s^2, '
-          f'j {args.max_jerk or "-"} m/s^3; band L1 {L1s[0]:.3f}-{L1s[-1]:.3f} m'
+    bridge = '' if args.bridge is None else (f', bridge v {args.max_bridge_velocity or "-"} m/s, '
+                                             f'a {args.max_bridge_acceleration or "-"} m/s^2, '
+                                             f'j {args.max_bridge_jerk or "-"} m/s^3')
+    print(f'{_describe_move(args)}, limits v {args.max_velocity or "-"} m/s, a {args.max_acceleration or "-"} m/s^2, '
+          f'j {args.max_jerk or "-"} m/s^3{bridge}; band L1 {L1s[0]:.3f}-{L1s[-1]:.3f} m'
           + (f', L2 {L2s[0]:.3f}-{L2s[-1]:.3f} m' if len(L2s) > 1 else '') + f' ({len(result.plants)} plants)')
     head = f'{"method":<7}{"T* s":>8}{"peak v":>9}{"peak a":>9}{"peak j":>9}{"worst mm":>10}  verdict'
     print(head)

@@ -5,6 +5,9 @@ swing figures come from ``crane_sim`` integrating Eqs. 18-19 plus the servo,
 driven by the plan's acceleration as an axis controller would see it
 (linear interpolation between 1 ms samples), and with a hoist (an
 ``AxesPlan``) by the hoist's too: each plant's L1 is then the start length.
+With a bridge the plant is the spatial crane (contract "The spatial crane"):
+the figures add the out-of-plane angles ``phi1``, ``phi2`` and the residual
+load swing is the norm of the load's horizontal offset (``spatial_metrics``).
 """
 from __future__ import annotations
 
@@ -12,11 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.names import ACTUATED_JOINTS, CART_JOINT
+from crane_msgs_py.names import ACTUATED_JOINTS, CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import Plan, Samples
 from crane_planner.planning.plan import AxesPlan, time_grid
-from crane_sim.metrics import peak, rms, swing_metrics
+from crane_sim.metrics import peak, rms, swing_metrics, window
 from crane_sim.simulator import SimResult, simulate
 
 #: Simulation step and reference sample period used to evaluate plans (s).
@@ -73,8 +76,32 @@ def simulate_plans(plans, plants, settle: float = DEFAULT_SETTLE, rest_step: flo
     for k, plan in enumerate(plans):
         part = sim.members(slice(k * n, (k + 1) * n))
         evaluations.append(Evaluation(plan, plan.sample(EVAL_STEP), part,
-                                      swing_metrics(part, None, plan.duration, settle)))
+                                      spatial_metrics(part, plan.duration, settle)))
     return evaluations
+
+
+#: The out-of-plane swing angles a simulation with a bridge has beside theta1, theta2.
+OUT_OF_PLANE = ('phi1', 'phi2')
+
+
+def spatial_metrics(result: SimResult, duration: float, settle: float) -> list[dict]:
+    """``crane_sim.metrics.swing_metrics`` of ``result`` and, with a bridge, the same figures of ``phi1``,
+    ``phi2`` beside them and the residual ``load_mm`` the peak norm of the load's horizontal offset over
+    [T, T + settle] (``SimResult.load_excursion``; swing_metrics' is the x-z plane's)."""
+    figures = swing_metrics(result, None, duration, settle)
+    if 'phi1' not in result.states:
+        return figures
+    t = result.t
+    motion, after = window(t, 0.0, duration), window(t, duration, duration + settle)
+    load_mm = 1e3 * peak(result.load_excursion[:, after])
+    for i, m in enumerate(figures):
+        for name in OUT_OF_PLANE:
+            x = result.states[name][i]
+            m['peak'][name] = peak(x[motion])
+            m['rms'][name] = rms(x[motion], t[motion])
+            m['residual'][name] = peak(x[after])
+        m['residual']['load_mm'] = float(load_mm[i])
+    return figures
 
 
 def _axis_acceleration(plan: Plan, name: str, t) -> np.ndarray:
@@ -100,20 +127,27 @@ def plan_report(ev: Evaluation, plan_time_s: float, index: int = 0) -> dict:
         'rms': {'velocity': rms(s.velocity), 'acceleration': rms(s.acceleration), **m['rms']},
         'residual': dict(m['residual']),
         'plan_time_s': plan_time_s,
-        **hoist_report(ev.plan),
+        **axes_report(ev.plan),
     }
 
 
-def hoist_report(plan: Plan) -> dict:
-    """``{'hoist': {start, goal (m), peak velocity, acceleration, jerk of its reference}}`` of a plan with a
-    hoist (``AxesPlan``); empty for one without."""
-    if not (isinstance(plan, AxesPlan) and 'hoist' in plan.axes):
+def axes_report(plan: Plan) -> dict:
+    """Per axis beside the cart (``AxesPlan``; empty for a cart alone), by its name: ``{start, goal (m), peak
+    velocity, acceleration, jerk of its reference}`` (the bridge's relative like the cart's, the hoist's the
+    rope length), the hoist's with the ``shaper_design`` a shaper followed the rope length by."""
+    if not isinstance(plan, AxesPlan):
         return {}
-    v, a, j = plan.axes['hoist'].peaks()
-    start = plan.starts['hoist']
-    return {'hoist': {'start': start, 'goal': start + plan.axes['hoist'].displacement,
-                      'peak': {'velocity': v, 'acceleration': a, 'jerk': j},
-                      'shaper_design': plan.info.get('shaper_design')}}
+    report = {}
+    for name, one in plan.axes.items():
+        if name == CART_JOINT:
+            continue
+        v, a, j = one.peaks()
+        start = plan.starts.get(name, 0.0)
+        report[name] = {'start': start, 'goal': start + one.displacement,
+                        'peak': {'velocity': v, 'acceleration': a, 'jerk': j}}
+        if name == HOIST_JOINT:
+            report[name]['shaper_design'] = plan.info.get('shaper_design')
+    return report
 
 
 def vary_parameter(model: CraneParams, param: str, span: float, points: int):

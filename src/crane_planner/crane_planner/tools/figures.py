@@ -21,27 +21,66 @@ def save_figure(fig, path):
 
 
 def plot_plan(ev, path: str):
-    """Reference position, velocity, acceleration, jerk and the simulated swing of one plan."""
+    """Reference position, velocity, acceleration, jerk and the simulated swing of one plan; with a bridge also
+    the out-of-plane swing and a top view (x-y) of the suspension point's and the load's paths."""
     s, sim, plan = ev.samples, ev.sim, ev.plan
-    fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    spatial = 'phi1' in sim.states
+    fig, axes = plt.subplots(4 if spatial else 3, 2, figsize=(11, 10.5 if spatial else 8))
     for ax, (y, label) in zip(axes.flat[:4], [(s.position, 'position (m)'), (s.velocity, 'velocity (m/s)'),
                                               (s.acceleration, 'acceleration (m/s²)'), (s.jerk, 'jerk (m/s³)')]):
-        ax.plot(s.t, y)
+        ax.plot(s.t, y, label='cart')
         ax.set_ylabel(label)
-        ax.grid(True, alpha=0.3)
+    if spatial:
+        bridge = plan.evaluate_axis('bridge', s.t)
+        for ax, y in zip(axes.flat[:4], (bridge.position, bridge.velocity, bridge.acceleration, bridge.jerk)):
+            ax.plot(s.t, y, label='bridge')
+        axes[0, 0].legend()
     axes[2, 0].plot(sim.t, sim.theta1[0], label='θ1')
     axes[2, 0].plot(sim.t, sim.theta2[0], label='θ2 (relative)')
+    if spatial:
+        axes[2, 0].plot(sim.t, sim.phi1[0], label='φ1')
+        axes[2, 0].plot(sim.t, sim.phi2[0], label='φ2 (relative)')
     axes[2, 0].set_ylabel('swing (rad)')
     axes[2, 0].legend()
     axes[2, 1].plot(sim.t, 1e3 * sim.load_excursion[0])
-    axes[2, 1].set_ylabel('load excursion (mm)')
-    for ax in axes.flat:
+    axes[2, 1].set_ylabel('load excursion (mm)' + (', norm' if spatial else ''))
+    for ax in axes[:3].flat:  # the time plots share their axis (the top view has its own)
+        if ax is not axes[0, 0]:
+            ax.sharex(axes[0, 0])
         ax.axvline(plan.duration, color='k', lw=0.6, ls=':')
         ax.grid(True, alpha=0.3)
     axes[2, 0].set_xlabel('time (s)')
     axes[2, 1].set_xlabel('time (s)')
-    fig.suptitle(f'{plan.method.upper()}: {plan.displacement:g} m in {plan.duration:g} s')
+    if spatial:
+        _plot_top_view(axes[3, 0], axes[3, 1], sim)
+        title = f'({plan.displacement:g}, {plan.axes["bridge"].displacement:g}) m'
+    else:
+        title = f'{plan.displacement:g} m'
+    fig.suptitle(f'{plan.method.upper()}: {title} in {plan.duration:g} s')
     return save_figure(fig, path)
+
+
+def _plot_top_view(path_ax, zoom_ax, sim):
+    """The spatial crane from above (x along the cart, y along the bridge): the suspension point's and the load's
+    paths (``path_ax``), and the load's horizontal offset from below the suspension point in mm (``zoom_ax``)."""
+    from crane_sim.spatial import load_offset
+    L1 = sim.plants.L1[0] if sim.L1 is None else sim.L1[0]
+    dx, dy = load_offset(sim.theta1[0], sim.theta2[0], sim.phi1[0], sim.phi2[0], L1, sim.plants.L2[0])
+    x, y = sim.y[0], sim.yb[0]
+    path_ax.plot(x, y, label='suspension point')
+    path_ax.plot(x + dx, y + dy, lw=0.8, label='load')
+    path_ax.set_xlabel('x, cart (m)')
+    path_ax.set_ylabel('y, bridge (m)')
+    path_ax.set_aspect('equal', adjustable='datalim')
+    path_ax.set_title('top view', fontsize=10)
+    path_ax.legend(fontsize=8)
+    path_ax.grid(True, alpha=0.3)
+    zoom_ax.plot(1e3 * dx, 1e3 * dy, lw=0.8)
+    zoom_ax.set_xlabel('load offset x (mm)')
+    zoom_ax.set_ylabel('load offset y (mm)')
+    zoom_ax.set_aspect('equal', adjustable='datalim')
+    zoom_ax.set_title('the load seen from the suspension point', fontsize=10)
+    zoom_ax.grid(True, alpha=0.3)
 
 
 def plot_compare(evaluations, path: str):
