@@ -211,11 +211,20 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
 def with_hoist_held(plan: Plan, length: float | None) -> Plan:
     """``plan`` of the cart with the hoist held at ``length`` (m) beside it; ``plan`` itself without a hoist
     (``length`` None)."""
-    if length is None:
+    return with_axes_held(plan, {} if length is None else {HOIST_JOINT: length})
+
+
+def with_axes_held(plan: Plan, held: dict) -> Plan:
+    """``plan`` of the cart with each axis of ``held`` held beside it, at its start there (``AxesPlan.starts``: the
+    hoist's rope length in m, a travel axis's 0, its plan relative like the cart's); ``plan`` itself if none."""
+    if not held:
         return plan
-    held = QuinticPlan(method='hold', displacement=0.0, duration=plan.duration)
+    axes = {CART_JOINT: plan, **{name: QuinticPlan(method='hold', displacement=0.0, duration=plan.duration)
+                                 for name in held}}
+    starts = {CART_JOINT: 0.0, **held}
+    order = [name for name in ACTUATED_JOINTS if name in axes]
     return AxesPlan(method=plan.method, displacement=plan.displacement, duration=plan.duration, info=plan.info,
-                    axes={CART_JOINT: plan, HOIST_JOINT: held}, starts={CART_JOINT: 0.0, HOIST_JOINT: length})
+                    axes={name: axes[name] for name in order}, starts={name: starts[name] for name in order})
 
 
 def axis_samples(plan: Plan, times) -> list:

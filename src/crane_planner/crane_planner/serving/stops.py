@@ -22,8 +22,9 @@ API (kept stable: both nodes build on it):
 - ``StopTrajectory``: ``t`` (s from the handover), ``position``, ``velocity``, ``acceleration`` ((knots,
   joints), absolute), ``handover_ns``, ``duration``, ``method``, ``end``; ``arrays()``: (t, p, v, a) as
   ``ReferenceStream.accept`` takes them.
-- ``warmups(params, hoist=False, options=None) -> list[VariationalRequest]``: what builds a stop's solvers
-  (``Planner.warmups``, or run on a ``SolverCache``).
+- ``warmups(params, hoist=False, options=None, bridge=False) -> list[VariationalRequest]``: what builds a
+  stop's solvers (``Planner.warmups``, or run on a ``SolverCache``); ``moving_state(params, joints)``: the
+  moving, swinging state they start from.
 - ``StopRequest(joints, interps, origin_ns, handover_ns, params, options=None)``: a stop of the streamer's
   motion (its ``QuinticHermite`` per joint, first knot at ``origin_ns``) as a worker process runs it:
   picklable, ``request(solvers) -> StopTrajectory``. ``StopRequest.rehearsal(joints, params, options=None)``:
@@ -49,7 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
+from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 from crane_msgs_py.realtime import set_fifo
 
@@ -108,21 +109,33 @@ def plan_stop(variational, running, handover_ns: int, params: CraneParams, optio
     return Stop(plan, state, handover_ns)
 
 
-def warmups(params: CraneParams, hoist: bool = False, options=None) -> list:
+def warmups(params: CraneParams, hoist: bool = False, options=None, bridge: bool = False) -> list:
     """``VariationalRequest``s that build the solvers a stop uses: NVF from a moving, swinging state to rest
-    anywhere (``transitions.stop``'s request), with a hoist the hoisting crane's."""
-    from ..planning.continuation import AxisState, MotionState, first_period, problem_start
+    anywhere (``transitions.stop``'s request), with a hoist the hoisting crane's, with a ``bridge`` the spatial
+    crane's (every axis of the crane planned together)."""
+    from ..planning.continuation import first_period, problem_start
     from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options
     options = PlanOptions() if options is None else options
-    axes = {CART_JOINT: AxisState(0.0, 0.1, 0.05), **({HOIST_JOINT: AxisState(params.L1)} if hoist else {})}
-    state = MotionState(axes, (0.02, 0.0, -0.05, 0.0))
+    state = moving_state(params, (CART_JOINT, *((BRIDGE_JOINT,) if bridge else ()), *((HOIST_JOINT,) if hoist else ())))
     start, model = problem_start(state, params)
     duration = first_period(model)
     # (as transitions' free end: the problem's scale)
-    displacement = state.axis(CART_JOINT).velocity * duration / 2
+    ends = {name: s.velocity * duration / 2 for name, s in state.axes.items()}
+    displacement = ends[CART_JOINT] if len(ends) == 1 else ends
     if hoist:
-        displacement, options = (displacement, 0.0), hoisting_options(options)
+        options = hoisting_options(options)
     return [VariationalRequest('plan', 'nvf', displacement, duration, model, options, start, True)]
+
+
+def moving_state(params: CraneParams, joints):
+    """A made-up ``continuation.MotionState`` of the crane with ``joints`` (the cart's first) for warm-ups: the
+    travel axes moving (0.1 m/s, 0.05 m/s^2), the hoist still at the model's L1, the load swinging in the
+    direction of travel (theta, and with a bridge phi)."""
+    from ..planning.continuation import AxisState, MotionState
+    axes = {name: AxisState(params.L1) if name == HOIST_JOINT else AxisState(0.0, 0.1, 0.05) for name in joints}
+    # the load lags the acceleration: theta > 0, phi < 0 (``Problem.initial_guess``)
+    swing = (0.02, 0.0, -0.02, 0.0, -0.05, 0.0, 0.05, 0.0) if BRIDGE_JOINT in axes else (0.02, 0.0, -0.05, 0.0)
+    return MotionState(axes, swing)
 
 
 @dataclass(frozen=True)
@@ -153,12 +166,14 @@ class StopRequest:
 
     @classmethod
     def rehearsal(cls, joints, params: CraneParams, options=None) -> 'StopRequest':
-        """A stop 0.6 s into a made-up move (a quintic of 0.2 m in 2 s): a warm-up, so that the first real stop
-        finds the stop's solvers (``warmups``) and the swing prediction built."""
+        """A stop 0.6 s into a made-up move (a quintic of 0.2 m in 2 s of every travel axis, the hoist held at the
+        model's L1): a warm-up, so that the first real stop finds the stop's solvers (``warmups``) and the swing
+        prediction built."""
         t = [0.0, 1.0, 2.0]  # (the quintic's knots: exact, its acceleration 0 at the middle)
-        interps = [QuinticHermite(t, [0.0, 0.1, 0.2], [0.0, 0.1875, 0.0], [0.0] * 3)]
-        interps += [QuinticHermite(t, [params.L1] * 3, [0.0] * 3, [0.0] * 3) for _ in joints[1:]]
-        return cls(tuple(joints), tuple(interps), 0, 600_000_000, params, options)
+        moving = QuinticHermite(t, [0.0, 0.1, 0.2], [0.0, 0.1875, 0.0], [0.0] * 3)
+        held = QuinticHermite(t, [params.L1] * 3, [0.0] * 3, [0.0] * 3)
+        interps = tuple(held if name == HOIST_JOINT else moving for name in joints)
+        return cls(tuple(joints), interps, 0, 600_000_000, params, options)
 
 
 @dataclass(frozen=True)
@@ -181,7 +196,7 @@ class StopWarmup:
             os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), WARM_NICE)  # this thread only (Linux)
         except (AttributeError, OSError):
             pass
-        for request in warmups(self.params, hoist=len(self.joints) > 1):
+        for request in warmups(self.params, HOIST_JOINT in self.joints, bridge=BRIDGE_JOINT in self.joints):
             try:
                 solvers(request)
             except Exception:  # (built on first use then)

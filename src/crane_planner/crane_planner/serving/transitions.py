@@ -39,9 +39,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
+from crane_msgs_py.axes import axis
+from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
-from crane_sim.dynamics import load_excursion
+from crane_sim.spatial import load_offset
 
 from ..planning.continuation import (
     AxisState,
@@ -53,6 +54,7 @@ from ..planning.continuation import (
     problem_start,
     shaped_change,
     shaped_stop,
+    swing_names,
 )
 from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options, plan
 from ..planning.methods import SHAPER_METHODS
@@ -60,7 +62,7 @@ from ..planning.model import modal_frequencies
 from ..planning.plan import AxesPlan, Plan, PlanError
 from ..planning.shaped import ShapedPlan
 from ..streaming.hermite import QuinticHermite, extends, splice
-from .moves import with_hoist_held
+from .moves import with_axes_held
 
 #: How many times a settle is lengthened by ``LENGTHEN`` when it does not solve within the limits.
 ATTEMPTS = 4
@@ -88,11 +90,25 @@ class JointReading:
 @dataclass(frozen=True)
 class Measurement:
     """``joint_states`` at ``stamp_ns``: each actuated joint's ``JointReading`` by its name (the cart's, and
-    those of the other axes the crane has) and the swing (theta1, theta2, dtheta1, dtheta2, rad and rad/s)."""
+    those of the other axes the crane has) and the swing in ``dynamics.crane_ode``'s order (rad and rad/s):
+    (theta1, theta2, dtheta1, dtheta2), with a bridge (theta1, theta2, phi1, phi2, dtheta1, dtheta2, dphi1,
+    dphi2) (``continuation.swing_names``)."""
 
     stamp_ns: int
     joints: dict[str, JointReading]
     swing: tuple
+
+    def __post_init__(self):
+        names = swing_names(BRIDGE_JOINT in self.joints)
+        if len(self.swing) != len(names):
+            raise PlanError(f'a measurement of the joints {", ".join(self.joints)} needs the swing '
+                            f'({", ".join(names)}), got {len(self.swing)} values')
+
+    @classmethod
+    def at_rest(cls, stamp_ns: int, positions: dict) -> 'Measurement':
+        """The joints at rest at ``positions`` (m, by name), the load hanging still."""
+        joints = {name: JointReading(float(p)) for name, p in positions.items()}
+        return cls(stamp_ns, joints, (0.0,) * len(swing_names(BRIDGE_JOINT in joints)))
 
 
 class KnotPlan(Plan):
@@ -167,13 +183,17 @@ class Running:
     def knot_plan(self, joint: str = CART_JOINT) -> KnotPlan:
         return KnotPlan(self.interps[self.joints.index(joint)], self.method)
 
+    def moves(self, joint: str) -> bool:
+        """Whether ``joint``'s reference moves in this motion (False for a joint it does not have)."""
+        if joint not in self.joints:
+            return False
+        interp = self.interps[self.joints.index(joint)]
+        return bool(np.ptp(interp.position) > 1e-9 or np.abs(interp.velocity).max() > 1e-9)
+
     @property
     def hoist_moves(self) -> bool:
         """Whether the hoist's reference moves in this motion."""
-        if HOIST_JOINT not in self.joints:
-            return False
-        interp = self.interps[self.joints.index(HOIST_JOINT)]
-        return bool(np.ptp(interp.position) > 1e-9 or np.abs(interp.velocity).max() > 1e-9)
+        return self.moves(HOIST_JOINT)
 
 
 @dataclass(frozen=True)
@@ -245,14 +265,27 @@ def _rope(state: MotionState) -> float | None:
     return state.axis(HOIST_JOINT).position if state.has(HOIST_JOINT) else None
 
 
+def _held(state: MotionState) -> dict:
+    """Where a shaper's plan of the cart holds each other axis of ``state`` (``moves.with_axes_held``): the
+    hoist at its rope length, a travel axis at its reference (0 relative to it)."""
+    return {name: (s.position if name == HOIST_JOINT else 0.0) for name, s in state.axes.items()
+            if name != CART_JOINT}
+
+
 def swing_of(state: MotionState, params: CraneParams) -> float:
-    """The amplitude (m) of the load's swing in ``state``, as the first mode's: sqrt(x^2 + (x'/omega_1)^2)
-    of the load's horizontal excursion x (the instant's excursion alone is 0 as the load passes below)."""
+    """The amplitude (m) of the load's swing in ``state``, as the first mode's: sqrt(|x|^2 + |x'|^2 / omega_1^2)
+    of the load's horizontal offset x from below the suspension point (``crane_sim.spatial.load_offset``, whose
+    norm is the contract's residual; the instant's alone is 0 as the load passes below). The planar swing is
+    the spatial one with phi = 0. x' = (dx/dq) q' by a complex step along q' (exact to rounding, the
+    kinematics written once)."""
     model = _model(params, state)
-    th1, th2, dth1, dth2 = state.swing
-    x = float(load_excursion(th1, th2, model.L1, model.L2))
-    rate = model.L1 * math.cos(th1) * dth1 + model.L2 * math.cos(th1 + th2) * (dth1 + dth2)
-    return math.hypot(x, rate / modal_frequencies(model)[0])
+    n = len(state.swing) // 2
+    pad = (0.0,) * (4 - n)  # (theta1, theta2) alone: phi1 = phi2 = 0
+    q, dq = np.array([*state.swing[:n], *pad]), np.array([*state.swing[n:], *pad])
+    step = 1e-20
+    offset = np.array(load_offset(*(q + 1j * step * dq), model.L1, model.L2))
+    rate = offset.imag / step / modal_frequencies(model)[0]
+    return float(math.hypot(*offset.real, *rate))
 
 
 def _model(params: CraneParams, state: MotionState) -> CraneParams:
@@ -262,22 +295,21 @@ def _model(params: CraneParams, state: MotionState) -> CraneParams:
 
 def _variational(variational, method: str, state: MotionState, goal: dict, duration: float, params: CraneParams,
                  options: PlanOptions, free_end: bool = False) -> Plan:
-    """An NVF/RVF plan from ``state`` to rest at ``goal`` (per joint, absolute) or anywhere (``free_end``).
+    """An NVF/RVF plan from ``state`` to rest at ``goal`` (per joint, absolute) or anywhere (``free_end``),
+    every axis of ``state`` planned together (with a bridge on the spatial crane).
 
     Each axis's displacement is from where its model starts (``problem_start``): a travelling axis's
     reference, the hoist's actual rope length (the model's L1); a free end's is where the axis's velocity
-    would carry it in half the duration (the problem's scale)."""
+    would carry it in half the duration (the problem's scale). With a hoist RVF is robust to
+    ``hoist_robust`` (``dispatch.hoisting_options``)."""
     start, model = problem_start(state, params)
-    ends = []
+    ends = {}
     for name, s in state.axes.items():
         origin = model.L1 if name == HOIST_JOINT else s.position
-        ends.append(goal.get(name, s.position) - origin if not free_end else s.velocity * duration / 2)
-    if len(ends) == 1:
-        displacement, opts = ends[0], options
-    else:
-        displacement, opts = tuple(ends), hoisting_options(options)
-    return variational(VariationalRequest('plan', method, displacement, duration, model, opts, start,
-                                                  free_end))
+        ends[name] = goal.get(name, s.position) - origin if not free_end else s.velocity * duration / 2
+    displacement = ends[CART_JOINT] if len(ends) == 1 else ends
+    opts = hoisting_options(options) if HOIST_JOINT in ends else options
+    return variational(VariationalRequest('plan', method, displacement, duration, model, opts, start, free_end))
 
 
 def retarget(variational, running: Running, handover_ns: int, state: MotionState, method: str, goal: dict,
@@ -293,6 +325,11 @@ def retarget(variational, running: Running, handover_ns: int, state: MotionState
     if running.hoist_moves or (rope is not None and abs(goal.get(HOIST_JOINT, rope) - rope) > 1e-9):
         raise PlanError(f'{method}: a shaper cannot retarget a motion while the rope length changes (its '
                         'delays follow the rope); use nvf or rvf')
+    if state.has(BRIDGE_JOINT):
+        bridge = state.axis(BRIDGE_JOINT).position
+        if running.moves(BRIDGE_JOINT) or abs(goal.get(BRIDGE_JOINT, bridge) - bridge) > 1e-9:
+            raise PlanError(f'{method}: a shaper retargets the {CART_JOINT} alone, not a motion of the '
+                            f'{BRIDGE_JOINT}; use nvf or rvf')
     model = _model(params, state)
     knots = running.knot_plan(CART_JOINT)
     t0 = float(running.time_of(handover_ns))
@@ -302,43 +339,53 @@ def retarget(variational, running: Running, handover_ns: int, state: MotionState
         return plan(method, d, T, model, options)
 
     new = shaped_change(plan_change, knots, t0, change, duration, info={'shaper_change_m': change})
-    return with_hoist_held(new, _rope(state))
+    return with_axes_held(new, _held(state))
 
 
 def stop(variational, running: Running, handover_ns: int, state: MotionState, method: str, params: CraneParams,
          options: PlanOptions) -> Plan:
-    """A stop from the handover to rest as near as the limits allow, without residual swing (relative plan)."""
-    vmax, amax, jmax = options.limits_of(CART_JOINT)
+    """A stop from the handover to rest as near as the limits allow, without residual swing (relative plan).
+
+    Every axis of ``state`` is planned to rest together (with a bridge both travel axes on the spatial
+    crane). A travel axis without an acceleration limit brakes at most ``STOP_BRAKING`` times the running
+    motion's hardest (its peak on any travel axis, or an axis's acceleration now): one bound for the
+    horizontal axes, so that an axis the motion held (peak 0) may still move to damp its swing."""
     shaped = running.plan if isinstance(running.plan, ShapedPlan) else None
     if method in SHAPER_METHODS and shaped is not None:
+        _, amax, jmax = options.limits_of(CART_JOINT)
         accel, jerk = amax or shaped.peaks()[1], jmax or shaped.peaks()[2]
         t0 = float(running.time_of(handover_ns))
         # (the shaped plan is relative to the motion's start, the knots absolute: the continuation, relative to
         # the reference at t0, is the same of both)
         new = Continuation.of(method, shaped_stop(shaped, t0, accel, jerk), t0, None, info={'stop': 'shaped'})
-        return with_hoist_held(new, _rope(state))
+        return with_axes_held(new, _held(state))
     # NVF: RVF's sensitivities forced to zero at a free end make it wander (metres past the goal)
     method = 'nvf'
-    period = first_period(_model(params, state))
-    # how hard it may brake: the axis limit, else STOP_BRAKING times the running motion's own peak
-    cart = state.axis(CART_JOINT)
-    accel = amax if amax is not None else STOP_BRAKING * max(_peak_acceleration(running), abs(cart.acceleration))
-    shortest = max(STOP_SHORTEST * period, braking_time(cart.velocity, cart.acceleration, accel, jmax))
-    for name, s in state.axes.items():  # no sooner than the other axes can brake within their limits
-        if name != CART_JOINT:
-            _, limit, jerk = options.limits_of(name)
-            if limit is not None:
-                shortest = max(shortest, braking_time(s.velocity, s.acceleration, limit, jerk))
+    travel = [name for name in state.axes if axis(name).kind == 'travel']
+    hardest = max(max(_peak_acceleration(running, name), abs(state.axis(name).acceleration)) for name in travel)
+    # how hard each axis may brake: its limit, else (a travel axis) STOP_BRAKING times the motion's hardest
+    braking = {}
+    for name, s in state.axes.items():
+        _, limit, jerk = options.limits_of(name)
+        if limit is None and name in travel:
+            limit = STOP_BRAKING * hardest
+        if limit is not None:
+            braking[name] = (limit, jerk)
+    # no sooner than half the first mode's period, nor than every axis can brake within its bound
+    shortest = max([STOP_SHORTEST * first_period(_model(params, state))]
+                   + [braking_time(state.axis(name).velocity, state.axis(name).acceleration, limit, jerk)
+                      for name, (limit, jerk) in braking.items() if limit > 0.0])
     last = None
     for duration in shortest * STOP_STEPS ** np.arange(STOP_TRIES):
         try:
             last = _variational(variational, method, state, {}, duration, params, options, free_end=True)
         except PlanError:
             continue
-        if last.peaks()[1] <= accel * (1.0 + 1e-6):
+        if all(_axis_plan(last, name).peaks()[1] <= limit * (1.0 + 1e-6) for name, (limit, _) in braking.items()):
             return last
     if last is None:
-        raise PlanError(f'{method}: no stop within the axis limits from {cart.velocity:.3g} m/s')
+        speeds = ', '.join(f'{name} {s.velocity:.3g} m/s' for name, s in state.axes.items())
+        raise PlanError(f'{method}: no stop within the axis limits from {speeds}')
     return last  # the longest tried: its peak above the braking target, within the axis limits
 
 
@@ -351,11 +398,16 @@ def settle(variational, state: MotionState, params: CraneParams, options: PlanOp
                        first_period(_model(params, state)))
 
 
-def _peak_acceleration(running: Running) -> float:
-    """The running motion's peak |acceleration| of the cart (m/s^2), from its knots."""
-    interp = running.interps[0]
+def _peak_acceleration(running: Running, joint: str = CART_JOINT) -> float:
+    """The running motion's peak |acceleration| of ``joint`` (m/s^2), from its knots."""
+    interp = running.interps[running.joints.index(joint)]
     t = np.linspace(interp.t[0], interp.t[-1], 400)
     return float(np.abs(interp(t)[2]).max())
+
+
+def _axis_plan(plan: Plan, joint: str) -> Plan:
+    """The plan of ``joint`` in ``plan`` (an ``AxesPlan``'s axis, or the cart's plan itself)."""
+    return plan.axes[joint] if isinstance(plan, AxesPlan) else plan
 
 
 def _lengthened(solve, duration: float) -> Plan:

@@ -1,0 +1,159 @@
+"""The stop planner (crane_planner.serving.stops, transitions) on the spatial crane: a diagonal motion of cart and
+bridge streamed as its knots is stopped from the swing measured in both directions, and the stream (the motion's
+knots up to the handover, then the stop's) is replayed in crane_sim's ``CraneSimulator`` (its own spatial model)."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
+from crane_msgs_py.params import CraneParams
+from crane_planner.planning.dispatch import PlanOptions, SolverCache, plan
+from crane_planner.planning.plan import PlanError
+from crane_planner.serving import transitions
+from crane_planner.serving.stops import StopRequest, StopWarmup, plan_stop, warmups
+from crane_planner.serving.transitions import JointReading, Measurement, Running
+from crane_planner.streaming.hermite import QuinticHermite
+from crane_planner.streaming.knots import knot_columns, knot_times
+from crane_sim.simulator import CraneSimulator, SpatialSwing
+
+PARAMS = CraneParams()  # tau = 10 ms
+JOINTS = ('cart', 'bridge')
+ORIGIN = 5_000_000_000  # ns: the running motion's first knot
+STARTS = (0.2, -0.1)  # m
+GOALS = (0.2 + 0.6, -0.1 + 0.4)
+HANDOVER = ORIGIN + 1_500_000_000  # half way through the 3 s motion: full speed
+MEASURED = HANDOVER - 60_000_000  # the newest joint_states, 60 ms before the handover
+DT = 1e-3
+MS = 1_000_000
+
+
+@pytest.fixture(scope='module')
+def solvers():
+    return SolverCache()
+
+
+@pytest.fixture(scope='module')
+def running(solvers):
+    """An NVF diagonal of 0.6 x 0.4 m in 3 s, as its knots stream (absolute positions)."""
+    p = plan('nvf', 0.6, 3.0, PARAMS, variational=solvers, bridge=0.4)
+    t = knot_times(p)
+    return Running(JOINTS, t, *knot_columns(p, t, STARTS), ORIGIN, p)
+
+
+class Stream:
+    """crane_sim's spatial crane driven by the streamed references' accelerations, one 1 ms tick at a time."""
+
+    def __init__(self, swing: SpatialSwing | None = None):
+        self.sim = CraneSimulator(PARAMS, DT, axes=JOINTS)
+        self.sim.reset(swing=swing)
+        self.starts = dict(zip(JOINTS, STARTS))  # the simulator's axes start at 0: positions relative to these
+
+    def play(self, accelerations: np.ndarray) -> None:
+        """(ticks + 1, joints) reference accelerations, linear between ticks."""
+        for k in range(len(accelerations) - 1):
+            self.sim.step(accelerations[k], accelerations[k + 1])
+
+    def measurement(self, stamp_ns: int) -> Measurement:
+        """joint_states now: each axis's position and velocity, the spatial swing (8 values)."""
+        joints = {name: JointReading(self.starts[name] + self.sim.axis_state(name)[0], self.sim.axis_state(name)[1])
+                  for name in JOINTS}
+        return Measurement(stamp_ns, joints, dataclasses.astuple(self.sim.swing))
+
+    def settle(self, seconds: float = 4.0) -> float:
+        worst = 0.0
+        for _ in range(int(round(seconds / DT))):
+            self.sim.step([0.0, 0.0])
+            worst = max(worst, self.sim.load_excursion)
+        return worst
+
+
+def motion_accelerations(running: Running, from_ns: int, to_ns: int) -> np.ndarray:
+    stamps = np.arange(from_ns, to_ns + 1, MS)
+    return np.column_stack([ref[2] for ref in running.at(stamps)])
+
+
+def test_a_diagonal_stopped_from_the_measured_spatial_swing_rests_without_swing(solvers, running):
+    stream = Stream()
+    stream.play(motion_accelerations(running, ORIGIN, MEASURED))
+    measured = stream.measurement(MEASURED)
+    assert abs(measured.swing[2]) > 0.005  # the load swings out of the x-z plane too
+    stream.play(motion_accelerations(running, MEASURED, HANDOVER))
+    stop = plan_stop(solvers, running, HANDOVER, PARAMS, measured=measured)
+    # the prediction (the servos taken as tracking steadily, a = a_ref, which misses tau j_ref: ~1e-4 rad/s)
+    assert stop.state.swing == pytest.approx(dataclasses.astuple(stream.sim.swing), abs=3e-4)
+    trajectory = stop.trajectory()
+    assert trajectory.method == 'nvf' and trajectory.position.shape[1] == 2
+    refs = running.at(HANDOVER)
+    for j, name in enumerate(JOINTS):  # it continues the motion where it takes over (what the streamer checks)
+        assert trajectory.position[0, j] == pytest.approx(refs[j][0][0], abs=1e-9), name
+        assert trajectory.velocity[0, j] == pytest.approx(refs[j][1][0], abs=1e-7), name
+        assert trajectory.acceleration[0, j] == pytest.approx(refs[j][2][0], abs=1e-6), name
+        assert abs(trajectory.velocity[-1, j]) < 1e-9 and abs(trajectory.acceleration[-1, j]) < 1e-8, name
+        assert refs[j][0][0] < trajectory.position[-1, j] < GOALS[j], name  # brakes short of the goal
+    # each axis brakes no harder than twice the motion's hardest (no acceleration limit given)
+    hardest = max(np.abs(running.interps[j](np.linspace(0.0, 3.0, 400))[2]).max() for j in range(2))
+    assert max(np.abs(trajectory.acceleration).max(axis=0)) <= 2.0 * hardest * (1 + 1e-3)
+    t = np.arange(0.0, trajectory.duration + 1e-9, DT)
+    stream.play(np.column_stack([QuinticHermite(trajectory.t, trajectory.position[:, j], trajectory.velocity[:, j],
+                                                trajectory.acceleration[:, j])(t)[2] for j in range(2)]))
+    residual = stream.settle()
+    print(f'stop: {trajectory.duration:.3f} s, residual {1e3 * residual:.2e} mm')
+    assert residual <= 0.5e-3
+    for j, name in enumerate(JOINTS):  # (the simulator integrates accelerations linear between 1 ms ticks)
+        assert STARTS[j] + stream.sim.axis_state(name)[0] == pytest.approx(trajectory.position[-1, j], abs=1e-4)
+        assert abs(stream.sim.axis_state(name)[1]) < 1e-4  # at rest (to the ticks' integration, as test_stops)
+
+
+def test_a_stop_within_the_bridges_acceleration_limit(solvers, running):
+    """With max_bridge_acceleration at half the unlimited stop's peak the stop holds it, and lasts longer."""
+    free = plan_stop(solvers, running, HANDOVER, PARAMS)
+    limit = 0.5 * free.plan.axes[BRIDGE_JOINT].peaks()[1]
+    limited = plan_stop(solvers, running, HANDOVER, PARAMS, PlanOptions(max_bridge_acceleration=limit))
+    assert limited.plan.axes[BRIDGE_JOINT].peaks()[1] <= limit * (1 + 1e-6)
+    assert limited.plan.duration > free.plan.duration
+    print(f'stop: {free.plan.duration:.3f} s, within max_bridge_acceleration {limit:.3g}: '
+          f'{limited.plan.duration:.3f} s')
+
+
+def test_the_stops_warm_up_with_a_bridge_builds_every_solver_a_stop_uses(running):
+    cache = SolverCache()
+    for request in warmups(PARAMS, bridge=True):
+        cache(request)
+    built = dict(cache._solvers)
+    plan_stop(cache, running, HANDOVER, PARAMS)
+    assert cache._solvers == built
+    lighter = SolverCache()
+    assert StopWarmup(JOINTS, PARAMS)(lighter) is None and lighter._solvers.keys() == built.keys()
+    rehearsed = StopRequest.rehearsal(JOINTS, PARAMS)(cache)
+    assert rehearsed.position.shape[1] == 2 and np.abs(rehearsed.velocity[-1]).max() < 1e-9
+
+
+def test_a_measurement_carries_the_swing_of_its_joints():
+    """Four swing values without a bridge, eight with one (``continuation.swing_names``)."""
+    Measurement(0, {CART_JOINT: JointReading(0.0)}, (0.0,) * 4)
+    Measurement(0, {CART_JOINT: JointReading(0.0), BRIDGE_JOINT: JointReading(0.0)}, (0.0,) * 8)
+    with pytest.raises(PlanError, match='phi1'):
+        Measurement(0, {CART_JOINT: JointReading(0.0), BRIDGE_JOINT: JointReading(0.0)}, (0.0,) * 4)
+    with pytest.raises(PlanError, match='swing'):
+        Measurement(0, {CART_JOINT: JointReading(0.0)}, (0.0,) * 8)
+    assert Measurement.at_rest(7, {CART_JOINT: 0.1, BRIDGE_JOINT: 0.2}).swing == (0.0,) * 8
+
+
+def test_a_settle_of_a_load_pushed_in_both_directions_moves_both_axes_back_to_where_they_were(solvers):
+    """``transitions.settle`` from the swing measured at rest: both travel axes move, end where they started, and
+    leave <= 5 % of the free swing (about 25 mm here)."""
+    length = PARAMS.L1 + PARAMS.L2
+    pushed = SpatialSwing(theta1=-0.02 / length, phi1=0.015 / length, dphi1=0.02)
+    state = transitions.MotionState({name: transitions.AxisState(s) for name, s in zip(JOINTS, STARTS)},
+                                    dataclasses.astuple(pushed))
+    assert transitions.swing_of(state, PARAMS) > 0.02
+    settle = transitions.settle(solvers, state, PARAMS, PlanOptions())
+    t = np.arange(0.0, settle.duration + 1e-9, DT)
+    free, damped = Stream(pushed), Stream(pushed)
+    damped.play(np.column_stack([settle.axes[name].evaluate(t).acceleration for name in JOINTS]))
+    free_swing, residual = free.settle(settle.duration + 4.0), damped.settle()
+    print(f'settle: {settle.duration:.3f} s, free swing {1e3 * free_swing:.2f} mm, after {1e3 * residual:.2e} mm')
+    assert residual <= 0.05 * free_swing
+    for name in JOINTS:
+        assert settle.axes[name].displacement == 0.0 and abs(damped.sim.axis_state(name)[0]) < 1e-5
