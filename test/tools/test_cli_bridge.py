@@ -97,6 +97,8 @@ def test_fastest_and_choose_keep_the_bridge_within_its_limits(capsys):
     assert status == 0, err
     rows = {m['method']: m for m in json.loads(out)['methods']}
     assert rows['zv']['duration'] == pytest.approx(report['duration'], rel=1e-9)
+    for row in rows.values():
+        assert row['axes']['bridge']['peak']['velocity'] <= 0.1 and row['peak_velocity'] <= 0.25
     assert rows['zvd']['worst_residual_mm'] < rows['zv']['worst_residual_mm']
 
 

@@ -10,6 +10,8 @@ or by the length-adaptive one (``adaptive``, ``adaptive_shaper``): the same
 impulses per mode, their delays and amplitudes fitted to the hoisting crane
 linearized about rest, so that it ends at rest. ``HOIST_SHAPER_DESIGNS``
 lists the choices; the README has the measured comparison behind the default.
+With a bridge both travel axes take the one shaper on their shares of a
+straight move (``shaped.along``).
 """
 from __future__ import annotations
 

@@ -18,7 +18,7 @@ from crane_msgs_py.params import CraneParams
 from crane_planner.planning import PlanError, PlanOptions, dispatch
 from crane_planner.serving import Planner
 
-from .evaluate import residual_load_mm, simulate_plans
+from .evaluate import axes_report, residual_load_mm, simulate_plans
 
 
 @dataclass
@@ -32,6 +32,7 @@ class Candidate:
     peak_jerk: float | None = None
     worst_residual_mm: float | None = None
     residual_mm: list = field(default_factory=list)  # per plant of the band
+    axes: dict = field(default_factory=dict)  # each further axis's start, goal and peaks (``evaluate.axes_report``)
     refused: str = ''
     verdict: str = ''  # 'chosen', or why it was passed over
 
@@ -92,6 +93,7 @@ def choose(displacement: float, model: CraneParams, options: PlanOptions, method
         else:
             c.duration = plan.duration
             c.peak_velocity, c.peak_acceleration, c.peak_jerk = _peaks(plan)
+            c.axes = axes_report(plan)
             plans.append((c, plan))
         candidates.append(c)
         if progress:
