@@ -40,6 +40,20 @@ def test_shapers_are_planned_here_and_variational_methods_go_to_the_variational_
     assert asked[-1].operation == 'fastest' and asked[-1].duration is None
 
 
+def test_a_shaper_plans_the_bridge_here_too_and_checks_every_axis():
+    """A shaped move with a bridge is an AxesPlan of both travel axes, planned without a solver; the bridge's
+    limits are checked as the cart's are."""
+    both = dispatch.plan('zv', 0.3, 3.0, MODEL, variational=refuse_to_solve, bridge=-0.2)
+    assert both.joint_names == ('cart', 'bridge') and both.starts == {'cart': 0.0, 'bridge': 0.0}
+    assert both.evaluate_axis('bridge', 3.0).position[0] == pytest.approx(-0.2, abs=1e-12)
+    fastest = dispatch.fastest('zvd', 0.3, MODEL, PlanOptions(max_bridge_acceleration=0.2),
+                               variational=refuse_to_solve, bridge=0.2)
+    assert fastest.axes['bridge'].peaks()[1] <= 0.2
+    with pytest.raises(PlanError, match='zv plan exceeds max_bridge_jerk 0.1 m/s'):
+        dispatch.plan('zv', 0.3, 3.0, MODEL, PlanOptions(max_bridge_jerk=0.1), variational=refuse_to_solve,
+                      bridge=0.2)
+
+
 def test_a_fastest_request_without_a_velocity_or_acceleration_limit_asks_no_solver():
     with pytest.raises(PlanError, match='needs max_velocity or max_acceleration'):
         dispatch.fastest('rvf', 0.3, MODEL, PlanOptions(max_jerk=2.0), variational=refuse_to_solve)
