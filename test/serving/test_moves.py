@@ -110,3 +110,35 @@ def test_a_hoisting_move_plans_both_axes_and_a_held_hoist_is_planned_at_its_leng
     at_length = plan('zv', 0.3, 3.0, params.replace(L1=0.3))
     assert held.axes['cart'].info['impulse_times'] == at_length.info['impulse_times']
     assert summarize(held, ('cart', 'hoist')).peak_velocity[1] == 0.0
+
+
+class Recording:
+    """A planner that plans by ``dispatch`` (no pools) and records the axes it was asked to move beside the cart."""
+
+    def __init__(self):
+        from crane_planner.planning.dispatch import SolverCache
+        self.asked, self.solvers = [], SolverCache()
+
+    def plan(self, method, displacement, duration, params, options, hoist=None, **bridge):
+        from crane_planner.planning.dispatch import plan
+        self.asked.append(dict(hoist=hoist, **bridge))
+        return plan(method, displacement, duration, params, options, self.solvers, hoist, **bridge)
+
+
+def test_a_bridge_that_moves_is_planned_with_the_cart_and_one_that_does_not_is_held():
+    bounds = MoveBounds(('cart', 'bridge', 'hoist'), 'nvf', max_displacement=2.0, max_duration=20.0)
+    hold = {'cart': 0.1, 'bridge': -0.2, 'hoist': 0.4}
+    planner, params = Recording(), CraneParams(tau=0.0)
+    diagonal = plan_move(planner, check_move(Move(joint_names=('cart', 'bridge'), goal=(0.4, 0.0), duration=3.0),
+                                             bounds, hold), bounds, params, PlanOptions())
+    assert planner.asked[-1] == {'hoist': None, 'bridge': pytest.approx(0.2)}
+    assert diagonal.joint_names == ('cart', 'bridge', 'hoist') and diagonal.starts['hoist'] == 0.4
+    assert diagonal.axes['bridge'].evaluate(3.0).position[0] == pytest.approx(0.2, abs=1e-9)
+    along = plan_move(planner, check_move(Move(method='zv', joint_names=('cart',), goal=(0.4,), duration=3.0),
+                                          bounds, hold), bounds, params, PlanOptions())
+    assert planner.asked[-1] == {'hoist': None}  # a shaper's plan of the cart, the bridge and the hoist held
+    assert along.joint_names == ('cart', 'bridge', 'hoist')
+    assert along.starts == {'cart': 0.0, 'bridge': 0.0, 'hoist': 0.4}
+    assert summarize(along, ('cart', 'bridge', 'hoist')).peak_velocity[1:] == (0.0, 0.0)
+    # without a streamer the bridge starts at 0, like the cart
+    assert check_move(Move(goal=(0.3, 0.1, 0.5), duration=3.0), bounds, None).starts == (0.0, 0.0, 0.47)

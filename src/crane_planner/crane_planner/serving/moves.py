@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from crane_msgs_py.names import ACTUATED_JOINTS, CART_JOINT, HOIST_JOINT
+from crane_msgs_py.names import ACTUATED_JOINTS, BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 
 from ..planning.dispatch import PlanOptions, check_request
@@ -145,13 +145,13 @@ def check_move(move: Move, bounds: MoveBounds, hold: dict | None, L1: float = Cr
     if move.start and len(move.start) != len(names):
         raise MoveError('start', f'{len(move.start)} value(s) for {len(names)} joint(s) ({", ".join(names)}); '
                                  'empty = where the streamer holds them')
-    rest = {CART_JOINT: 0.0, HOIST_JOINT: L1}
+    rest = {HOIST_JOINT: L1}  # (a travel axis: 0)
     goal = dict(zip(names, (float(x) for x in move.goal)))
     start = dict(zip(names, (float(x) for x in move.start))) if move.start else {
-        n: (hold or {}).get(n, rest[n]) for n in names}
+        n: (hold or {}).get(n, rest.get(n, 0.0)) for n in names}
     for name in bounds.joints:  # the planner's joints the move leaves out: where they are held
         if name not in start:
-            start[name] = (hold or {}).get(name, rest[name])
+            start[name] = (hold or {}).get(name, rest.get(name, 0.0))
             goal[name] = start[name]
     for label, values in (('start', start), ('goal', goal)):
         for name, value in values.items():
@@ -185,17 +185,22 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
     A refusal of the planning core concerns the duration (too short for the
     shaper, a limit the plan would break, no solution in time) unless it is
     about the displacement; the fastest plan must also fit ``max_duration``.
+    An axis the move does not move is held beside the others (a bridge that
+    moves is planned with the cart on the spatial crane, ``bridge=``).
     """
     hoist, rope = None, move.axes.get(HOIST_JOINT)
     if rope is not None:
         params = params.replace(L1=rope.start)  # the rope as it is now
         if rope.goal != rope.start:
             hoist = (rope.start, rope.goal)  # (dispatch.plan's hoist=)
+    bridge = move.axes.get(BRIDGE_JOINT)
+    moving = {'bridge': bridge.displacement} if bridge is not None and bridge.displacement != 0.0 else {}
     try:
         if move.duration is None:
-            plan = planner.fastest(move.method, move.displacement, params, options, hoist=hoist)
+            plan = planner.fastest(move.method, move.displacement, params, options, hoist=hoist, **moving)
         else:
-            plan = planner.plan(move.method, move.displacement, move.duration, params, options, hoist=hoist)
+            plan = planner.plan(move.method, move.displacement, move.duration, params, options, hoist=hoist,
+                                **moving)
     except (MoveError, WorkerDied):  # (a dead solver process is not the request's fault: said as it is)
         raise
     except PlanError as exc:  # ParameterError too: a bad request, named by the field it concerns
@@ -203,9 +208,10 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
     if move.duration is None and plan.duration > bounds.max_duration:
         raise MoveError('duration', f'the fastest {move.method} plan lasts {plan.duration:g} s, beyond '
                                     f'max_duration {bounds.max_duration:g} s')
-    if not isinstance(plan, AxesPlan):  # with a hoist, held where it is
-        plan = with_hoist_held(plan, None if rope is None else rope.start)
-    return plan
+    # the axes the plan does not move, held where they are: the hoist at its rope length, the bridge at 0 (relative)
+    planned = plan.axes if isinstance(plan, AxesPlan) else {CART_JOINT: plan}
+    return with_axes_held(plan, {name: m.start if name == HOIST_JOINT else 0.0 for name, m in move.axes.items()
+                                 if name not in planned})
 
 
 def with_hoist_held(plan: Plan, length: float | None) -> Plan:
@@ -215,16 +221,18 @@ def with_hoist_held(plan: Plan, length: float | None) -> Plan:
 
 
 def with_axes_held(plan: Plan, held: dict) -> Plan:
-    """``plan`` of the cart with each axis of ``held`` held beside it, at its start there (``AxesPlan.starts``: the
-    hoist's rope length in m, a travel axis's 0, its plan relative like the cart's); ``plan`` itself if none."""
+    """``plan`` (of the cart, or an ``AxesPlan``) with each axis of ``held`` held beside it, at its start there
+    (``AxesPlan.starts``: the hoist's rope length in m, a travel axis's 0, its plan relative like the cart's);
+    ``plan`` itself if none."""
     if not held:
         return plan
-    axes = {CART_JOINT: plan, **{name: QuinticPlan(method='hold', displacement=0.0, duration=plan.duration)
-                                 for name in held}}
-    starts = {CART_JOINT: 0.0, **held}
+    axes = dict(plan.axes) if isinstance(plan, AxesPlan) else {CART_JOINT: plan}
+    starts = dict(plan.starts) if isinstance(plan, AxesPlan) else {CART_JOINT: 0.0}
+    axes.update({name: QuinticPlan(method='hold', displacement=0.0, duration=plan.duration) for name in held})
+    starts.update(held)
     order = [name for name in ACTUATED_JOINTS if name in axes]
     return AxesPlan(method=plan.method, displacement=plan.displacement, duration=plan.duration, info=plan.info,
-                    axes={name: axes[name] for name in order}, starts={name: starts[name] for name in order})
+                    axes={name: axes[name] for name in order}, starts={name: starts.get(name, 0.0) for name in order})
 
 
 def axis_samples(plan: Plan, times) -> list:
