@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from crane_msgs_py.axes import AXES
 from crane_msgs_py.names import CART_JOINT, DEFAULT_FRAME_ID, HOIST_JOINT, check_joints
 from crane_msgs_py.params import (
     PARAMETER_DESCRIPTIONS,
@@ -30,6 +31,12 @@ from .moves import MoveBounds
 #: The crane model's parameters' upper bounds (each from 0) for rclpy's range check.
 MODEL_BOUNDS = {'L1': 100.0, 'L2': 100.0, 'm1': 1e5, 'm2': 1e5, 'g': 100.0, 'tau': 10.0, 'c1': 1e3, 'c2': 1e3,
                 'tau_hoist': 10.0}
+#: The limits of every axis after the first (the cart's predate them and are named without a prefix), from the
+#: registry: ``max_hoist_velocity``, ``max_bridge_acceleration``, ...; 0 = no limit.
+AXIS_LIMIT_PARAMETERS = {
+    name: (0.0, f'{a.name} axis limit {what} of its reference ({unit}); 0 = no limit', parameter_range(0.0, hi))
+    for a in AXES[1:]
+    for name, unit, what, hi in zip(a.limit_names, a.limit_units, ('|v|', '|a|', 'on the jerk'), (1e3, 1e4, 1e6))}
 #: name -> (default, description, descriptor fields; a range as (lo, hi)). Ranges are the
 #: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by
 #: ``Config.from_values``, whose reason the node reports on /diagnostics.
@@ -52,10 +59,11 @@ PARAMETERS = {
                            'interpolation within 1 um); the last knot is exactly at the end',
                       parameter_range(0.0, 1.0)),
     'frame_id': (DEFAULT_FRAME_ID, 'frame of returned trajectories', {}),
-    'joints': (['cart'], "the actuated joints this planner serves: [cart], or [cart, hoist] (the hoist's "
-                         "position is the upper cable's length L1; every array of a Move is per joint in this "
+    'joints': (['cart'], "the actuated joints this planner serves: [cart], [cart, hoist], [cart, bridge] or "
+                         "[cart, bridge, hoist] (the hoist's position is the upper cable's length L1; with the "
+                         'bridge NVF and RVF plan on the spatial crane; every array of a Move is per joint in this '
                          'order); fixed at start-up',
-               {'additional_constraints': '[cart] or [cart, hoist]', 'read_only': True}),
+               {'additional_constraints': 'cart, then any of bridge, hoist in this order', 'read_only': True}),
     'publish_lead': (0.3, 'an executed trajectory is sent to the streamer this long (s) before its start '
                           'time, so that a goal canceled before then streams nothing (one starting as '
                           'soon as possible is sent at once)', parameter_range(0.0, 10.0)),
@@ -71,11 +79,7 @@ PARAMETERS = {
                          parameter_range(0.0, 1e4)),
     'max_jerk': (0.0, 'axis limit on the jerk of the reference (m/s^3); 0 = no limit',
                  parameter_range(0.0, 1e6)),
-    'max_hoist_velocity': (0.0, 'hoist axis limit |v| of its reference (m/s); 0 = no limit', parameter_range(0.0, 1e3)),
-    'max_hoist_acceleration': (0.0, 'hoist axis limit |a| of its reference (m/s^2); 0 = no limit',
-                               parameter_range(0.0, 1e4)),
-    'max_hoist_jerk': (0.0, 'hoist axis limit on the jerk of its reference (m/s^3); 0 = no limit',
-                       parameter_range(0.0, 1e6)),
+    **AXIS_LIMIT_PARAMETERS,
     'hoist_robust_parameters': (['L2'], 'parameters RVF is made insensitive to in a move that hoists (the '
                                         f'payload\'s cable by default), among {", ".join(ROBUST_PARAMETERS)}',
                                 {'additional_constraints': f'distinct names among {", ".join(ROBUST_PARAMETERS)}'}),
@@ -154,12 +158,10 @@ class Config:
             omega=tuple(v['shaper_frequencies']) or None,
             damping=None if v['shaper_damping'] == -1.0 else v['shaper_damping'],
             robust=tuple(v['robust_parameters']), intervals=intervals or None,
-            max_velocity=v['max_velocity'] or None, max_acceleration=v['max_acceleration'] or None,
-            max_jerk=v['max_jerk'] or None, base=v['shaper_base'],
+            base=v['shaper_base'],
             max_solve_time=check_positive('max_solve_time', v['max_solve_time']),
-            max_hoist_velocity=v['max_hoist_velocity'] or None,
-            max_hoist_acceleration=v['max_hoist_acceleration'] or None,
-            max_hoist_jerk=v['max_hoist_jerk'] or None, hoist_robust=tuple(v['hoist_robust_parameters']),
+            limits={a.name: a.limits(*(v[n] or None for n in a.limit_names)) for a in AXES},
+            hoist_robust=tuple(v['hoist_robust_parameters']),
             hoist_shaper=v['hoist_shaper'])
         if not v['frame_id']:
             raise ParameterError('frame_id must not be empty')

@@ -54,16 +54,24 @@ def joint_sample(stamp_ns: int, position, velocity, names=(), joint_positions=()
         -> Measurement:
     """A ``joint_states`` message as a ``Measurement``: the sim's joints' ``position`` and ``velocity`` (cart,
     theta1, theta2; a NaN velocity as 0), and each other axis among ``names`` (its ``sim_joint``) from
-    ``joint_positions`` and ``joint_velocities`` (the hoist's: its rope length and rate)."""
+    ``joint_positions`` and ``joint_velocities`` (the hoist's: its rope length and rate); with ``phi1`` and
+    ``phi2`` among them (a crane with a bridge), the spatial swing (theta1, theta2, phi1, phi2 and rates)."""
     velocity = [0.0 if math.isnan(v) else float(v) for v in velocity]
     joints = {CART.name: JointReading(float(position[0]), velocity[0])}
     names = list(names)
+
+    def reading(k: int) -> tuple[float, float]:
+        rate = float(joint_velocities[k]) if len(joint_velocities) > k else 0.0
+        return float(joint_positions[k]), 0.0 if math.isnan(rate) else rate
+
     for other in AXES[1:]:
         if other.sim_joint in names:
-            k = names.index(other.sim_joint)
-            joints[other.name] = JointReading(float(joint_positions[k]),
-                                              float(joint_velocities[k]) if len(joint_velocities) > k else 0.0)
-    return Measurement(stamp_ns, joints, (float(position[1]), float(position[2]), velocity[1], velocity[2]))
+            joints[other.name] = JointReading(*reading(names.index(other.sim_joint)))
+    angles, rates = [float(position[1]), float(position[2])], velocity[1:3]
+    if 'phi1' in names and 'phi2' in names:
+        (phi1, dphi1), (phi2, dphi2) = (reading(names.index(n)) for n in ('phi1', 'phi2'))
+        angles, rates = angles + [phi1, phi2], rates + [dphi1, dphi2]
+    return Measurement(stamp_ns, joints, (*angles, *rates))
 
 
 class CraneView:

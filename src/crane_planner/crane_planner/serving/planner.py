@@ -182,20 +182,21 @@ class Planner:
                 pool.size = self._pool_size
 
     def plan(self, method: str, displacement: float, duration: float,
-             params: CraneParams | None = None, options: PlanOptions | None = None, hoist=None) -> Plan:
+             params: CraneParams | None = None, options: PlanOptions | None = None, hoist=None,
+             bridge: float | None = None) -> Plan:
         """A rest-to-rest plan from 0 to ``displacement`` (m) in ``duration`` (s) (``dispatch.plan``;
-        ``hoist`` = (L1_start, L1_goal) moves the rope too).
+        ``hoist`` = (L1_start, L1_goal) moves the rope too, ``bridge`` (m) the bridge).
 
         Raises PlanError (or its ParameterError sibling, both ValueError) with a
         message naming the problem.
         """
-        return dispatch.plan(method, displacement, duration, params, options, self._variational, hoist)
+        return dispatch.plan(method, displacement, duration, params, options, self._variational, hoist, bridge)
 
     def fastest(self, method: str, displacement: float, params: CraneParams | None = None,
-                options: PlanOptions | None = None, hoist=None) -> Plan:
+                options: PlanOptions | None = None, hoist=None, bridge: float | None = None) -> Plan:
         """The shortest rest-to-rest plan of ``displacement`` (m) within the options' axis limits
         (``dispatch.fastest``)."""
-        return dispatch.fastest(method, displacement, params, options, self._variational, hoist)
+        return dispatch.fastest(method, displacement, params, options, self._variational, hoist, bridge)
 
     def start_processes(self, ready_within: float = 60.0, all_of_them: bool = False) -> bool:
         """Start every worker process in the background (each warms up on ``warmups`` first).

@@ -157,8 +157,10 @@ class MoveService:
         self.view.on_joint_state(measured)
         rope = measured.joints.get(HOIST_JOINT)
         length = rope.position if rope is not None else None
+        swing = measured.swing  # (theta1, theta2[, phi1, phi2], rates)
+        phi = swing[2:4] if len(swing) == 8 else None
         for execution in self.goals.executions():
-            execution.on_joint_state(measured.stamp_ns, measured.swing[0], measured.swing[1], length)
+            execution.on_joint_state(measured.stamp_ns, swing[0], swing[1], length, phi)
 
     # -- planning (a preview, and each goal) ---------------------------------------------
 
