@@ -13,6 +13,7 @@ from crane_msgs_py.params import CraneParams
 from crane_planner.planning.continuation import AxisState, MotionState, first_period, predict, problem_start
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, VariationalRequest, plan
 from crane_planner.planning.plan import AxesPlan, PlanError
+from crane_planner.planning.problem import Form
 from crane_sim.simulator import CraneSimulator, SpatialSwing
 
 #: The paper's rig (servo tau = 10 ms) and the same with ideal servos.
@@ -205,3 +206,23 @@ def test_the_swing_has_the_length_of_the_axes_present():
     assert [start[k] for k in ('theta1', 'theta2', 'phi1', 'phi2', 'dtheta1', 'dtheta2', 'dphi1',
                                'dphi2')] == list(swing)
     assert start['vb'] + NOMINAL.tau * start['ab'] == pytest.approx(0.1)  # the bridge's servo tracks steadily
+
+
+def test_a_request_mirrored_in_one_travel_axis_starts_from_the_mirrored_solution():
+    """The crane is symmetric in each travel axis (``Transcription.mirror``): after 0.3 x 0.2 m, the request
+    -0.3 x 0.2 m starts at its optimum (no IPOPT iteration) and is the first plan with the cart mirrored; a hoist's
+    change of sign (no mirror) starts cold."""
+    cache = SolverCache()
+    first = plan('nvf', 0.3, T, IDEAL, variational=cache, bridge=0.2)
+    mirrored = plan('nvf', -0.3, T, IDEAL, variational=cache, bridge=0.2)
+    assert mirrored.info['iterations'] == 0
+    t = np.linspace(0.0, T, 7)
+    assert mirrored.axes[CART_JOINT].evaluate(t).acceleration == pytest.approx(
+        -first.axes[CART_JOINT].evaluate(t).acceleration, abs=1e-9)
+    assert mirrored.axes[BRIDGE_JOINT].evaluate(t).acceleration == pytest.approx(
+        first.axes[BRIDGE_JOINT].evaluate(t).acceleration, abs=1e-9)
+    solver = next(iter(cache._solvers.values()))
+    hoisting = solver.transcription(Form(servo=False, hoist=True))
+    start = {'x0': np.ones(hoisting.nw), 'lam_x0': np.ones(hoisting.nw), 'lam_g0': np.ones(hoisting.ng)}
+    assert solver.warm_start(hoisting, ((1.0, 1.0), start), (-0.3, 0.1))['x0'][0] == -1.0  # the cart's y mirrored
+    assert solver.warm_start(hoisting, ((1.0, 1.0), start), (0.3, -0.1)) is None

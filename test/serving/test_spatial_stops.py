@@ -1,6 +1,7 @@
-"""The stop planner (crane_planner.serving.stops, transitions) on the spatial crane: a diagonal motion of cart and
-bridge streamed as its knots is stopped from the swing measured in both directions, and the stream (the motion's
-knots up to the handover, then the stop's) is replayed in crane_sim's ``CraneSimulator`` (its own spatial model)."""
+"""The stop planner (crane_planner.serving.stops, transitions) on the spatial crane, and the other handovers of
+``transitions`` beside it (a new goal, a settle): a motion of cart and bridge streamed as its knots is stopped or
+retargeted from the swing measured in both directions, and the stream (the motion's knots up to the handover, then
+the new plan's) is replayed in crane_sim's ``CraneSimulator`` (its own spatial model)."""
 import dataclasses
 
 import numpy as np
@@ -71,6 +72,12 @@ class Stream:
 def motion_accelerations(running: Running, from_ns: int, to_ns: int) -> np.ndarray:
     stamps = np.arange(from_ns, to_ns + 1, MS)
     return np.column_stack([ref[2] for ref in running.at(stamps)])
+
+
+def plan_accelerations(p, duration: float) -> np.ndarray:
+    """(ticks + 1, joints) reference accelerations of the plan ``p`` (an ``AxesPlan`` of ``JOINTS``) from its start."""
+    t = np.arange(0.0, duration + 1e-9, DT)
+    return np.column_stack([p.axes[name].evaluate(t).acceleration for name in JOINTS])
 
 
 def test_a_diagonal_stopped_from_the_measured_spatial_swing_rests_without_swing(solvers, running):
@@ -149,11 +156,42 @@ def test_a_settle_of_a_load_pushed_in_both_directions_moves_both_axes_back_to_wh
                                     dataclasses.astuple(pushed))
     assert transitions.swing_of(state, PARAMS) > 0.02
     settle = transitions.settle(solvers, state, PARAMS, PlanOptions())
-    t = np.arange(0.0, settle.duration + 1e-9, DT)
     free, damped = Stream(pushed), Stream(pushed)
-    damped.play(np.column_stack([settle.axes[name].evaluate(t).acceleration for name in JOINTS]))
+    damped.play(plan_accelerations(settle, settle.duration))
     free_swing, residual = free.settle(settle.duration + 4.0), damped.settle()
     print(f'settle: {settle.duration:.3f} s, free swing {1e3 * free_swing:.2f} mm, after {1e3 * residual:.2e} mm')
     assert residual <= 0.05 * free_swing
     for name in JOINTS:
         assert settle.axes[name].displacement == 0.0 and abs(damped.sim.axis_state(name)[0]) < 1e-5
+
+
+def test_a_new_goal_that_turns_the_motion_is_planned_from_the_measured_swing_and_ends_there_without_swing(solvers):
+    """Streaming to (0.6, 0) m from ``STARTS``, at 40 % sent to (0.3, 0.4) m from there: ``handover_state`` from
+    the joint_states 60 ms before, ``retarget`` by NVF over cart and bridge; continuous where the streamer takes
+    it over, at rest at the goal with <= 0.5 mm left."""
+    p = plan('nvf', 0.6, 3.0, PARAMS, variational=solvers, bridge=0.0)
+    t = knot_times(p)
+    running = Running(JOINTS, t, *knot_columns(p, t, STARTS), ORIGIN, p)
+    handover = ORIGIN + 1_200_000_000
+    goal = {CART_JOINT: STARTS[0] + 0.3, BRIDGE_JOINT: STARTS[1] + 0.4}
+    stream = Stream()
+    stream.play(motion_accelerations(running, ORIGIN, handover - 60 * MS))
+    state = transitions.handover_state(running, handover, stream.measurement(handover - 60 * MS), PARAMS)
+    stream.play(motion_accelerations(running, handover - 60 * MS, handover))
+    new = transitions.retarget(solvers, running, handover, state, 'nvf', goal, 3.0, PARAMS, PlanOptions())
+    starts = transitions.joint_starts(new, state)
+    refs = running.at(handover)
+    for j, name in enumerate(JOINTS):
+        s = new.axes[name].evaluate([0.0, new.duration])
+        assert starts[j] + s.position[0] == pytest.approx(refs[j][0][0], abs=1e-9), name
+        assert s.velocity[0] == pytest.approx(refs[j][1][0], abs=1e-9), name
+        assert s.acceleration[0] == pytest.approx(refs[j][2][0], abs=1e-9), name
+        assert starts[j] + s.position[1] == pytest.approx(goal[name], abs=1e-9), name
+    stream.play(plan_accelerations(new, new.duration))
+    residual = stream.settle()
+    print(f'retarget: residual {1e3 * residual:.2e} mm')
+    assert residual <= 0.5e-3
+    for j, name in enumerate(JOINTS):
+        assert STARTS[j] + stream.sim.axis_state(name)[0] == pytest.approx(goal[name], abs=1e-4), name
+    with pytest.raises(PlanError, match='bridge'):  # a shaper retargets the cart alone
+        transitions.retarget(solvers, running, handover, state, 'zv', goal, 3.0, PARAMS, PlanOptions())
