@@ -9,6 +9,13 @@ anywhere (a stop, ``free_end``), or where it started (a settle). ``MotionState``
 included); ``predict`` carries a measured state forward along a known
 reference to the handover with the planning model.
 
+Every axis the crane has is planned from its state together: with a bridge
+on the spatial crane (``dynamics.spatial_swing``), the state's swing then
+the eight states (theta1, theta2, phi1, phi2 and their rates) in
+``dynamics.crane_ode``'s order, the planar crane's four otherwise
+(``swing_names``). The cart's swing is theta's, the bridge's phi's
+(``Problem.parameters`` scales them so).
+
 Shapers cannot start from a swing they did not cause. What they can do is
 shape a *change*: the linear crane's response to sum_i A_i q(t - t_i) is
 zero after the shaper for every rest-to-rest q, and a change of the command

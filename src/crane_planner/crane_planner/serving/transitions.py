@@ -8,6 +8,10 @@ predicted from the newest ``joint_states`` (a ``Measurement``) along the
 running reference with the planning model (``continuation.predict``), or,
 with no measurement, from the motion's start at rest.
 
+Every axis the motion streams is planned from the handover together (NVF/RVF):
+with a bridge on the spatial crane, from the swing measured in both
+directions (``Measurement.swing``: eight values then).
+
 Each function takes ``variational``, what runs a ``dispatch.VariationalRequest``
 (``Planner.variational``, or a ``dispatch.SolverCache``). What each method
 does (contract "Motion from any state"):
@@ -20,15 +24,18 @@ does (contract "Motion from any state"):
   asked to move, shapers refuse and NVF/RVF serve.
 - a stop: NVF (for every variational method: RVF's sensitivities forced to
   zero with a free end position make stops that wander metres) from the
-  handover state to rest anywhere (``free_end``), or,
+  handover state to rest anywhere (``free_end``), every axis, or,
   for a motion a shaper made from rest, that shaper's base braked by ruckig
   and reshaped (``continuation.shaped_stop``). The NVF stop is the shortest
   of a few durations (from half the first swing mode's period, or the
-  braking time, 15 % apart) whose peak acceleration stays within
-  ``max_acceleration``, or without one within twice the running motion's
-  peak: as near as the limits allow, never braking harder than that.
+  braking time, 15 % apart) whose peak acceleration stays within each axis's
+  acceleration limit, or (a travel axis without one) within twice the running
+  motion's hardest on any travel axis: as near as the limits allow, never
+  braking harder than that.
 - a settle: NVF from the measured swing at rest back to the same place, over
-  one first-mode period (the same lengthening).
+  one first-mode period (the same lengthening); with a bridge both travel
+  axes move. A shaper's motion is of the cart: the bridge is held beside it,
+  and a shaper refuses to retarget a bridge.
 
 Pure Python, no ROS import.
 """
