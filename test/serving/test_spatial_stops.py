@@ -165,11 +165,14 @@ def test_a_settle_of_a_load_pushed_in_both_directions_moves_both_axes_back_to_wh
         assert settle.axes[name].displacement == 0.0 and abs(damped.sim.axis_state(name)[0]) < 1e-5
 
 
-def test_a_new_goal_that_turns_the_motion_is_planned_from_the_measured_swing_and_ends_there_without_swing(solvers):
+@pytest.mark.parametrize('method', ['nvf', 'zv'])
+def test_a_new_goal_that_turns_the_motion_is_planned_from_the_measured_swing_and_ends_there_without_swing(solvers,
+                                                                                                          method):
     """Streaming to (0.6, 0) m from ``STARTS``, at 40 % sent to (0.3, 0.4) m from there: ``handover_state`` from
-    the joint_states 60 ms before, ``retarget`` by NVF over cart and bridge; continuous where the streamer takes
-    it over, at rest at the goal with <= 0.5 mm left."""
-    p = plan('nvf', 0.6, 3.0, PARAMS, variational=solvers, bridge=0.0)
+    the joint_states 60 ms before, ``retarget`` by NVF over cart and bridge (or ZV: each axis's reference
+    continued plus its shaped change); continuous where the streamer takes it over, at rest at the goal with
+    <= 0.5 mm left."""
+    p = plan(method, 0.6, 3.0, PARAMS, variational=solvers, bridge=0.0)
     t = knot_times(p)
     running = Running(JOINTS, t, *knot_columns(p, t, STARTS), ORIGIN, p)
     handover = ORIGIN + 1_200_000_000
@@ -178,7 +181,7 @@ def test_a_new_goal_that_turns_the_motion_is_planned_from_the_measured_swing_and
     stream.play(motion_accelerations(running, ORIGIN, handover - 60 * MS))
     state = transitions.handover_state(running, handover, stream.measurement(handover - 60 * MS), PARAMS)
     stream.play(motion_accelerations(running, handover - 60 * MS, handover))
-    new = transitions.retarget(solvers, running, handover, state, 'nvf', goal, 3.0, PARAMS, PlanOptions())
+    new = transitions.retarget(solvers, running, handover, state, method, goal, 3.0, PARAMS, PlanOptions())
     starts = transitions.joint_starts(new, state)
     refs = running.at(handover)
     for j, name in enumerate(JOINTS):
@@ -189,9 +192,34 @@ def test_a_new_goal_that_turns_the_motion_is_planned_from_the_measured_swing_and
         assert starts[j] + s.position[1] == pytest.approx(goal[name], abs=1e-9), name
     stream.play(plan_accelerations(new, new.duration))
     residual = stream.settle()
-    print(f'retarget: residual {1e3 * residual:.2e} mm')
+    print(f'retarget ({method}): residual {1e3 * residual:.2e} mm')
     assert residual <= 0.5e-3
     for j, name in enumerate(JOINTS):
         assert STARTS[j] + stream.sim.axis_state(name)[0] == pytest.approx(goal[name], abs=1e-4), name
-    with pytest.raises(PlanError, match='bridge'):  # a shaper retargets the cart alone
-        transitions.retarget(solvers, running, handover, state, 'zv', goal, 3.0, PARAMS, PlanOptions())
+
+
+def test_a_shaped_diagonal_stops_by_braking_each_axis_within_its_limits(solvers):
+    """A ZV diagonal of 0.6 x 0.4 m (within cart 0.8, bridge 0.6 m/s^2) stopped at half way: each axis's base
+    braked by ruckig within its own acceleration limit and reshaped; no swing left (<= 0.5 mm) on the spatial
+    simulator."""
+    limits = {CART_JOINT: 0.8, BRIDGE_JOINT: 0.6}
+    options = PlanOptions(max_acceleration=limits[CART_JOINT], max_bridge_acceleration=limits[BRIDGE_JOINT])
+    p = plan('zv', 0.6, 3.0, PARAMS, options, bridge=0.4)
+    t = knot_times(p)
+    running = Running(JOINTS, t, *knot_columns(p, t, STARTS), ORIGIN, p)
+    stop = plan_stop(solvers, running, HANDOVER, PARAMS, options)
+    assert stop.plan.info['stop'] == 'shaped'
+    for name, limit in limits.items():
+        assert stop.plan.axes[name].peaks()[1] <= limit * (1 + 1e-9), name
+    trajectory = stop.trajectory()
+    refs = running.at(HANDOVER)
+    for j, name in enumerate(JOINTS):
+        assert trajectory.position[0, j] == pytest.approx(refs[j][0][0], abs=1e-9), name
+        assert trajectory.velocity[0, j] == pytest.approx(refs[j][1][0], abs=1e-9), name
+        assert refs[j][0][0] < trajectory.position[-1, j] < GOALS[j], name
+    stream = Stream()
+    stream.play(motion_accelerations(running, ORIGIN, HANDOVER))
+    stream.play(plan_accelerations(stop.plan, stop.plan.duration))
+    residual = stream.settle()
+    print(f'shaped stop: {stop.plan.duration:.3f} s, residual {1e3 * residual:.2e} mm')
+    assert residual <= 0.5e-3

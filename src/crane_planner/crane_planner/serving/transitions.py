@@ -34,8 +34,9 @@ does (contract "Motion from any state"):
   braking harder than that.
 - a settle: NVF from the measured swing at rest back to the same place, over
   one first-mode period (the same lengthening); with a bridge both travel
-  axes move. A shaper's motion is of the cart: the bridge is held beside it,
-  and a shaper refuses to retarget a bridge.
+  axes move. A shaper retargets and stops each travel axis in its own right
+  (the linear crane's two planes are apart: each axis's shaped change, or its
+  base braked within its own limits, leaves no swing in its plane).
 
 Pure Python, no ROS import.
 """
@@ -272,11 +273,31 @@ def _rope(state: MotionState) -> float | None:
     return state.axis(HOIST_JOINT).position if state.has(HOIST_JOINT) else None
 
 
-def _held(state: MotionState) -> dict:
-    """Where a shaper's plan of the cart holds each other axis of ``state`` (``moves.with_axes_held``): the
-    hoist at its rope length, a travel axis at its reference (0 relative to it)."""
+def _held(state: MotionState, planned) -> dict:
+    """Where a shaper's plan of the axes ``planned`` holds each other axis of ``state``
+    (``moves.with_axes_held``): the hoist at its rope length, a travel axis at its reference (0 relative to it)."""
     return {name: (s.position if name == HOIST_JOINT else 0.0) for name, s in state.axes.items()
-            if name != CART_JOINT}
+            if name not in planned}
+
+
+def _together(plans: dict) -> Plan:
+    """The plans of the travel axes (by name, the cart's first) as one: the cart's alone, or an ``AxesPlan``
+    lasting as long as the longest (an axis that ends sooner rests there)."""
+    if len(plans) == 1:
+        return plans[CART_JOINT]
+    cart = plans[CART_JOINT]
+    return AxesPlan(method=cart.method, displacement=cart.displacement,
+                    duration=max(p.duration for p in plans.values()), info=cart.info, axes=dict(plans),
+                    starts={name: 0.0 for name in plans})
+
+
+def _shaped_travel(p: Plan | None) -> dict | None:
+    """The shaped plan of each travel axis a shaper moved from rest in the motion ``p`` (``ShapedPlan``s, by
+    name; the travel axes it held, ``moves.with_axes_held``, left out), or None if it is not such a motion."""
+    axes = p.axes if isinstance(p, AxesPlan) else {CART_JOINT: p}
+    travel = {name: q for name, q in axes.items() if axis(name).kind == 'travel' and q.method != 'hold'}
+    shaped = CART_JOINT in travel and all(isinstance(q, ShapedPlan) for q in travel.values())
+    return travel if shaped else None
 
 
 def swing_of(state: MotionState, params: CraneParams) -> float:
@@ -332,21 +353,18 @@ def retarget(variational, running: Running, handover_ns: int, state: MotionState
     if running.hoist_moves or (rope is not None and abs(goal.get(HOIST_JOINT, rope) - rope) > 1e-9):
         raise PlanError(f'{method}: a shaper cannot retarget a motion while the rope length changes (its '
                         'delays follow the rope); use nvf or rvf')
-    if state.has(BRIDGE_JOINT):
-        bridge = state.axis(BRIDGE_JOINT).position
-        if running.moves(BRIDGE_JOINT) or abs(goal.get(BRIDGE_JOINT, bridge) - bridge) > 1e-9:
-            raise PlanError(f'{method}: a shaper retargets the {CART_JOINT} alone, not a motion of the '
-                            f'{BRIDGE_JOINT}; use nvf or rvf')
     model = _model(params, state)
-    knots = running.knot_plan(CART_JOINT)
     t0 = float(running.time_of(handover_ns))
-    change = goal.get(CART_JOINT, knots.displacement) - knots.displacement  # from where the running one ends
-
-    def plan_change(d, T):
-        return plan(method, d, T, model, options)
-
-    new = shaped_change(plan_change, knots, t0, change, duration, info={'shaper_change_m': change})
-    return with_axes_held(new, _held(state))
+    knots = {name: running.knot_plan(name) for name in state.axes if axis(name).kind == 'travel'}
+    # each travel axis's change of goal, from where the running motion ends: one straight shaped move of them
+    changes = {name: goal.get(name, k.displacement) - k.displacement for name, k in knots.items()}
+    moved = {name: d for name, d in changes.items() if name != CART_JOINT and d != 0.0}
+    whole = plan(method, changes[CART_JOINT], duration, model, options, **moved) if any(changes.values()) else None
+    parts = whole.axes if isinstance(whole, AxesPlan) else {CART_JOINT: whole}
+    # per axis the running reference continued plus its shaped change (the linear crane's planes are apart)
+    new = {name: shaped_change(lambda d, T, part=parts.get(name): part, k, t0, changes[name], duration,
+                               info={'shaper_change_m': changes[name]}) for name, k in knots.items()}
+    return with_axes_held(_together(new), _held(state, new))
 
 
 def stop(variational, running: Running, handover_ns: int, state: MotionState, method: str, params: CraneParams,
@@ -357,15 +375,18 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
     crane). A travel axis without an acceleration limit brakes at most ``STOP_BRAKING`` times the running
     motion's hardest (its peak on any travel axis, or an axis's acceleration now): one bound for the
     horizontal axes, so that an axis the motion held (peak 0) may still move to damp its swing."""
-    shaped = running.plan if isinstance(running.plan, ShapedPlan) else None
-    if method in SHAPER_METHODS and shaped is not None:
-        _, amax, jmax = options.limits_of(CART_JOINT)
-        accel, jerk = amax or shaped.peaks()[1], jmax or shaped.peaks()[2]
+    shaped = _shaped_travel(running.plan) if method in SHAPER_METHODS else None
+    if shaped is not None:
         t0 = float(running.time_of(handover_ns))
-        # (the shaped plan is relative to the motion's start, the knots absolute: the continuation, relative to
-        # the reference at t0, is the same of both)
-        new = Continuation.of(method, shaped_stop(shaped, t0, accel, jerk), t0, None, info={'stop': 'shaped'})
-        return with_axes_held(new, _held(state))
+        new = {}
+        for name, p in shaped.items():  # each travel axis's base braked within its own limits and reshaped
+            _, amax, jmax = options.limits_of(name)
+            accel, jerk = amax or p.peaks()[1], jmax or p.peaks()[2]
+            braked = shaped_stop(p, t0, accel, jerk) if accel > 0.0 else p  # (an axis the motion holds: held)
+            # (the shaped plan is relative to the motion's start, the knots absolute: the continuation, relative
+            # to the reference at t0, is the same of both)
+            new[name] = Continuation.of(method, braked, t0, None, info={'stop': 'shaped'})
+        return with_axes_held(_together(new), _held(state, new))
     # NVF: RVF's sensitivities forced to zero at a free end make it wander (metres past the goal)
     method = 'nvf'
     travel = [name for name in state.axes if axis(name).kind == 'travel']
