@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from crane_msgs_py.axes import AXES
-from crane_msgs_py.names import CART_JOINT, DEFAULT_FRAME_ID, HOIST_JOINT, check_joints
+from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, DEFAULT_FRAME_ID, HOIST_JOINT, check_joints
 from crane_msgs_py.params import (
     PARAMETER_DESCRIPTIONS,
     PARAMETER_NAMES,
@@ -180,27 +180,37 @@ class Config:
         """Requests that build the NVF/RVF solvers of this configuration.
 
         A typical move, and with velocity or acceleration limits its fastest
-        plan (the free-final-time NLP), so the first of either is answered warm.
+        plan (the free-final-time NLP), so the first of either is answered warm;
+        each for the cart alone and, with a bridge, for a diagonal move (the
+        spatial crane's NLP); with a hoist for a move that hoists too; and a
+        plan from a moving, swinging state (a new goal mid-move) and a stop.
         """
         D, duration = min(0.3, self.max_displacement), min(3.0, self.max_duration)
-        requests = [VariationalRequest('plan', method, D, duration, self.params, self.options)
-                    for method in VARIATIONAL_METHODS]
-        if self.options.max_velocity is not None or self.options.max_acceleration is not None:
-            requests += [VariationalRequest('fastest', method, D, None, self.params, self.options)
-                         for method in VARIATIONAL_METHODS]
-        if HOIST_JOINT in self.joints:  # and a move that hoists by a tenth of the rope (another NLP)
-            hoisting = hoisting_options(self.options)
-            requests += [VariationalRequest('plan', method, (D, -0.1 * self.params.L1), duration, self.params,
-                                            hoisting) for method in VARIATIONAL_METHODS]
-        # and a plan from a moving, swinging state (a new goal mid-move) and a stop: their own warm starts
         hoisting = HOIST_JOINT in self.joints
+        travel = [{CART_JOINT: D}] + ([{CART_JOINT: D, BRIDGE_JOINT: 2.0 * D / 3.0}]
+                                      if BRIDGE_JOINT in self.joints else [])
+        requests = []
+        for displacement in travel:
+            requests += [VariationalRequest('plan', method, displacement, duration, self.params, self.options)
+                         for method in VARIATIONAL_METHODS]
+            if self.options.max_velocity is not None or self.options.max_acceleration is not None:
+                requests += [VariationalRequest('fastest', method, displacement, None, self.params, self.options)
+                             for method in VARIATIONAL_METHODS]
+            if hoisting:  # and a move that hoists by a tenth of the rope (another NLP)
+                requests += [VariationalRequest('plan', method, {**displacement, HOIST_JOINT: -0.1 * self.params.L1},
+                                                duration, self.params, hoisting_options(self.options))
+                             for method in VARIATIONAL_METHODS]
+        # a plan from a moving, swinging state and a stop (their own warm starts), over every served axis
+        spatial = BRIDGE_JOINT in self.joints
         state = MotionState({CART_JOINT: AxisState(0.0, 0.1, 0.05),
+                             **({BRIDGE_JOINT: AxisState(0.0, 0.05, 0.03)} if spatial else {}),
                              **({HOIST_JOINT: AxisState(self.params.L1)} if hoisting else {})},
-                            (0.02, 0.0, -0.05, 0.0))
+                            (0.02, 0.0, 0.01, 0.0, -0.05, 0.0, -0.02, 0.0) if spatial else (0.02, 0.0, -0.05, 0.0))
         start, model = problem_start(state, self.params)
         options = hoisting_options(self.options) if hoisting else self.options
+        displacement = {CART_JOINT: D, **({BRIDGE_JOINT: 0.0} if spatial else {}),
+                        **({HOIST_JOINT: 0.0} if hoisting else {})}
         for free_end in (False, True):
-            displacement = (D, 0.0) if hoisting else D
             requests += [VariationalRequest('plan', method, displacement, duration, model, options, start, free_end)
                          for method in VARIATIONAL_METHODS]
         return requests

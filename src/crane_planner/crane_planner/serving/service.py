@@ -23,8 +23,9 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from crane_msgs_py.names import CART_JOINT, HOIST_JOINT, STREAM_STATE_TOPIC
+from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT, STREAM_STATE_TOPIC
 
+from ..planning.continuation import swing_names
 from ..planning.methods import METHODS, SHAPER_METHODS, VARIATIONAL_METHODS
 from ..planning.plan import Plan, time_grid
 from ..streaming.knots import knot_times
@@ -580,8 +581,9 @@ def build_solvers(planner, config: Config, log) -> Built:
         build = plan.info.get('build_time_s')
         log.info(f'{method} ready in {times[method]:.2f} s' + (f' (solver built in {build:.2f} s)' if build else ''))
     # the handover's predictor (a CasADi function built on first use)
-    rest = [0.0, config.params.L1][:len(config.joints)]
+    rest = [config.params.L1 if name == HOIST_JOINT else 0.0 for name in config.joints]
     holding = Running.holding(config.joints, rest, 0)
-    measured = Measurement(0, {name: JointReading(p) for name, p in zip(config.joints, rest)}, (0.0, 0.0, 0.0, 0.0))
+    measured = Measurement(0, {name: JointReading(p) for name, p in zip(config.joints, rest)},
+                           (0.0,) * len(swing_names(BRIDGE_JOINT in config.joints)))
     transitions.handover_state(holding, 10_000_000, measured, config.params)
     return Built(times, failed, f'{len(times)} of {len(METHODS)} methods ready in {time.perf_counter() - t_all:.2f} s')

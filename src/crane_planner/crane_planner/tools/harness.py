@@ -35,6 +35,8 @@ from crane_msgs_py.conversions import (
 from crane_msgs_py.diagnostics import OK, level_of, status_values
 from crane_msgs_py.names import (
     ACTUATED_JOINTS,
+    BRIDGE_JOINT,
+    CART_JOINT,
     HOIST_JOINT,
     JOINT_STATES_TOPIC,
     PLANNER_NODE,
@@ -75,10 +77,10 @@ class HarnessError(RuntimeError):
 
 
 def start_crane_nodes(nodes: NodeGroup, namespace: str, streamer_params: dict | None = None,
-                      hoist: bool = False):
+                      hoist: bool = False, joints=None):
     """Start the planner, streamer and sim executables in ``namespace`` (``hoist``: all three with the joints
-    [cart, hoist])."""
-    joints = {'joints': ['cart', 'hoist']} if hoist else {}
+    [cart, hoist]; ``joints``: with these, e.g. [cart, bridge])."""
+    joints = {'joints': list(joints)} if joints else {'joints': ['cart', 'hoist']} if hoist else {}
     nodes.start(*PLANNER, namespace=namespace, params=joints or None)
     nodes.start(*STREAMER, namespace=namespace, params={**joints, **(streamer_params or {})} or None)
     nodes.start(*SIM, namespace=namespace, params=joints or None)
@@ -156,9 +158,10 @@ class CraneHarness:
         acceleration, received ns)."""
         return list(self._reference_sub[2]) if self._reference_sub is not None else []
 
-    def keep_references(self, keep: bool = True) -> np.ndarray | None:
+    def keep_references(self, keep: bool = True, joints=(CART_JOINT,)) -> np.ndarray | None:
         """Start (``keep``: once they flow) or stop keeping the streamed references at 1 kHz; stopping
-        returns the cart's as rows of (stamp ns, position, velocity, acceleration, received ns of system time).
+        returns those of ``joints`` (given when starting) as rows of (stamp ns, position, velocity, acceleration
+        of the first joint, received ns of system time, then the others' position, velocity, acceleration).
 
         On a node of their own spun by an EventsExecutor: the harness's executor would spend a core on them.
         """
@@ -168,23 +171,32 @@ class CraneHarness:
             from rclpy.experimental import EventsExecutor
             rows: list = []
             node = rclpy.create_node(f'{self.node.get_name()}_references', namespace=self.node.get_namespace())
-            node.create_subscription(JointTrajectory, REFERENCE_TOPIC,
-                                     lambda m: rows.append((*read_reference(m), time.time_ns())),
+            joints = list(joints)
+
+            def keep_one(m):
+                stamp, p, v, a = read_reference(m, joints if len(joints) > 1 else None)
+                if len(joints) == 1:
+                    rows.append((stamp, p, v, a, time.time_ns()))
+                else:
+                    rows.append((stamp, p[0], v[0], a[0], time.time_ns(), *(x for k in range(1, len(joints))
+                                                                           for x in (p[k], v[k], a[k]))))
+
+            node.create_subscription(JointTrajectory, REFERENCE_TOPIC, keep_one,
                                      recording(REFERENCE_EVERY_SAMPLE_QOS, 10.0, 1000.0))
             executor = EventsExecutor()
             executor.add_node(node)
             spin = spinning(executor)
             spin.__enter__()
-            self._reference_sub = (node, spin, rows)
+            self._reference_sub = (node, spin, rows, 2 + 3 * len(joints))
             self.wait_until(lambda: bool(rows), 5.0, 'no reference received')
             return None
         if self._reference_sub is None:
             return None
-        node, spin, rows = self._reference_sub
+        node, spin, rows, width = self._reference_sub
         self._reference_sub = None
         spin.__exit__(None, None, None)
         node.destroy_node()
-        return np.array([(r[0], r[1], r[2], r[3], r[4]) for r in rows], dtype=float).reshape(-1, 5)
+        return np.array(rows, dtype=float).reshape(-1, width)
 
     def _on_trajectory(self, msg):
         with self._lock:
@@ -252,25 +264,28 @@ class CraneHarness:
         return max(0.3, 3.0 * self._slowest_plan)
 
     def move(self, method: str, start: float, goal: float, duration: float, start_ns: int | None = None,
-             settle: float = 0.0, hoist: tuple[float, float] | None = None):
+             settle: float = 0.0, hoist: tuple[float, float] | None = None,
+             bridge: tuple[float, float] | None = None):
         """Execute a move starting at ``start_ns`` (default :meth:`lead` from now) through the planner's
         ``~/execute_move``; (the stamp the motion starts, plan round trip s, served trajectory).
-        ``hoist`` = (start, goal) of the rope length (m) moves the hoist too (a planner with joints [cart, hoist]);
-        ``start`` None starts every joint where the streamer holds it.
+        ``hoist`` = (start, goal) of the rope length (m) moves the hoist too (a planner with joints [cart, hoist]),
+        ``bridge`` = (start, goal) (m) the bridge; ``start`` None starts every joint where the streamer holds it
+        (a start given with a further axis: each axis's start given too).
 
         The round trip lasts until the goal's first feedback (sent once it is
         planned); a refused plan raises PlanError with the planner's reason.
         The action's result (after ``settle`` s of observation, 0 = the
         planner's default) is :meth:`move_result`.
         """
+        others = [(name, ends) for name, ends in ((BRIDGE_JOINT, bridge), (HOIST_JOINT, hoist)) if ends is not None]
         if start_ns is None:
             start_ns = self.now_ns() + round(self.lead() * 1e9)
         mark = self.planner.diagnostics.mark()
         planned = threading.Event()
         t0 = time.perf_counter()
-        starts = [] if start is None else [start, hoist[0]] if hoist is not None else []
-        move = None if hoist is None else move_message([goal, hoist[1]], duration, starts, method,
-                                                       ['cart', HOIST_JOINT], start_ns)
+        starts = [] if start is None else [start, *(ends[0] for _, ends in others)]
+        move = None if not others else move_message([goal, *(ends[1] for _, ends in others)], duration, starts,
+                                                     method, ['cart', *(name for name, _ in others)], start_ns)
         handle = self.planner.send_execute(method, start, goal, duration, start_ns, settle,
                                            feedback=lambda _: planned.set(), timeout=30.0, move=move)
         outcome = handle.get_result_async()
@@ -290,16 +305,16 @@ class CraneHarness:
         return streamed, plan_time, traj
 
     def retarget(self, method: str, goal: float, duration: float, settle: float = 0.0,
-                 hoist_goal: float | None = None) -> int:
+                 hoist_goal: float | None = None, bridge_goal: float | None = None) -> int:
         """Send a new goal during a motion (as soon as possible, from where the motion is): the stamp the
         streamer hands the motion over at (the planner's, or the tick it delayed a late handover's change to).
         PlanError (the planner's reason) if it was refused."""
         before = set(self.sent_trajectories())
         mark = self.planner.diagnostics.mark()
         planned = threading.Event()
-        joints = ['cart'] + ([HOIST_JOINT] if hoist_goal is not None else [])
-        move = move_message([goal] + ([hoist_goal] if hoist_goal is not None else []), duration, [], method,
-                            joints if hoist_goal is not None else [])
+        others = [(name, g) for name, g in ((BRIDGE_JOINT, bridge_goal), (HOIST_JOINT, hoist_goal)) if g is not None]
+        move = move_message([goal, *(g for _, g in others)], duration, [], method,
+                            ['cart', *(name for name, _ in others)] if others else [])
         handle = self.planner.send_execute(method, None, goal, duration, 0, settle,
                                            feedback=lambda _: planned.set(), timeout=30.0, move=move)
         outcome = handle.get_result_async()

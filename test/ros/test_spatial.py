@@ -1,0 +1,122 @@
+"""ROS: the spatial crane (trolley, bridge) through the real executables.
+
+The planner, streamer and sim run with the joints [cart, bridge] in one namespace of a private graph
+(``bridge_crane``, always stopped). The test measures the swing itself from ``joint_states`` (theta1,
+theta2, phi1, phi2: the norm of the load's horizontal offset, independent of the planner's model) and the
+streamed reference from the 1 kHz ``reference`` topic.
+"""
+import numpy as np
+import pytest
+
+from crane_msgs_py.params import CraneParams
+
+NS = '/crane_bridge'
+T = 3.0
+SETTLE = 1.0  # s of residual window: more than half the slow mode's period, so its peak shows
+NOMINAL = CraneParams()  # the planner's model and the sim's plant
+JOINTS = ['cart', 'bridge']
+STATUS_ABORTED = 6  # action_msgs/GoalStatus
+
+
+@pytest.fixture(scope='module')
+def bridge_nodes(start_crane):
+    with start_crane(NS, startup=180.0, joints=JOINTS) as driver:  # the spatial NLPs built too
+        yield driver
+
+
+@pytest.fixture
+def crane(bridge_nodes):
+    """The nodes, the crane brought back to (0, 0) at rest after the test (whatever its outcome)."""
+    yield bridge_nodes
+    driver = bridge_nodes
+    driver.keep_references(False)
+    driver.call_streamer('start')
+    last = driver.last_state()
+    if last is not None and (abs(last[3]) > 1e-6 or abs(last[4]) > 1e-6):
+        start, _, _ = driver.move('nvf', None, 0.0, 2.0, settle=0.05, bridge=(None, 0.0))
+        driver.move_result(start)
+    driver.reset_sim()
+
+
+def record(driver, begin_ns: int, end_ns: int) -> dict:
+    """joint_states stamped in [begin, end] by column name (``state_columns``)."""
+    from crane_planner.tools.harness import state_columns
+    driver.sleep(max(0.0, (end_ns - driver.now_ns()) * 1e-9))
+    rows = driver.states_between(begin_ns, end_ns, timeout=30.0)  # a hang guard: the plant may lag the clock
+    assert len(rows) > 40 * (end_ns - begin_ns) * 1e-9, f'only {len(rows)} joint_states'
+    return state_columns(rows)
+
+
+def swing_mm(rec: dict) -> np.ndarray:
+    """The load's horizontal offset from below the suspension point (mm) at each joint_state."""
+    from crane_sim.spatial import load_offset
+    return 1e3 * np.hypot(*load_offset(rec['theta1'], rec['theta2'], rec['phi1'], rec['phi2'], NOMINAL.L1,
+                                       NOMINAL.L2))
+
+
+@pytest.mark.parametrize('method', ['rvf', 'zv', 'nvf'])
+def test_a_diagonal_move_ends_at_its_goal_on_both_axes_without_swing(crane, method):
+    driver = crane
+    start_ns, _, traj = driver.move(method, 0.0, 0.3, T, settle=SETTLE, bridge=(0.0, 0.2))
+    assert list(traj.joint_names) == JOINTS
+    end_ns = start_ns + round(T * 1e9)
+    during = record(driver, start_ns, end_ns)
+    after = record(driver, end_ns, end_ns + round(SETTLE * 1e9))
+    assert swing_mm(during).max() > 1.0  # the load did swing, in both directions
+    assert np.abs(during['phi1']).max() > 1e-3 and np.abs(during['theta1']).max() > 1e-3
+    assert after['cart'][-1] == pytest.approx(0.3, abs=2e-3) and after['bridge'][-1] == pytest.approx(0.2, abs=2e-3)
+    residual = swing_mm(after).max()
+    assert residual <= 0.5, residual
+    result = driver.move_result(start_ns)
+    assert result.success and list(result.info.joint_names) == JOINTS, result.message
+    assert abs(1e3 * result.residual_swing - residual) < 0.05, (result.residual_swing, residual)
+
+
+def test_a_new_goal_at_40_percent_that_turns_the_direction_takes_over_without_a_step(crane):
+    """Going along x to (0.6, 0), retargeted at 40 % to (0.3, 0.4): the reference of both axes goes on
+    without a step, and the load ends without swing at the new goal."""
+    driver = crane
+    driver.keep_references(joints=JOINTS)
+    start, _, _ = driver.move('nvf', 0.0, 0.6, T, settle=SETTLE, bridge=(0.0, 0.0))
+    driver.sleep(max(0.0, (start + round(0.4 * T * 1e9) - driver.now_ns()) * 1e-9))
+    handover = driver.retarget('nvf', 0.3, T, settle=SETTLE, bridge_goal=0.4)
+    assert start < handover < start + round(T * 1e9)
+    end = handover + round(T * 1e9)
+    after = record(driver, end, end + round(SETTLE * 1e9))
+    references = driver.keep_references(False)
+    residual = swing_mm(after).max()
+    assert residual <= 0.5, residual
+    assert after['cart'][-1] == pytest.approx(0.3, abs=2e-3) and after['bridge'][-1] == pytest.approx(0.4, abs=2e-3)
+    # no step: over the handover tick each axis changes by what its own rates give over a tick
+    k = int(np.searchsorted(references[:, 0], handover))
+    assert 20 < k < len(references) - 20, 'the handover is not in the kept references'
+    for columns in ((1, 2, 3), (5, 6, 7)):  # (position, velocity, acceleration) of the cart, of the bridge
+        d = np.abs(np.diff(references[:, columns], axis=0))
+        own = np.vstack([d[k - 21:k - 1], d[k:k + 20]]).max(axis=0)
+        assert np.all(d[k - 1] <= own * 1.1 + np.array([1e-9, 1e-9, 1e-6])), (d[k - 1], own)
+    assert np.abs(references[k:, 5]).max() > 0.1  # the bridge did turn the motion
+    status, result = driver.outcome(start)
+    assert status == STATUS_ABORTED and 'preempted by a newer goal' in result.message, result.message
+
+
+def test_a_diagonal_stick_released_leaves_no_swing(crane):
+    """Operator mode with a bridge: cmd_vel linear.x and linear.y (crane-teleop's VX,VY,VZ segments), each
+    travel axis shaped online: released, the load swings less than 2 mm."""
+    driver = crane
+    driver.set_parameters('streamer', {'mode': 'operator', 'operator_shaper': 'zv'})
+    try:
+        begin = driver.now_ns()
+        tool = driver.run_tool('crane-teleop', '--namespace', NS, '--script=0.15,0.1,0:2')
+        assert tool.wait(timeout=20.0) == 0, tool.stderr.read()
+        released = driver.now_ns()
+        end = released + round(5.0e9)
+        rec = record(driver, begin, end)
+        t = (rec['stamp'] - begin) * 1e-9
+        moved = (rec['cart'][-1] - rec['cart'][0], rec['bridge'][-1] - rec['bridge'][0])
+        assert moved[0] > 0.2 and moved[1] == pytest.approx(moved[0] * 0.1 / 0.15, rel=1e-3), moved
+        # braking (cmd_timeout 0.5 s and the ramp) and the shaper (1.2 s) over 2.5 s after the release
+        residual = swing_mm(rec)[t > (released - begin) * 1e-9 + 2.5].max()
+        assert swing_mm(rec).max() > 5.0 and residual < 2.0, residual
+    finally:
+        driver.sleep(3.0)  # the stick played out, at rest
+        driver.set_parameters('streamer', {'mode': 'trajectory'})
