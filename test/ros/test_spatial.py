@@ -120,3 +120,31 @@ def test_a_diagonal_stick_released_leaves_no_swing(crane):
     finally:
         driver.sleep(3.0)  # the stick played out, at rest
         driver.set_parameters('streamer', {'mode': 'trajectory'})
+
+
+def test_a_recorded_diagonal_move_is_reported_with_the_spatial_swing_and_identify_refuses_it(crane, tmp_path):
+    """crane-record during a diagonal ZV move: crane-plan report finds the residual the test measures (the norm
+    of the load's offset, from phi1, phi2 too), and identify refuses the recording in one line (it fits the
+    cart's plane; the bridge moved)."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+    bin_dir = Path(sys.executable).parent
+    driver = crane
+    bag = tmp_path / 'bag'
+    recorder = driver.run_tool('crane-record', '--namespace', NS, '--out', str(bag), '--duration', '9')
+    driver.sleep(2.0)  # subscribed to every topic
+    start_ns, _, _ = driver.move('zv', 0.0, 0.3, T, settle=SETTLE, bridge=(0.0, 0.2))
+    end_ns = start_ns + round(T * 1e9)
+    residual = swing_mm(record(driver, end_ns, end_ns + round(SETTLE * 1e9))).max()
+    assert recorder.wait(timeout=30.0) == 0, recorder.stderr.read()
+    rep = subprocess.run([str(bin_dir / 'crane-plan'), 'report', str(bag), '--out', str(tmp_path), '--json',
+                          '--settle', str(SETTLE)], capture_output=True, text=True, timeout=120)
+    assert rep.returncode == 0, rep.stderr
+    [motion] = [m for m in json.loads(rep.stdout)['motions'] if m['duration_s'] == T]
+    assert motion['residual_mm'] == pytest.approx(residual, abs=0.05)
+    ident = subprocess.run([str(bin_dir / 'crane-plan'), 'identify', '--bag', str(bag)], capture_output=True,
+                           text=True, timeout=120)
+    assert ident.returncode == 2 and 'the bridge moved during the recording' in ident.stderr, ident.stderr
+    assert ident.stderr.count('\n') == 1

@@ -117,7 +117,7 @@ def read_csv(path) -> Recording:
 
 #: Topic names (their last part: the recording may be namespaced) read from a rosbag2 recording.
 JOINT_STATES_NAME, REFERENCE_NAME = 'joint_states', 'reference'
-#: How far (m) the rope may move in a recording crane-plan identify takes: beyond, the hoist moved.
+#: How far (m) the rope (or the bridge) may move in a recording crane-plan identify takes: beyond, it moved.
 HELD_ROPE = 1e-3
 
 
@@ -153,7 +153,7 @@ def read_bag(path) -> Recording:
             if not states:
                 raise RecordingError(f'{path} holds no joint_states topic (topics: '
                                      f'{", ".join(sorted({c.topic for c in reader.connections})) or "none"})')
-            rows, ropes = [], []
+            rows, ropes, bridges = [], [], []
             for conn, _, raw in reader.messages(connections=states):
                 msg = reader.deserialize(raw, conn.msgtype)
                 index = {name: k for k, name in enumerate(msg.name)}
@@ -164,6 +164,8 @@ def read_bag(path) -> Recording:
                 rows.append((stamp, *(float(msg.position[index[j]]) for j in ('cart', 'theta1', 'theta2'))))
                 if 'hoist' in index:
                     ropes.append(float(msg.position[index['hoist']]))
+                if 'bridge' in index:
+                    bridges.append(float(msg.position[index['bridge']]))
             references = []
             for conn, _, raw in reader.messages(connections=named(REFERENCE_NAME)):
                 msg = reader.deserialize(raw, conn.msgtype)
@@ -177,6 +179,10 @@ def read_bag(path) -> Recording:
     if ropes and max(ropes) - min(ropes) > HELD_ROPE:  # the model has one L1: the fit needs the rope held
         raise RecordingError(f'the hoist moved during the recording (the rope from {min(ropes):.4g} to '
                              f'{max(ropes):.4g} m): identify needs a recording with the rope held')
+    if bridges and max(bridges) - min(bridges) > HELD_ROPE:  # the fit is of the x-z plane: the cart's move
+        raise RecordingError(f'the bridge moved during the recording (from {min(bridges):.4g} to '
+                             f'{max(bridges):.4g} m): identify fits a move of the cart alone (the swing\'s '
+                             'parameters are the same in both directions); record one with the bridge held')
     data = np.array(sorted(rows))
     t0 = data[0, 0]
     reference = None

@@ -235,7 +235,7 @@ class StreamerNode(Node):
             self.get_logger().warn(f'~/stop {how}')
         self._stop_at_rest = True
         return 'stopping: the motion ends before a stop could take over (at rest), then stopped' if stop is None \
-            else f'stopping {how} at {stop.end:.6g} m in {stop.duration:.3g} s ({stop.method}), then stopped'
+            else f'stopping {how} at {position_text(stop.end)} m in {stop.duration:.3g} s ({stop.method}), then stopped'
 
     def _halt(self):
         """Stop streaming now (the loop holds nothing: it waits for ~/start)."""

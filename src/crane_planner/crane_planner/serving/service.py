@@ -29,6 +29,7 @@ from ..planning.continuation import swing_names
 from ..planning.methods import METHODS, SHAPER_METHODS, VARIATIONAL_METHODS
 from ..planning.plan import Plan, time_grid
 from ..streaming.knots import knot_times
+from ..streaming.reference_stream import position_text
 from . import transitions
 from .config import Config
 from .crane_view import DISCOVERY_WAIT, HOLDING, CraneView, StreamSample
@@ -380,7 +381,7 @@ class MoveService:
         cut = ('' if execution.window_end_ns == execution.end_ns + round(settle * 1e9) else
                f' (observed {(execution.window_end_ns - execution.end_ns) * 1e-9:.3g} s: the next motion started)')
         if stopped is not None:
-            return self._end(goal, 'cancel', f'canceled: stopped at {stopped:.6g} m in {execution.duration:.4g} s '
+            return self._end(goal, 'cancel', f'canceled: stopped at {stopped} m in {execution.duration:.4g} s '
                                              f'without swing ({what}); {residual}{cut}', planned, execution.residual)
         return self._end(goal, 'succeed', f'{what}; {residual}{cut}', planned, execution.residual)
 
@@ -458,9 +459,9 @@ class MoveService:
         return Trajectory(tuple(joints), axis_samples(plan, knots_of(plan, self.config())), tuple(starts),
                           handover_ns)
 
-    def _stop(self, goal: Goal, settle: float) -> float:
+    def _stop(self, goal: Goal, settle: float) -> str:
         """Stop ``goal``'s motion without swing (a cancel during it): send the stop, follow it from now on.
-        Returns where the cart stops (m); ValueError says why no stop could be planned."""
+        Returns where the axes stop (m, as text); ValueError says why no stop could be planned."""
         config, running = self.config(), goal.running
 
         def make(handover_ns, state):
@@ -469,7 +470,7 @@ class MoveService:
 
         done = self._handover(running, STOP_LEAD, make)
         if done is None:  # the motion ended meanwhile: it is at rest already
-            return float(running.interps[0].position[-1])
+            return _where(interp.position[-1] for interp in running.interps)
         plan, handover, state = done.plan, done.handover_ns, done.state
         trajectory = self._trajectory(plan, state, running.joints, handover)
         stop = trajectory.running(handover, plan)
@@ -480,8 +481,8 @@ class MoveService:
         # the tick at or after its stamp: what a next handover must continue
         if taken(goal.execution, handover, STOP_LEAD + 0.2, self._sleep, self._timer):
             self.goals.replace(goal, stop, transitions.taken_over(running, stop, goal.execution.motion_start_ns))
-        where = state.axis(CART_JOINT).position + plan.displacement
-        self.log.info(f'execute_move: canceled during its motion: stopping at {where:.6g} m in '
+        where = _where(interp.position[-1] for interp in stop.interps)
+        self.log.info(f'execute_move: canceled during its motion: stopping at {where} m in '
                       f'{plan.duration:.4g} s ({plan.method})')
         return where
 
@@ -587,3 +588,9 @@ def build_solvers(planner, config: Config, log) -> Built:
                            (0.0,) * len(swing_names(BRIDGE_JOINT in config.joints)))
     transitions.handover_state(holding, 10_000_000, measured, config.params)
     return Built(times, failed, f'{len(times)} of {len(METHODS)} methods ready in {time.perf_counter() - t_all:.2f} s')
+
+
+def _where(positions) -> str:
+    """Where the axes stop (m) for messages: one joint's position, or several in parentheses."""
+    values = tuple(float(x) for x in positions)
+    return position_text(values[0] if len(values) == 1 else values)

@@ -83,17 +83,11 @@ class Stop:
         from .transitions import joint_starts
         return joint_starts(self.plan, self.state)
 
-    @property
-    def end(self) -> float:
-        """Where the cart stops (m)."""
-        return float(self.state.axis(CART_JOINT).position + self.plan.displacement)
-
     def trajectory(self, times=None) -> StopTrajectory:
         """The stop at ``times`` (s from the handover; default its knots)."""
         times = knot_times(self.plan) if times is None else np.asarray(times, dtype=float)
         columns = knot_columns(self.plan, times, self.starts)
-        return StopTrajectory(times, *columns, self.handover_ns, float(self.plan.duration), self.plan.method,
-                              self.end)
+        return StopTrajectory(times, *columns, self.handover_ns, float(self.plan.duration), self.plan.method)
 
 
 def plan_stop(variational, running, handover_ns: int, params: CraneParams, options=None, measured=None,

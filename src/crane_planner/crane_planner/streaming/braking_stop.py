@@ -44,7 +44,7 @@ def braking_stop(state: np.ndarray, handover_ns: int, deceleration: float, jerk:
     columns = np.array([[ramp.state(x) for ramp in ramps] for x in t])  # (knots, joints, p v a)
     position = state[0] + columns[:, :, 0]
     return StopTrajectory(np.array(t), position, columns[:, :, 1], columns[:, :, 2], int(handover_ns), duration,
-                          METHOD, float(position[-1, 0]))
+                          METHOD)
 
 
 def brake(stream: ReferenceStream, now, deceleration: float, jerk: float) -> StopTrajectory | None:

@@ -15,8 +15,8 @@ import numpy as np
 @dataclass(frozen=True)
 class StopTrajectory:
     """A stop's trajectory from its handover: knot times ``t`` (s), per joint columns ((knots, joints):
-    absolute m, m/s, m/s^2), the handover (ns of ROS time), its duration (s), how it stops (``method``) and
-    where the cart stops (``end``, m)."""
+    absolute m, m/s, m/s^2), the handover (ns of ROS time), its duration (s) and how it stops (``method``);
+    where the axes stop is ``end``."""
 
     t: np.ndarray
     position: np.ndarray
@@ -25,7 +25,12 @@ class StopTrajectory:
     handover_ns: int
     duration: float
     method: str
-    end: float
+
+    @property
+    def end(self) -> float | tuple:
+        """Where the axes stop (m): one joint's a float, several joints' a tuple in their order."""
+        last = tuple(float(x) for x in self.position[-1])
+        return last[0] if len(last) == 1 else last
 
     def arrays(self) -> tuple:
         """(t, position, velocity, acceleration) as ``ReferenceStream.accept`` takes them (one joint: 1-D)."""

@@ -1,7 +1,7 @@
 """``crane-plan report BAG``: figures and a residual-swing table from a rosbag2 recording of the crane.
 
 Reads (with ``rosbags``, no ROS install needed) what ``crane-record`` or
-``crane-demo --record`` store: ``joint_states`` (cart, theta1, theta2),
+``crane-demo --record`` store: ``joint_states`` (cart, theta1, theta2; bridge, phi1, phi2 of the spatial crane),
 ``reference`` (the streamer's 1 kHz samples), ``trajectory`` (the motions sent
 for execution), ``/diagnostics`` (the streamer's tick timing) and
 ``crane_markers`` (the drawn crane, whose cable lengths the load's position
@@ -18,6 +18,9 @@ import numpy as np
 from crane_msgs_py.params import CraneParams
 from crane_planner.identification.recording import RecordingError
 
+#: The joint_states columns kept after the stamp (``BagData.states``), the planar crane's first.
+STATE_JOINTS = ('cart', 'theta1', 'theta2', 'hoist', 'bridge', 'phi1', 'phi2')
+
 
 def _ns(stamp) -> int:
     return stamp.sec * 1_000_000_000 + stamp.nanosec
@@ -28,11 +31,12 @@ class BagData:
     """What a recording holds, as arrays (times in s from the first joint_state)."""
 
     t0_ns: int
-    states: np.ndarray                 # (n, 5): t, cart, theta1, theta2, hoist (the rope length; NaN: none)
+    states: np.ndarray                 # (n, 8): t, cart, theta1, theta2, hoist (the rope length), bridge, phi1,
+    #                                    phi2 (NaN: a joint the crane has not)
     reference: np.ndarray              # (m, 2): t, position
     motions: list                      # [(start t, duration, goal position)]
     timing: np.ndarray                 # (k, 4): t, lateness p50, p99, max (us)
-    markers: list = field(default_factory=list)  # [(t, [(x, z) of cart, m1, m2])]
+    markers: list = field(default_factory=list)  # [(t, [(x, y, z) of the trolley, m1, m2])]
     L1: float = CraneParams.L1
     L2: float = CraneParams.L2
 
@@ -55,9 +59,8 @@ def read_bag(path) -> BagData:
                 if name == 'joint_states':
                     index = {j: k for k, j in enumerate(msg.name)}
                     if all(j in index for j in ('cart', 'theta1', 'theta2')):
-                        hoist = msg.position[index['hoist']] if 'hoist' in index else math.nan
-                        states.append((_ns(msg.header.stamp), *(msg.position[index[j]]
-                                                              for j in ('cart', 'theta1', 'theta2')), hoist))
+                        states.append((_ns(msg.header.stamp), *(msg.position[index[j]] if j in index else math.nan
+                                                              for j in STATE_JOINTS)))
                 elif name == 'reference' and getattr(msg, 'points', None):
                     reference.append((_ns(msg.header.stamp), msg.points[0].positions[_cart(msg)]))
                 elif name == 'trajectory' and msg.points:
@@ -72,7 +75,7 @@ def read_bag(path) -> BagData:
                                 timing.append((received, *(float(values[k]) for k in
                                                            ('lateness_p50_us', 'lateness_p99_us', 'lateness_max_us'))))
                 elif name == 'crane_markers' and len(msg.markers) >= 4:
-                    pts = [(m.pose.position.x, m.pose.position.z) for m in msg.markers]
+                    pts = [(m.pose.position.x, m.pose.position.y, m.pose.position.z) for m in msg.markers]
                     markers.append((_ns(msg.markers[0].header.stamp), [pts[0], pts[2], pts[3]]))
     except AnyReaderError as exc:
         raise RecordingError(f'cannot read {path}: {exc}') from None
@@ -88,8 +91,8 @@ def read_bag(path) -> BagData:
                    [((s - t0) * 1e-9, p) for s, p in markers])
     if markers:  # the cable lengths the sim drew with
         _, (cart, m1, m2) = markers[-1]
-        data.L1 = math.hypot(m1[0] - cart[0], m1[1] - cart[1])
-        data.L2 = math.hypot(m2[0] - m1[0], m2[1] - m1[1])
+        data.L1 = math.dist(m1, cart)
+        data.L2 = math.dist(m2, m1)
     return data
 
 
@@ -101,11 +104,15 @@ def _cart(msg) -> int:
 
 def load_mm(data: BagData) -> np.ndarray:
     """Horizontal offset (mm) of the load from its rest below the cart at each joint_state (with a hoist,
-    with the rope length that joint_state reports)."""
+    with the rope length that joint_state reports; with a bridge, the norm of the offset)."""
     from crane_sim.dynamics import load_excursion
+    from crane_sim.spatial import load_offset
     rope = data.states[:, 4]
     L1 = np.where(np.isnan(rope), data.L1, rope)
-    return 1e3 * load_excursion(data.states[:, 2], data.states[:, 3], L1, data.L2)
+    theta1, theta2, phi1, phi2 = data.states[:, 2], data.states[:, 3], data.states[:, 6], data.states[:, 7]
+    if np.isfinite(phi1).all() and len(phi1):
+        return 1e3 * np.hypot(*load_offset(theta1, theta2, phi1, phi2, L1, data.L2))
+    return 1e3 * load_excursion(theta1, theta2, L1, data.L2)
 
 
 def motion_table(data: BagData, settle: float | None = None) -> list[dict]:
@@ -171,10 +178,11 @@ def plot_markers(data: BagData, path: Path, frames: int = 9):
     for i, k in enumerate(picks):
         _, (cart, m1, m2) = data.markers[k]
         color = cmap(i / max(frames - 1, 1))
-        ax.plot([cart[0], m1[0], m2[0]], [cart[1], m1[1], m2[1]], '-', color=color, lw=1.2)
-        ax.plot([cart[0]], [cart[1]], 's', color=color, ms=9)
-        ax.plot([m1[0]], [m1[1]], 'o', color=color, ms=6)
-        ax.plot([m2[0]], [m2[1]], 'o', color=color, ms=8)
+        # the x-z side view (each point (x, y, z))
+        ax.plot([cart[0], m1[0], m2[0]], [cart[2], m1[2], m2[2]], '-', color=color, lw=1.2)
+        ax.plot([cart[0]], [cart[2]], 's', color=color, ms=9)
+        ax.plot([m1[0]], [m1[2]], 'o', color=color, ms=6)
+        ax.plot([m2[0]], [m2[2]], 'o', color=color, ms=8)
     ax.axhline(0.0, color='0.5', lw=3, zorder=0)
     ax.set_aspect('equal')
     ax.set_xlabel('x along the rail (m), frame crane_base')
