@@ -6,9 +6,17 @@ with and without Ethernet-like impairment; and ``commission``: a plant the
 planner does not know, measured with noise, identified from one excitation
 move, then planned for) and every method requests a move over the planner
 service, lets the streamer stream it at 1 kHz, and measures the residual load
-swing from the sim's 50 Hz joint_states. Prints one table,
-writes figures, stops every node it started. Exit status 0, 1 when a node
-fails to come up or dies (the reason on stderr), 2 on bad options.
+swing from the sim's 50 Hz joint_states. The ``spatial`` case (the cart and
+the bridge together, the load swinging in x and y) is computed offline once
+the nodes have stopped, planned by ``dispatch.plan`` and replayed in
+crane_sim's batch spatial model (``spatial_demo``: the nodes' bridge path is
+the ROS tests'): 0.3 m x 0.2 m in 3 s by every method on the model's plant
+and on one with L1 -10 %, and a fast 1.0 m x 0.8 m diagonal in 2.2 s by NVF
+on the coupled model, ZV, and two planar NVF plans (one per axis) played
+together, its residual the norm of the load's horizontal offset over 4 s
+(figure demo_spatial.png: the diagonal from above and its swing). Prints one
+table, writes figures, stops every node it started. Exit status 0, 1 when a
+node fails to come up or dies (the reason on stderr), 2 on bad options.
 """
 from __future__ import annotations
 
@@ -71,7 +79,7 @@ class Case:
     commission: bool = False  # first plan with the planner's model, identify, then plan again
     hoist: tuple | None = None  # (L1 start, L1 goal) m: the rope moves during the motion (nodes with a hoist)
     #: what is measured: 'move' (a planned move from rest), or motion from any state: 'retarget', 'stop',
-    #: 'settle', 'operator'
+    #: 'settle', 'operator'; 'spatial': the cart and the bridge, offline (``spatial_demo``, no nodes)
     kind: str = 'move'
     #: the methods this case runs by default (of --methods; every one of them with --cases all), None = all;
     #: the operator case's are operator_shaper values
@@ -81,6 +89,11 @@ class Case:
     @property
     def L1(self) -> float:
         return self.plant.L1
+
+    @property
+    def on_nodes(self) -> bool:
+        """Whether the case runs over the nodes (all but the offline spatial case)."""
+        return self.kind != 'spatial'
 
 
 CASES = {
@@ -100,9 +113,13 @@ CASES = {
     'settle': Case('settle', CraneParams(), False, kind='settle', methods=('nvf',)),
     'operator': Case('operator', CraneParams(), False, kind='operator', methods=OPERATOR_SHAPERS,
                      hoisting_nodes=True),
+    # the spatial crane, offline: every method on 0.3 x 0.2 m (nominal, L1 -10 %), and a fast diagonal by
+    # coupled NVF, ZV and NVF per plane (the plants and moves are spatial_demo's)
+    'spatial': Case('spatial', CraneParams(), False, kind='spatial'),
 }
 #: What runs without --cases: every case but perturbed+net (nothing perturbed and nominal+net do not show
-#: between them), so that make demo, hoisting and motion from any state included, stays under 5 minutes;
+#: between them), so that make demo, hoisting, motion from any state and the spatial case included, stays
+#: under 6 minutes;
 #: --cases all runs every one, with every method.
 DEFAULT_CASES = tuple(name for name in CASES if name != 'perturbed+net')
 #: Table columns of the commission case: before and after identification.
@@ -370,8 +387,11 @@ def commission(driver: CraneHarness, args, model: CraneParams):
 
 
 def columns(cases) -> list[str]:
-    """Table columns: one per case, two for the commission case (before and after identification)."""
-    return [name for c in cases for name in ((BEFORE, AFTER) if c.commission else (c.name,))]
+    """Table columns: one per case, two for the commission case (before and after identification), three for
+    the spatial case (``spatial_demo.COLUMNS``)."""
+    from .spatial_demo import COLUMNS
+    return [name for c in cases
+            for name in ((BEFORE, AFTER) if c.commission else COLUMNS if c.kind == 'spatial' else (c.name,))]
 
 
 def _describe(identified) -> str:
@@ -382,14 +402,18 @@ def _describe(identified) -> str:
 
 
 def print_table(runs: list[Run], cases, methods):
+    from .spatial_demo import SETTLE
     width = 32
     print('cells: peak reference acceleration (m/s^2) | residual load swing (mm) measured by the demo | '
           'as the ExecuteMove result reports it (mm) | plan round trip (ms); retarget/stop: after the new goal\'s or '
           "the stop's motion, the time from the request to the handover, settle: 3 s after ~/settle, operator: the "
-          "streamer's operator_shaper, 2.5 s after the stick is released")
-    print(f'{"method":<8}' + ''.join(f'{c:>{width}}' for c in columns(cases)))
+          "streamer's operator_shaper, 2.5 s after the stick is released; spatial: offline (crane_sim's spatial "
+          f"model), the norm of the load's horizontal offset over {SETTLE:g} s after the motion, the peak of the "
+          "horizontal acceleration's norm, the planning time, no ExecuteMove result (nan)")
     by_key = {(r.case, r.method): r for r in runs}
     methods = list(methods) + [m for m in dict.fromkeys(r.method for r in runs) if m not in methods]
+    first = max(8, *(len(m) + 1 for m in methods))  # the spatial case's nvf/plane is longer than a method
+    print(f'{"method":<{first}}' + ''.join(f'{c:>{width}}' for c in columns(cases)))
     for m in methods:
         cells = []
         for c in columns(cases):
@@ -397,29 +421,32 @@ def print_table(runs: list[Run], cases, methods):
             cells.append(f'{r.peak_acceleration:6.3f} |{r.residual_mm:7.2f} |{r.action_residual_mm:7.2f} |'
                          f'{1e3 * r.plan_time_s:5.0f}'
                          if r else '-')
-        print(f'{m:<8}' + ''.join(f'{cell:>{width}}' for cell in cells))
+        print(f'{m:<{first}}' + ''.join(f'{cell:>{width}}' for cell in cells))
 
 
-def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
+def write_figures(runs: list[Run], args, timing_log: Path | None, spatial: list | None = None) -> list[Path]:
+    """Every figure of the cases run (``spatial``: the spatial case's ``SpatialRun`` records, if it ran)."""
     from .figures import plt, save_figure  # headless (Agg) matplotlib
 
     out = Path(args.out)
     written = []
-    moves = [c for c in args.cases if c.kind == 'move'] or list(args.cases)
-    first_case = columns(moves)[0]
-    fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-    for r in runs:
-        if r.case == first_case:
-            axes[0].plot(r.plan_t, r.plan_v, label=r.method.upper())
-            axes[1].plot(r.plan_t, r.plan_a, label=r.method.upper())
-    axes[0].set_ylabel('reference velocity (m/s)')
-    axes[1].set_ylabel('reference acceleration (m/s²)')
-    axes[1].set_xlabel('time (s)')
-    axes[0].set_title(f'served plans: {args.displacement:g} m in {args.duration:g} s (paper Figs. 2-3)')
-    for ax in axes:
-        ax.grid(True, alpha=0.3)
-        ax.legend(ncol=5, fontsize=8)
-    written.append(save_figure(fig, out / 'demo_plans.png'))
+    on_nodes = [c for c in args.cases if c.on_nodes]
+    moves = [c for c in on_nodes if c.kind == 'move'] or on_nodes
+    if moves:  # the plans the streamer served (the spatial case's have their own figure)
+        first_case = columns(moves)[0]
+        fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+        for r in runs:
+            if r.case == first_case:
+                axes[0].plot(r.plan_t, r.plan_v, label=r.method.upper())
+                axes[1].plot(r.plan_t, r.plan_a, label=r.method.upper())
+        axes[0].set_ylabel('reference velocity (m/s)')
+        axes[1].set_ylabel('reference acceleration (m/s²)')
+        axes[1].set_xlabel('time (s)')
+        axes[0].set_title(f'served plans: {args.displacement:g} m in {args.duration:g} s (paper Figs. 2-3)')
+        for ax in axes:
+            ax.grid(True, alpha=0.3)
+            ax.legend(ncol=5, fontsize=8)
+        written.append(save_figure(fig, out / 'demo_plans.png'))
 
     panels = [(name, case) for case in args.cases if case.kind == 'move'
               for name in ((BEFORE, AFTER) if case.commission else (case.name,))]
@@ -447,7 +474,7 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
         axes[-1, 0].set_xlabel('time from motion start (s); measured at 50 Hz (paper Figs. 6-15)')
         written.append(save_figure(fig, out / 'demo_swing.png'))
 
-    any_state = [case for case in args.cases if case.kind != 'move']
+    any_state = [case for case in on_nodes if case.kind != 'move']
     if any_state:  # motion from any state: the swing around the event (the handover, the cancel, ~/settle, the stick)
         fig, axes = plt.subplots(len(any_state), 1, figsize=(9, 2.7 * len(any_state) + 0.6), squeeze=False)
         titles = {'retarget': f'retarget: {args.displacement:g} m, a goal {RETARGET_EXTRA:g} m further at '
@@ -500,7 +527,22 @@ def write_figures(runs: list[Run], args, timing_log: Path | None) -> list[Path]:
             ax.set_xlabel('lateness of the tick (µs)')
             ax.set_ylabel('ticks')
             written.append(save_figure(fig, out / 'demo_tick_timing.png'))
+    if spatial:
+        from .spatial_demo import plot_spatial
+        written.append(plot_spatial(spatial, out / 'demo_spatial.png'))
     return written
+
+
+def run_spatial_case(args) -> tuple[list[Run], list]:
+    """The spatial case, offline (``spatial_demo.run_spatial``, after the nodes have stopped so that the solvers
+    do not share the cores with the stream): its table rows as Runs (no ExecuteMove result: nan) and its
+    ``SpatialRun`` records for the figure."""
+    from .spatial_demo import run_spatial
+    progress('spatial case: planned and simulated offline (crane_sim\'s spatial model, no nodes)')
+    records = run_spatial(args.methods, args.every, log=progress)
+    empty = np.zeros(0)  # no served plan: the demo's plans figure is the nodes'
+    return [Run(r.column, r.method, r.plan_time_s, r.peak_acceleration, r.residual_mm, float('nan'), r.t, r.load_mm,
+                empty, empty, empty) for r in records], records
 
 
 def run_sweep(args) -> Path | None:
@@ -575,11 +617,12 @@ def _run(args, env: dict, t_start: float) -> int:
     written_bag = None
     try:
         model = CraneParams()  # the planner's
-        total = sum(len(case_methods(c, args.methods, args.every)) * (2 if c.commission else 1) for c in args.cases)
+        on_nodes = [c for c in args.cases if c.on_nodes]
+        total = sum(len(case_methods(c, args.methods, args.every)) * (2 if c.commission else 1) for c in on_nodes)
         k = 0
         # the cart-only cases on nodes with the joint [cart], then the hoisting ones on nodes with
-        # [cart, hoist] (the joints are fixed at a node's start-up)
-        setups = [(hoisting, [c for c in args.cases if (c.hoist is not None or c.hoisting_nodes) == hoisting])
+        # [cart, hoist] (the joints are fixed at a node's start-up); none for the spatial case alone
+        setups = [(hoisting, [c for c in on_nodes if (c.hoist is not None or c.hoisting_nodes) == hoisting])
                   for hoisting in (False, True)]
         setups = [(hoisting, cases) for hoisting, cases in setups if cases]
         for i, (hoisting, cases) in enumerate(setups):
@@ -619,6 +662,10 @@ def _run(args, env: dict, t_start: float) -> int:
                 driver.close()
                 driver = None
         # The nodes are stopped here, so the streamer has written its timing log.
+        spatial = None
+        if any(c.kind == 'spatial' for c in args.cases):
+            spatial_runs, spatial = run_spatial_case(args)
+            runs += spatial_runs
         print_table(runs, args.cases, args.methods)
         (out / 'results.json').write_text(json.dumps([r.row() for r in runs], indent=1) + '\n')
         written = [out / 'results.json'] + ([written_bag] if written_bag is not None else [])
@@ -633,7 +680,7 @@ def _run(args, env: dict, t_start: float) -> int:
                 from .figures import plot_identification
                 written.append(plot_identification(recording, identified, out / 'demo_commission_fit.png'))
         if not args.no_figures:
-            written += write_figures(runs, args, timing_log)
+            written += write_figures(runs, args, timing_log, spatial)
             sweep = run_sweep(args)
             if sweep:
                 written.append(sweep)
