@@ -20,7 +20,9 @@ STATUS_ABORTED = 6  # action_msgs/GoalStatus
 
 @pytest.fixture(scope='module')
 def bridge_nodes(start_crane):
-    with start_crane(NS, startup=180.0, joints=JOINTS) as driver:  # the spatial NLPs built too
+    # one solver process: this module's requests come one at a time, and each process builds the spatial
+    # crane's NLPs too at start-up (three of them beside the suite's other tests took minutes)
+    with start_crane(NS, startup=180.0, joints=JOINTS, planner_params={'solver_processes': 1}) as driver:
         yield driver
 
 

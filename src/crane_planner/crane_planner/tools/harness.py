@@ -77,11 +77,12 @@ class HarnessError(RuntimeError):
 
 
 def start_crane_nodes(nodes: NodeGroup, namespace: str, streamer_params: dict | None = None,
-                      hoist: bool = False, joints=None):
+                      hoist: bool = False, joints=None, planner_params: dict | None = None):
     """Start the planner, streamer and sim executables in ``namespace`` (``hoist``: all three with the joints
-    [cart, hoist]; ``joints``: with these, e.g. [cart, bridge])."""
+    [cart, hoist]; ``joints``: with these, e.g. [cart, bridge]; ``planner_params`` and ``streamer_params``
+    besides)."""
     joints = {'joints': list(joints)} if joints else {'joints': ['cart', 'hoist']} if hoist else {}
-    nodes.start(*PLANNER, namespace=namespace, params=joints or None)
+    nodes.start(*PLANNER, namespace=namespace, params={**joints, **(planner_params or {})} or None)
     nodes.start(*STREAMER, namespace=namespace, params={**joints, **(streamer_params or {})} or None)
     nodes.start(*SIM, namespace=namespace, params=joints or None)
 
