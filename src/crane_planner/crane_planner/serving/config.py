@@ -187,8 +187,8 @@ class Config:
         """
         D, duration = min(0.3, self.max_displacement), min(3.0, self.max_duration)
         hoisting = HOIST_JOINT in self.joints
-        travel = [{CART_JOINT: D}] + ([{CART_JOINT: D, BRIDGE_JOINT: 2.0 * D / 3.0}]
-                                      if BRIDGE_JOINT in self.joints else [])
+        # the cart's alone as a number: the planner's limit twins (``planner.toggled_limits``) are of those
+        travel = [D] + ([{CART_JOINT: D, BRIDGE_JOINT: 2.0 * D / 3.0}] if BRIDGE_JOINT in self.joints else [])
         requests = []
         for displacement in travel:
             requests += [VariationalRequest('plan', method, displacement, duration, self.params, self.options)
@@ -197,7 +197,8 @@ class Config:
                 requests += [VariationalRequest('fastest', method, displacement, None, self.params, self.options)
                              for method in VARIATIONAL_METHODS]
             if hoisting:  # and a move that hoists by a tenth of the rope (another NLP)
-                requests += [VariationalRequest('plan', method, {**displacement, HOIST_JOINT: -0.1 * self.params.L1},
+                moving = displacement if isinstance(displacement, dict) else {CART_JOINT: displacement}
+                requests += [VariationalRequest('plan', method, {**moving, HOIST_JOINT: -0.1 * self.params.L1},
                                                 duration, self.params, hoisting_options(self.options))
                              for method in VARIATIONAL_METHODS]
         # a plan from a moving, swinging state and a stop (their own warm starts), over every served axis
