@@ -40,14 +40,15 @@ def parameter_range(lo, hi) -> dict:
     return {'floating_point_range': (float(lo), float(hi))}
 
 
-def check_finite(name: str, value) -> float:
-    """Return ``value`` as float, or raise ParameterError naming ``name``."""
+def check_finite(name: str, value, error: type = None) -> float:
+    """Return ``value`` as float, or raise ``error`` (default ParameterError) naming ``name``."""
+    error = error or ParameterError
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise ParameterError(f'{name} must be a number, got {value!r}') from None
+        raise error(f'{name} must be a number, got {value!r}') from None
     if not math.isfinite(v):
-        raise ParameterError(f'{name} must be finite, got {v}')
+        raise error(f'{name} must be finite, got {v}')
     return v
 
 

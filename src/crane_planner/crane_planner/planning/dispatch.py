@@ -18,7 +18,14 @@ from typing import Callable
 
 from crane_msgs_py.axes import AXES, AXIS_NAMES, AxisLimits, axis
 from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import CraneParams, ParameterError, check_choice, check_nonnegative, check_positive
+from crane_msgs_py.params import (
+    CraneParams,
+    ParameterError,
+    check_choice,
+    check_finite,
+    check_nonnegative,
+    check_positive,
+)
 
 from .hoisting import HOIST_SHAPER_DESIGNS, check_hoist, shaped_hoisting_plan, travel_displacements
 from .limits import axis_limit_error, check_fastest_request
@@ -305,15 +312,7 @@ def fastest(method: str, displacement: float, params: CraneParams | None = None,
 
 def bridge_request(bridge) -> float | None:
     """The bridge's displacement (m) of a request, checked; None without one."""
-    if bridge is None:
-        return None
-    try:
-        bridge = float(bridge)
-    except (TypeError, ValueError):
-        raise PlanError(f'the bridge displacement must be a number (m), got {bridge!r}') from None
-    if not math.isfinite(bridge):
-        raise PlanError(f'the bridge displacement must be finite, got {bridge}')
-    return bridge
+    return None if bridge is None else check_finite('the bridge displacement (m)', bridge, PlanError)
 
 
 def travel_plan(axes: dict) -> AxesPlan:
