@@ -43,8 +43,8 @@ from crane_msgs_py.params import (
     check_positive,
 )
 
-from .dynamics import SwingModel, hoisting_accelerations, load_excursion
-from .spatial import SPATIAL_SWING_NAMES, SpatialPendulum, load_offset
+from .dynamics import SwingModel, hoisting_accelerations
+from .spatial import SPATIAL_SWING_NAMES, SpatialPendulum, load_swing
 
 
 @dataclass(frozen=True)
@@ -447,9 +447,8 @@ class SimResult:
         """Horizontal offset (m) of the load from its rest position below the cart, (n_batch, n): signed
         (positive when it lags) for the planar crane, with a bridge its norm (contract)."""
         L1 = self.plants.L1[:, None] if self.L1 is None else self.L1
-        if 'phi1' in self.states:
-            return np.hypot(*load_offset(self.theta1, self.theta2, self.phi1, self.phi2, L1, self.plants.L2[:, None]))
-        return load_excursion(self.theta1, self.theta2, L1, self.plants.L2[:, None])
+        return load_swing(self.theta1, self.theta2, L1, self.plants.L2[:, None], self.states.get('phi1'),
+                          self.states.get('phi2'))
 
     def members(self, rows) -> 'SimResult':
         """The batch members ``rows`` (a slice or indices) as a result of their own."""
@@ -881,11 +880,9 @@ class CraneSimulator:
     def load_excursion(self) -> float:
         """Horizontal offset (m) of the load from its rest position below the suspension point: in the
         x-z plane signed (positive when it lags), with a bridge its norm (contract)."""
-        if self.spatial:
-            w = self.swing
-            return math.hypot(*load_offset(w.theta1, w.theta2, w.phi1, w.phi2, self.L1, self._plants.L2[0]))
-        s = self.state
-        return float(load_excursion(s.theta1, s.theta2, self.L1, self._plants.L2[0]))
+        w = self.swing
+        phi = (w.phi1, w.phi2) if self.spatial else ()
+        return float(load_swing(w.theta1, w.theta2, self.L1, self._plants.L2[0], *phi))
 
     def joint_state(self) -> tuple[list[float], list[float]]:
         """Positions and velocities of ``joint_names`` (each axis, then the swing), for sensor_msgs/JointState."""

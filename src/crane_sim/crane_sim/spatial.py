@@ -49,6 +49,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .dynamics import load_excursion
+
 #: The spatial swing coordinates, in the contract's order (joint_states' order after the axes).
 SPATIAL_SWING_NAMES = ('theta1', 'theta2', 'phi1', 'phi2')
 
@@ -58,6 +60,15 @@ def cable_direction(a, b) -> tuple:
     arrays: numpy's functions, off the real-time step's path)."""
     cb = np.cos(b)
     return -np.sin(a) * cb, np.sin(b), -np.cos(a) * cb
+
+
+def load_swing(theta1, theta2, L1, L2, phi1=None, phi2=None):
+    """The load's swing (m), floats or arrays: on the planar crane (no ``phi``) its offset along x, signed,
+    positive when it lags (``dynamics.load_excursion``, Fig. 1); with ``phi1``, ``phi2`` (a crane with a
+    bridge) the norm of its horizontal offset from below the suspension point (contract)."""
+    if phi1 is None:
+        return load_excursion(theta1, theta2, L1, L2)
+    return np.hypot(*load_offset(theta1, theta2, phi1, phi2, L1, L2))
 
 
 def load_offset(theta1, theta2, phi1, phi2, L1, L2) -> tuple:

@@ -19,8 +19,7 @@ import math
 from dataclasses import dataclass
 
 from crane_msgs_py.names import STREAM_STATE_TOPIC
-from crane_sim.dynamics import load_excursion
-from crane_sim.spatial import load_offset
+from crane_sim.spatial import load_swing
 
 #: A streamer holding this long (ns) before the motion's end has dropped it (its last ticks are sampled at or
 #: past the end: a stream_state just before it may say holding by a tick).
@@ -91,11 +90,7 @@ class Execution:
         """A ``joint_states`` sample (plant time): the swing now, and the residual once past the end
         (``L1``: the rope length measured with it, with a hoist; else the model's; ``phi``: (phi1, phi2) of a
         crane with a bridge, whose swing is the norm of the load's horizontal offset)."""
-        L1 = self.L1 if L1 is None else L1
-        if phi is None:
-            self.swing = float(load_excursion(theta1, theta2, L1, self.L2))
-        else:
-            self.swing = math.hypot(*load_offset(theta1, theta2, *phi, L1, self.L2))
+        self.swing = float(load_swing(theta1, theta2, self.L1 if L1 is None else L1, self.L2, *(phi or ())))
         self._state_ns = stamp_ns
         end = self.end_ns
         if end is not None and end <= stamp_ns <= self.window_end_ns:

@@ -105,14 +105,12 @@ def _cart(msg) -> int:
 def load_mm(data: BagData) -> np.ndarray:
     """Horizontal offset (mm) of the load from its rest below the cart at each joint_state (with a hoist,
     with the rope length that joint_state reports; with a bridge, the norm of the offset)."""
-    from crane_sim.dynamics import load_excursion
-    from crane_sim.spatial import load_offset
+    from crane_sim.spatial import load_swing
     rope = data.states[:, 4]
     L1 = np.where(np.isnan(rope), data.L1, rope)
-    theta1, theta2, phi1, phi2 = data.states[:, 2], data.states[:, 3], data.states[:, 6], data.states[:, 7]
-    if np.isfinite(phi1).all() and len(phi1):
-        return 1e3 * np.hypot(*load_offset(theta1, theta2, phi1, phi2, L1, data.L2))
-    return 1e3 * load_excursion(theta1, theta2, L1, data.L2)
+    phi = data.states[:, 6:8].T
+    spatial = len(phi[0]) and np.isfinite(phi).all()
+    return 1e3 * load_swing(data.states[:, 2], data.states[:, 3], L1, data.L2, *(phi if spatial else ()))
 
 
 def motion_table(data: BagData, settle: float | None = None) -> list[dict]:
