@@ -36,3 +36,14 @@ def lagrangian_energy(th1, th2, d1, d2, p):
     kinetic = 0.5 * p.m1 * (vx1**2 + vz1**2) + 0.5 * p.m2 * (vx2**2 + vz2**2)
     rest = -p.g * (p.m1 * p.L1 + p.m2 * (p.L1 + p.L2))
     return kinetic + p.g * (p.m1 * z1 + p.m2 * z2) - rest
+
+
+def peak_swing_at_rest(sim, seconds: float) -> float:
+    """The largest load swing (m; the norm with a bridge) of a ``crane_sim.simulator.CraneSimulator`` stepped
+    ``seconds`` on with every axis's reference acceleration at 0: the residual after a motion."""
+    worst = 0.0
+    rest = [0.0] * len(sim.axes)
+    for _ in range(int(round(seconds / sim.dt))):
+        sim.step(rest)
+        worst = max(worst, abs(sim.load_excursion))
+    return worst

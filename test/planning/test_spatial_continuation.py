@@ -7,6 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from references import peak_swing_at_rest
 
 from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
 from crane_msgs_py.params import CraneParams
@@ -57,11 +58,7 @@ class Replay:
 
     def settle(self, seconds: float = 4.0) -> float:
         """The largest load excursion (m, the norm) over ``seconds`` with every reference at rest."""
-        worst = 0.0
-        for _ in range(int(round(seconds / DT))):
-            self.sim.step([0.0, 0.0])
-            worst = max(worst, self.sim.load_excursion)
-        return worst
+        return peak_swing_at_rest(self.sim, seconds)
 
 
 def handover(solvers, params, running: AxesPlan, t_h: float, request):

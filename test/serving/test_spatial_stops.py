@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from references import peak_swing_at_rest
 
 from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
 from crane_msgs_py.params import CraneParams
@@ -62,11 +63,8 @@ class Stream:
         return Measurement(stamp_ns, joints, dataclasses.astuple(self.sim.swing))
 
     def settle(self, seconds: float = 4.0) -> float:
-        worst = 0.0
-        for _ in range(int(round(seconds / DT))):
-            self.sim.step([0.0, 0.0])
-            worst = max(worst, self.sim.load_excursion)
-        return worst
+        """The largest load excursion (m, the norm) over ``seconds`` with every reference at rest."""
+        return peak_swing_at_rest(self.sim, seconds)
 
 
 def motion_accelerations(running: Running, from_ns: int, to_ns: int) -> np.ndarray:
