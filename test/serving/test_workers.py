@@ -12,6 +12,7 @@ import dataclasses
 import os
 import signal
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -80,32 +81,47 @@ def run_in_thread(target, done, name):
 
 def test_a_request_finding_every_worker_busy_waits_for_one_and_nothing_is_built_in_this_process(planner):
     done = []
+    started = time.monotonic()
     threads = [run_in_thread(lambda: planner.plan(*HOPELESS), done, 'hopeless') for _ in range(2)]
     wait_until(lambda: planner._processes.instances == 2 and not planner._processes._idle)
     # due long after a hopeless request's budget of 1 s ends: it waits for that worker, then is solved there
     # (how long the wait and the solve take is the host's: a budget of its own keeps them apart)
     plan = planner.plan('rvf', 0.3, 3.0, MODEL, dataclasses.replace(OPTIONS, max_solve_time=5.0))
-    done.append(('typical', plan))
+    answered = time.monotonic()
     for th in threads:
         th.join()
-    order = [name for name, _ in done]
-    assert order.index('typical') > 0  # it had a worker once a hopeless request's budget was spent
-    assert all(isinstance(result, PlanError) for name, result in done if name == 'hopeless')
+    # it had a worker only once a hopeless request's budget was spent (the order of the threads' own
+    # records after their answers is the scheduler's, not the planner's)
+    assert answered - started >= HOPELESS[-1].max_solve_time
+    assert len(done) == 2 and all(isinstance(result, PlanError) for _, result in done)
     assert plan.evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-9)
     assert planner._pools == {}  # no solver of this process's own, built or used
 
 
 def test_a_request_whose_answer_is_due_before_a_worker_frees_up_is_refused_naming_solver_processes(planner):
-    done = []
-    threads = [run_in_thread(lambda: planner.plan(*HOPELESS), done, 'hopeless') for _ in range(2)]
-    wait_until(lambda: planner._processes.instances == 2 and not planner._processes._idle)
-    # due within 0.1 s + answer_margin, before either hopeless request's budget of 1 s ends
-    with pytest.raises(PlanError, match='raise solver_processes'):
-        planner.plan('nvf', 0.3, 3.0, MODEL, dataclasses.replace(OPTIONS, max_solve_time=0.1))
-    done.append(('refused', None))
-    for th in threads:
-        th.join()
-    assert done[0][0] == 'refused'
+    # due within 0.1 s + answer_margin of its call, before either hopeless request's budget of 1 s ends;
+    # a host that paused this thread past that point frees a worker first: the premise is set up again
+    for _ in range(3):
+        done = []
+        started = time.monotonic()
+        threads = [run_in_thread(lambda: planner.plan(*HOPELESS), done, 'hopeless') for _ in range(2)]
+        wait_until(lambda: planner._processes.instances == 2 and not planner._processes._idle)
+        called = time.monotonic()
+        try:
+            planner.plan('nvf', 0.3, 3.0, MODEL, dataclasses.replace(OPTIONS, max_solve_time=0.1))
+            refusal = None
+        except PlanError as exc:
+            refusal = exc
+            done.append(('refused', None))
+        for th in threads:
+            th.join()
+        if refusal is not None:
+            assert 'raise solver_processes' in str(refusal)
+            assert done[0][0] == 'refused'
+            return
+        # answered: only possible if its answer was due after a hopeless request's budget ended
+        assert called + 0.1 + planner.answer_margin > started + HOPELESS[-1].max_solve_time
+    pytest.fail('the host paused this test past a hopeless request\'s budget three times')
 
 
 def test_a_shaper_plan_is_answered_while_the_workers_build_a_new_configuration():
