@@ -36,30 +36,31 @@ $(PKGS): $(DEPS) devtools/venv-scripts.cfg $(wildcard src/*/setup.py src/*/setup
 	    -e src/crane_msgs_py -e src/crane_sim -e src/crane_planner
 	touch $@
 
-# crane_interfaces (ament_cmake + rosidl): plain cmake, built from scratch whenever an
-# interface file changes, installed into the venv's ros/install/crane_interfaces (nothing
-# outside the venv). Nobody sources anything: a .pth file puts its Python package on sys.path,
-# and a symlink site-packages/ros_crane_interfaces.libs -> its lib/ is where the ROS wheels'
-# bootstrapper (ros_wheels_bootstrapper.pth, which re-executes Python with LD_LIBRARY_PATH set
-# to the venv's lib/ and site-packages/ros_*.libs) finds it, as the type supports need.
+# crane_interfaces (ament_cmake + rosidl): built with colcon, as a ROS workspace builds it, from scratch
+# whenever an interface file changes, into the venv's ros/install/crane_interfaces (nothing outside the
+# venv; test/ros/test_workspace.py builds the Python packages as an overlay on it). Nobody sources
+# anything: a .pth file puts its Python package on sys.path, and a symlink
+# site-packages/ros_crane_interfaces.libs -> its lib/ is where the ROS wheels' bootstrapper
+# (ros_wheels_bootstrapper.pth, which re-executes Python with LD_LIBRARY_PATH set to the venv's lib/ and
+# site-packages/ros_*.libs) finds it, as the type supports need.
 # devtools/patch_ros_cmake.py first repoints the wheels' CMake files at this venv's headers.
 IFACE := src/crane_interfaces
 IFACE_FILES := $(IFACE)/package.xml $(IFACE)/CMakeLists.txt $(wildcard $(IFACE)/msg/*.msg $(IFACE)/srv/*.srv $(IFACE)/action/*.action)
-IFACE_BUILD := $(CURDIR)/$(VENV)/ros/build/crane_interfaces
-IFACE_PREFIX := $(CURDIR)/$(VENV)/ros/install/crane_interfaces
+ROS_WS := $(CURDIR)/$(VENV)/ros
+IFACE_PREFIX := $(ROS_WS)/install/crane_interfaces
+IFACE_LOG := $(ROS_WS)/build/crane_interfaces.log
 IFACES := $(VENV)/.interfaces-installed
 ROS_BUILD_ENV := AMENT_PREFIX_PATH=$(CURDIR)/$(VENV) CMAKE_PREFIX_PATH=$(CURDIR)/$(VENV)
 
 $(IFACES): $(DEPS) devtools/patch_ros_cmake.py $(IFACE_FILES)
 	$(PY) devtools/patch_ros_cmake.py
-	rm -rf $(IFACE_BUILD) $(IFACE_PREFIX) $@
-	@mkdir -p $(IFACE_BUILD)
-	@echo "building crane_interfaces (log: $(IFACE_BUILD)/build.log)"
-	@( $(ROS_BUILD_ENV) cmake -S $(IFACE) -B $(IFACE_BUILD) -DCMAKE_INSTALL_PREFIX=$(IFACE_PREFIX) \
-	       -DPython3_EXECUTABLE=$(CURDIR)/$(PY) -DBUILD_TESTING=OFF \
-	   && $(ROS_BUILD_ENV) cmake --build $(IFACE_BUILD) -j2 \
-	   && cmake --install $(IFACE_BUILD) ) > $(IFACE_BUILD)/build.log 2>&1 \
-	   || { tail -n 40 $(IFACE_BUILD)/build.log; exit 1; }
+	rm -rf $(ROS_WS)/build $(ROS_WS)/install $(ROS_WS)/log $@
+	@mkdir -p $(ROS_WS)/build
+	@echo "building crane_interfaces with colcon (log: $(IFACE_LOG))"
+	@$(ROS_BUILD_ENV) MAKEFLAGS=-j2 $(VENV)/bin/colcon --log-base $(ROS_WS)/log build --base-paths $(IFACE) \
+	    --build-base $(ROS_WS)/build --install-base $(ROS_WS)/install \
+	    --cmake-args -DPython3_EXECUTABLE=$(CURDIR)/$(PY) -DBUILD_TESTING=OFF > $(IFACE_LOG) 2>&1 \
+	   || { tail -n 40 $(IFACE_LOG); tail -n 40 $(ROS_WS)/log/latest_build/crane_interfaces/stdout_stderr.log; exit 1; }
 	@site=$$($(PY) -c 'import sysconfig; print(sysconfig.get_path("purelib"))') \
 	 && pkg=$$(cd $(IFACE_PREFIX) && ls -d lib/python3*/site-packages) \
 	 && echo $(IFACE_PREFIX)/$$pkg > $$site/crane_interfaces.pth \

@@ -1,4 +1,9 @@
-"""The workspace builds with colcon (from the venv) and installs executables where `ros2 run` looks."""
+"""The workspace builds with colcon (from the venv) and installs executables where `ros2 run` looks.
+
+``make install`` builds the interface package with colcon into the venv's ``ros/install`` (the underlay);
+these tests check that install and build the Python packages with colcon as an overlay on it, as a ROS
+user's workspace on top of an installed one.
+"""
 import os
 import signal
 import subprocess
@@ -45,35 +50,47 @@ def test_interface_package_generates_every_interface_file():
         assert on_disk == set(INTERFACE_FILES) and all(f'"{f}"' in cmake for f in on_disk)
 
 
+#: Where ``make install`` put the colcon-built interface package: the overlay's underlay.
+UNDERLAY = Path(sys.prefix) / 'ros' / 'install'
+
+
 @pytest.fixture(scope='module')
 def colcon_install(tmp_path_factory):
+    """The Python packages built with colcon on top of the underlay; the install base."""
     base = tmp_path_factory.mktemp('colcon')
     colcon = Path(sys.executable).parent / 'colcon'
-    # The PyPI wheels' ROS prefix is the venv: ament_cmake packages find their CMake modules and the
-    # rosidl type supports (through the ament index) there (what sourcing a ROS install does).
-    prefix = str(Path(sys.prefix))
-    env = dict(os.environ, AMENT_PREFIX_PATH=prefix, CMAKE_PREFIX_PATH=prefix)
+    # The PyPI wheels' ROS prefix is the venv, and the interface package is in the underlay (what sourcing
+    # a ROS install and the underlay's setup does): colcon finds crane_interfaces, a dependency, there.
+    prefixes = os.pathsep.join([str(UNDERLAY / pkg) for pkg in INTERFACE_PACKAGES] + [str(Path(sys.prefix))])
+    env = dict(os.environ, AMENT_PREFIX_PATH=prefixes, CMAKE_PREFIX_PATH=prefixes)
     r = subprocess.run([str(colcon), '--log-base', str(base / 'log'), 'build', '--base-paths', str(ROOT / 'src'),
-                        '--build-base', str(base / 'build'), '--install-base', str(base / 'install'),
-                        '--cmake-args', f'-DPython3_EXECUTABLE={sys.executable}', '-DBUILD_TESTING=OFF'],
+                        '--packages-skip', *INTERFACE_PACKAGES,
+                        '--build-base', str(base / 'build'), '--install-base', str(base / 'install')],
                        cwd=base, env=env, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
     return base / 'install'
 
 
+def prefix_of(colcon_install, pkg: str) -> Path:
+    """The install prefix of ``pkg``: the underlay's for the interface package, the overlay's for the others."""
+    return (UNDERLAY if pkg in INTERFACE_PACKAGES else colcon_install) / pkg
+
+
 def colcon_env(colcon_install, env):
-    """``env`` with the colcon install's Python packages and libraries first (what `source install/setup.bash`
-    does): the generated interface packages need their lib/ on LD_LIBRARY_PATH for their type supports."""
-    site = [str(p) for p in colcon_install.glob('*/lib/python3*/site-packages')]
-    libs = [str(p.parent) for p in colcon_install.glob('*/lib/lib*.so')]
+    """``env`` with the overlay's and the underlay's Python packages and libraries first (what `source
+    install/setup.bash` does): the generated interface packages need their lib/ on LD_LIBRARY_PATH for their
+    type supports."""
+    bases = (colcon_install, UNDERLAY)
+    site = [str(p) for base in bases for p in base.glob('*/lib/python3*/site-packages')]
+    libs = [str(p.parent) for base in bases for p in base.glob('*/lib/lib*.so')]
     return dict(env, PYTHONPATH=os.pathsep.join(site + [env.get('PYTHONPATH', '')]),
                 LD_LIBRARY_PATH=os.pathsep.join(sorted(set(libs)) + [env.get('LD_LIBRARY_PATH', '')]))
 
 
 def test_colcon_build_installs_packages(colcon_install):
     for pkg in PACKAGES:
-        assert (colcon_install / pkg / 'share' / 'ament_index' / 'resource_index' / 'packages' / pkg).exists()
-        assert (colcon_install / pkg / 'share' / pkg / 'package.xml').exists()
+        assert (prefix_of(colcon_install, pkg) / 'share' / 'ament_index' / 'resource_index' / 'packages' / pkg).exists()
+        assert (prefix_of(colcon_install, pkg) / 'share' / pkg / 'package.xml').exists()
     for pkg, exes in EXECUTABLES.items():
         for exe in exes:
             path = colcon_install / pkg / 'lib' / pkg / exe
@@ -81,10 +98,11 @@ def test_colcon_build_installs_packages(colcon_install):
             assert path.stat().st_mode & 0o111
 
 
-def test_colcon_build_installs_interface_packages(colcon_install):
-    """crane_interfaces: its definitions, its Python package and every type support library."""
+def test_colcon_build_installs_interface_packages():
+    """crane_interfaces (make install's colcon build): its definitions, its Python package and every type
+    support library."""
     for pkg in INTERFACE_PACKAGES:
-        prefix = colcon_install / pkg
+        prefix = UNDERLAY / pkg
         assert (prefix / 'share' / 'ament_index' / 'resource_index' / 'rosidl_interfaces' / pkg).exists()
         for name in INTERFACE_FILES:
             installed = prefix / 'share' / pkg / name
@@ -98,8 +116,8 @@ def test_colcon_build_installs_interface_packages(colcon_install):
             assert list((site / pkg).glob(f'{pkg}_s__{ts}*.so')), f'{pkg} Python extension for {ts} missing'
 
 
-#: Run by the venv's Python against the colcon install: the types load, serialize through Fast DDS's
-#: type support, and come from the colcon install (its Python package and its libraries).
+#: Run by the venv's Python against the colcon installs: the types load, serialize through Fast DDS's
+#: type support, and come from the colcon-built interface package (its Python package and its libraries).
 IMPORT_CHECK = """
 import crane_interfaces
 from crane_interfaces.action import ExecuteMove
@@ -121,10 +139,9 @@ def test_colcon_installed_interfaces_import_with_type_supports(colcon_install):
     r = subprocess.run([sys.executable, '-c', IMPORT_CHECK], env=env, capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stdout + r.stderr
     module_file, libraries = r.stdout.splitlines()[-2:]
-    prefix = str(colcon_install / 'crane_interfaces')
+    prefix = str(UNDERLAY / 'crane_interfaces')
     assert module_file.startswith(prefix)
     assert 'rosidl_typesupport_fastrtps_c.so' in libraries and prefix + '/lib/' in libraries
-    assert str(Path(sys.prefix)) not in libraries  # not the venv's own build of crane_interfaces
 
 
 #: The parameters files each package installs into share/<package>/config (ROS packages' layout).
