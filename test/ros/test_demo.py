@@ -24,12 +24,23 @@ def offline_residuals_mm(methods, plant_L1: float) -> dict:
     return {row['method']: row['residual']['load_mm'] for row in json.loads(r.stdout)}
 
 
-def test_reduced_demo_agrees_with_crane_plan(tmp_path):
-    r = subprocess.run([str(BIN / 'crane-demo'), '--methods', 'zv,nvf', '--cases', 'nominal,perturbed',
-                        '--duration', str(DURATION), '--settle', str(SETTLE), '--out', str(tmp_path),
-                        '--no-figures'], capture_output=True, text=True, timeout=300)
+@pytest.fixture(scope='module')
+def cart_demo(tmp_path_factory):
+    """One crane-demo on one set of nodes with the joint [cart]: the nominal and perturbed cases with ZV and
+    NVF, then a push settled, recorded (rosbag2 mcap); the run, its output folder and its bag. The tests below
+    read what each needs from it (a run of its own each would start the nodes four times)."""
+    out = tmp_path_factory.mktemp('cart-demo')
+    bag = out / 'bag'
+    r = subprocess.run([str(BIN / 'crane-demo'), '--methods', 'zv,nvf', '--cases', 'nominal,perturbed,settle',
+                        '--duration', str(DURATION), '--settle', str(SETTLE), '--out', str(out),
+                        '--sweep-points', '0', '--record', str(bag)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    rows = json.loads((tmp_path / 'results.json').read_text())
+    return r, out, bag
+
+
+def test_reduced_demo_agrees_with_crane_plan(cart_demo):
+    r, out, _ = cart_demo
+    rows = [row for row in json.loads((out / 'results.json').read_text()) if row['case'] != 'settle']
     assert {(row['case'], row['method']) for row in rows} == {
         ('nominal', 'zv'), ('nominal', 'nvf'), ('perturbed', 'zv'), ('perturbed', 'nvf')}
     offline_by_case = {'nominal': offline_residuals_mm(('zv', 'nvf'), 0.47),
@@ -145,17 +156,13 @@ def test_commissioning_identifies_the_unknown_crane_and_cuts_its_residual_swing(
     assert 'commission:model' in r.stdout and 'commission:identified' in r.stdout
 
 
-def test_the_demo_records_a_rosbag2_mcap_that_an_independent_reader_reads(tmp_path):
+def test_the_demo_records_a_rosbag2_mcap_that_an_independent_reader_reads(cart_demo, tmp_path):
     """Read back with the mcap library (not rosbags, which wrote it): every topic with its ROS 2 type
     and schema; joint_states stamps 20 ms apart; the messages decode to what was sent; crane-plan
     report reads it and finds the demo's residual."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
-    bag = tmp_path / 'bag'
-    r = subprocess.run([str(BIN / 'crane-demo'), '--methods', 'zv', '--cases', 'nominal', '--duration', '2.5',
-                        '--settle', '2', '--out', str(tmp_path), '--no-figures', '--sweep-points', '0',
-                        '--record', str(bag)], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
+    _, out, bag = cart_demo
     assert (bag / 'metadata.yaml').is_file()
     [mcap_file] = bag.glob('*.mcap')
     with open(mcap_file, 'rb') as f:
@@ -194,32 +201,32 @@ def test_the_demo_records_a_rosbag2_mcap_that_an_independent_reader_reads(tmp_pa
     assert n1 - n0 > 2000 and recorded >= 0.99 * (n1 - n0), (recorded, n1 - n0)
     # stamped with the receive time: within 50 ms of the sample's own stamp (the streamer's tick)
     assert np.percentile(np.abs(np.subtract(log_times, references)), 99) < 50e6
-    # the demo's two moves: 0.3 m in 2.5 s with ZV, and back in 1.5 s with NVF (the default --return-duration)
-    ends = sorted((round(tr.points[-1].positions[0], 9), tr.points[-1].time_from_start.sec
-                   + 1e-9 * tr.points[-1].time_from_start.nanosec) for tr in trajectories)
-    assert ends[0] == (0.0, pytest.approx(1.5)) and ends[-1] == (0.3, pytest.approx(2.5))
+    # the demo's first two moves: 0.3 m in 2.5 s with ZV, and back in 1.5 s with NVF (the default
+    # --return-duration); then the other method and case, each there and back
+    ends = [(round(tr.points[-1].positions[0], 9), tr.points[-1].time_from_start.sec
+             + 1e-9 * tr.points[-1].time_from_start.nanosec) for tr in trajectories]
+    assert ends[:2] == [(0.3, pytest.approx(2.5)), (0.0, pytest.approx(1.5))]
+    assert ends[2:8] == [(0.3, pytest.approx(2.5)), (0.0, pytest.approx(1.5))] * 3, ends
     # crane-plan report reads the same recording: the motions, and the demo's residual for the ZV move
     rep = subprocess.run([str(BIN / 'crane-plan'), 'report', str(bag), '--out', str(tmp_path / 'report'),
                           '--json'], capture_output=True, text=True, timeout=120)
     assert rep.returncode == 0, rep.stderr
     report = json.loads(rep.stdout)
     assert report['L1'] == pytest.approx(0.47, abs=1e-9) and report['L2'] == pytest.approx(0.391, abs=1e-9)
-    assert [round(m['duration_s'], 6) for m in report['motions']] == [2.5, 1.5]
-    demo = json.loads((tmp_path / 'results.json').read_text())[0]['residual_mm']
+    assert [round(m['duration_s'], 6) for m in report['motions'][:8]] == [2.5, 1.5] * 4
+    demo = json.loads((out / 'results.json').read_text())[0]['residual_mm']  # the nominal case's ZV move
     assert report['motions'][0]['residual_mm'] == pytest.approx(demo, abs=0.02)
     assert {p.name for p in (tmp_path / 'report').glob('*.png')} == {'report_motion.png', 'report_timing.png',
                                                                       'report_crane.png'}
 
 
-def test_the_demo_settles_a_push(tmp_path):
+def test_the_demo_settles_a_push(cart_demo):
     """The demo's motion-from-any-state cases measure what they say (the others share its code, and the
     ROS tests of test_motion_from_state and test_operator hold what they show): a 30 mm push settled
     below 1 mm, its figure written; a shaper is not asked to settle."""
-    r = subprocess.run([str(BIN / 'crane-demo'), '--cases', 'settle', '--methods', 'nvf,zv',
-                        '--out', str(tmp_path), '--no-record', '--sweep-points', '0'],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
-    rows = {(row['case'], row['method']): row for row in json.loads((tmp_path / 'results.json').read_text())}
+    _, out, _ = cart_demo
+    rows = {(row['case'], row['method']): row for row in json.loads((out / 'results.json').read_text())
+            if row['case'] == 'settle'}
     assert set(rows) == {('settle', 'nvf')}, rows
     assert rows[('settle', 'nvf')]['residual_mm'] < 1.0
-    assert (tmp_path / 'demo_any_state.png').stat().st_size > 10_000
+    assert (out / 'demo_any_state.png').stat().st_size > 10_000
