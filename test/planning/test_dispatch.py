@@ -78,6 +78,27 @@ def test_a_solver_cache_keeps_one_solver_per_key_and_answers_as_a_new_solver_doe
     assert np.max(np.abs(again.evaluate(t).position - fresh.evaluate(t).position)) < 1e-8
 
 
+@pytest.mark.parametrize('method, options', [('rvf', PlanOptions(robust=('L1',), max_velocity=0.3)),
+                                             ('nvf', PlanOptions(intervals=12))])
+def test_plans_made_without_a_cache_share_their_nlp_and_are_the_plan_a_newly_built_solver_gives(method, options):
+    """``plan`` with no ``variational``: each call's solver starts cold, as one built for it alone does, so
+    the plans are exactly that solver's; their NLP (most of a build) is built once per structure."""
+    from crane_planner.planning.dispatch import VariationalRequest, variational_solver
+    request = VariationalRequest('plan', method, 0.3, 3.0, MODEL, options)
+    alone = request.run(variational_solver(method, options))
+    first = dispatch.plan(method, 0.3, 3.0, MODEL, options)
+    other = dispatch.plan(method, 0.28, 2.9, MODEL, options)  # its solver's warm start would have been first's
+    again = dispatch.plan(method, 0.3, 3.0, MODEL, options)
+    t = np.linspace(0.0, 3.0, 301)
+    for plan in (first, again):
+        assert np.array_equal(plan.evaluate(t).position, alone.evaluate(t).position)
+        assert plan.info['iterations'] == alone.info['iterations']
+    assert other.evaluate(2.9).position[0] == pytest.approx(0.28, abs=1e-9)
+    structure = variational_solver(method, options).structure
+    [(transcriptions, _)] = [v for k, v in dispatch._SHARED_NLPS.items() if k == structure]
+    assert len(transcriptions) == 1  # one model form, one NLP, whatever the calls
+
+
 @pytest.mark.parametrize('budget', [0.0, -1.0, float('nan')])
 def test_max_solve_time_must_be_positive(budget):
     with pytest.raises(ParameterError, match='max_solve_time'):

@@ -82,6 +82,13 @@ class DirectSolver(VariationalSolver):
             other._warm_source = self  # a cold start takes many times the iterations of a warm one
         return other
 
+    def share(self, transcriptions: dict, lock) -> 'DirectSolver':
+        """Build this solver's NLPs into ``transcriptions`` (guarded by ``lock``) and take those already there:
+        a store kept for solvers of one ``structure`` and no overrides (``dispatch.plan`` without a cache).
+        Its IPOPT instances and warm starts stay its own: it solves as a newly built solver does. Itself."""
+        self._transcriptions, self._transcriptions_lock = transcriptions, lock
+        return self
+
     def transcription(self, form, free_time: bool = False) -> Transcription:
         """The NLP of one model form (``problem.Form``, or ``servo`` without a hoist; of fixed or free final
         time), built on first use, shared with spawned solvers."""

@@ -2,7 +2,9 @@
 
 ``plan`` and ``fastest`` validate a request and make a shaped plan here, or
 hand a ``VariationalRequest`` to a ``variational`` callable that runs it on
-an NVF/RVF solver: by default a new solver each time; ``SolverCache`` keeps
+an NVF/RVF solver: by default a new solver each time, started cold, whose
+NLP is built once per structure and shared (a repeated call costs a solve,
+not a build, and plans exactly as a newly built solver); ``SolverCache`` keeps
 them (one caller at a time, e.g. a worker process); the serving layer
 (``crane_planner.serving.Planner``) lends them from pools and worker
 processes. So the CLI, the planner node and every worker accept and refuse
@@ -12,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Callable
@@ -359,8 +362,20 @@ def hoisting_options(options: PlanOptions) -> PlanOptions:
     return dataclasses.replace(options, robust=options.hoist_robust)
 
 
+#: The NLPs (transcriptions and their derivatives, most of a solver's build) of the solvers ``plan`` and
+#: ``fastest`` make when given no ``variational``, by NLP structure: a later call of the same structure builds
+#: only its own IPOPT instance and starts cold, as a new solver does, so its plan is the same.
+_SHARED_NLPS: dict = {}
+_SHARED_NLPS_LOCK = threading.Lock()
+
+
 def _new_solver(request: VariationalRequest) -> Plan:
-    return request.run(variational_solver(request.method, request.options))
+    solver = variational_solver(request.method, request.options)
+    if hasattr(solver, 'share'):  # the direct route's
+        with _SHARED_NLPS_LOCK:
+            store = _SHARED_NLPS.setdefault(solver.structure, ({}, threading.Lock()))
+        solver.share(*store)
+    return request.run(solver)
 
 
 class SolverCache:
