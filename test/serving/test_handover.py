@@ -57,9 +57,11 @@ def test_a_late_plan_is_planned_again_further_ahead_with_a_longer_lead():
 def test_planning_always_longer_than_the_lead_is_refused_after_its_attempts():
     clock = FakeClock(T0)
     make, asked = planner(clock, [1.0, 3.0, 10.0])  # each beyond its lead, the lead growing each time
-    with pytest.raises(MoveError, match='3 times .* raise handover_lead'):
+    with pytest.raises(MoveError, match='3 times .* raise handover_lead') as refusal:
         plan(clock, motion(duration=60.0), 0.010, make)
     assert len(asked) == 3
+    last_lead = (asked[2][1] - asked[2][0]) * 1e-9  # the lead of the third attempt, which the refusal names
+    assert f'last lead {last_lead:.3f} s' in str(refusal.value)
 
 
 def test_a_rehearsal_is_planned_once_however_long_it_takes():

@@ -102,6 +102,7 @@ def plan_handover(clock: Callable[[], int], running: Running, lead: float,
     (``state_at(handover_ns)``), planned again further ahead if it took longer than that; None if the
     motion ends first. ``rehearse``: planned once, however long it took, for nothing to be sent.
     MoveError after ``attempts`` plans too slow for their lead."""
+    tried = lead
     for _ in range(attempts):
         handover = max(clock() + round(lead * 1e9), running.origin_ns)
         if handover >= running.end_ns:
@@ -121,9 +122,9 @@ def plan_handover(clock: Callable[[], int], running: Running, lead: float,
             return Handover(plan, handover, state)
         warn(f'handover: planning took {1e3 * took:.1f} ms (the state {1e3 * (t1 - t0):.1f} ms), beyond the '
              f'lead {1e3 * lead:.1f} ms: planning again further ahead')
-        lead = max(2.0 * lead, 1.5 * took + TRANSPORT_MARGIN)
+        tried, lead = lead, max(2.0 * lead, 1.5 * took + TRANSPORT_MARGIN)
     raise MoveError('duration', f'planning took longer than the handover lead {attempts} times '
-                                f'(last lead {lead / 2:.3f} s); raise handover_lead')
+                                f'(last lead {tried:.3f} s); raise handover_lead')
 
 
 def taken(execution: Execution, handover_ns: int, wait: float = 0.5,
