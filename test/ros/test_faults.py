@@ -14,6 +14,7 @@ import math
 import os
 import signal
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -339,6 +340,26 @@ def test_a_link_stall_mid_move_brakes_the_axes_and_the_streamer_starts_again_whe
     result = crane.planner.result(crane.planner.send_execute('zv', None, here, 2.0, settle=0.5), timeout=30.0)
     assert result.success, result.message
     crane.reset_sim()  # the swing gone for the next test
+
+
+def test_a_sim_paused_longer_than_its_reference_timeout_resumes_tracking_without_a_fault(crane):
+    """The sim's process stopped (SIGSTOP) for 1.5 s, longer than its reference_timeout (1 s), while the stream
+    holds, then continued: its own stall is not the stream's silence (``ReferencePlayout.behind``), so the axes
+    run no fault reaction and the next goal is served."""
+    crane, recorder = crane
+    here = streamed_hold(crane)
+    count = len(recorder.status_list())
+    sim = next(p for p in crane.nodes.processes if p.name.startswith('sim'))
+    os.kill(sim.popen.pid, signal.SIGSTOP)
+    try:
+        time.sleep(1.5)
+    finally:
+        os.kill(sim.popen.pid, signal.SIGCONT)
+    crane.sleep(1.5)
+    seen = [x[1] for x in recorder.status_list()[count:]]
+    assert not {'fault_stopping', 'fault_hold'} & set(seen), f'the sim ran its fault reaction: {seen}'
+    result = crane.planner.result(crane.planner.send_execute('zv', None, here - 0.2, 2.0, settle=0.5), timeout=30.0)
+    assert result.success, result.message
 
 
 def test_joint_states_lost_during_a_goal_end_it_saying_the_residual_was_not_measured(crane):

@@ -182,6 +182,26 @@ def test_a_stopped_stream_falls_back_to_zero_once():
     assert np.all(a[:10] == 1.0) and np.all(a[40:] == 0.0) and playout.timeouts == 1
 
 
+def test_a_stall_of_the_plant_s_own_loop_is_not_the_stream_s_silence():
+    """The sim's loop stalled (the host paused it) and catches up: a step 1.5 s late, its newest sample 1.6 s
+    old, still plays it (timeout 1 s: the samples of the stall may be on their way); once the loop is on
+    time again the same age is a lost stream, as it is without the lateness."""
+    def stalled(late: float):
+        playout = ReferencePlayout(delay=0.0, timeout=1.0)
+        playout.push(0.0, 0.0, 0.5)
+        playout.push(0.1, 0.0, 0.5)
+        assert playout.step(0.1, 0.101) == (0.5, 0.5)
+        playout.behind(late)
+        return playout, playout.step(1.7, 1.701)
+
+    playout, played = stalled(late=1.5)
+    assert played == (0.5, 0.5) and playout.timeouts == 0
+    playout.behind(0.0)  # on time again
+    assert playout.step(1.701, 1.702) == (0.0, 0.0) and playout.timeouts == 1
+    _, played = stalled(late=0.0)
+    assert played == (0.0, 0.0)
+
+
 def test_stamps_must_increase_and_choices_are_checked():
     playout = ReferencePlayout(delay=0.0, timeout=0.1)
     playout.push(1.0, 0.0, 0.0)

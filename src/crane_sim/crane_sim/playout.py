@@ -87,6 +87,7 @@ class ReferencePlayout:
         self._last = -math.inf         # stamp of the last sample pushed
         self._current = None           # (t, value): the newest sample at or before the playout time
         self._live = False             # whether _current is recent enough to count
+        self._behind = 0.0             # how late (s) the plant's loop runs this step (``behind``)
         self._played: list[float] = []  # position source: positions played out at the last two steps
         # acceleration source, samples later than the delay:
         # (end, h, tau0, tau1) of the last steps, which a later sample could still change: plant time (s) at
@@ -102,11 +103,18 @@ class ReferencePlayout:
         self._last = float(t)
         self._queue.append((float(t), float(position if self.source == 'position' else acceleration)))
 
+    def behind(self, late: float):
+        """The plant's loop runs this step ``late`` s after its time (it stalled: the host paused it, and it
+        catches up): samples sent up to then may not have reached it yet, so the newest sample's age counts
+        only beyond that. A stream is judged lost over time the simulator was there to receive it, not over
+        its own stall. Set before each step (0: on time)."""
+        self._behind = max(0.0, float(late))
+
     def _advance(self, tau: float):
         queue = self._queue
         while queue and queue[0][0] <= tau:
             self._current = queue.popleft()
-        live = self._current is not None and tau - self._current[0] <= self.timeout
+        live = self._current is not None and tau - self._current[0] <= self.timeout + self._behind
         if self._live and not live:
             self.timeouts += 1
         self._live = live

@@ -360,6 +360,9 @@ class SimNode(Node):
                     counts['out_of_order'] += 1
             t1 = t0 + dt
             if controller.state is tracking:
+                late = (now - deadline) * 1e-9  # catching up after a stall: its samples may be on their way
+                for one in playouts:
+                    one.behind(late)
                 tracked = [one.step(t0, t1) for one in playouts]
                 lost, seen = playout.timeouts > seen, playout.timeouts
                 sim.step(*zip(*controller.step(t0, t1, tracked, lost)))
