@@ -27,6 +27,15 @@ def test_a_stale_sample_is_counted_and_ignored(intake):
     assert intake.take_latencies() == [400 * MS]  # only accepted samples are measured (from the second on)
 
 
+def test_a_sample_is_stale_by_the_plant_s_time_when_the_loop_runs_behind(intake):
+    """The sim's loop stalled and catches up, its step 0.8 s behind the arrival: a sample 0.6 s old on arrival
+    is 0.2 s ahead of the plant, not stale (timeout 0.5 s); on time again, the same age is."""
+    assert intake.receive(T0 + 600 * MS, T0, 0.1, 0.0, played_ns=T0 - 200 * MS) == (T0, 0.1, 0.0)
+    assert intake.receive(T0 + 1200 * MS, T0 + 600 * MS, 0.1, 0.0, played_ns=T0 + 1200 * MS) is None
+    assert intake.receive(T0 + 1200 * MS, T0 + 601 * MS, 0.1, 0.0, played_ns=T0 + 1500 * MS) is None  # arrival
+    assert counted(intake, 'stale', 'accepted') == {'stale': 2, 'accepted': 1}
+
+
 def test_an_out_of_order_sample_is_counted_and_ignored(intake):
     assert intake.receive(T0, T0 + 5 * MS, 0.1, 0.2) == (T0 + 5 * MS, 0.1, 0.2)
     assert intake.receive(T0, T0 + 5 * MS, 0.1, 0.2) is None   # a duplicate

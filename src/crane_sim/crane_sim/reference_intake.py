@@ -93,12 +93,14 @@ class ReferenceIntake:
         self.counts['malformed'] += 1
 
     def receive(self, now_ns: int, stamp_ns: int | None, position: float,
-                acceleration: float, others=()) -> tuple | None:
+                acceleration: float, others=(), played_ns: int | None = None) -> tuple | None:
         """The sample for the playout, (stamp ns, position m, acceleration m/s^2[, the others' pairs]), or None
         if ignored.
 
         Args:
             now_ns: arrival time (ns of ROS time).
+            played_ns: the plant's time (ns of ROS time) when the simulator's loop runs behind it (it stalled and
+                catches up): a stamped sample is stale only once that far past it, not the arrival time.
             stamp_ns: the sample's stamp (ns); 0 or None if unstamped.
             position, acceleration: the sample of the first axis, the cart (m, m/s^2).
             others: (position, acceleration) of each further axis (the hoist) in the same sample:
@@ -114,7 +116,7 @@ class ReferenceIntake:
             extra = tuple(0.0 if k % 2 else x for k, x in enumerate(extra))
         if not (math.isfinite(position) and math.isfinite(acceleration) and all(map(math.isfinite, extra))):
             counts['nonfinite'] += 1
-        elif stamped and now_ns - stamp > self._timeout_ns:
+        elif stamped and min(now_ns, now_ns if played_ns is None else played_ns) - stamp > self._timeout_ns:
             counts['stale'] += 1
         elif stamped and stamp <= self._last_stamp:
             counts['out_of_order'] += 1

@@ -186,6 +186,7 @@ class SimNode(Node):
         self._lateness = Lateness()
         self._window = (time.monotonic(), 0, 0)  # (time, steps, published) at the last report
 
+        self._played_ns: int | None = None  # ROS time of the step the loop runs (``ReferenceIntake.receive``)
         self._reference_sub = None
         self._reference_type = p['reference_type']
         self._playout_args = self._playout_args_of(p)
@@ -280,7 +281,7 @@ class SimNode(Node):
         except ValueError:
             self._intake.count_malformed()
             return
-        sample = self._intake.receive(now, stamp, position, acceleration, others)
+        sample = self._intake.receive(now, stamp, position, acceleration, others, self._played_ns)
         if sample is not None:
             self._inbox.append(sample)
 
@@ -359,6 +360,7 @@ class SimNode(Node):
                 except SimulationError:  # not after the last one (a playout swapped meanwhile)
                     counts['out_of_order'] += 1
             t1 = t0 + dt
+            self._played_ns = epoch_ros + ticker.tick * dt_ns  # what the intake judges staleness by
             if controller.state is tracking:
                 late = (now - deadline) * 1e-9  # catching up after a stall: its samples may be on their way
                 for one in playouts:
