@@ -116,7 +116,7 @@ class ReferenceIntake:
             extra = tuple(0.0 if k % 2 else x for k, x in enumerate(extra))
         if not (math.isfinite(position) and math.isfinite(acceleration) and all(map(math.isfinite, extra))):
             counts['nonfinite'] += 1
-        elif stamped and min(now_ns, now_ns if played_ns is None else played_ns) - stamp > self._timeout_ns:
+        elif stamped and (now_ns if played_ns is None else min(now_ns, played_ns)) - stamp > self._timeout_ns:
             counts['stale'] += 1
         elif stamped and stamp <= self._last_stamp:
             counts['out_of_order'] += 1

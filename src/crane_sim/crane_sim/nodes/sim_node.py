@@ -321,7 +321,8 @@ class SimNode(Node):
         while not self._loop_thread.stopping.is_set():
             deadline = ticker.deadline
             now = sleep_until(deadline, 0)
-            lateness.add(now - deadline)
+            late_ns = now - deadline
+            lateness.add(late_ns)
             t0 = ticker.tick * dt  # nominal time of the step since step 0
             if self._pending_params is not None:
                 params, self._pending_params = self._pending_params, None
@@ -362,9 +363,8 @@ class SimNode(Node):
             t1 = t0 + dt
             self._played_ns = epoch_ros + ticker.tick * dt_ns  # what the intake judges staleness by
             if controller.state is tracking:
-                late = (now - deadline) * 1e-9  # catching up after a stall: its samples may be on their way
-                for one in playouts:
-                    one.behind(late)
+                for one in playouts:  # catching up after a stall: its samples may be on their way
+                    one.behind(late_ns * 1e-9)
                 tracked = [one.step(t0, t1) for one in playouts]
                 lost, seen = playout.timeouts > seen, playout.timeouts
                 sim.step(*zip(*controller.step(t0, t1, tracked, lost)))
