@@ -712,6 +712,30 @@ def test_axis_limit_set_on_the_planner_applies_to_the_next_request(crane):
     assert crane.planner.plan('zv', 5.0, 5.3, 3.0).position[-1] == pytest.approx(5.3, abs=1e-9)
 
 
+def test_keep_out_boxes_set_on_the_planner_refuse_a_preview_through_one_and_give_the_clearance_of_one_past(crane):
+    """A wall across the runway 0.10 m above the load, 0.25 m ahead of the cart at 5 m: a move through it is
+    refused naming it (also on /diagnostics); one that stops before it says its clearance; a box of five
+    numbers is refused naming the parameter; without boxes the clearance is infinite."""
+    from crane_msgs_py.diagnostics import ERROR
+    from crane_planner.tools.harness import HarnessError
+    wall = [5.25, 5.35, -math.inf, math.inf, -2.0, -0.76]
+    crane.driver.set_parameters('planner', {'keep_out': wall, 'keep_out_margin': 0.02})
+    try:
+        mark = crane.diagnostics.mark()
+        with pytest.raises(PlanError, match=r'move.keep_out: the zv plan does not keep out: the load \(m2\) comes '
+                                            r'[0-9.]+ mm into keep_out box 1 \(x 5.25..5.35, y -inf..inf'):
+            crane.planner.plan('zv', 5.0, 5.6, 4.0)
+        assert crane.diagnostics.wait_for(lambda s: 'keep_out box 1' in s.message, 5.0, after=mark,
+                                          name='crane_planner: plan', level=ERROR) is not None
+        plan = crane.planner.plan('zv', 5.0, 5.15, 4.0)  # the load swings ~8 mm about its path: 80 mm clear
+        assert 0.05 < plan.info.min_clearance < 0.1 and plan.info.route == ''
+        with pytest.raises(HarnessError, match=r'keep_out: .*keep_out: 5 number\(s\); a box is six'):
+            crane.driver.set_parameters('planner', {'keep_out': wall[:5]})
+    finally:
+        crane.driver.set_parameters('planner', {'keep_out': []})
+    assert crane.planner.plan('zv', 5.0, 5.6, 4.0).info.min_clearance == math.inf
+
+
 def test_fastest_services_answer_the_shortest_plan_within_the_limits_and_refuse_without(crane):
     """~/fastest/<method>: the goal stamp is ignored, the last pose carries the end time, equal to the
     planning core's own fastest plan; refused naming the missing limit when none is set."""

@@ -138,6 +138,24 @@ def cable_direction(a, b):
     return ca.vertcat(-ca.sin(a) * ca.cos(b), ca.sin(b), -ca.cos(a) * ca.cos(b))
 
 
+@functools.lru_cache(maxsize=1)
+def mass_positions() -> ca.Function:
+    """(p1, p2): both masses' positions (m) in ``crane_base`` (contract "The spatial crane").
+
+    p1 = s + L1 u(theta1, phi1), p2 = p1 + L2 u(theta1 + theta2, phi1 + phi2)
+    (``cable_direction``), s = (x, y, 0) the suspension point; the planar
+    crane is phi1 = phi2 = 0 (Fig. 1: x1 = x - L1 sin theta1, z1 = -L1 cos
+    theta1). Inputs x, y, L1, L2, theta1, theta2, phi1, phi2; evaluated on
+    numbers (a predicted path, ``mass_path``) and on the NLP's symbols alike.
+    """
+    x, y, L1, L2, th1, th2, ph1, ph2 = (ca.SX.sym(n) for n in ('x', 'y', 'L1', 'L2', 'theta1', 'theta2',
+                                                                 'phi1', 'phi2'))
+    p1 = ca.vertcat(x, y, 0) + L1 * cable_direction(th1, ph1)
+    p2 = p1 + L2 * cable_direction(th1 + th2, ph1 + ph2)
+    return ca.Function('mass_positions', [x, y, L1, L2, th1, th2, ph1, ph2], [p1, p2],
+                       ['x', 'y', 'L1', 'L2', 'theta1', 'theta2', 'phi1', 'phi2'], ['p1', 'p2'])
+
+
 def _inverse2(X):
     """The inverse of a 2x2 matrix by its adjugate (for the positive definite blocks of a mass matrix)."""
     det = X[0, 0] * X[1, 1] - X[0, 1] * X[1, 0]

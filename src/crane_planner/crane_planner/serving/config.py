@@ -25,6 +25,7 @@ from ..planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOpti
 from ..planning.continuation import AxisState, MotionState, problem_start
 from ..planning.dispatch import VariationalRequest, hoisting_options
 from ..planning.hoisting import HOIST_SHAPER_DESIGNS
+from ..planning.keep_out import KeepOut
 from ..planning.profiles import BASES
 from .moves import MoveBounds
 
@@ -64,6 +65,13 @@ PARAMETERS = {
                          'bridge NVF and RVF plan on the spatial crane; every array of a Move is per joint in this '
                          'order); fixed at start-up',
                {'additional_constraints': 'cart, then any of bridge, hoist in this order', 'read_only': True}),
+    'keep_out': ([], 'protected areas: axis-aligned boxes in crane_base (x along the cart, y along the bridge, z up, '
+                     '0 at the suspension point), six numbers each, x0 x1 y0 y1 z0 z1 (min <= max, .inf allowed), '
+                     'flat; both masses, swing included, are predicted on the planning model to keep at least '
+                     'keep_out_margin out of every box over a plan and its settle window, else it is refused',
+                 {'additional_constraints': 'a multiple of 6 numbers, each box min <= max per axis'}),
+    'keep_out_margin': (0.02, 'distance (m) both masses keep from every keep_out box, >= 0',
+                        parameter_range(0.0, 100.0)),
     'publish_lead': (0.3, 'an executed trajectory is sent to the streamer this long (s) before its start '
                           'time, so that a goal canceled before then streams nothing (one starting as '
                           'soon as possible is sent at once)', parameter_range(0.0, 10.0)),
@@ -143,6 +151,7 @@ class Config:
     handover_priority: int = 40
     handover_warmup: float = 0.02
     stream_timeout: float = 1.0
+    keep_out: KeepOut = KeepOut()
 
     @property
     def bounds(self) -> MoveBounds:
@@ -174,7 +183,8 @@ class Config:
                    check_positive('handover_lead', v['handover_lead']),
                    check_positive('shaper_handover_lead', v['shaper_handover_lead']), v['settle_method'],
                    int(v['handover_priority']), check_nonnegative('handover_warmup', v['handover_warmup']),
-                   check_positive('stream_timeout', v['stream_timeout']))
+                   check_positive('stream_timeout', v['stream_timeout']),
+                   KeepOut.from_values(v['keep_out'], v['keep_out_margin']))
 
     def warmups(self) -> list[VariationalRequest]:
         """Requests that build the NVF/RVF solvers of this configuration.

@@ -20,6 +20,8 @@ from crane_msgs_py.params import CraneParams
 
 from ..planning.dispatch import PlanOptions, check_request
 from ..planning.hoisting import QuinticPlan
+from ..planning.keep_out import KeepOut, KeepOutError
+from ..planning.mass_path import predict_mass_path, rest_positions
 from ..planning.methods import METHODS
 from ..planning.plan import AxesPlan, Plan, PlanError
 from .workers import WorkerDied
@@ -214,6 +216,40 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
                                  if name not in planned})
 
 
+def check_rests_keep_out(move: CheckedMove, params: CraneParams, keep_out: KeepOut) -> None:
+    """MoveError (``move.start`` or ``move.goal``) naming the box if a mass at rest at the move's start or goal
+    is within ``keep_out``'s margin of one of its boxes."""
+    for label in ('start', 'goal'):
+        at = {name: getattr(m, label) for name, m in move.axes.items()}
+        reason = keep_out.rest_violation(rest_positions(at[CART_JOINT], at.get(BRIDGE_JOINT, 0.0),
+                                                        at.get(HOIST_JOINT, params.L1), params.L2))
+        if reason is not None:
+            raise MoveError(label, reason)
+
+
+def keep_out_clearance(plan: Plan, origin: dict, params: CraneParams, keep_out: KeepOut,
+                       start: dict | None = None) -> float:
+    """The smallest distance (m) of a mass to a ``keep_out`` box along ``plan`` and its settle window, predicted
+    on the planning model ``params`` (``mass_path.predict_mass_path``: ``origin`` where each travel axis's
+    reference starts, ``start`` the model's state there, None = at rest); inf without boxes; also in the plan's
+    ``info`` as ``min_clearance`` (``summarize``). MoveError (``keep_out``) naming the box, the mass and when
+    if it is below the margin."""
+    if not keep_out:
+        return math.inf
+    path = predict_mass_path(plan, params, origin, start=start)
+    try:
+        distance = keep_out.check(path, f'the {plan.method} plan').distance
+    except KeepOutError as exc:
+        raise MoveError('keep_out', str(exc)) from None
+    plan.info['min_clearance'] = distance
+    return distance
+
+
+def origin_of(move: CheckedMove) -> dict:
+    """Where each travel axis of ``move`` starts (m, by name): what its relative plan is added to."""
+    return {name: m.start for name, m in move.axes.items() if name != HOIST_JOINT}
+
+
 def with_hoist_held(plan: Plan, length: float | None) -> Plan:
     """``plan`` of the cart with the hoist held at ``length`` (m) beside it; ``plan`` itself without a hoist
     (``length`` None)."""
@@ -255,10 +291,13 @@ class PlanSummary:
     peak_acceleration: tuple
     peak_jerk: tuple
     predicted_residual: float = math.nan
+    min_clearance: float = math.inf
+    route: str = ''
 
 
 def summarize(plan: Plan, joint_names=(CART_JOINT,), solve_time: float | None = None) -> PlanSummary:
-    """The ``PlanInfo`` of a plan; ``solve_time`` defaults to the solver's own figure (0 for shapers).
+    """The ``PlanInfo`` of a plan; ``solve_time`` defaults to the solver's own figure (0 for shapers); the
+    smallest predicted distance of a mass to a keep-out box if it was checked (``keep_out_clearance``).
 
     Peaks per joint of ``joint_names`` (an ``AxesPlan``'s axes by name).
     """
@@ -268,4 +307,5 @@ def summarize(plan: Plan, joint_names=(CART_JOINT,), solve_time: float | None = 
     return PlanSummary(plan.method, float(plan.duration),
                        float(info.get('solve_time_s', 0.0) if solve_time is None else solve_time),
                        int(info.get('iterations', 0)), tuple(joint_names), *(tuple(p[k] for p in peaks)
-                                                                            for k in range(3)))
+                                                                            for k in range(3)),
+                       min_clearance=float(info.get('min_clearance', math.inf)))

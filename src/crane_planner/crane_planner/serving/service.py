@@ -25,7 +25,7 @@ from typing import Any, Callable
 
 from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT, STREAM_STATE_TOPIC
 
-from ..planning.continuation import swing_names
+from ..planning.continuation import problem_start, swing_names
 from ..planning.methods import METHODS, SHAPER_METHODS, VARIATIONAL_METHODS
 from ..planning.plan import Plan, time_grid
 from ..streaming.knots import knot_times
@@ -46,7 +46,17 @@ from .handover import (
     streamed_origin,
     taken,
 )
-from .moves import CheckedMove, Move, MoveError, axis_samples, check_move, plan_move
+from .moves import (
+    CheckedMove,
+    Move,
+    MoveError,
+    axis_samples,
+    check_move,
+    check_rests_keep_out,
+    keep_out_clearance,
+    origin_of,
+    plan_move,
+)
 from .stops import STOP_LEAD, plan_stop
 from .transitions import JointReading, Measurement, Running, Trajectory
 
@@ -183,7 +193,9 @@ class MoveService:
             for name, axis_move in checked.axes.items():  # the other axes' as <name>_start, <name>_goal
                 if name != CART_JOINT:
                     values.update({f'{name}_start': axis_move.start, f'{name}_goal': axis_move.goal})
+            check_rests_keep_out(checked, config.params, config.keep_out)
             plan = plan_move(self.planner, checked, config.bounds, config.params, config.options)
+            clearance = keep_out_clearance(plan, origin_of(checked), config.params, config.keep_out)
             if execute:  # after planning: a preview and a goal of the same bad move give the same reason
                 check_executable(checked, hold, heard is not None and heard.operator, self.view.foreign_motion())
         except ValueError as exc:
@@ -192,6 +204,8 @@ class MoveService:
         values['duration'] = plan.duration
         trajectory = Trajectory(checked.joints, axis_samples(plan, knots_of(plan, config)), checked.starts,
                                 checked.start_ns)
+        if math.isfinite(clearance):
+            values['min_clearance'] = clearance
         return Planned(checked, plan, trajectory, values, self._timer() - t0)
 
     # -- a goal's arrival (the goals' thread) ----------------------------------------------
@@ -426,14 +440,20 @@ class MoveService:
             if checked.duration is None:
                 raise MoveError('duration', 'a goal during a motion needs a duration (> 0 s): the fastest plan is '
                                             'planned from rest only')
+            check_rests_keep_out(checked, config.params, config.keep_out)
             goal = checked.goals
             shaper = checked.method not in VARIATIONAL_METHODS
             lead = arrival_lead((config.shaper_handover_lead if shaper else config.handover_lead) * lead_scale,
                                 arrived_ns, self.clock())
 
             def make(handover_ns, state):
-                return transitions.retarget(self.planner.variational, running, handover_ns, state, checked.method,
+                plan = transitions.retarget(self.planner.variational, running, handover_ns, state, checked.method,
                                             goal, checked.duration, config.params, config.options)
+                if config.keep_out:  # from the state at the handover: its swing, the servo's lag
+                    start, model = problem_start(state, config.params)
+                    origin = {name: s.position for name, s in state.axes.items() if name != HOIST_JOINT}
+                    keep_out_clearance(plan, origin, model, config.keep_out, start)
+                return plan
 
             try:
                 done = self._handover(running, lead, make, swing=not shaper, rehearse=rehearse)

@@ -19,6 +19,8 @@ from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, PlanOptions, dispatch
 from crane_planner.planning.hoisting import HOIST_SHAPER_DESIGNS
+from crane_planner.planning.keep_out import DEFAULT_MARGIN, KeepOut, KeepOutError, boxes_from_flat
+from crane_planner.planning.mass_path import predict_mass_path, rest_positions
 from crane_planner.planning.plan import AxesPlan
 from crane_planner.planning.profiles import BASES
 from crane_planner.serving import Planner
@@ -154,7 +156,63 @@ def _add_displacements(p: argparse.ArgumentParser):
                         'residuals are the norm of the load\'s horizontal offset')
 
 
+def _bound(text: str) -> float:
+    """A box side (m): a number, or -inf/inf for a side without end."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number') from None
+    if math.isnan(v):
+        raise argparse.ArgumentTypeError('must be a number or +-inf, got nan')
+    return v
+
+
+def _add_keep_out(p: argparse.ArgumentParser):
+    g = p.add_argument_group('protected areas (the masses, swing included, kept out of boxes)')
+    g.add_argument('--keep-out', type=_bound, nargs=6, action='append', metavar=('X0', 'X1', 'Y0', 'Y1', 'Z0', 'Z1'),
+                   help='a box in crane_base (m; x along the cart, y along the bridge, z up, 0 at the suspension '
+                        'point at the start; inf for a side without end), repeatable: both masses, predicted on '
+                        'the planning model over the motion and the settle window, must keep --margin out of it, '
+                        'else the plan is refused naming the box')
+    g.add_argument('--margin', type=_finite, default=DEFAULT_MARGIN, metavar='M',
+                   help=f'distance (m) the masses keep from every box (default {DEFAULT_MARGIN:g})')
+
+
+def _box_sides_as_values(argv: list) -> list:
+    """argv with the six values after each ``--keep-out`` that argparse would take for options (``-inf``)
+    marked as values (a leading space, which ``float`` ignores)."""
+    argv = list(argv)
+    for k, token in enumerate(argv):
+        if token == '--keep-out':
+            for i in range(k + 1, min(k + 7, len(argv))):
+                if argv[i].lower() in ('-inf', '-infinity'):
+                    argv[i] = ' ' + argv[i]
+    return argv
+
+
+def _keep_out(args) -> KeepOut:
+    """The boxes and margin of ``--keep-out``/``--margin``; a bad one is a UsageError naming the option."""
+    try:
+        return KeepOut(boxes_from_flat([v for box in args.keep_out or () for v in box], '--keep-out'), args.margin)
+    except KeepOutError as e:
+        raise UsageError(f'argument {str(e).replace("keep_out_margin", "--margin")}') from None
+
+
+def _check_keep_out(plan: Plan, args, model: CraneParams) -> None:
+    """Refuse (KeepOutError) a plan whose start, goal or predicted masses come within the margin of a box; its
+    clearance in its ``info`` (``min_clearance``) otherwise."""
+    keep_out = args.keep_out_areas
+    if not keep_out:
+        return
+    L1_start, L1_goal = args.hoist or (model.L1, model.L1)
+    for where, x, y, L1 in (('the start', 0.0, 0.0, L1_start),
+                            ('the goal', args.displacement, args.bridge or 0.0, L1_goal)):
+        keep_out.check_rest(rest_positions(x, y, L1, model.L2), where)
+    plan.info['min_clearance'] = keep_out.check(predict_mass_path(plan, model), f'the {plan.method} plan').distance
+
+
 def _add_task_options(p: argparse.ArgumentParser, fastest: bool = False):
+    _add_keep_out(p)
     _add_displacements(p)
     if not fastest:
         p.add_argument('--duration', type=_finite, required=True, metavar='T', help='motion duration (s), > 0')
@@ -273,20 +331,24 @@ def _timed_plan(planner: Planner, method, args, model, options) -> tuple[Plan, f
         plan = dispatch.fastest(method, args.displacement, model, options, planner.variational, **axes)
     else:
         plan = dispatch.plan(method, args.displacement, args.duration, model, options, planner.variational, **axes)
-    return plan, time.perf_counter() - t0
+    elapsed = time.perf_counter() - t0
+    _check_keep_out(plan, args, model)
+    return plan, elapsed
 
 
 def _print_table(reports: list[dict]):
+    clearance = any('min_clearance' in r for r in reports)
     head = (f'{"method":<7}{"plan s":>8}{"peak v":>9}{"peak a":>9}{"rms a":>9}{"peak j":>9}'
-            f'{"peak th1":>10}{"peak th2":>10}{"resid mm":>10}')
+            f'{"peak th1":>10}{"peak th2":>10}{"resid mm":>10}' + (f'{"clear mm":>10}' if clearance else ''))
     print(head)
     print('-' * len(head))
     for r in reports:
         pk, rm = r['peak'], r['rms']
         print(f'{r["method"]:<7}{r["plan_time_s"]:>8.3f}{pk["velocity"]:>9.4f}{pk["acceleration"]:>9.4f}'
               f'{rm["acceleration"]:>9.4f}{pk["jerk"]:>9.3f}{pk["theta1"]:>10.5f}{pk["theta2"]:>10.5f}'
-              f'{r["residual"]["load_mm"]:>10.4f}')
-    print('units: m/s, m/s^2, m/s^3, rad, mm (peaks and RMS over the motion, residual after it)')
+              f'{r["residual"]["load_mm"]:>10.4f}' + (f'{r["min_clearance"] * 1e3:>10.1f}' if clearance else ''))
+    print('units: m/s, m/s^2, m/s^3, rad, mm (peaks and RMS over the motion, residual after it'
+          + (', clearance: the masses\' smallest distance to a keep-out box' if clearance else '') + ')')
 
 
 def _check_settle(args):
@@ -565,8 +627,10 @@ COMMANDS = {'plan': cmd_plan, 'compare': cmd_compare, 'sweep': cmd_sweep, 'choos
 
 def main(argv=None) -> int:
     try:
-        args = build_parser().parse_args(argv)
+        args = build_parser().parse_args(_box_sides_as_values(sys.argv[1:] if argv is None else list(argv)))
         args.methods_given = getattr(args, 'methods', None) is not None
+        if hasattr(args, 'keep_out'):
+            args.keep_out_areas = _keep_out(args)
         if args.command != 'plan' and not args.methods_given:
             args.methods = list(METHODS)
         return COMMANDS[args.command](args)

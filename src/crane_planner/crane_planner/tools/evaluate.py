@@ -128,6 +128,8 @@ def plan_report(ev: Evaluation, plan_time_s: float, index: int = 0) -> dict:
         'residual': dict(m['residual']),
         'plan_time_s': plan_time_s,
         **axes_report(ev.plan),
+        # the smallest predicted distance of a mass to a keep-out box (m), when boxes were given
+        **({'min_clearance': ev.plan.info['min_clearance']} if 'min_clearance' in ev.plan.info else {}),
     }
 
 

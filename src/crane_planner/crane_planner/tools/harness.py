@@ -247,9 +247,12 @@ class CraneHarness:
             self.wait_until(ready, deadline - time.monotonic(), f'{what} not up within {timeout:g} s')
 
     def set_parameters(self, target: str, values: dict):
-        """Set parameters on the ``planner``, ``sim`` or ``streamer`` node; HarnessError names any refused."""
+        """Set parameters on the ``planner``, ``sim`` or ``streamer`` node; HarnessError names any refused.
+
+        An empty list is an empty double array (rclpy would take it for a byte array)."""
         client = self._params[target]
-        params = [Parameter(k, value=v) for k, v in values.items()]
+        params = [Parameter(k, Parameter.Type.DOUBLE_ARRAY, []) if isinstance(v, list) and not v
+                  else Parameter(k, value=v) for k, v in values.items()]
         result = self._wait(client.set_parameters(params), 5.0, f'{target} parameter service')
         refused = [f'{p.name}: {r.reason}' for p, r in zip(params, result.results) if not r.successful]
         if refused:

@@ -1,0 +1,124 @@
+"""Protected areas (contract "Routes and protected areas"): keep-out boxes, the masses' predicted path and
+its clearance.
+
+The distances are checked against closed forms; the path the planner
+predicts on its CasADi model (``mass_path``) against crane_sim's independent
+NumPy simulator driven by the same plan, its masses placed by crane_sim's
+own cable directions.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from crane_msgs_py.params import CraneParams
+from crane_planner.planning import PlanOptions
+from crane_planner.planning.dispatch import SolverCache, plan
+from crane_planner.planning.keep_out import Box, KeepOut, KeepOutError, boxes_from_flat
+from crane_planner.planning.mass_path import predict_mass_path, rest_positions
+from crane_planner.tools.evaluate import simulate_plan
+from crane_sim.spatial import cable_direction
+
+NOMINAL = CraneParams().replace(tau=0.0, tau_hoist=0.0)
+#: The contract's wall: x 0.25-0.35 m across the whole runway, from the floor up to 0.10 m above the load.
+WALL = (0.25, 0.35, -math.inf, math.inf, -2.0, -0.76)
+
+
+# -- boxes ---------------------------------------------------------------------------------------------------
+
+def test_a_box_s_distance_is_euclidean_outside_and_minus_the_depth_inside():
+    box = Box((0.0, 0.0, 0.0), (1.0, 2.0, 3.0))
+    assert box.distance((-3.0, 1.0, 1.0)) == pytest.approx(3.0)  # a face
+    assert box.distance((2.0, 4.0, 1.5)) == pytest.approx(math.hypot(1.0, 2.0))  # an edge
+    assert box.distance((-1.0, -2.0, 5.0)) == pytest.approx(3.0)  # a corner: sqrt(1 + 4 + 4)
+    assert box.distance((0.25, 1.0, 1.5)) == pytest.approx(-0.25)  # inside, nearest the x0 face
+    assert box.distance((0.5, 1.9, 1.5)) == pytest.approx(-0.1)  # inside, nearest the y1 face
+    points = np.array([[-3.0, 1.0, 1.0], [0.25, 1.0, 1.5]])
+    assert box.distance(points) == pytest.approx([3.0, -0.25])
+
+
+def test_an_unbounded_side_is_never_the_nearest():
+    wall = boxes_from_flat(WALL)[0]
+    assert wall.distance((0.3, 1e6, -1.0)) == pytest.approx(-0.05)
+    assert wall.distance((0.0, -1e6, -0.5)) == pytest.approx(math.hypot(0.25, 0.26))
+    assert wall.contains((0.3, 0.0, -0.861)) and not wall.contains((0.3, 0.0, -0.70), margin=0.02)
+
+
+@pytest.mark.parametrize('values, words', [
+    ([0, 1, 0, 1, 0], 'keep_out: 5 number(s); a box is six'),
+    ([0, 1, 0, 1, 0, 1, 2, 1, 0, 1, 0, 1], 'keep_out: box 2: x min 2 > max 1'),
+    ([0, 1, 0, float('nan'), 0, 1], 'keep_out: box 1: y is NaN'),
+    ([0, 1, math.inf, math.inf, 0, 1], 'keep_out: box 1: y span inf..inf holds no point'),
+])
+def test_a_bad_box_is_refused_naming_it(values, words):
+    with pytest.raises(KeepOutError, match=words.replace('(', r'\(').replace(')', r'\)')):
+        boxes_from_flat(values)
+
+
+def test_a_negative_margin_is_refused():
+    with pytest.raises(KeepOutError, match='keep_out_margin: must be finite and >= 0 m, got -0.01'):
+        KeepOut.from_values(WALL, -0.01)
+    assert not KeepOut() and KeepOut.from_values(WALL).margin == 0.02
+
+
+def test_a_rest_inside_a_box_or_within_the_margin_is_refused_naming_the_box_and_the_mass():
+    keep_out = KeepOut.from_values((*WALL, 0.9, 1.1, -0.1, 0.1, -2.0, -0.1))
+    keep_out.check_rest(rest_positions(0.0, 0.0, 0.47, 0.391), 'move.start')  # 0.25 m before the wall: fine
+    with pytest.raises(KeepOutError, match=r'move.goal: the load \(m2\) at rest there.* is inside keep_out box 1'):
+        keep_out.check_rest(rest_positions(0.3, 0.0, 0.47, 0.391), 'move.goal')
+    # the upper mass hangs at z = -0.47, above the wall's top (-0.76): only the load is in it
+    with pytest.raises(KeepOutError, match=r'from \(margin 20 mm\) keep_out box 1'):
+        keep_out.check_rest(rest_positions(0.235, 0.0, 0.47, 0.391), 'move.goal')  # 15 mm before the wall
+    with pytest.raises(KeepOutError, match=r'the upper mass \(m1\) .* inside keep_out box 2'):
+        keep_out.check_rest(rest_positions(1.0, 0.0, 0.47, 0.391), 'move.goal')
+
+
+# -- the predicted path against crane_sim's ----------------------------------------------------------------
+
+def simulated_masses(p, params: CraneParams, settle: float):
+    """(t, m1, m2) of crane_sim driven by ``p`` (1 ms, its own model), placed by crane_sim's cable directions."""
+    ev = simulate_plan(p, params, settle=settle)
+    s = {k: v[0] for k, v in ev.sim.states.items()}
+    zero = 0.0 * s['y']
+    L1 = s.get('L1', zero + params.L1)
+    phi1, phi2 = s.get('phi1', zero), s.get('phi2', zero)
+    u1 = np.array(cable_direction(s['theta1'], phi1))
+    u2 = np.array(cable_direction(s['theta1'] + s['theta2'], phi1 + phi2))
+    suspension = np.array([s['y'], s.get('yb', zero), zero])
+    m1 = suspension + L1 * u1
+    return ev.sim.t, m1.T, (m1 + params.L2 * u2).T
+
+
+@pytest.mark.parametrize('method, axes', [
+    ('zv', {}), ('nvf', {}), ('zvd', {'bridge': 0.2}), ('nvf', {'hoist': (0.47, 0.30)}),
+    ('zv', {'bridge': 0.2, 'hoist': (0.47, 0.60)}),
+])
+def test_the_predicted_masses_follow_crane_sim_s_within_10_micrometres(method, axes):
+    p = plan(method, 0.3, 3.0, NOMINAL, PlanOptions(), variational=SolverCache(), **axes)
+    path = predict_mass_path(p, NOMINAL, {'cart': 0.1, 'bridge': -0.05}, settle=1.5)
+    t, m1, m2 = simulated_masses(p, NOMINAL, 1.5)
+    offset = np.array([0.1, -0.05, 0.0])
+    for predicted, simulated in ((path.m1, m1), (path.m2, m2)):
+        at_t = np.stack([np.interp(t, path.t, predicted[:, i]) for i in range(3)], axis=1)
+        assert np.abs(at_t - (simulated + offset)).max() < 1e-5
+    assert path.t[-1] == pytest.approx(3.0 + 1.5) and path.duration == 3.0
+    swing = np.hypot(*(m2[:, :2] - m1[:, :2]).T).max()
+    assert swing > 0.01  # the masses did swing: the agreement is not that of two rests
+
+
+def test_a_direct_move_past_the_wall_enters_it_and_is_refused_naming_the_wall():
+    """The load hangs at -0.861 m, 0.10 m below the wall's top: a direct move of the cart past it enters it
+    (the deepest at the wall's middle, x = 0.30 m, half its width), the upper mass never does."""
+    keep_out = KeepOut.from_values(WALL, 0.02)
+    p = plan('zv', 0.6, 4.0, NOMINAL, PlanOptions())
+    path = predict_mass_path(p, NOMINAL)
+    c = keep_out.clearance(path)
+    assert c.mass == 'm2' and c.box.number == 1 and c.distance == pytest.approx(-0.05, abs=1e-4)
+    assert c.point[0] == pytest.approx(0.30, abs=1e-4) and 0.0 < c.time < 4.0
+    with pytest.raises(KeepOutError, match=r'the plan does not keep out: the load \(m2\) comes 50.0 mm into '
+                                           r'keep_out box 1 \(x 0.25..0.35, y -inf..inf, z -2..-0.76 m\)'):
+        keep_out.check(path)
+    # lifted 0.15 m (the load at -0.711 m, 49 mm above the top): the same move keeps out
+    lifted = predict_mass_path(p, NOMINAL.replace(L1=0.32))
+    assert keep_out.check(lifted).distance == pytest.approx(0.049, abs=1e-4)
+    assert KeepOut().clearance(lifted).distance == math.inf
