@@ -78,3 +78,25 @@ def test_a_goal_during_a_motion_whose_handover_would_enter_a_box_is_refused_and_
     assert old.state is not GoalState.TAKEN_OVER
     crane.clock.sleep(3.0)
     assert crane.hold == pytest.approx(0.3)
+
+
+def test_nvf_past_the_wall_is_routed_over_it_a_shaper_and_a_cart_alone_are_refused_saying_why():
+    """With a hoist (the rope 0.47 m at both ends), NVF lifts the load over the wall: its PlanInfo says
+    route over and a clearance of at least the margin; a shaper is refused pointing to nvf/rvf; on a
+    planner of the cart alone NVF has no way past it."""
+    from crane_planner.serving import Planner
+    from crane_planner.serving.moves import check_move, plan_keeping_out
+    planner = Planner()
+    hoisted = config(joints=['cart', 'hoist'], keep_out=WALL, tau=0.0, tau_hoist=0.0, max_solve_time=10.0)
+    move_ = check_move(Move('nvf', goal=(0.6, 0.47), duration=4.0), hoisted.bounds, None, hoisted.params.L1)
+    plan = plan_keeping_out(planner, move_, hoisted.bounds, hoisted.params, hoisted.options, hoisted.keep_out)
+    summary = summarize(plan, move_.joints)
+    assert summary.route == 'over' and 0.02 <= summary.min_clearance < 0.04
+    assert plan.axes['hoist'].evaluate([4.0]).position[0] + plan.starts['hoist'] == pytest.approx(0.47, abs=1e-9)
+    zv = check_move(Move('zv', goal=(0.6, 0.47), duration=4.0), hoisted.bounds, None, hoisted.params.L1)
+    with pytest.raises(MoveError, match='shapers do not route past boxes: nvf and rvf do'):
+        plan_keeping_out(planner, zv, hoisted.bounds, hoisted.params, hoisted.options, hoisted.keep_out)
+    alone = config(keep_out=WALL, tau=0.0)
+    cart = check_move(Move('nvf', goal=(0.6,), duration=4.0), alone.bounds, None, alone.params.L1)
+    with pytest.raises(MoveError, match='no route past it: the served axes allow none'):
+        plan_keeping_out(planner, cart, alone.bounds, alone.params, alone.options, alone.keep_out)

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .plan import Plan
+from .plan import Plan, PlanError
 from .problem import PROBLEM_PARAMETERS, Problem, breakpoints
 
 
@@ -82,6 +82,26 @@ class CollocationPlan(Plan):
         return pos, vel, acc, jerk
 
 
+#: Keep-out boxes' sides beyond this (m) from the origin count as unbounded (an inf side of a box is this).
+KEEP_OUT_FAR = 100.0
+#: The length (m) the keep-out rows are divided by: O(1) for clearances of centimetres to decimetres.
+KEEP_OUT_SCALE = 0.1
+
+
+def keep_out_parameters(boxes: int) -> int:
+    """How many NLP parameters follow the mesh fractions with ``boxes`` keep-out boxes: the travel axes' start
+    positions (x, y), the margin, then x0 x1 y0 y1 z0 z1 of each box."""
+    return 3 + 6 * boxes
+
+
+def keep_out_values(keep_out, origin: dict, extra: float = 0.0) -> np.ndarray:
+    """The values of ``keep_out_parameters`` for a ``keep_out.KeepOut`` (its margin plus ``extra``) and the
+    travel axes' start positions ``origin`` (m, by joint name)."""
+    sides = [np.clip(v, -KEEP_OUT_FAR, KEEP_OUT_FAR) for box in keep_out.boxes
+             for pair in zip(box.lower, box.upper) for v in pair]
+    return np.array([origin.get('cart', 0.0), origin.get('bridge', 0.0), keep_out.margin + extra, *sides])
+
+
 class Transcription:
     """Radau collocation of a ``Problem`` on ``intervals`` mesh intervals, built once.
 
@@ -102,15 +122,19 @@ class Transcription:
     #: to make the optimum unique (the limits alone leave the inside of the motion free).
     free_time_cost_weight = 1e-9
 
-    def __init__(self, problem: Problem, intervals: int, limits: bool, free_time: bool = False):
+    def __init__(self, problem: Problem, intervals: int, limits: bool, free_time: bool = False, boxes: int = 0):
         t0 = time.perf_counter()
         self.problem, self.intervals, self.limits, self.free_time = problem, intervals, limits, free_time
         nx, nu, N, d = problem.nx, problem.nu, intervals, self.degree
+        if boxes and free_time:
+            raise PlanError('keep-out boxes are planned at a fixed duration only')
+        self.boxes = boxes
         self.tau_nodes, C, self.B, self.basis = radau_coefficients(d)
         npar = len(PROBLEM_PARAMETERS)
-        P = ca.SX.sym('P', npar + N)
-        Pp, frac = P[:npar], P[npar:]
-        w = ca.SX.sym('w', nx + N * d * (nx + nu) + (1 if free_time else 0))
+        P = ca.SX.sym('P', npar + N + (keep_out_parameters(boxes) if boxes else 0))
+        Pp, frac = P[:npar], P[npar:npar + N]
+        self.nweights = 6 * boxes * N * d  # the face weights of the keep-out constraints, last in w
+        w = ca.SX.sym('w', nx + N * d * (nx + nu) + (1 if free_time else 0) + self.nweights)
         # free final time: T = sigma T_0 with sigma the last variable and T_0 the parameter T, which
         # keeps scaling the states; every interval length is then sigma frac[k] of T_0
         sigma = w[-1] if free_time else 1
@@ -147,6 +171,9 @@ class Transcription:
                     bj.append(ca.mtimes(to_bj, coef[1:] * np.arange(1, d + 1)) / frac[k])
                 g += [ca.vertcat(*bv), ca.vertcat(*ba), ca.vertcat(*bj)]
         objective = sigma + self.free_time_cost_weight * J if free_time else J
+        self.limit_rows = sum(x.shape[0] for x in g) - nx * N * d - nx  # the axis limits' rows, after the ends
+        if boxes:
+            g.append(self._keep_out_rows(w[w.shape[0] - self.nweights:], Xc, Pp, P[npar + N:], boxes))
         self.nlp = {'x': w, 'p': P, 'f': objective, 'g': ca.vertcat(*g)}
         self.ng = self.nlp['g'].shape[0]
         self.nres = nx * N * d
@@ -155,6 +182,39 @@ class Transcription:
         self._derivatives = None
         self._lock = threading.Lock()
         self.build_time = time.perf_counter() - t0
+
+    def _keep_out_rows(self, weights, Xc, Pp, Pk, boxes: int):
+        """The keep-out path constraints at every collocation point (``keep_out_parameters``: Pk).
+
+        A mass p is outside a box by the margin m if one of its six signed face
+        distances (x0 - px, px - x1, y0 - py, ...) is >= m. That disjunction
+        is written smoothly with face weights l_f >= 0, sum l_f = 1 (NLP
+        variables, one set per point and box, shared by both masses): sum l_f
+        s_f >= m. Since sum l_f s_f <= max s_f, a solution keeps out; the
+        optimum puts the weight on the face it passes (the top of a wall it is
+        lifted over, the side of a column it goes around). Rows per point and
+        box: m1's and m2's (sum l s - m) / KEEP_OUT_SCALE >= 0, then sum l - 1 = 0.
+        """
+        n = Xc.shape[1]
+        origin, margin, sides = Pk[:2], Pk[2], ca.reshape(Pk[3:], 6, boxes)
+        p1, p2 = self.problem.masses.map(n)(Xc, ca.repmat(Pp, 1, n), ca.repmat(origin, 1, n))
+        lam = ca.reshape(weights, 6, boxes * n)
+        rows = []
+        for k in range(n):
+            for b in range(boxes):
+                lo, hi, l_kb = sides[0::2, b], sides[1::2, b], lam[:, k * boxes + b]
+                for p in (p1[:, k], p2[:, k]):
+                    faces = ca.vertcat(lo[0] - p[0], p[0] - hi[0], lo[1] - p[1], p[1] - hi[1], lo[2] - p[2],
+                                       p[2] - hi[2])
+                    rows.append((ca.dot(l_kb, faces) - margin) / KEEP_OUT_SCALE)
+                rows.append(ca.sum1(l_kb) - 1)
+        return ca.vertcat(*rows)
+
+    def keep_out_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lbg, ubg) of the keep-out rows (``_keep_out_rows``)."""
+        one = np.array([0.0, 0.0, 0.0]), np.array([np.inf, np.inf, 0.0])
+        count = self.boxes * self.intervals * self.degree
+        return np.tile(one[0], count), np.tile(one[1], count)
 
     def nlpsol(self, options: dict) -> ca.Function:
         """A new IPOPT instance of this NLP with ``options``.

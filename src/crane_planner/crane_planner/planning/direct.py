@@ -18,11 +18,13 @@ import numpy as np
 from crane_msgs_py.axes import AxisLimits
 from crane_msgs_py.params import CraneParams
 
-from .collocation import CollocationPlan, Transcription
+from .collocation import CollocationPlan, Transcription, keep_out_values
 from .free_time import FreeTimeSearch
 from .ipopt import Instance, IterationCallback
-from .plan import AxesPlan, PlanError
-from .problem import AXIS_STATES, PROBLEM_PARAMETERS, Form, axis_displacements, breakpoints, displacements
+from .keep_out import KeepOut
+from .plan import AxesPlan, Plan, PlanError
+from .problem import AXIS_SCALES, AXIS_STATES, PROBLEM_PARAMETERS, Form, axis_displacements, breakpoints, displacements
+from .routing import NLP_EXTRA, Route, route_guess
 from .variational import VariationalSolver
 
 
@@ -89,27 +91,32 @@ class DirectSolver(VariationalSolver):
         self._transcriptions, self._transcriptions_lock = transcriptions, lock
         return self
 
-    def transcription(self, form, free_time: bool = False) -> Transcription:
+    def transcription(self, form, free_time: bool = False, boxes: int = 0) -> Transcription:
         """The NLP of one model form (``problem.Form``, or ``servo`` without a hoist; of fixed or free final
-        time), built on first use, shared with spawned solvers."""
+        time; with ``boxes`` keep-out boxes), built on first use, shared with spawned solvers."""
         form = Form.coerce(form)
-        key = ('free', form) if free_time else form
+        key = ('free', form) if free_time else (form, 'keep_out', boxes) if boxes else form
         with self._transcriptions_lock:
             tr = self._transcriptions.get(key)
             if tr is None:
                 tr = self._transcriptions[key] = Transcription(self.problem(form), self.intervals_for(form),
-                                                               free_time or self.has_limits, free_time=free_time)
+                                                               free_time or self.has_limits, free_time=free_time,
+                                                               boxes=boxes)
         return tr
 
-    def _instance(self, form: Form) -> Instance:
-        inst = self._instances.get(form)
+    def _instance(self, form: Form, boxes: int = 0) -> Instance:
+        key = (form, 'keep_out', boxes) if boxes else form
+        inst = self._instances.get(key)
         if inst is None:
-            tr = self.transcription(form)
-            source = self._warm_source._instances.get(form) if self._warm_source is not None else None
+            tr = self.transcription(form, boxes=boxes)
+            source = self._warm_source._instances.get(key) if self._warm_source is not None else None
             callback = self.iteration_callback(tr.nw, tr.ng, tr.nlp['p'].shape[0])
-            inst = self._instances[form] = Instance(tr, tr.nlpsol(dict(self.ipopt_options(),
-                                                                        iteration_callback=callback)),
-                                                     callback, source.warm if source is not None else None)
+            options = dict(self.ipopt_options(), iteration_callback=callback)
+            if boxes:  # started from a geometric guess without multipliers: the adaptive barrier
+                # parameter takes a third of the iterations of the monotone one from it (a wall: 40, not 117)
+                options.update({'ipopt.warm_start_init_point': 'no', 'ipopt.mu_strategy': 'adaptive'})
+            inst = self._instances[key] = Instance(tr, tr.nlpsol(options), callback,
+                                                   source.warm if source is not None else None)
         return inst
 
     def ipopt_options(self) -> dict:
@@ -127,6 +134,52 @@ class DirectSolver(VariationalSolver):
         if self.has_limits:
             opts.update({'ipopt.warm_start_bound_push': 1e-8, 'ipopt.warm_start_mult_bound_push': 1e-8})
         return opts
+
+    def solve_route(self, displacement, duration: float, params: CraneParams, keep_out: KeepOut, origin: dict,
+                    route: Route) -> Plan:
+        """The plan of a move past ``keep_out``'s boxes by ``route`` (``routing``): rest to rest as ``solve``,
+        with both masses kept the margin (and ``routing.NLP_EXTRA``) out of every box at every collocation
+        point, started from the route's geometric guess, or from this solver's last solution of the same
+        route and boxes. ``origin``: where the travel axes start (m, by joint name). Its ``info`` says the
+        route (``route``: ``over``, ``around``). PlanError if IPOPT finds none."""
+        form = Form.of_request(params, displacement)
+        if route.axis not in form.axes:
+            raise PlanError(f'a route {route.kind} a box needs the {route.axis} in the move')
+        frac = self.mesh(duration, params, form)
+        with self._lock:
+            t_build, built = time.perf_counter(), (form, 'keep_out', len(keep_out.boxes)) not in self._instances
+            inst = self._instance(form, len(keep_out.boxes))
+            build_time = time.perf_counter() - t_build if built else 0.0
+            tr, solver, pb = inst.transcription, inst.solver, inst.transcription.problem
+            problem_p = pb.parameters(displacement, duration, params, self.weights)
+            scale = PROBLEM_PARAMETERS.index(AXIS_SCALES[route.axis])  # the detour's size scales its axis
+            problem_p[scale] = max(problem_p[scale], abs(route.excursion))
+            pvec = np.concatenate([problem_p, frac, keep_out_values(keep_out, origin, NLP_EXTRA)])
+            sx, su = (np.array(v, dtype=float).ravel() for v in pb.scales(problem_p))
+            args = dict(p=pvec, **self.bounds(tr, displacement, duration, sx, self.axis_limits(form)))
+            kept = getattr(inst, 'warm', None)
+            starts = ([kept[1]] if kept is not None and kept[0] == (route, self.sign(displacement)) else []) + [
+                dict(x0=route_guess(tr, displacement, frac, route, pvec, sx, origin, keep_out))]
+            t0 = time.perf_counter()
+            for k, initial in enumerate(starts):
+                if k and not self._may_retry(t0):
+                    break
+                with inst.callback.solving(self.deadline):
+                    sol = solver(**args, **initial)
+                stats = solver.stats()
+                if stats['success']:
+                    break
+            solve_time = time.perf_counter() - t0
+            if not stats['success']:
+                raise PlanError(f'{self.method}: no route {route.kind} the keep_out boxes for this move (IPOPT '
+                                f'status {stats["return_status"]} after {stats["iter_count"]} iterations)')
+            inst.warm = ((route, self.sign(displacement)), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
+            info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),
+                    'solve_time_s': solve_time, 'build_time_s': build_time,
+                    'objective': float(sol['f']) * duration * su[0] ** 2, 'intervals': tr.intervals,
+                    'robust': list(self.robust), 'sensitivities': list(pb.robust), 'servo_model': form.servo,
+                    'route': route.kind}
+            return self.plan_of(tr, np.array(sol['x']).ravel(), sx, displacement, duration, frac, params, info)
 
     def fastest(self, displacement: float, params: CraneParams) -> CollocationPlan:
         """The shortest plan of ``displacement`` (m) within this solver's axis limits
@@ -180,7 +233,10 @@ class DirectSolver(VariationalSolver):
                 # less IPOPT's bound relaxation (1e-8 relative), so the limit itself holds
                 bounds.append(np.repeat([vmax, amax, jmax], tr.intervals * np.array([d + 2, d + 1, d])) * (1 - 2e-8))
             bound = np.concatenate(bounds)
-            lbg[end:], ubg[end:] = -bound, bound
+            lbg[end:end + tr.limit_rows], ubg[end:end + tr.limit_rows] = -bound, bound
+        if tr.boxes:  # the face weights in [0, 1], the keep-out rows last
+            lbx[tr.nw - tr.nweights:], ubx[tr.nw - tr.nweights:] = 0.0, 1.0
+            lbg[end + tr.limit_rows:], ubg[end + tr.limit_rows:] = tr.keep_out_bounds()
         return dict(lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
 
     def _solve(self, displacement, duration, params, frac, start: dict | None = None, free_end: bool = False):

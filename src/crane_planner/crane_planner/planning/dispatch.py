@@ -203,7 +203,8 @@ class VariationalRequest:
     the hoist's; or by axis name, ``problem.axis_displacements``) in ``duration`` (s),
     from rest or from ``start`` (SI values of the problem's states by name,
     ``continuation.problem_start``), with ``free_end`` to rest anywhere (a stop);
-    ``fastest``: the shortest plan within the options' limits (``duration`` None).
+    ``fastest``: the shortest plan within the options' limits (``duration`` None); with a ``route``, the
+    plan past the ``keep_out`` boxes that way (``direct.DirectSolver.solve_route``).
     """
 
     operation: str
@@ -214,9 +215,17 @@ class VariationalRequest:
     options: PlanOptions
     start: dict | None = None
     free_end: bool = False
+    #: a route past keep-out boxes (``routing.Route``), with the boxes (``keep_out.KeepOut``) and where the
+    #: travel axes start (m, by joint name): rest to rest with the keep-out path constraints
+    route: object | None = None
+    keep_out: object | None = None
+    origin: dict | None = None
 
     def run(self, solver) -> Plan:
         """This request on ``solver`` (a ``variational.VariationalSolver`` for this method and options)."""
+        if self.route is not None:
+            return solver.solve_route(self.displacement, self.duration, self.params, self.keep_out,
+                                      self.origin or {}, self.route)
         if self.operation == 'fastest':
             return solver.fastest(self.displacement, self.params)
         if self.start is None and not self.free_end:

@@ -28,7 +28,7 @@ from scipy.optimize import brentq
 from crane_msgs_py.axes import AXIS_NAMES
 from crane_msgs_py.params import CraneParams
 
-from .dynamics import BRIDGE_STATES, CART_STATES, HOIST_STATES, PARAMETERS, augment, crane_ode
+from .dynamics import BRIDGE_STATES, CART_STATES, HOIST_STATES, PARAMETERS, augment, crane_ode, mass_positions
 from .profiles import QUINTIC
 
 #: Smallest position scale (m): a request for D = 0 is still well scaled.
@@ -219,6 +219,13 @@ class Problem:
             ref_v.append(v / (scale / T))
             ref_a.append(a / (scale / T ** 2))
         self.reference_va = ca.Function('reference_va', [X, P], [ca.vertcat(*ref_v), ca.vertcat(*ref_a)])
+        # both masses in crane_base (m) from the scaled states, the travel axes' start positions given
+        origin = ca.SX.sym('origin', 2)
+        zero = ca.SX(0)
+        p1, p2 = mass_positions()(s['y'] + origin[0], (s['yb'] if form.bridge else zero) + origin[1],
+                                  par['L1'] + (s['h'] if form.hoist else zero), par['L2'], s['theta1'], s['theta2'],
+                                  s.get('phi1', zero), s.get('phi2', zero))
+        self.masses = ca.Function('masses', [X, P, origin], [p1, p2], ['X', 'P', 'origin'], ['p1', 'p2'])
 
     #: The swing angles each travel axis drives (their rates and sensitivities follow their names).
     DRIVEN_SWING = {'cart': ('theta1', 'theta2'), 'bridge': ('phi1', 'phi2')}

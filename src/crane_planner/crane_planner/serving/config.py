@@ -27,6 +27,7 @@ from ..planning.dispatch import VariationalRequest, hoisting_options
 from ..planning.hoisting import HOIST_SHAPER_DESIGNS
 from ..planning.keep_out import KeepOut
 from ..planning.profiles import BASES
+from ..planning.routing import Route
 from .moves import MoveBounds
 
 #: The crane model's parameters' upper bounds (each from 0) for rclpy's range check.
@@ -193,7 +194,8 @@ class Config:
         plan (the free-final-time NLP), so the first of either is answered warm;
         each for the cart alone and, with a bridge, for a diagonal move (the
         spatial crane's NLP); with a hoist for a move that hoists too; and a
-        plan from a moving, swinging state (a new goal mid-move) and a stop.
+        plan from a moving, swinging state (a new goal mid-move) and a stop; with keep-out boxes the routes
+        past them.
         """
         D, duration = min(0.3, self.max_displacement), min(3.0, self.max_duration)
         hoisting = HOIST_JOINT in self.joints
@@ -223,5 +225,15 @@ class Config:
                         **({HOIST_JOINT: 0.0} if hoisting else {})}
         for free_end in (False, True):
             requests += [VariationalRequest('plan', method, displacement, duration, model, options, start, free_end)
+                         for method in VARIATIONAL_METHODS]
+        # with keep-out boxes, the NLPs of the routes past them the served axes allow (``moves.plan_keeping_out``)
+        routes = ([Route('over', HOIST_JOINT, -0.2 * self.params.L1, 0.3, 0.7)] if hoisting else []) + (
+            [Route('around', BRIDGE_JOINT, 0.2, 0.3, 0.7)] if spatial else [])
+        for route in routes if self.keep_out else ():
+            moves = {CART_JOINT: D, **({BRIDGE_JOINT: 0.0} if spatial else {}),
+                     **({HOIST_JOINT: 0.0} if hoisting else {})}
+            requests += [VariationalRequest('plan', method, moves, duration, self.params,
+                                            hoisting_options(self.options) if hoisting else self.options,
+                                            route=route, keep_out=self.keep_out, origin={})
                          for method in VARIATIONAL_METHODS]
         return requests

@@ -18,12 +18,13 @@ from dataclasses import dataclass
 from crane_msgs_py.names import ACTUATED_JOINTS, BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 
-from ..planning.dispatch import PlanOptions, check_request
+from ..planning.dispatch import PlanOptions, VariationalRequest, check_request, hoisting_options
 from ..planning.hoisting import QuinticPlan
 from ..planning.keep_out import KeepOut, KeepOutError
 from ..planning.mass_path import predict_mass_path, rest_positions
-from ..planning.methods import METHODS
+from ..planning.methods import METHODS, VARIATIONAL_METHODS
 from ..planning.plan import AxesPlan, Plan, PlanError
+from ..planning.routing import route_candidates
 from .workers import WorkerDied
 
 
@@ -32,7 +33,7 @@ class MoveError(PlanError):
 
     def __init__(self, field_name: str, reason: str):
         super().__init__(f'move.{field_name}: {reason}')
-        self.field = field_name
+        self.field, self.reason = field_name, reason
 
 
 @dataclass(frozen=True)
@@ -250,6 +251,52 @@ def origin_of(move: CheckedMove) -> dict:
     return {name: m.start for name, m in move.axes.items() if name != HOIST_JOINT}
 
 
+def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParams, options: PlanOptions,
+                     keep_out: KeepOut) -> Plan:
+    """The plan of a checked move (``plan_move``) whose masses keep out of ``keep_out``'s boxes, or MoveError.
+
+    The direct plan if it keeps out (its clearance in its ``info``). Else, for NVF/RVF at a given duration,
+    the routes the served axes allow (``routing.route_candidates``: over a box with a hoist, around it with
+    a bridge, the smaller detour first), each planned with the keep-out path constraints and checked again
+    on the prediction: the first that keeps out (``info['route']`` says which). A shaper's, a fastest
+    move's, or one no route gets past is refused naming the box (``move.keep_out``), with each route's
+    reason.
+    """
+    plan = plan_move(planner, move, bounds, params, options)
+    origin = origin_of(move)
+    try:
+        keep_out_clearance(plan, origin, params, keep_out)
+        return plan
+    except MoveError as exc:
+        if move.duration is None:
+            raise MoveError('keep_out', f'{exc.reason}; the fastest move is planned direct only: give a duration '
+                                        'and nvf or rvf route past the boxes') from None
+        if move.method not in VARIATIONAL_METHODS:
+            raise MoveError('keep_out', f'{exc.reason}; shapers do not route past boxes: nvf and rvf do (over '
+                                        'a box with a hoist, around it with a bridge)') from None
+        direct = exc
+    rope = move.axes.get(HOIST_JOINT)
+    model = params.replace(L1=rope.start) if rope is not None else params
+    moves = {name: m.displacement for name, m in move.axes.items()}
+    routes = route_candidates(keep_out, origin, moves, model.L1, model.L2, tuple(move.axes))
+    reasons = []
+    for route in routes:
+        request = VariationalRequest('plan', move.method, moves, move.duration, model,
+                                     hoisting_options(options) if rope is not None else options, route=route,
+                                     keep_out=keep_out, origin=origin)
+        try:
+            routed = planner.variational(request)
+            keep_out_clearance(routed, origin, model, keep_out)
+            return routed
+        except WorkerDied:
+            raise
+        except PlanError as exc:  # (MoveError too: a route that did not keep out after all)
+            reasons.append(f'{route.kind} ({route.axis} {route.excursion:+.3f} m): {exc}')
+    why = '; '.join(reasons) if reasons else ('the served axes allow none (a hoist lifts the load over a box, a '
+                                              'bridge takes it around one)')
+    raise MoveError('keep_out', f'{direct.reason}; no route past it: {why}')
+
+
 def with_hoist_held(plan: Plan, length: float | None) -> Plan:
     """``plan`` of the cart with the hoist held at ``length`` (m) beside it; ``plan`` itself without a hoist
     (``length`` None)."""
@@ -292,7 +339,7 @@ class PlanSummary:
     peak_jerk: tuple
     predicted_residual: float = math.nan
     min_clearance: float = math.inf
-    route: str = ''
+    route: str = ''  # how the plan gets past the keep-out boxes: '' direct, over, around
 
 
 def summarize(plan: Plan, joint_names=(CART_JOINT,), solve_time: float | None = None) -> PlanSummary:
@@ -308,4 +355,4 @@ def summarize(plan: Plan, joint_names=(CART_JOINT,), solve_time: float | None = 
                        float(info.get('solve_time_s', 0.0) if solve_time is None else solve_time),
                        int(info.get('iterations', 0)), tuple(joint_names), *(tuple(p[k] for p in peaks)
                                                                             for k in range(3)),
-                       min_clearance=float(info.get('min_clearance', math.inf)))
+                       min_clearance=float(info.get('min_clearance', math.inf)), route=str(info.get('route', '')))

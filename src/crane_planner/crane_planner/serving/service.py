@@ -54,8 +54,7 @@ from .moves import (
     check_move,
     check_rests_keep_out,
     keep_out_clearance,
-    origin_of,
-    plan_move,
+    plan_keeping_out,
 )
 from .stops import STOP_LEAD, plan_stop
 from .transitions import JointReading, Measurement, Running, Trajectory
@@ -194,8 +193,9 @@ class MoveService:
                 if name != CART_JOINT:
                     values.update({f'{name}_start': axis_move.start, f'{name}_goal': axis_move.goal})
             check_rests_keep_out(checked, config.params, config.keep_out)
-            plan = plan_move(self.planner, checked, config.bounds, config.params, config.options)
-            clearance = keep_out_clearance(plan, origin_of(checked), config.params, config.keep_out)
+            plan = plan_keeping_out(self.planner, checked, config.bounds, config.params, config.options,
+                                    config.keep_out)
+            clearance = plan.info.get('min_clearance', math.inf)
             if execute:  # after planning: a preview and a goal of the same bad move give the same reason
                 check_executable(checked, hold, heard is not None and heard.operator, self.view.foreign_motion())
         except ValueError as exc:

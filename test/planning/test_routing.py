@@ -1,0 +1,80 @@
+"""Routes past keep-out boxes (contract "Routes and protected areas"): the ways the served axes allow, and
+NVF planned with the keep-out path constraints, checked on crane_sim's independent model.
+
+The contract's cases on the paper's rig (tau 0, margin 0.02 m): the cart's 0.6 m in 4 s past a wall
+(x 0.25-0.35 m, every y, z -2 to -0.76 m; the load hangs at -0.861 m) with the rope at 0.47 m at both
+ends, lifted over it; and past a column (x 0.25-0.35 m, y -0.1-0.1 m, z -2 to -0.1 m) with a bridge,
+taken around it. Replayed in crane_sim (1 ms), both masses stay the margin out, NVF leaves at most
+0.1 mm of swing and the move ends at its goal.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from crane_msgs_py.params import CraneParams
+from crane_planner.planning import PlanOptions
+from crane_planner.planning.dispatch import VariationalRequest, hoisting_options, variational_solver
+from crane_planner.planning.keep_out import KeepOut
+from crane_planner.planning.routing import ROUTE_EXTRA, Route, plateau, route_candidates
+from crane_planner.tools.evaluate import simulate_plan
+from planning.test_keep_out import simulated_masses
+
+NOMINAL = CraneParams().replace(tau=0.0, tau_hoist=0.0)
+WALL = KeepOut.from_values([0.25, 0.35, -math.inf, math.inf, -2.0, -0.76], 0.02)
+COLUMN = KeepOut.from_values([0.25, 0.35, -0.1, 0.1, -2.0, -0.1], 0.02)
+
+
+def test_a_wall_is_passed_over_with_a_hoist_and_a_column_around_with_a_bridge_the_smaller_detour_first():
+    over = route_candidates(WALL, {}, {'cart': 0.6, 'hoist': 0.0}, 0.47, 0.391, ('cart', 'hoist'))
+    # the load's rest 0.861 m down, the wall's top 0.76 m: lifted 0.101 m + the margin + the extra
+    assert [(r.kind, r.axis) for r in over] == [('over', 'hoist')]
+    assert over[0].excursion == pytest.approx(-(0.861 - 0.76 + 0.02 + ROUTE_EXTRA))
+    assert 0.2 < over[0].enter < 0.5 < over[0].leave < 0.8  # the cart's quintic over x 0.15-0.45 m
+    around = route_candidates(COLUMN, {'bridge': 0.05}, {'cart': 0.6, 'bridge': 0.0}, 0.47, 0.391,
+                              ('cart', 'bridge'))
+    assert [r.excursion for r in around] == pytest.approx([0.1 + 0.05 - 0.05, -0.1 - 0.05 - 0.05])
+    assert route_candidates(WALL, {}, {'cart': 0.6, 'bridge': 0.0}, 0.47, 0.391, ('cart', 'bridge')) == []  # no end
+    assert route_candidates(COLUMN, {}, {'cart': 0.6}, 0.47, 0.391, ('cart',)) == []
+    assert route_candidates(WALL, {}, {'cart': -0.6}, 0.47, 0.391, ('cart', 'hoist')) == []  # away from it
+    high = KeepOut.from_values([0.25, 0.35, -math.inf, math.inf, -2.0, -0.3], 0.02)  # 0.3 m below the trolley
+    assert route_candidates(high, {}, {'cart': 0.6, 'hoist': 0.0}, 0.47, 0.391, ('cart', 'hoist')) == []
+
+
+def test_the_plateau_rests_at_both_ends_and_its_derivatives_are_its_slopes():
+    s = np.linspace(0.0, 1.0, 20001)
+    value, *rates = plateau(s, 0.3, 0.8)
+    assert value[0] == 0.0 and value[-1] == 0.0 and np.all(value[(s >= 0.3) & (s <= 0.8)] == 1.0)
+    assert all(abs(r[0]) < 1e-9 and abs(r[-1]) < 1e-9 for r in rates[:2])  # rest: velocity, acceleration
+    smooth = (np.abs(s - 0.3) > 1e-3) & (np.abs(s - 0.8) > 1e-3) & (s > 1e-3) & (s < 1 - 1e-3)  # the jerk jumps there
+    for lower, higher in zip([value, *rates[:2]], rates):
+        assert np.abs(np.gradient(lower, s) - higher)[smooth].max() < 1e-3 * np.abs(higher).max()
+
+
+def routed(method, moves, keep_out, route_kind, options=PlanOptions()):
+    routes = [r for r in route_candidates(keep_out, {}, moves, NOMINAL.L1, NOMINAL.L2, tuple(moves))
+              if r.kind == route_kind]
+    request = VariationalRequest('plan', method, moves, 4.0, NOMINAL, options, route=routes[0], keep_out=keep_out,
+                                 origin={})
+    return request.run(variational_solver(method, options))
+
+
+@pytest.mark.parametrize('case', ['wall', 'column'])
+def test_nvf_routes_keep_both_masses_out_leave_no_swing_and_end_at_the_goal(case):
+    if case == 'wall':
+        moves, keep_out, kind = {'cart': 0.6, 'hoist': 0.0}, WALL, 'over'
+        p = routed('nvf', moves, keep_out, kind, hoisting_options(PlanOptions()))
+    else:
+        moves, keep_out, kind = {'cart': 0.6, 'bridge': 0.0}, COLUMN, 'around'
+        p = routed('nvf', moves, keep_out, kind)
+    assert p.info['route'] == kind
+    t, m1, m2 = simulated_masses(p, NOMINAL, 4.0)
+    for box in keep_out.boxes:
+        assert box.distance(m1).min() >= 0.02 and box.distance(m2).min() >= 0.02
+    assert min(box.distance(m1).min(), box.distance(m2).min()) < 0.04  # near the box: not a wide detour
+    ev = simulate_plan(p, NOMINAL, settle=4.0)
+    assert ev.metrics[0]['residual']['load_mm'] <= 0.1
+    ends = {name: one.evaluate(np.array([4.0])).position[0] for name, one in p.axes.items()}
+    assert ends['cart'] == pytest.approx(0.6, abs=1e-9) and abs(ends[next(n for n in moves if n != 'cart')]) < 1e-9
+    detour = p.axes['hoist' if case == 'wall' else 'bridge'].evaluate(np.linspace(0.0, 4.0, 401)).position
+    assert (detour.min() < -0.1) if case == 'wall' else (np.abs(detour).max() > 0.1)  # it did lift / step aside
