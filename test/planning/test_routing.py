@@ -16,7 +16,7 @@ from crane_msgs_py.params import CraneParams
 from crane_planner.planning import PlanOptions
 from crane_planner.planning.dispatch import VariationalRequest, hoisting_options, variational_solver
 from crane_planner.planning.keep_out import KeepOut
-from crane_planner.planning.routing import ROUTE_EXTRA, Route, plateau, route_candidates
+from crane_planner.planning.routing import ROUTE_EXTRA, plateau, route_candidates
 from crane_planner.tools.evaluate import simulate_plan
 from planning.test_keep_out import simulated_masses
 

@@ -1,12 +1,10 @@
 """Planner node: ``~/plan_move`` (a preview), ``~/execute_move`` (an action) and ``~/settle`` (contract: ROS 2
 nodes, planner; interfaces in ``crane_interfaces``).
 
-The ROS side only: entities, threads, messages <-> records. What is served
-is ``serving.service`` (a preview: the plan's knots and ``PlanInfo``; a goal:
-planned, held until ``publish_lead`` before its start, sent on
-``trajectory``, followed to its result, feedback at 20 Hz; a goal during a
-motion takes it over, a cancel stops it), the goals' states
-``serving.goals``, the handover's timing ``serving.handover``, the
+The ROS side only: entities, threads, messages <-> records. What is served is ``serving.service`` (a
+preview: the plan's knots and ``PlanInfo``; a goal: planned, held until ``publish_lead`` before its start,
+sent on ``trajectory``, followed to its result, feedback at 20 Hz; a goal during a motion takes it over, a
+cancel stops it), the goals' states ``serving.goals``, the handover's timing ``serving.handover``, the
 parameters ``serving.config``. Every request gets one status on /diagnostics.
 """
 from __future__ import annotations
@@ -20,6 +18,7 @@ from crane_interfaces.msg import PlanInfo, StreamState
 from crane_interfaces.srv import PlanMove
 from rclpy.action import CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.exceptions import InvalidHandle
 from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
@@ -173,8 +172,8 @@ class PlannerNode(Node):
 
     @staticmethod
     def _info(planned: service.Planned) -> PlanInfo:
-        plan = planned.plan
-        summary = summarize(plan, planned.checked.joints, plan.info.get('solve_time_s', planned.planning_s))
+        summary = summarize(planned.plan, planned.checked.joints, planned.plan.info.get('solve_time_s',
+                                                                                       planned.planning_s))
         return PlanInfo(**{k: list(v) if isinstance(v, tuple) else v for k, v in vars(summary).items()})
 
     def _report(self, values: dict, planned: service.Planned | None, t0: float, solved: float, error: str = ''):
@@ -237,6 +236,8 @@ class PlannerNode(Node):
             outcome = self._service.execute(goal, _move(request.move), request.settle, lambda **feedback: goal_handle
                                             .publish_feedback(ExecuteMove.Feedback(**feedback)),
                                             lambda: goal_handle.is_cancel_requested)
+        except InvalidHandle:  # the node is being destroyed (a signal), its action server too: no one to tell
+            return result
         except Exception as exc:  # a bug must not leave the caller waiting forever
             self.get_logger().error(f'execute_move: unexpected {type(exc).__name__}: {exc}')
             if not goal_handle.is_active:  # it already ended: the caller has its status
