@@ -187,3 +187,25 @@ def test_a_move_past_a_column_goes_around_it_with_the_bridge_and_the_measured_ma
         assert driver.move_result(start_ns).success
     finally:
         driver.set_parameters('planner', {'keep_out': []})
+
+
+def test_a_preview_through_a_via_point_passes_it_moving_and_a_shapers_off_its_line_is_refused(crane):
+    """PlanMove with Move.via (contract): (0, 0) -> (0.6, 0.4) via (0.5, 0.0) in 4 s: the NVF trajectory (its
+    knots as the streamer interpolates them) passes within 1 mm of the via point at >= 0.02 m/s; ZV is refused
+    naming the point; nothing moves."""
+    from crane_msgs_py.conversions import joint_trajectory_to_arrays, move_message
+    from crane_planner.streaming.hermite import QuinticHermite
+    driver = crane
+    sent = len(driver.sent_trajectories())
+    answer = driver.planner.call(None, None, 0.0, 0.0, move=move_message([0.6, 0.4], 4.0, [0.0, 0.0], 'nvf',
+                                                                         via=[(0.5, 0.0)]))
+    assert answer.success and answer.info.route == 'via', answer.message
+    t = np.linspace(0.0, 4.0, 40001)
+    (x, vx, _), (y, vy, _) = (QuinticHermite(*joint_trajectory_to_arrays(answer.trajectory, joint))(t)
+                              for joint in JOINTS)
+    k = int(np.argmin(np.hypot(x - 0.5, y)))
+    assert np.hypot(x[k] - 0.5, y[k]) < 1e-3 and np.hypot(vx[k], vy[k]) >= 0.02
+    refused = driver.planner.call(None, None, 0.0, 0.0, move=move_message([0.6, 0.4], 4.0, [0.0, 0.0], 'zv',
+                                                                          via=[(0.5, 0.0)]))
+    assert not refused.success and refused.message.startswith('move.via: point 1 (cart 0.5, bridge 0 m) is 277 mm')
+    assert len(driver.sent_trajectories()) == sent

@@ -58,3 +58,27 @@ def test_a_goal_inside_a_box_is_refused_naming_it(capsys):
     status, out, err = run(capsys, 'plan', '--method', 'zv', '--displacement', '0.3', '--duration', '4', *WALL)
     assert status == 2 and 'the goal: the load (m2) at rest there, at (0.300, 0.000, -0.861) m, is inside ' \
                            'keep_out box 1' in err
+
+
+def test_nvf_with_a_hoist_held_routes_over_the_wall_and_reports_its_clearance(capsys):
+    status, out, err = run(capsys, 'plan', '--method', 'nvf', *TASK, '--hoist', '0.47', '0.47', *WALL, '--json')
+    assert status == 0, err
+    report = json.loads(out)
+    assert 0.02 <= report['min_clearance'] < 0.04 and report['residual']['load_mm'] < 0.1
+    assert report['hoist']['goal'] == pytest.approx(0.47, abs=1e-9)
+
+
+def test_via_points_nvf_passes_them_a_shaper_off_its_line_is_refused_naming_the_point(capsys):
+    task = ['--displacement', '0.6', '--bridge', '0.4', '--duration', '4', '--tau', '0']
+    status, out, err = run(capsys, 'plan', '--method', 'nvf', *task, '--via', '0.5,0.0', '--json')
+    assert status == 0 and json.loads(out)['residual']['load_mm'] < 0.1, err
+    status, out, err = run(capsys, 'plan', '--method', 'zv', *task, '--via', '0.5,0.0')
+    assert status == 2 and err.startswith("crane-plan: error: argument --via: point 1 (cart 0.5, bridge 0 m) is "
+                                          "277 mm from the zv plan's straight path, beyond via_tolerance 10 mm")
+    status, out, err = run(capsys, 'plan', '--method', 'zv', *task, '--via', '0.3,0.2')  # on its line
+    assert status == 0, err
+    status, out, err = run(capsys, 'plan', '--method', 'nvf', *task, '--via', '0.5')
+    assert status == 2 and err == ('crane-plan: error: argument --via: point 1: 1 value(s) for 2 joint(s) '
+                                   '(cart, bridge)\n')
+    status, out, err = run(capsys, 'plan', '--method', 'nvf', *task, '--via', '0.5,x')
+    assert status == 2 and err == "crane-plan: error: argument --via: '0.5,x' is not comma-separated numbers\n"

@@ -301,11 +301,14 @@ def fill_crane_markers(msg: MarkerArray, stamp: int, suspension, p1, p2):
         markers[BRIDGE_MARKER].pose.position.y = suspension[1]
 
 
-def move_message(goal, duration: float, start=(), method: str = '', joint_names=(), start_ns: int = 0) -> Move:
+def move_message(goal, duration: float, start=(), method: str = '', joint_names=(), start_ns: int = 0,
+                 via=()) -> Move:
     """A ``crane_interfaces/Move``: positions (m) per joint of ``joint_names`` (empty: the planner's
     joints), ``duration`` (s; 0 = the fastest within the planner's limits), ``start`` empty = where the
-    streamer holds the axes, ``start_ns`` 0 = as soon as possible."""
+    streamer holds the axes, ``start_ns`` 0 = as soon as possible, ``via`` the points passed on the way
+    (each positions per joint)."""
     msg = Move()
+    msg.via = [JointTrajectoryPoint(positions=[float(x) for x in point]) for point in via]
     msg.method = method or ''
     msg.joint_names = list(joint_names)
     msg.start = [float(x) for x in start]

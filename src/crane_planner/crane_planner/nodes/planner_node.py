@@ -43,7 +43,7 @@ from crane_planner.serving.moves import Move, summarize
 
 def _move(msg) -> Move:
     return Move(msg.method, tuple(msg.joint_names), tuple(msg.start), tuple(msg.goal), msg.duration,
-                stamp_ns(msg.start_time))
+                stamp_ns(msg.start_time), tuple(tuple(p.positions) for p in msg.via))
 
 
 class PlannerNode(Node):

@@ -94,6 +94,12 @@ def keep_out_parameters(boxes: int) -> int:
     return 3 + 6 * boxes
 
 
+def via_parameters(vias: int, nu: int, points: int) -> int:
+    """How many NLP parameters the via points take (after the keep-out ones): per via, each axis's target
+    position (scaled like the axis) and a selection weight per collocation point (one-hot: where it passes)."""
+    return vias * (nu + points)
+
+
 def keep_out_values(keep_out, origin: dict, extra: float = 0.0) -> np.ndarray:
     """The values of ``keep_out_parameters`` for a ``keep_out.KeepOut`` (its margin plus ``extra``) and the
     travel axes' start positions ``origin`` (m, by joint name)."""
@@ -122,16 +128,18 @@ class Transcription:
     #: to make the optimum unique (the limits alone leave the inside of the motion free).
     free_time_cost_weight = 1e-9
 
-    def __init__(self, problem: Problem, intervals: int, limits: bool, free_time: bool = False, boxes: int = 0):
+    def __init__(self, problem: Problem, intervals: int, limits: bool, free_time: bool = False, boxes: int = 0,
+                 vias: int = 0):
         t0 = time.perf_counter()
         self.problem, self.intervals, self.limits, self.free_time = problem, intervals, limits, free_time
         nx, nu, N, d = problem.nx, problem.nu, intervals, self.degree
-        if boxes and free_time:
-            raise PlanError('keep-out boxes are planned at a fixed duration only')
-        self.boxes = boxes
+        if (boxes or vias) and free_time:
+            raise PlanError('keep-out boxes and via points are planned at a fixed duration only')
+        self.boxes, self.vias = boxes, vias
         self.tau_nodes, C, self.B, self.basis = radau_coefficients(d)
         npar = len(PROBLEM_PARAMETERS)
-        P = ca.SX.sym('P', npar + N + (keep_out_parameters(boxes) if boxes else 0))
+        nkeep = keep_out_parameters(boxes) if boxes else 0
+        P = ca.SX.sym('P', npar + N + nkeep + via_parameters(vias, nu, N * d))
         Pp, frac = P[:npar], P[npar:npar + N]
         self.nweights = 6 * boxes * N * d  # the face weights of the keep-out constraints, last in w
         w = ca.SX.sym('w', nx + N * d * (nx + nu) + (1 if free_time else 0) + self.nweights)
@@ -173,7 +181,12 @@ class Transcription:
         objective = sigma + self.free_time_cost_weight * J if free_time else J
         self.limit_rows = sum(x.shape[0] for x in g) - nx * N * d - nx  # the axis limits' rows, after the ends
         if boxes:
-            g.append(self._keep_out_rows(w[w.shape[0] - self.nweights:], Xc, Pp, P[npar + N:], boxes))
+            g.append(self._keep_out_rows(w[w.shape[0] - self.nweights:], Xc, Pp, P[npar + N:npar + N + nkeep], boxes))
+        if vias:  # each via point: sum_k sel_k y_ref(s_k) = target, per axis (scaled), sel one-hot on a point
+            positions = problem.reference_position.map(N * d)(Xc, ca.repmat(Pp, 1, N * d))  # (nu, N d)
+            block = ca.reshape(P[npar + N + nkeep:], nu + N * d, vias)
+            for v in range(vias):
+                g.append(ca.mtimes(positions, block[nu:, v]) - block[:nu, v])
         self.nlp = {'x': w, 'p': P, 'f': objective, 'g': ca.vertcat(*g)}
         self.ng = self.nlp['g'].shape[0]
         self.nres = nx * N * d
@@ -209,6 +222,16 @@ class Transcription:
                     rows.append((ca.dot(l_kb, faces) - margin) / KEEP_OUT_SCALE)
                 rows.append(ca.sum1(l_kb) - 1)
         return ca.vertcat(*rows)
+
+    def via_values(self, targets, nodes: list[int]) -> np.ndarray:
+        """The values of ``via_parameters``: ``targets`` (per via, each axis's scaled position) passed at the
+        collocation points ``nodes`` (indices among the N d points, ``node_times`` less its first)."""
+        values = []
+        for target, node in zip(targets, nodes, strict=True):
+            select = np.zeros(self.intervals * self.degree)
+            select[node] = 1.0
+            values += [np.asarray(target, dtype=float), select]
+        return np.concatenate(values) if values else np.zeros(0)
 
     def keep_out_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(lbg, ubg) of the keep-out rows (``_keep_out_rows``)."""

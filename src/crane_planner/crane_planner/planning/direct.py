@@ -24,7 +24,7 @@ from .ipopt import Instance, IterationCallback
 from .keep_out import KeepOut
 from .plan import AxesPlan, Plan, PlanError
 from .problem import AXIS_SCALES, AXIS_STATES, PROBLEM_PARAMETERS, Form, axis_displacements, breakpoints, displacements
-from .routing import NLP_EXTRA, Route, route_guess
+from .routing import NLP_EXTRA, Route, route_guess, via_nodes
 from .variational import VariationalSolver
 
 
@@ -91,28 +91,29 @@ class DirectSolver(VariationalSolver):
         self._transcriptions, self._transcriptions_lock = transcriptions, lock
         return self
 
-    def transcription(self, form, free_time: bool = False, boxes: int = 0) -> Transcription:
+    def transcription(self, form, free_time: bool = False, boxes: int = 0, vias: int = 0) -> Transcription:
         """The NLP of one model form (``problem.Form``, or ``servo`` without a hoist; of fixed or free final
-        time; with ``boxes`` keep-out boxes), built on first use, shared with spawned solvers."""
+        time; with ``boxes`` keep-out boxes and ``vias`` via points), built on first use, shared with spawned
+        solvers."""
         form = Form.coerce(form)
-        key = ('free', form) if free_time else (form, 'keep_out', boxes) if boxes else form
+        key = ('free', form) if free_time else (form, 'constrained', boxes, vias) if boxes or vias else form
         with self._transcriptions_lock:
             tr = self._transcriptions.get(key)
             if tr is None:
                 tr = self._transcriptions[key] = Transcription(self.problem(form), self.intervals_for(form),
                                                                free_time or self.has_limits, free_time=free_time,
-                                                               boxes=boxes)
+                                                               boxes=boxes, vias=vias)
         return tr
 
-    def _instance(self, form: Form, boxes: int = 0) -> Instance:
-        key = (form, 'keep_out', boxes) if boxes else form
+    def _instance(self, form: Form, boxes: int = 0, vias: int = 0) -> Instance:
+        key = (form, 'constrained', boxes, vias) if boxes or vias else form
         inst = self._instances.get(key)
         if inst is None:
-            tr = self.transcription(form, boxes=boxes)
+            tr = self.transcription(form, boxes=boxes, vias=vias)
             source = self._warm_source._instances.get(key) if self._warm_source is not None else None
             callback = self.iteration_callback(tr.nw, tr.ng, tr.nlp['p'].shape[0])
             options = dict(self.ipopt_options(), iteration_callback=callback)
-            if boxes:  # started from a geometric guess without multipliers: the adaptive barrier
+            if boxes or vias:  # started from a guess without multipliers: the adaptive barrier
                 # parameter takes a third of the iterations of the monotone one from it (a wall: 40, not 117)
                 options.update({'ipopt.warm_start_init_point': 'no', 'ipopt.mu_strategy': 'adaptive'})
             inst = self._instances[key] = Instance(tr, tr.nlpsol(options), callback,
@@ -135,31 +136,41 @@ class DirectSolver(VariationalSolver):
             opts.update({'ipopt.warm_start_bound_push': 1e-8, 'ipopt.warm_start_mult_bound_push': 1e-8})
         return opts
 
-    def solve_route(self, displacement, duration: float, params: CraneParams, keep_out: KeepOut, origin: dict,
-                    route: Route) -> Plan:
-        """The plan of a move past ``keep_out``'s boxes by ``route`` (``routing``): rest to rest as ``solve``,
-        with both masses kept the margin (and ``routing.NLP_EXTRA``) out of every box at every collocation
-        point, started from the route's geometric guess, or from this solver's last solution of the same
-        route and boxes. ``origin``: where the travel axes start (m, by joint name). Its ``info`` says the
-        route (``route``: ``over``, ``around``). PlanError if IPOPT finds none."""
+    def solve_constrained(self, displacement, duration: float, params: CraneParams, origin: dict,
+                          keep_out: KeepOut | None = None, route: Route | None = None, vias=()) -> Plan:
+        """The rest-to-rest plan of ``solve`` with path constraints: past ``keep_out``'s boxes by ``route``
+        (``routing``: both masses the margin and ``routing.NLP_EXTRA`` out of every box at every collocation
+        point, started from the route's geometric guess), and through ``vias`` (per via point, each axis's
+        position relative to its start, m, by joint name: the reference passes them in order, each at the
+        collocation point nearest the time the straight path's timing gives it, ``via_nodes``). From this
+        solver's last solution of the same constraints if there is one. ``origin``: where the travel axes
+        start (m, by joint name). ``info['route']`` says the route. PlanError if IPOPT finds none."""
         form = Form.of_request(params, displacement)
-        if route.axis not in form.axes:
+        if route is not None and route.axis not in form.axes:
             raise PlanError(f'a route {route.kind} a box needs the {route.axis} in the move')
+        boxes = len(keep_out.boxes) if keep_out is not None and route is not None else 0
         frac = self.mesh(duration, params, form)
+        key = (form, 'constrained', boxes, len(vias))
         with self._lock:
-            t_build, built = time.perf_counter(), (form, 'keep_out', len(keep_out.boxes)) not in self._instances
-            inst = self._instance(form, len(keep_out.boxes))
+            t_build, built = time.perf_counter(), key not in self._instances
+            inst = self._instance(form, boxes, len(vias))
             build_time = time.perf_counter() - t_build if built else 0.0
             tr, solver, pb = inst.transcription, inst.solver, inst.transcription.problem
             problem_p = pb.parameters(displacement, duration, params, self.weights)
-            scale = PROBLEM_PARAMETERS.index(AXIS_SCALES[route.axis])  # the detour's size scales its axis
-            problem_p[scale] = max(problem_p[scale], abs(route.excursion))
-            pvec = np.concatenate([problem_p, frac, keep_out_values(keep_out, origin, NLP_EXTRA)])
+            if route is not None:  # the detour's size scales its axis
+                scale = PROBLEM_PARAMETERS.index(AXIS_SCALES[route.axis])
+                problem_p[scale] = max(problem_p[scale], abs(route.excursion))
+            scales = {axis: problem_p[PROBLEM_PARAMETERS.index(AXIS_SCALES[axis])] for axis in pb.axes}
+            targets = [[via.get(axis, 0.0) / scales[axis] for axis in pb.axes] for via in vias]
+            nodes = via_nodes(tr, frac, displacement, vias)
+            pvec = np.concatenate([problem_p, frac, keep_out_values(keep_out, origin, NLP_EXTRA) if boxes else [],
+                                   tr.via_values(targets, nodes)])
             sx, su = (np.array(v, dtype=float).ravel() for v in pb.scales(problem_p))
             args = dict(p=pvec, **self.bounds(tr, displacement, duration, sx, self.axis_limits(form)))
-            kept = getattr(inst, 'warm', None)
-            starts = ([kept[1]] if kept is not None and kept[0] == (route, self.sign(displacement)) else []) + [
-                dict(x0=route_guess(tr, displacement, frac, route, pvec, sx, origin, keep_out))]
+            kept, same = getattr(inst, 'warm', None), (route, tuple(nodes), self.sign(displacement))
+            guess = (route_guess(tr, displacement, frac, route, pvec, sx, origin, keep_out) if boxes
+                     else tr.guess(displacement, frac))
+            starts = ([kept[1]] if kept is not None and kept[0] == same else []) + [dict(x0=guess)]
             t0 = time.perf_counter()
             for k, initial in enumerate(starts):
                 if k and not self._may_retry(t0):
@@ -171,14 +182,19 @@ class DirectSolver(VariationalSolver):
                     break
             solve_time = time.perf_counter() - t0
             if not stats['success']:
-                raise PlanError(f'{self.method}: no route {route.kind} the keep_out boxes for this move (IPOPT '
-                                f'status {stats["return_status"]} after {stats["iter_count"]} iterations)')
-            inst.warm = ((route, self.sign(displacement)), dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
+                what = f'route {route.kind} the keep_out boxes' if route is not None else 'plan through the via points'
+                raise PlanError(f'{self.method}: no {what} for this move (IPOPT status {stats["return_status"]} after '
+                                f'{stats["iter_count"]} iterations)')
+            inst.warm = (same, dict(x0=sol['x'], lam_x0=sol['lam_x'], lam_g0=sol['lam_g']))
             info = {'solver': 'direct', 'status': stats['return_status'], 'iterations': int(stats['iter_count']),
                     'solve_time_s': solve_time, 'build_time_s': build_time,
                     'objective': float(sol['f']) * duration * su[0] ** 2, 'intervals': tr.intervals,
-                    'robust': list(self.robust), 'sensitivities': list(pb.robust), 'servo_model': form.servo,
-                    'route': route.kind}
+                    'robust': list(self.robust), 'sensitivities': list(pb.robust), 'servo_model': form.servo}
+            if route is not None:
+                info['route'] = route.kind
+            if vias:
+                info['route'] = info.get('route') or 'via'
+                info['via_times_s'] = [float(duration * tr.node_times(frac)[1 + k]) for k in nodes]
             return self.plan_of(tr, np.array(sol['x']).ravel(), sx, displacement, duration, frac, params, info)
 
     def fastest(self, displacement: float, params: CraneParams) -> CollocationPlan:
@@ -236,7 +252,9 @@ class DirectSolver(VariationalSolver):
             lbg[end:end + tr.limit_rows], ubg[end:end + tr.limit_rows] = -bound, bound
         if tr.boxes:  # the face weights in [0, 1], the keep-out rows last
             lbx[tr.nw - tr.nweights:], ubx[tr.nw - tr.nweights:] = 0.0, 1.0
-            lbg[end + tr.limit_rows:], ubg[end + tr.limit_rows:] = tr.keep_out_bounds()
+            lo, hi = tr.keep_out_bounds()
+            rows = slice(end + tr.limit_rows, end + tr.limit_rows + len(lo))
+            lbg[rows], ubg[rows] = lo, hi  # (the via points' rows after them: = 0)
         return dict(lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
 
     def _solve(self, displacement, duration, params, frac, start: dict | None = None, free_end: bool = False):

@@ -204,7 +204,7 @@ class VariationalRequest:
     from rest or from ``start`` (SI values of the problem's states by name,
     ``continuation.problem_start``), with ``free_end`` to rest anywhere (a stop);
     ``fastest``: the shortest plan within the options' limits (``duration`` None); with a ``route``, the
-    plan past the ``keep_out`` boxes that way (``direct.DirectSolver.solve_route``).
+    plan past the ``keep_out`` boxes that way; with ``vias``, through them (``direct.DirectSolver.solve_constrained``).
     """
 
     operation: str
@@ -220,12 +220,14 @@ class VariationalRequest:
     route: object | None = None
     keep_out: object | None = None
     origin: dict | None = None
+    #: via points the reference passes in order: per via each axis's position relative to its start (m, by name)
+    vias: tuple = ()
 
     def run(self, solver) -> Plan:
         """This request on ``solver`` (a ``variational.VariationalSolver`` for this method and options)."""
-        if self.route is not None:
-            return solver.solve_route(self.displacement, self.duration, self.params, self.keep_out,
-                                      self.origin or {}, self.route)
+        if self.route is not None or self.vias:
+            return solver.solve_constrained(self.displacement, self.duration, self.params, self.origin or {},
+                                            self.keep_out, self.route, self.vias)
         if self.operation == 'fastest':
             return solver.fastest(self.displacement, self.params)
         if self.start is None and not self.free_end:

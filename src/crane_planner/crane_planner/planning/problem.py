@@ -212,13 +212,16 @@ class Problem:
         self.G = ca.Function('G', [X, U, P], [gcost / su[0] ** 2])
         self.scales = ca.Function('scales', [P], [sx, su])
         # reference velocity and acceleration of each axis (for the axis limits), scaled by P/T and P/T^2
-        ref_v, ref_a = [], []
+        ref_p, ref_v, ref_a = [], [], []
         for axis in self.axes:
             scale = par[AXIS_SCALES[axis]]
-            _, v, a = self.reference(s, par['tau'], axis, par['tau_hoist'])
+            y, v, a = self.reference(s, par['tau'], axis, par['tau_hoist'])
+            ref_p.append(y / scale)
             ref_v.append(v / (scale / T))
             ref_a.append(a / (scale / T ** 2))
         self.reference_va = ca.Function('reference_va', [X, P], [ca.vertcat(*ref_v), ca.vertcat(*ref_a)])
+        # each axis's reference position (relative to its start; scaled by its position scale): via points
+        self.reference_position = ca.Function('reference_position', [X, P], [ca.vertcat(*ref_p)])
         # both masses in crane_base (m) from the scaled states, the travel axes' start positions given
         origin = ca.SX.sym('origin', 2)
         zero = ca.SX(0)

@@ -12,8 +12,10 @@ rest-to-rest guess with the detour added as a plateau with smooth ramps on
 the route's axis, and the keep-out face weights on the face each point is
 farthest out of. NVF/RVF then solve the problem with the keep-out path
 constraints (``collocation.Transcription`` with boxes), so the optimizer,
-not the guess, decides the route's shape; ``direct.DirectSolver.solve_route``
-runs it. Pure Python, no ROS import.
+not the guess, decides the route's shape; ``direct.DirectSolver.solve_constrained``
+runs it. Via points (``via_nodes``) are equality constraints on the reference
+at the collocation points where the straight path's timing would pass them.
+Pure Python, no ROS import.
 """
 from __future__ import annotations
 
@@ -24,6 +26,7 @@ import numpy as np
 from numpy.polynomial import polynomial as poly
 
 from .keep_out import KeepOut
+from .plan import PlanError
 from .problem import AXIS_SCALES, AXIS_STATES, PROBLEM_PARAMETERS
 from .profiles import QUINTIC
 
@@ -149,3 +152,29 @@ def route_guess(tr, displacement, frac: np.ndarray, route: Route, pvec: np.ndarr
         weights[np.argmax(faces, axis=0), b, np.arange(n)] = 0.9
     weights = weights.transpose(2, 1, 0).ravel()  # per point, per box, the six faces
     return np.concatenate([X[:, 0], body.T.ravel(), weights])
+
+
+def via_nodes(tr, frac: np.ndarray, displacement, vias) -> list[int]:
+    """Where the reference passes each via point (indices among the N d collocation points of ``tr``, strictly
+    increasing): at the time the quintic timing of the polyline start -> vias -> goal reaches the via's
+    share of its length (every axis's positions, m, relative to their starts; ``vias`` as ``displacement``,
+    by axis name)."""
+    if not vias:
+        return []
+    axes = tr.problem.axes
+    moves = tr.problem.displacements_of(displacement)
+    points = np.array([[0.0] * len(axes), *([via.get(a, 0.0) for a in axes] for via in vias),
+                       [moves[a] for a in axes]])
+    lengths = np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))
+    shares = lengths[:-1] / max(lengths[-1], 1e-12)
+    s = np.linspace(0.0, 1.0, 2001)
+    times = np.interp(shares, poly.polyval(s, QUINTIC[0]), s)  # the quintic is increasing on [0, 1]
+    node_s = tr.node_times(frac)[1:]
+    nodes = []
+    for t in times:
+        k = int(np.argmin(np.abs(node_s - t)))
+        k = max(k, nodes[-1] + 1 if nodes else 0)
+        if k >= len(node_s) - 1:
+            raise PlanError('the via points are too many or too near the goal to be passed in order')
+        nodes.append(k)
+    return nodes

@@ -185,10 +185,12 @@ class VariationalSolver:
                 return self._solve(displacement, duration, params, frac)
             return self._solve(displacement, duration, params, frac, start, free_end)
 
-    def solve_route(self, displacement, duration: float, params: CraneParams, keep_out, origin: dict,
-                    route) -> Plan:
-        """A plan past keep-out boxes by ``route`` (``routing``); only the direct route plans one."""
-        raise PlanError(f'the {self.route} solver does not plan routes past keep_out boxes; use the direct solver')
+    def solve_constrained(self, displacement, duration: float, params: CraneParams, origin: dict, keep_out=None,
+                          route=None, vias=()) -> Plan:
+        """A plan past keep-out boxes by ``route`` (``routing``) or through via points; only the direct
+        solver plans one."""
+        raise PlanError(f'the {self.route} solver does not plan routes past keep_out boxes nor via points; use the '
+                        'direct solver')
 
     def _solve(self, displacement, duration: float, params: CraneParams, frac: np.ndarray,
                start: dict | None = None, free_end: bool = False) -> Plan:

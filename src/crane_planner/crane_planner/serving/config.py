@@ -71,6 +71,9 @@ PARAMETERS = {
                      'flat; both masses, swing included, are predicted on the planning model to keep at least '
                      'keep_out_margin out of every box over a plan and its settle window, else it is refused',
                  {'additional_constraints': 'a multiple of 6 numbers, each box min <= max per axis'}),
+    'via_tolerance': (0.01, 'how near (m) a shaper\'s straight path must pass each via point of a move (NVF and RVF '
+                            'pass them exactly), else the move is refused naming the point',
+                      parameter_range(0.0, 10.0)),
     'keep_out_margin': (0.02, 'distance (m) both masses keep from every keep_out box, >= 0',
                         parameter_range(0.0, 100.0)),
     'publish_lead': (0.3, 'an executed trajectory is sent to the streamer this long (s) before its start '
@@ -153,10 +156,11 @@ class Config:
     handover_warmup: float = 0.02
     stream_timeout: float = 1.0
     keep_out: KeepOut = KeepOut()
+    via_tolerance: float = 0.01
 
     @property
     def bounds(self) -> MoveBounds:
-        return MoveBounds(self.joints, self.method, self.max_displacement, self.max_duration)
+        return MoveBounds(self.joints, self.method, self.max_displacement, self.max_duration, self.via_tolerance)
 
     @classmethod
     def from_values(cls, v: dict) -> 'Config':
@@ -185,7 +189,8 @@ class Config:
                    check_positive('shaper_handover_lead', v['shaper_handover_lead']), v['settle_method'],
                    int(v['handover_priority']), check_nonnegative('handover_warmup', v['handover_warmup']),
                    check_positive('stream_timeout', v['stream_timeout']),
-                   KeepOut.from_values(v['keep_out'], v['keep_out_margin']))
+                   KeepOut.from_values(v['keep_out'], v['keep_out_margin']),
+                   check_nonnegative('via_tolerance', v['via_tolerance']))
 
     def warmups(self) -> list[VariationalRequest]:
         """Requests that build the NVF/RVF solvers of this configuration.

@@ -15,6 +15,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from crane_msgs_py.names import ACTUATED_JOINTS, BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 
@@ -47,6 +49,8 @@ class Move:
         goal: goal positions (m).
         duration: s, > 0; 0 = the fastest within the node's axis limits.
         start_ns: start time (ns of ROS time); 0 = as soon as possible.
+        via: points the reference passes in order without stopping, each positions per joint of
+            ``joint_names`` (m).
     """
 
     method: str = ''
@@ -55,6 +59,7 @@ class Move:
     goal: tuple = ()
     duration: float = 0.0
     start_ns: int = 0
+    via: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -65,6 +70,7 @@ class MoveBounds:
     method: str = 'rvf'
     max_displacement: float = 10.0
     max_duration: float = 60.0
+    via_tolerance: float = 0.01  # m: how near a shaper's straight path must pass a via point
 
 
 @dataclass(frozen=True)
@@ -91,6 +97,7 @@ class CheckedMove:
     axes: dict[str, AxisMove]
     duration: float | None
     start_ns: int
+    vias: tuple = ()  # per via point, every axis's position (m, by name; an axis the move leaves out: its start)
 
     def __post_init__(self):
         if CART_JOINT not in self.axes or any(n not in ACTUATED_JOINTS for n in self.axes):
@@ -102,6 +109,11 @@ class CheckedMove:
     def displacement(self) -> float:
         """The cart's displacement (m): what ``dispatch.plan`` plans (the other axes beside it)."""
         return self.axes[CART_JOINT].displacement
+
+    @property
+    def relative_vias(self) -> tuple:
+        """Each via point as the planning core takes it: every axis's position relative to its start (m)."""
+        return tuple({name: via[name] - m.start for name, m in self.axes.items()} for via in self.vias)
 
     @property
     def joints(self) -> tuple:
@@ -179,7 +191,19 @@ def check_move(move: Move, bounds: MoveBounds, hold: dict | None, L1: float = Cr
     if duration > 0.0:
         check_request(method, displacement, duration)
     axes = {name: AxisMove(start[name], goal[name]) for name in start}
-    return CheckedMove(method, names, axes, duration or None, int(move.start_ns))
+    vias = []
+    for k, point in enumerate(move.via, 1):
+        if len(point) != len(names):
+            raise MoveError('via', f'point {k}: {len(point)} value(s) for {len(names)} joint(s) ({", ".join(names)})')
+        via = {**start, **dict(zip(names, (float(x) for x in point)))}
+        if not all(math.isfinite(v) for v in via.values()):
+            raise MoveError('via', f'point {k}: positions must be finite, got {", ".join(f"{v}" for v in point)}')
+        if HOIST_JOINT in via and not via[HOIST_JOINT] > 0.0:
+            raise MoveError('via', f'point {k}: hoist {via[HOIST_JOINT]:g} m: the rope length (L1) must be > 0')
+        vias.append(via)
+    if vias and not duration > 0.0:
+        raise MoveError('via', 'a move through via points needs a duration (> 0 s): the fastest move goes straight')
+    return CheckedMove(method, names, axes, duration or None, int(move.start_ns), tuple(vias))
 
 
 def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParams, options: PlanOptions) -> Plan:
@@ -253,16 +277,24 @@ def origin_of(move: CheckedMove) -> dict:
 
 def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParams, options: PlanOptions,
                      keep_out: KeepOut) -> Plan:
-    """The plan of a checked move (``plan_move``) whose masses keep out of ``keep_out``'s boxes, or MoveError.
+    """The plan of a checked move (``plan_move``) through its via points, whose masses keep out of
+    ``keep_out``'s boxes, or MoveError.
 
-    The direct plan if it keeps out (its clearance in its ``info``). Else, for NVF/RVF at a given duration,
-    the routes the served axes allow (``routing.route_candidates``: over a box with a hoist, around it with
-    a bridge, the smaller detour first), each planned with the keep-out path constraints and checked again
-    on the prediction: the first that keeps out (``info['route']`` says which). A shaper's, a fastest
-    move's, or one no route gets past is refused naming the box (``move.keep_out``), with each route's
-    reason.
+    Via points: NVF/RVF pass them exactly (``direct.DirectSolver.solve_constrained``); a shaper's straight
+    path must pass within ``bounds.via_tolerance`` of each, else ``move.via`` names the point. Boxes: the
+    plan if it keeps out (its clearance in its ``info``). Else, for NVF/RVF at a given duration, the routes
+    the served axes allow (``routing.route_candidates``: over a box with a hoist, around it with a bridge,
+    the smaller detour first), each planned with the keep-out path constraints and checked again on the
+    prediction: the first that keeps out (``info['route']`` says which). A shaper's, a fastest move's, or
+    one no route gets past is refused naming the box (``move.keep_out``), with each route's reason.
     """
-    plan = plan_move(planner, move, bounds, params, options)
+    variational, vias = move.method in VARIATIONAL_METHODS, move.relative_vias
+    if vias and variational:
+        plan = _constrained(planner, move, params, options, vias=vias)
+    else:
+        plan = plan_move(planner, move, bounds, params, options)
+    if vias and not variational:
+        check_shaper_vias(plan, move, bounds.via_tolerance)
     origin = origin_of(move)
     try:
         keep_out_clearance(plan, origin, params, keep_out)
@@ -271,7 +303,7 @@ def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: Cra
         if move.duration is None:
             raise MoveError('keep_out', f'{exc.reason}; the fastest move is planned direct only: give a duration '
                                         'and nvf or rvf route past the boxes') from None
-        if move.method not in VARIATIONAL_METHODS:
+        if not variational:
             raise MoveError('keep_out', f'{exc.reason}; shapers do not route past boxes: nvf and rvf do (over '
                                         'a box with a hoist, around it with a bridge)') from None
         direct = exc
@@ -281,11 +313,8 @@ def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: Cra
     routes = route_candidates(keep_out, origin, moves, model.L1, model.L2, tuple(move.axes))
     reasons = []
     for route in routes:
-        request = VariationalRequest('plan', move.method, moves, move.duration, model,
-                                     hoisting_options(options) if rope is not None else options, route=route,
-                                     keep_out=keep_out, origin=origin)
         try:
-            routed = planner.variational(request)
+            routed = _constrained(planner, move, params, options, route=route, keep_out=keep_out, vias=vias)
             keep_out_clearance(routed, origin, model, keep_out)
             return routed
         except WorkerDied:
@@ -295,6 +324,45 @@ def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: Cra
     why = '; '.join(reasons) if reasons else ('the served axes allow none (a hoist lifts the load over a box, a '
                                               'bridge takes it around one)')
     raise MoveError('keep_out', f'{direct.reason}; no route past it: {why}')
+
+
+def _constrained(planner, move: CheckedMove, params: CraneParams, options: PlanOptions, route=None,
+                 keep_out: KeepOut | None = None, vias=()) -> Plan:
+    """An NVF/RVF plan of every axis of ``move`` with path constraints (``dispatch.VariationalRequest``:
+    ``route`` past ``keep_out``, through ``vias``), on the model at the rope's length now."""
+    rope = move.axes.get(HOIST_JOINT)
+    model = params.replace(L1=rope.start) if rope is not None else params
+    moves = {name: m.displacement for name, m in move.axes.items()}
+    request = VariationalRequest('plan', move.method, moves, move.duration, model,
+                                 hoisting_options(options) if rope is not None else options, route=route,
+                                 keep_out=keep_out, origin=origin_of(move), vias=tuple(vias))
+    try:
+        return planner.variational(request)
+    except (MoveError, WorkerDied):
+        raise
+    except PlanError as exc:
+        if route is None:  # the via points' plan: said of the duration, as every plan's refusal
+            raise MoveError('duration', str(exc)) from None
+        raise
+
+
+def check_shaper_vias(plan: Plan, move: CheckedMove, tolerance: float) -> None:
+    """MoveError (``move.via``) naming the first via point a shaper's straight path does not pass within
+    ``tolerance`` (m) of, in order: each is looked for after the previous one was passed."""
+    t = np.linspace(0.0, plan.duration, max(2, int(plan.duration / 1e-3) + 1))
+    axes = plan.axes if isinstance(plan, AxesPlan) else {CART_JOINT: plan}
+    path = np.stack([axes[name].evaluate(t).position + m.start for name, m in move.axes.items()], axis=1)
+    after = 0
+    for k, via in enumerate(move.vias, 1):
+        point = np.array([via[name] for name in move.axes])
+        distance = np.linalg.norm(path[after:] - point, axis=1)
+        nearest = int(np.argmin(distance))
+        if distance[nearest] > tolerance:
+            where = ', '.join(f'{name} {via[name]:g}' for name in move.axes)
+            raise MoveError('via', f'point {k} ({where} m) is {distance[nearest] * 1e3:.0f} mm from the '
+                                   f'{plan.method} plan\'s straight path, beyond via_tolerance {tolerance * 1e3:g} mm: '
+                                   'a shaper moves straight to its goal; nvf and rvf pass via points exactly')
+        after += nearest
 
 
 def with_hoist_held(plan: Plan, length: float | None) -> Plan:

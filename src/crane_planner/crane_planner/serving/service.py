@@ -435,6 +435,9 @@ class MoveService:
                                          'leave start empty')
             if move.start_ns:
                 raise MoveError('start_time', 'a goal during a motion takes over at once: leave start_time zero')
+            if move.via:
+                raise MoveError('via', 'a goal during a motion goes straight to its goal from where the motion is: '
+                                       'leave via empty, or send it once the crane is at rest')
             end = dict(zip(running.joints, (float(i.position[-1]) for i in running.interps)))
             checked = check_move(move, config.bounds, end, config.params.L1)
             if checked.duration is None:

@@ -15,15 +15,15 @@ import time
 import numpy as np
 
 from crane_msgs_py.axes import AXES, LIMIT_QUANTITIES
-from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
+from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, PlanOptions, dispatch
 from crane_planner.planning.hoisting import HOIST_SHAPER_DESIGNS
 from crane_planner.planning.keep_out import DEFAULT_MARGIN, KeepOut, KeepOutError, boxes_from_flat
-from crane_planner.planning.mass_path import predict_mass_path, rest_positions
 from crane_planner.planning.plan import AxesPlan
 from crane_planner.planning.profiles import BASES
 from crane_planner.serving import Planner
+from crane_planner.serving.moves import Move, MoveBounds, MoveError, check_move, check_rests_keep_out, plan_keeping_out
 
 from .evaluate import (
     DEFAULT_SETTLE,
@@ -168,7 +168,7 @@ def _bound(text: str) -> float:
 
 
 def _add_keep_out(p: argparse.ArgumentParser):
-    g = p.add_argument_group('protected areas (the masses, swing included, kept out of boxes)')
+    g = p.add_argument_group('routes (the masses, swing included, kept out of boxes; via points)')
     g.add_argument('--keep-out', type=_bound, nargs=6, action='append', metavar=('X0', 'X1', 'Y0', 'Y1', 'Z0', 'Z1'),
                    help='a box in crane_base (m; x along the cart, y along the bridge, z up, 0 at the suspension '
                         'point at the start; inf for a side without end), repeatable: both masses, predicted on '
@@ -176,6 +176,12 @@ def _add_keep_out(p: argparse.ArgumentParser):
                         'else the plan is refused naming the box')
     g.add_argument('--margin', type=_finite, default=DEFAULT_MARGIN, metavar='M',
                    help=f'distance (m) the masses keep from every box (default {DEFAULT_MARGIN:g})')
+    g.add_argument('--via', type=_via_point, action='append', metavar='P',
+                   help='a point the reference passes without stopping, repeatable, in order: comma-separated '
+                        'positions (m) of cart[,bridge][,hoist] as the move has them; nvf and rvf pass it exactly, '
+                        'a shaper\'s straight path must pass within --via-tolerance')
+    g.add_argument('--via-tolerance', type=_finite, default=0.01, metavar='M',
+                   help='how near (m) a shaper\'s straight path must pass each via point (default 0.01)')
 
 
 def _box_sides_as_values(argv: list) -> list:
@@ -198,17 +204,35 @@ def _keep_out(args) -> KeepOut:
         raise UsageError(f'argument {str(e).replace("keep_out_margin", "--margin")}') from None
 
 
-def _check_keep_out(plan: Plan, args, model: CraneParams) -> None:
-    """Refuse (KeepOutError) a plan whose start, goal or predicted masses come within the margin of a box; its
-    clearance in its ``info`` (``min_clearance``) otherwise."""
-    keep_out = args.keep_out_areas
-    if not keep_out:
-        return
-    L1_start, L1_goal = args.hoist or (model.L1, model.L1)
-    for where, x, y, L1 in (('the start', 0.0, 0.0, L1_start),
-                            ('the goal', args.displacement, args.bridge or 0.0, L1_goal)):
-        keep_out.check_rest(rest_positions(x, y, L1, model.L2), where)
-    plan.info['min_clearance'] = keep_out.check(predict_mass_path(plan, model), f'the {plan.method} plan').distance
+def _via_point(text: str) -> tuple[float, ...]:
+    """A via point: comma-separated positions (m) of the move's joints (cart[, bridge][, hoist])."""
+    try:
+        point = tuple(float(v) for v in text.split(','))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not comma-separated numbers') from None
+    if not all(math.isfinite(v) for v in point):
+        raise argparse.ArgumentTypeError(f'{text!r}: positions must be finite')
+    return point
+
+
+def _served_plan(planner: Planner, method: str, args, model: CraneParams, options: PlanOptions) -> Plan:
+    """With --keep-out or --via: the plan as the planner node serves it (``serving.moves.plan_keeping_out``):
+    through the via points, past the boxes (NVF/RVF route over or around them); a refusal names the option."""
+    joints = [CART_JOINT] + ([BRIDGE_JOINT] if args.bridge is not None else []) + ([HOIST_JOINT] if args.hoist else [])
+    start = {CART_JOINT: 0.0, BRIDGE_JOINT: 0.0, HOIST_JOINT: args.hoist[0] if args.hoist else model.L1}
+    goal = {CART_JOINT: args.displacement, BRIDGE_JOINT: args.bridge or 0.0,
+            HOIST_JOINT: args.hoist[1] if args.hoist else model.L1}
+    duration = 0.0 if getattr(args, 'fastest', False) else args.duration
+    move = Move(method, tuple(joints), tuple(start[j] for j in joints), tuple(goal[j] for j in joints), duration,
+                via=tuple(args.via or ()))
+    bounds = MoveBounds(tuple(joints), method, math.inf, math.inf, args.via_tolerance)
+    labels = {'via': 'argument --via: ', 'start': 'the start: ', 'goal': 'the goal: '}
+    try:
+        checked = check_move(move, bounds, None, model.L1)
+        check_rests_keep_out(checked, model, args.keep_out_areas)
+        return plan_keeping_out(planner, checked, bounds, model, options, args.keep_out_areas)
+    except MoveError as exc:
+        raise PlanError(labels.get(exc.field, '') + exc.reason) from None
 
 
 def _add_task_options(p: argparse.ArgumentParser, fastest: bool = False):
@@ -327,13 +351,13 @@ def _timed_plan(planner: Planner, method, args, model, options) -> tuple[Plan, f
     # dispatch with the planner's solvers, as Planner.plan and .fastest do, which take no bridge (yet)
     t0 = time.perf_counter()
     axes = {'hoist': args.hoist, 'bridge': args.bridge}
-    if getattr(args, 'fastest', False):
+    if args.keep_out_areas or args.via:
+        plan = _served_plan(planner, method, args, model, options)
+    elif getattr(args, 'fastest', False):
         plan = dispatch.fastest(method, args.displacement, model, options, planner.variational, **axes)
     else:
         plan = dispatch.plan(method, args.displacement, args.duration, model, options, planner.variational, **axes)
-    elapsed = time.perf_counter() - t0
-    _check_keep_out(plan, args, model)
-    return plan, elapsed
+    return plan, time.perf_counter() - t0
 
 
 def _print_table(reports: list[dict]):
