@@ -79,7 +79,8 @@ class Case:
     commission: bool = False  # first plan with the planner's model, identify, then plan again
     hoist: tuple | None = None  # (L1 start, L1 goal) m: the rope moves during the motion (nodes with a hoist)
     #: what is measured: 'move' (a planned move from rest), or motion from any state: 'retarget', 'stop',
-    #: 'settle', 'operator'; 'spatial': the cart and the bridge, offline (``spatial_demo``, no nodes)
+    #: 'settle', 'operator'; 'spatial': the cart and the bridge, offline (``spatial_demo``, no nodes); 'route':
+    #: moves past protected areas and through a via point, offline (``route_demo``, no nodes)
     kind: str = 'move'
     #: the methods this case runs by default (of --methods; every one of them with --cases all), None = all;
     #: the operator case's are operator_shaper values
@@ -92,8 +93,8 @@ class Case:
 
     @property
     def on_nodes(self) -> bool:
-        """Whether the case runs over the nodes (all but the offline spatial case)."""
-        return self.kind != 'spatial'
+        """Whether the case runs over the nodes (all but the offline spatial and route cases)."""
+        return self.kind not in ('spatial', 'route')
 
 
 CASES = {
@@ -116,6 +117,9 @@ CASES = {
     # the spatial crane, offline: every method on 0.3 x 0.2 m (nominal, L1 -10 %), and a fast diagonal by
     # coupled NVF, ZV and NVF per plane (the plants and moves are spatial_demo's)
     'spatial': Case('spatial', CraneParams(), False, kind='spatial'),
+    # protected areas, offline: a wall the load is lifted over, a column it goes around, a via point
+    # (``route_demo``); the shapers go straight, so the planner refuses them here (NVF and RVF route)
+    'route': Case('route', CraneParams(), False, kind='route', methods=('nvf', 'rvf', 'zv')),
 }
 #: What runs without --cases: every case but perturbed+net (nothing perturbed and nominal+net do not show
 #: between them), so that make demo, hoisting, motion from any state and the spatial case included, stays
@@ -389,9 +393,11 @@ def commission(driver: CraneHarness, args, model: CraneParams):
 def columns(cases) -> list[str]:
     """Table columns: one per case, two for the commission case (before and after identification), three for
     the spatial case (``spatial_demo.COLUMNS``)."""
+    from .route_demo import COLUMNS as ROUTE_COLUMNS
     from .spatial_demo import COLUMNS
     return [name for c in cases
-            for name in ((BEFORE, AFTER) if c.commission else COLUMNS if c.kind == 'spatial' else (c.name,))]
+            for name in ((BEFORE, AFTER) if c.commission else COLUMNS if c.kind == 'spatial'
+                         else ROUTE_COLUMNS if c.kind == 'route' else (c.name,))]
 
 
 def _describe(identified) -> str:
@@ -545,6 +551,34 @@ def run_spatial_case(args) -> tuple[list[Run], list]:
                 empty, empty, empty) for r in records], records
 
 
+def run_route_case(args) -> tuple[list[Run], list]:
+    """The route case, offline (``route_demo.run_routes``, after the nodes have stopped): its table rows as Runs
+    (no ExecuteMove result: nan), its ``RouteRun`` records for the figure and the routes' table, and the
+    refusals said."""
+    from .route_demo import run_routes
+    progress('route case: planned as the planner serves it and simulated offline (crane_sim, no nodes)')
+    methods = case_methods(CASES['route'], args.methods, args.every)
+    records, _ = run_routes(methods, log=progress)
+    empty = np.zeros(0)
+    return [Run(r.column, r.method, r.plan_time_s, r.peak_acceleration, r.residual_mm, float('nan'), r.t,
+                r.load_mm, empty, empty, empty) for r in records], records
+
+
+def print_routes(records: list) -> None:
+    """The route case's own figures: each method's route and the smallest distance of a mass to the box."""
+    from .route_demo import COLUMNS, MARGIN
+    print(f'routes (margin {MARGIN * 1e3:g} mm): route taken | smallest distance of a mass to the box in crane_sim '
+          '(mm) | residual (mm); a method the planner refuses: -')
+    methods = list(dict.fromkeys(r.method for r in records))
+    by_key = {(r.column, r.method): r for r in records}
+    print(f'{"method":<8}' + ''.join(f'{c:>30}' for c in COLUMNS))
+    for m in methods:
+        cells = [by_key.get((c, m)) for c in COLUMNS]
+        print(f'{m:<8}' + ''.join(f'{"-":>30}' if r is None else
+                                  f'{r.route or "direct":>8} |{r.clearance_mm:7.1f} |{r.residual_mm:9.5f}'
+                                  .rjust(30) for r in cells))
+
+
 def run_sweep(args) -> Path | None:
     """Paper Fig. 4 from ``crane-plan sweep`` (offline; run after the nodes stop, to keep the stream steady)."""
     if args.sweep_points < 2 or args.no_figures:
@@ -666,7 +700,13 @@ def _run(args, env: dict, t_start: float) -> int:
         if any(c.kind == 'spatial' for c in args.cases):
             spatial_runs, spatial = run_spatial_case(args)
             runs += spatial_runs
+        routes = None
+        if any(c.kind == 'route' for c in args.cases):
+            route_runs, routes = run_route_case(args)
+            runs += route_runs
         print_table(runs, args.cases, args.methods)
+        if routes:
+            print_routes(routes)
         (out / 'results.json').write_text(json.dumps([r.row() for r in runs], indent=1) + '\n')
         written = [out / 'results.json'] + ([written_bag] if written_bag is not None else [])
         if identification is not None:
@@ -681,6 +721,9 @@ def _run(args, env: dict, t_start: float) -> int:
                 written.append(plot_identification(recording, identified, out / 'demo_commission_fit.png'))
         if not args.no_figures:
             written += write_figures(runs, args, timing_log, spatial)
+            if routes:
+                from .route_demo import plot_routes
+                written.append(plot_routes(routes, out / 'demo_route.png'))
             sweep = run_sweep(args)
             if sweep:
                 written.append(sweep)
