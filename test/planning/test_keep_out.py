@@ -17,7 +17,7 @@ from crane_planner.planning.dispatch import SolverCache, plan
 from crane_planner.planning.keep_out import Box, KeepOut, KeepOutError, boxes_from_flat
 from crane_planner.planning.mass_path import predict_mass_path, rest_positions
 from crane_planner.tools.evaluate import simulate_plan
-from crane_sim.spatial import cable_direction
+from crane_planner.tools.evaluate import simulated_masses as masses_of
 
 NOMINAL = CraneParams().replace(tau=0.0, tau_hoist=0.0)
 #: The contract's wall: x 0.25-0.35 m across the whole runway, from the floor up to 0.10 m above the load.
@@ -78,15 +78,8 @@ def test_a_rest_inside_a_box_or_within_the_margin_is_refused_naming_the_box_and_
 def simulated_masses(p, params: CraneParams, settle: float):
     """(t, m1, m2) of crane_sim driven by ``p`` (1 ms, its own model), placed by crane_sim's cable directions."""
     ev = simulate_plan(p, params, settle=settle)
-    s = {k: v[0] for k, v in ev.sim.states.items()}
-    zero = 0.0 * s['y']
-    L1 = s.get('L1', zero + params.L1)
-    phi1, phi2 = s.get('phi1', zero), s.get('phi2', zero)
-    u1 = np.array(cable_direction(s['theta1'], phi1))
-    u2 = np.array(cable_direction(s['theta1'] + s['theta2'], phi1 + phi2))
-    suspension = np.array([s['y'], s.get('yb', zero), zero])
-    m1 = suspension + L1 * u1
-    return ev.sim.t, m1.T, (m1 + params.L2 * u2).T
+    m1, m2 = masses_of(ev.sim)
+    return ev.sim.t, m1.T, m2.T
 
 
 @pytest.mark.parametrize('method, axes', [

@@ -60,9 +60,12 @@ def test_a_goal_inside_a_box_is_refused_naming_it(capsys):
                            'keep_out box 1' in err
 
 
-def test_nvf_with_a_hoist_held_routes_over_the_wall_and_reports_its_clearance(capsys):
-    status, out, err = run(capsys, 'plan', '--method', 'nvf', *TASK, '--hoist', '0.47', '0.47', *WALL, '--json')
+def test_nvf_with_a_hoist_held_routes_over_the_wall_and_reports_its_clearance(capsys, tmp_path):
+    png = tmp_path / 'wall.png'
+    status, out, err = run(capsys, 'plan', '--method', 'nvf', *TASK, '--hoist', '0.47', '0.47', *WALL, '--json',
+                           '--plot', str(png))
     assert status == 0, err
+    assert png.stat().st_size > 20_000  # with the side and top views of the boxes and the masses' paths
     report = json.loads(out)
     assert 0.02 <= report['min_clearance'] < 0.04 and report['residual']['load_mm'] < 0.1
     assert report['hoist']['goal'] == pytest.approx(0.47, abs=1e-9)

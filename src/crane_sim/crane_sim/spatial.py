@@ -62,6 +62,17 @@ def cable_direction(a, b) -> tuple:
     return -np.sin(a) * cb, np.sin(b), -np.cos(a) * cb
 
 
+def mass_paths(x, y, L1, L2, theta1, theta2, phi1=0.0, phi2=0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(m1, m2): both masses' positions (3, n) in ``crane_base`` for the suspension point (x, y, 0), the
+    upper cable L1 and the swing angles (arrays or floats; phi 0: the planar crane)."""
+    x, y, L1, theta1, theta2, phi1, phi2 = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (
+        x, y, L1, theta1, theta2, phi1, phi2)))
+    u1 = np.array(cable_direction(theta1, phi1))
+    u2 = np.array(cable_direction(theta1 + theta2, phi1 + phi2))
+    m1 = np.stack([x, y, np.zeros_like(x)]) + L1 * u1
+    return m1, m1 + L2 * u2
+
+
 def load_swing(theta1, theta2, L1, L2, phi1=None, phi2=None):
     """The load's swing (m), floats or arrays: on the planar crane (no ``phi``) its offset along x, signed,
     positive when it lags (``dynamics.load_excursion``, Fig. 1); with ``phi1``, ``phi2`` (a crane with a

@@ -396,7 +396,7 @@ def cmd_plan(args) -> int:
         _say(args, f'wrote {args.csv}')
     if args.plot:
         from .figures import plot_plan
-        plot_plan(ev, args.plot)
+        plot_plan(ev, args.plot, args.keep_out_areas)
         _say(args, f'wrote {args.plot}')
     return 0
 

@@ -21,6 +21,7 @@ from crane_planner.planning import Plan, Samples
 from crane_planner.planning.plan import AxesPlan, time_grid
 from crane_sim.metrics import peak, rms, swing_metrics, window
 from crane_sim.simulator import SimResult, simulate
+from crane_sim.spatial import mass_paths
 
 #: Simulation step and reference sample period used to evaluate plans (s).
 EVAL_STEP = 1e-3
@@ -156,6 +157,17 @@ def vary_parameter(model: CraneParams, param: str, span: float, points: int):
     """Plants with ``param`` at model value x (1 + linspace(-span, span, points))."""
     values = getattr(model, param) * (1.0 + np.linspace(-span, span, points))
     return values, [model.replace(**{param: float(v)}) for v in values]
+
+
+def simulated_masses(result: SimResult, index: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(m1, m2): both masses' positions (3, n) in ``crane_base`` at ``result.t`` for plant ``index``, from the
+    simulator's states (the suspension point relative to where the plan starts; with a hoist its rope
+    length, else the plant's L1) placed by crane_sim's own cable directions."""
+    states, zero = result.states, 0.0 * result.t
+    row = {name: states[name][index] if name in states else zero for name in ('yb', 'phi1', 'phi2')}
+    L1 = states['L1'][index] if 'L1' in states else zero + result.plants.L1[index]
+    return mass_paths(states['y'][index], row['yb'], L1, result.plants.L2[index], states['theta1'][index],
+                      states['theta2'][index], row['phi1'], row['phi2'])
 
 
 def residual_load_mm(ev: Evaluation) -> np.ndarray:

@@ -20,12 +20,15 @@ def save_figure(fig, path):
     return path
 
 
-def plot_plan(ev, path: str):
+def plot_plan(ev, path: str, keep_out=None):
     """Reference position, velocity, acceleration, jerk and the simulated swing of one plan; with a bridge also
-    the out-of-plane swing and a top view (x-y) of the suspension point's and the load's paths."""
+    the out-of-plane swing and a top view (x-y) of the suspension point's and the load's paths; with
+    ``keep_out`` boxes (a ``planning.keep_out.KeepOut``) both masses' paths beside them from the side (x-z)
+    and from above (x-y)."""
     s, sim, plan = ev.samples, ev.sim, ev.plan
     spatial = 'phi1' in sim.states
-    fig, axes = plt.subplots(4 if spatial else 3, 2, figsize=(11, 10.5 if spatial else 8))
+    rows = 3 + spatial + bool(keep_out)
+    fig, axes = plt.subplots(rows, 2, figsize=(11, 2.7 * rows))
     for ax, (y, label) in zip(axes.flat[:4], [(s.position, 'position (m)'), (s.velocity, 'velocity (m/s)'),
                                               (s.acceleration, 'acceleration (m/s²)'), (s.jerk, 'jerk (m/s³)')]):
         ax.plot(s.t, y, label='cart')
@@ -56,8 +59,37 @@ def plot_plan(ev, path: str):
         title = f'({plan.displacement:g}, {plan.axes["bridge"].displacement:g}) m'
     else:
         title = f'{plan.displacement:g} m'
+    if keep_out:
+        _plot_keep_out(axes[-1, 0], axes[-1, 1], sim, keep_out)
     fig.suptitle(f'{plan.method.upper()}: {title} in {plan.duration:g} s')
     return save_figure(fig, path)
+
+
+def _plot_keep_out(side_ax, top_ax, sim, keep_out):
+    """Both masses' simulated paths beside the keep-out boxes (grey; dashed: grown by the margin), from the
+    side (x-z) and from above (x-y)."""
+    from matplotlib.patches import Rectangle
+
+    from .evaluate import simulated_masses
+    m1, m2 = simulated_masses(sim)
+    for ax, (i, j), title in ((side_ax, (0, 2), 'side view (x-z)'), (top_ax, (0, 1), 'top view (x-y)')):
+        for box in keep_out.boxes:
+            lo, hi = np.maximum(box.lower, -1e3), np.minimum(box.upper, 1e3)
+            ax.add_patch(Rectangle((lo[i], lo[j]), hi[i] - lo[i], hi[j] - lo[j], color='0.6', alpha=0.5))
+            m = keep_out.margin
+            ax.add_patch(Rectangle((lo[i] - m, lo[j] - m), hi[i] - lo[i] + 2 * m, hi[j] - lo[j] + 2 * m, fill=False,
+                                   ls='--', color='0.4'))
+        ax.plot(m1[i], m1[j], lw=1.0, label='upper mass m1')
+        ax.plot(m2[i], m2[j], lw=1.2, label='load m2')
+        span = np.concatenate([m1[[i, j]], m2[[i, j]]], axis=1)
+        pad = 0.1 * max(np.ptp(span[0]), np.ptp(span[1]), 0.1)
+        ax.set_xlim(span[0].min() - pad, span[0].max() + pad)
+        ax.set_ylim(span[1].min() - pad, span[1].max() + pad)
+        ax.set_xlabel('x, cart (m)')
+        ax.set_ylabel('z (m)' if j == 2 else 'y, bridge (m)')
+        ax.set_title(f'{title}: the keep-out boxes, the masses\' paths', fontsize=10)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
 
 
 def _plot_top_view(path_ax, zoom_ax, sim):

@@ -77,19 +77,13 @@ def measured_masses(rec: dict, L1: float, L2: float) -> tuple[np.ndarray, np.nda
     """(m1, m2): both masses' positions (n, 3) in crane_base from recorded joint_states columns
     (``state_columns``): the cart, the bridge and the rope (the hoist's column) where they are served, else
     0, 0 and ``L1``; placed by crane_sim's own cable directions, not the planner's."""
-    from crane_sim.spatial import cable_direction
-    n = len(rec['stamp'])
-    column = {name: rec[name] if name in rec and np.all(np.isfinite(rec[name])) else None
-              for name in ('cart', 'bridge', 'hoist', 'phi1', 'phi2')}
-    zero = np.zeros(n)
-    x, y = column['cart'] if column['cart'] is not None else zero, column['bridge'] if column['bridge'] is not None \
-        else zero
-    rope = column['hoist'] if column['hoist'] is not None else zero + L1
-    phi1, phi2 = (column[k] if column[k] is not None else zero for k in ('phi1', 'phi2'))
-    u1 = np.array(cable_direction(rec['theta1'], phi1))
-    u2 = np.array(cable_direction(rec['theta1'] + rec['theta2'], phi1 + phi2))
-    m1 = np.stack([x, y, zero]) + rope * u1
-    return m1.T, (m1 + L2 * u2).T
+    from crane_sim.spatial import mass_paths
+    served = {name: rec[name] if name in rec and np.all(np.isfinite(rec[name])) else None
+              for name in ('bridge', 'hoist', 'phi1', 'phi2')}
+    m1, m2 = mass_paths(rec['cart'], 0.0 if served['bridge'] is None else served['bridge'],
+                        L1 if served['hoist'] is None else served['hoist'], L2, rec['theta1'], rec['theta2'],
+                        *(0.0 if served[k] is None else served[k] for k in ('phi1', 'phi2')))
+    return m1.T, m2.T
 
 
 class HarnessError(RuntimeError):

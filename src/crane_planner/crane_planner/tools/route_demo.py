@@ -28,7 +28,7 @@ import numpy as np
 
 from crane_msgs_py.params import CraneParams
 
-from .evaluate import residual_load_mm, simulate_plans
+from .evaluate import residual_load_mm, simulate_plans, simulated_masses
 
 #: The table's columns of the route case, in order.
 WALL, COLUMN, VIA = 'route:wall', 'route:column', 'route:via'
@@ -106,25 +106,17 @@ def run_routes(methods, log: Callable[[str], None] | None = None) -> tuple[list[
 
 
 def _record(column: str, method: str, plan, seconds: float, ev, boxes) -> RouteRun:
-    from crane_sim.spatial import cable_direction
     sim = ev.sim
-    zero = 0.0 * sim.y[0]
-    L1 = sim.L1[0] if 'L1' in sim.states else zero + sim.plants.L1[0]
-    phi1, phi2 = (sim.states[k][0] if k in sim.states else zero for k in ('phi1', 'phi2'))
-    u1 = np.array(cable_direction(sim.theta1[0], phi1))
-    u2 = np.array(cable_direction(sim.theta1[0] + sim.theta2[0], phi1 + phi2))
-    yb = sim.yb[0] if 'yb' in sim.states else zero
-    m1 = np.stack([sim.y[0], yb, zero]) + L1 * u1
-    m2 = m1 + sim.plants.L2[0] * u2
+    m1, m2 = simulated_masses(sim)
     clearance = min((min(box.distance(m1.T).min(), box.distance(m2.T).min()) for box in boxes), default=math.inf)
-    offset = np.hypot(m2[0] - sim.y[0], m2[1] - yb)
+    point = np.stack([sim.y[0], sim.yb[0] if 'yb' in sim.states else 0.0 * sim.t, 0.0 * sim.t])
+    offset = np.hypot(*(m2[:2] - point[:2]))
     grid = np.linspace(0.0, plan.duration, int(plan.duration / 1e-3) + 1)
     axes = plan.axes
     acc = np.hypot(axes['cart'].evaluate(grid).acceleration,
                    axes['bridge'].evaluate(grid).acceleration if 'bridge' in axes else 0.0 * grid)
     return RouteRun(column, method, seconds, plan.info.get('route', ''), 1e3 * clearance,
-                    float(residual_load_mm(ev)[0]), float(acc.max()), sim.t, 1e3 * offset, m2,
-                    np.stack([sim.y[0], yb, zero]))
+                    float(residual_load_mm(ev)[0]), float(acc.max()), sim.t, 1e3 * offset, m2, point)
 
 
 def plot_routes(runs: list[RouteRun], path) -> Path:
