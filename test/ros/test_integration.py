@@ -729,6 +729,21 @@ def test_keep_out_boxes_set_on_the_planner_refuse_a_preview_through_one_and_give
                                           name='crane_planner: plan', level=ERROR) is not None
         plan = crane.planner.plan('zv', 5.0, 5.15, 4.0)  # the load swings ~8 mm about its path: 80 mm clear
         assert 0.05 < plan.info.min_clearance < 0.1 and plan.info.route == ''
+        # the planner draws the box on crane_markers (once a second, expiring after 2 s)
+        from visualization_msgs.msg import MarkerArray
+
+        from crane_msgs_py.names import MARKERS_TOPIC
+        from crane_msgs_py.qos import MARKERS_QOS
+        drawn = []
+        sub = crane.driver.node.create_subscription(
+            MarkerArray, MARKERS_TOPIC, lambda m: drawn.extend(k for k in m.markers if k.ns == 'keep_out'), MARKERS_QOS)
+        try:
+            crane.driver.wait_until(lambda: drawn, 5.0, 'no keep_out marker on crane_markers within 5 s')
+        finally:
+            crane.driver.node.destroy_subscription(sub)
+        box = drawn[0]
+        assert (box.pose.position.x, box.scale.x, box.scale.z) == pytest.approx((5.30, 0.10, 1.24))
+        assert box.header.frame_id == 'crane_base' and box.lifetime.sec == 2
         with pytest.raises(HarnessError, match=r'keep_out: .*keep_out: 5 number\(s\); a box is six'):
             crane.driver.set_parameters('planner', {'keep_out': wall[:5]})
     finally:

@@ -301,6 +301,33 @@ def fill_crane_markers(msg: MarkerArray, stamp: int, suspension, p1, p2):
         markers[BRIDGE_MARKER].pose.position.y = suspension[1]
 
 
+#: How far (m) a keep-out box's unbounded side is drawn from the origin.
+KEEP_OUT_DRAWN = 5.0
+
+
+def keep_out_markers(boxes, margin: float, frame_id: str, stamp: int, lifetime: float = 2.0) -> MarkerArray:
+    """The keep-out boxes (``(lower, upper)`` corners, m, in ``frame_id``) as translucent red cubes (namespace
+    ``keep_out``) and each grown by ``margin`` as a fainter one (``keep_out_margin``); an unbounded side is
+    drawn ``KEEP_OUT_DRAWN`` from the origin. They expire after ``lifetime`` s (a publisher refreshes them
+    sooner): a box no longer set disappears by itself."""
+    msg = MarkerArray()
+    for k, (lower, upper) in enumerate(boxes):
+        for ns, grow, alpha in (('keep_out', 0.0, 0.5), ('keep_out_margin', margin, 0.15)):
+            lo = [max(v - grow, -KEEP_OUT_DRAWN) for v in lower]
+            hi = [min(v + grow, KEEP_OUT_DRAWN) for v in upper]
+            m = Marker()
+            m.header.frame_id = frame_id
+            set_stamp(m.header.stamp, stamp)
+            m.ns, m.id, m.type, m.action = ns, k, Marker.CUBE, Marker.ADD
+            m.pose.position.x, m.pose.position.y, m.pose.position.z = ((a + b) / 2 for a, b in zip(lo, hi))
+            m.pose.orientation.w = 1.0
+            m.scale.x, m.scale.y, m.scale.z = (max(b - a, 1e-3) for a, b in zip(lo, hi))
+            m.color.r, m.color.g, m.color.b, m.color.a = 0.9, 0.1, 0.1, alpha
+            m.lifetime.sec, m.lifetime.nanosec = int(lifetime), round((lifetime % 1.0) * 1e9)
+            msg.markers.append(m)
+    return msg
+
+
 def move_message(goal, duration: float, start=(), method: str = '', joint_names=(), start_ns: int = 0,
                  via=()) -> Move:
     """A ``crane_interfaces/Move``: positions (m) per joint of ``joint_names`` (empty: the planner's

@@ -25,13 +25,13 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
+from visualization_msgs.msg import MarkerArray
 
-from crane_msgs_py import names
+from crane_msgs_py import conversions, names
 from crane_msgs_py.action_server import ActionServer
-from crane_msgs_py.conversions import joint_state_to_arrays, read_stream_state, samples_to_joint_trajectory, stamp_ns
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.node_parameters import Guard, declare
-from crane_msgs_py.qos import JOINT_STATES_QOS, PLAN_MOVE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
+from crane_msgs_py.qos import JOINT_STATES_QOS, MARKERS_QOS, PLAN_MOVE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import fix_mmap_threshold, set_threads_fifo
 from crane_msgs_py.runner import run, spinning
 from crane_planner.planning import METHODS, VARIATIONAL_METHODS
@@ -43,7 +43,7 @@ from crane_planner.serving.moves import Move, summarize
 
 def _move(msg) -> Move:
     return Move(msg.method, tuple(msg.joint_names), tuple(msg.start), tuple(msg.goal), msg.duration,
-                stamp_ns(msg.start_time), tuple(tuple(p.positions) for p in msg.via))
+                conversions.stamp_ns(msg.start_time), tuple(tuple(p.positions) for p in msg.via))
 
 
 class PlannerNode(Node):
@@ -65,13 +65,16 @@ class PlannerNode(Node):
         self._planner.warmups = self._config.warmups()
         service.start_processes(self._planner, self._config, self.get_logger())  # before any request comes
         self._trajectory = self.create_publisher(JointTrajectory, names.TRAJECTORY_TOPIC, TRAJECTORY_QOS)
+        markers = self.create_publisher(MarkerArray, names.MARKERS_TOPIC, MARKERS_QOS)  # the keep-out boxes, 1 Hz
+        self.create_timer(1.0, lambda: self._config.keep_out and markers.publish(conversions.keep_out_markers(
+            [(b.lower, b.upper) for b in self._config.keep_out.boxes], self._config.keep_out.margin,
+            self._config.frame_id, self.get_clock().now().nanoseconds)))
         self._service = service.MoveService(
             self._planner, lambda: self._config, lambda: self.get_clock().now().nanoseconds,
             lambda t: self._trajectory.publish(self._message(t)), self._report, self.get_logger())
         # The two 50 Hz inputs on a node and SingleThreadedExecutor thread of their own: through the services'
-        # MultiThreadedExecutor, which rebuilds its wait set for every entity, their 100 messages a second
-        # cost the node far more CPU than on a small executor of their own; the EventsExecutor, once many
-        # requests had been served, fell behind on them and goals found no stream_state.
+        # MultiThreadedExecutor (its wait set rebuilt for every entity) they cost far more CPU; the EventsExecutor,
+        # once many requests had been served, fell behind on them and goals found no stream_state.
         self._inputs, self._inputs_spinning = self._spun('inputs', lambda node: [node.create_subscription(
             *topic) for topic in ((StreamState, names.STREAM_STATE_TOPIC, self._on_stream_state, STREAM_STATE_QOS),
                                   (JointState, names.JOINT_STATES_TOPIC, self._on_joint_state, JOINT_STATES_QOS))])
@@ -132,8 +135,7 @@ class PlannerNode(Node):
         """Enough executor threads for every solver busy at once, plus the shapers' and parameter requests,
         the goals being executed (each holds a thread until its result: one moving, one settling) and
         the stream_state / joint_states callbacks."""
-        config = self._config
-        return config.solver_processes + config.solver_pool_size * len(VARIATIONAL_METHODS) + 4 + 2 + 1
+        return self._config.solver_processes + self._config.solver_pool_size * len(VARIATIONAL_METHODS) + 7
 
     def _build_solvers(self):
         """Every method built once with the start-up configuration (``service.build_solvers``), reported on
@@ -156,19 +158,19 @@ class PlannerNode(Node):
     # -- messages <-> records ------------------------------------------------------------
 
     def _on_stream_state(self, msg: StreamState):
-        self._service.on_stream_state(StreamSample(*read_stream_state(msg)))
+        self._service.on_stream_state(StreamSample(*conversions.read_stream_state(msg)))
 
     def _on_joint_state(self, msg: JointState):
         try:
-            position, velocity = joint_state_to_arrays(msg, names.SIM_JOINTS)
+            position, velocity = conversions.joint_state_to_arrays(msg, names.SIM_JOINTS)
         except ValueError:  # not the crane's joints: nothing to measure the swing with
             return
-        self._service.on_joint_state(joint_sample(stamp_ns(msg.header.stamp), position, velocity, msg.name,
-                                                  msg.position, msg.velocity))
+        self._service.on_joint_state(joint_sample(conversions.stamp_ns(msg.header.stamp), position, velocity,
+                                                  msg.name, msg.position, msg.velocity))
 
     def _message(self, trajectory) -> JointTrajectory:
-        return samples_to_joint_trajectory(trajectory.samples, trajectory.starts, trajectory.stamp_ns,
-                                           self._config.frame_id, joint=list(trajectory.joints))
+        return conversions.samples_to_joint_trajectory(trajectory.samples, trajectory.starts, trajectory.stamp_ns,
+                                                       self._config.frame_id, joint=list(trajectory.joints))
 
     @staticmethod
     def _info(planned: service.Planned) -> PlanInfo:
@@ -183,8 +185,6 @@ class PlannerNode(Node):
             self.get_logger().error(f'{values["service"]} {values["method"]} refused: {error}')
         self._diagnostics.report('plan', ERROR if error else OK, message, **fields)
 
-    # -- PlanMove, ExecuteMove, settle ---------------------------------------------------
-
     def _on_plan_move(self, request, response):
         t0 = time.perf_counter()
         response.success, response.message = False, ''
@@ -192,8 +192,7 @@ class PlannerNode(Node):
         try:
             planned = self._service.plan(_move(request.move), 'plan_move')
         except Exception as exc:  # a refusal (ValueError); a solver bug must not kill the node or hang the caller
-            response.message = str(exc) if isinstance(exc, ValueError) else \
-                f'internal error: {type(exc).__name__}: {exc}'
+            response.message = str(exc) if isinstance(exc, ValueError) else f'internal error: {exc!r}'
             values = {'service': 'plan_move', 'method': '', **getattr(exc, 'values', {})}
             self._report(values, None, t0, t0, error=response.message)
             return response
