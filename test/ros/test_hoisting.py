@@ -19,13 +19,13 @@ NOMINAL = CraneParams()  # the planner's model and the sim's plant: tau 0.01 s, 
 #: A wall across the runway behind the cart's start, 0.10 m above the hanging load (the rope at 0.47 m): set
 #: from the start, so that the solver processes build the NLP of the route over it as they start; no other
 #: move here comes near it. A route takes ~40 IPOPT iterations, 0.5 s alone on this machine and more than
-#: the default max_solve_time (1 s) beside the 1 kHz nodes: the budget is raised as docs/methods.md says.
+#: the default max_solve_time (1 s) beside the 1 kHz nodes (several s beside the suite's other tests): raised.
 WALL = [-0.35, -0.25, -np.inf, np.inf, -3.0, -(NOMINAL.L1 + NOMINAL.L2) + 0.10]
 
 
 @pytest.fixture(scope='module')
 def hoist_crane(start_crane):
-    with start_crane(NS, hoist=True, planner_params={'keep_out': WALL, 'max_solve_time': 3.0}) as driver:
+    with start_crane(NS, hoist=True, planner_params={'keep_out': WALL, 'max_solve_time': 10.0}) as driver:
         yield driver
 
 

@@ -281,8 +281,10 @@ class CraneHarness:
         seen so far, at least 0.3 s (the planner's publish_lead: it sends the trajectory at once
         then). A request after a parameter change, on a machine also recording at 1 kHz, can
         take longer than that: such a motion reaches the streamer late and is streamed whole from its
-        next tick, and every window follows the start it really got (``streamed_start``)."""
-        return max(0.3, 3.0 * self._slowest_plan)
+        next tick, and every window follows the start it really got (``streamed_start``). At most 2 s: a route
+        past a keep-out box plans for seconds on a loaded machine, and the motions after it need not wait
+        three times that."""
+        return min(2.0, max(0.3, 3.0 * self._slowest_plan))
 
     def move(self, method: str, start: float, goal: float, duration: float, start_ns: int | None = None,
              settle: float = 0.0, hoist: tuple[float, float] | None = None,
@@ -319,7 +321,8 @@ class CraneHarness:
             # the streamer streams a late trajectory whole from its next tick (never a jump) and says
             # so: streamed_start returns the start it really got, and every window follows it
             self._log(f'planning {method} took {plan_time:.2f} s, past the motion start: the motion starts late')
-        traj = self.trajectory(start_ns, f'the {method}')
+        # sent publish_lead before its start (or at once): wait that long too
+        traj = self.trajectory(start_ns, f'the {method}', timeout=5.0 + max(0.0, (start_ns - self.now_ns()) * 1e-9))
         streamed = self.streamed_start(start_ns, mark, method)
         with self._lock:
             self._goals[streamed] = handle
