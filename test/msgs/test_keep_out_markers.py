@@ -1,5 +1,5 @@
 """The planner's keep-out boxes as RViz markers (``conversions.keep_out_markers``): each box and its margin a
-cube of the box's centre and size, an unbounded side drawn KEEP_OUT_DRAWN from the origin, expiring."""
+cube of the box's centre and size, an unbounded side drawn KEEP_OUT_DRAWN beyond the other, expiring."""
 import math
 
 import pytest
@@ -18,4 +18,8 @@ def test_each_box_and_its_margin_are_cubes_of_its_centre_and_size():
     assert (grown.scale.x, grown.scale.z) == pytest.approx((0.14, 1.28)) and grown.color.a < wall.color.a
     assert (wall.lifetime.sec, wall.lifetime.nanosec) == (2, 500_000_000) and wall.header.frame_id == 'crane_base'
     assert by[('keep_out', 1)].pose.position.x == pytest.approx(1.5)
+    # far from the origin: drawn where it is; a side without end KEEP_OUT_DRAWN beyond the other
+    [far, _] = keep_out_markers([((5.25, 7.0, -2.0), (5.35, math.inf, -0.76))], 0.0, 'crane_base', 0).markers
+    assert (far.pose.position.x, far.scale.x) == pytest.approx((5.30, 0.10))
+    assert (far.pose.position.y, far.scale.y) == pytest.approx((7.0 + KEEP_OUT_DRAWN / 2, KEEP_OUT_DRAWN))
     assert keep_out_markers([], 0.02, 'crane_base', 0).markers == []

@@ -301,20 +301,30 @@ def fill_crane_markers(msg: MarkerArray, stamp: int, suspension, p1, p2):
         markers[BRIDGE_MARKER].pose.position.y = suspension[1]
 
 
-#: How far (m) a keep-out box's unbounded side is drawn from the origin.
+#: How far (m) a keep-out box's unbounded side is drawn beyond its other side (from the origin if both are).
 KEEP_OUT_DRAWN = 5.0
+
+
+def _drawn_span(lo: float, hi: float) -> tuple[float, float]:
+    """A box's span along one axis as drawn: an unbounded side ``KEEP_OUT_DRAWN`` beyond the other one."""
+    if math.isinf(lo) and math.isinf(hi):
+        return -KEEP_OUT_DRAWN, KEEP_OUT_DRAWN
+    if math.isinf(lo):
+        return hi - KEEP_OUT_DRAWN, hi
+    if math.isinf(hi):
+        return lo, lo + KEEP_OUT_DRAWN
+    return lo, hi
 
 
 def keep_out_markers(boxes, margin: float, frame_id: str, stamp: int, lifetime: float = 2.0) -> MarkerArray:
     """The keep-out boxes (``(lower, upper)`` corners, m, in ``frame_id``) as translucent red cubes (namespace
-    ``keep_out``) and each grown by ``margin`` as a fainter one (``keep_out_margin``); an unbounded side is
-    drawn ``KEEP_OUT_DRAWN`` from the origin. They expire after ``lifetime`` s (a publisher refreshes them
-    sooner): a box no longer set disappears by itself."""
+    ``keep_out``) and each grown by ``margin`` as a fainter one (``keep_out_margin``); an unbounded
+    side is drawn ``KEEP_OUT_DRAWN`` beyond the other (``_drawn_span``). They expire after ``lifetime`` s
+    (a publisher refreshes them sooner): a box no longer set disappears by itself."""
     msg = MarkerArray()
     for k, (lower, upper) in enumerate(boxes):
         for ns, grow, alpha in (('keep_out', 0.0, 0.5), ('keep_out_margin', margin, 0.15)):
-            lo = [max(v - grow, -KEEP_OUT_DRAWN) for v in lower]
-            hi = [min(v + grow, KEEP_OUT_DRAWN) for v in upper]
+            lo, hi = zip(*(_drawn_span(a - grow, b + grow) for a, b in zip(lower, upper)))
             m = Marker()
             m.header.frame_id = frame_id
             set_stamp(m.header.stamp, stamp)
