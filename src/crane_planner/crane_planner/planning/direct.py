@@ -96,7 +96,7 @@ class DirectSolver(VariationalSolver):
         time; with ``boxes`` keep-out boxes and ``vias`` via points), built on first use, shared with spawned
         solvers."""
         form = Form.coerce(form)
-        key = ('free', form) if free_time else (form, 'constrained', boxes, vias) if boxes or vias else form
+        key = ('free', form) if free_time else self._key(form, boxes, vias)
         with self._transcriptions_lock:
             tr = self._transcriptions.get(key)
             if tr is None:
@@ -105,8 +105,14 @@ class DirectSolver(VariationalSolver):
                                                                boxes=boxes, vias=vias)
         return tr
 
+    @staticmethod
+    def _key(form: Form, boxes: int = 0, vias: int = 0):
+        """What a fixed-duration NLP and its IPOPT instance are kept under: the form, with path constraints
+        the numbers of keep-out boxes and via points too."""
+        return (form, 'constrained', boxes, vias) if boxes or vias else form
+
     def _instance(self, form: Form, boxes: int = 0, vias: int = 0) -> Instance:
-        key = (form, 'constrained', boxes, vias) if boxes or vias else form
+        key = self._key(form, boxes, vias)
         inst = self._instances.get(key)
         if inst is None:
             tr = self.transcription(form, boxes=boxes, vias=vias)
@@ -150,9 +156,8 @@ class DirectSolver(VariationalSolver):
             raise PlanError(f'a route {route.kind} a box needs the {route.axis} in the move')
         boxes = len(keep_out.boxes) if keep_out is not None and route is not None else 0
         frac = self.mesh(duration, params, form)
-        key = (form, 'constrained', boxes, len(vias))
         with self._lock:
-            t_build, built = time.perf_counter(), key not in self._instances
+            t_build, built = time.perf_counter(), self._key(form, boxes, len(vias)) not in self._instances
             inst = self._instance(form, boxes, len(vias))
             build_time = time.perf_counter() - t_build if built else 0.0
             tr, solver, pb = inst.transcription, inst.solver, inst.transcription.problem

@@ -150,13 +150,6 @@ class KeepOut:
                             f'{box.name}')
         return None
 
-    def check_rest(self, points: dict, where: str) -> None:
-        """KeepOutError (``where``: which rest, e.g. ``move.goal``) if a mass at rest is within the margin of a
-        box (``rest_violation``)."""
-        reason = self.rest_violation(points)
-        if reason is not None:
-            raise KeepOutError(f'{where}: {reason}')
-
     def check(self, path, what: str = 'the plan') -> Clearance:
         """The clearance of ``path``; KeepOutError naming the box and the mass if it is below the margin."""
         clearance = self.clearance(path)

@@ -216,10 +216,9 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
     moves is planned with the cart on the spatial crane, ``bridge=``).
     """
     hoist, rope = None, move.axes.get(HOIST_JOINT)
-    if rope is not None:
-        params = params.replace(L1=rope.start)  # the rope as it is now
-        if rope.goal != rope.start:
-            hoist = (rope.start, rope.goal)  # (dispatch.plan's hoist=)
+    params = model_at_rope(move, params)
+    if rope is not None and rope.goal != rope.start:
+        hoist = (rope.start, rope.goal)  # (dispatch.plan's hoist=)
     bridge = move.axes.get(BRIDGE_JOINT)
     moving = {'bridge': bridge.displacement} if bridge is not None and bridge.displacement != 0.0 else {}
     try:
@@ -239,6 +238,12 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
     planned = plan.axes if isinstance(plan, AxesPlan) else {CART_JOINT: plan}
     return with_axes_held(plan, {name: m.start if name == HOIST_JOINT else 0.0 for name, m in move.axes.items()
                                  if name not in planned})
+
+
+def model_at_rope(move: CheckedMove, params: CraneParams) -> CraneParams:
+    """The planning model of ``move``: ``params`` with L1 the rope's length at its start, if it has a hoist."""
+    rope = move.axes.get(HOIST_JOINT)
+    return params.replace(L1=rope.start) if rope is not None else params
 
 
 def check_rests_keep_out(move: CheckedMove, params: CraneParams, keep_out: KeepOut) -> None:
@@ -307,8 +312,7 @@ def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: Cra
             raise MoveError('keep_out', f'{exc.reason}; shapers do not route past boxes: nvf and rvf do (over '
                                         'a box with a hoist, around it with a bridge)') from None
         direct = exc
-    rope = move.axes.get(HOIST_JOINT)
-    model = params.replace(L1=rope.start) if rope is not None else params
+    model = model_at_rope(move, params)
     moves = {name: m.displacement for name, m in move.axes.items()}
     routes = route_candidates(keep_out, origin, moves, model.L1, model.L2, tuple(move.axes))
     reasons = []
@@ -330,11 +334,9 @@ def _constrained(planner, move: CheckedMove, params: CraneParams, options: PlanO
                  keep_out: KeepOut | None = None, vias=()) -> Plan:
     """An NVF/RVF plan of every axis of ``move`` with path constraints (``dispatch.VariationalRequest``:
     ``route`` past ``keep_out``, through ``vias``), on the model at the rope's length now."""
-    rope = move.axes.get(HOIST_JOINT)
-    model = params.replace(L1=rope.start) if rope is not None else params
     moves = {name: m.displacement for name, m in move.axes.items()}
-    request = VariationalRequest('plan', move.method, moves, move.duration, model,
-                                 hoisting_options(options) if rope is not None else options, route=route,
+    request = VariationalRequest('plan', move.method, moves, move.duration, model_at_rope(move, params),
+                                 hoisting_options(options) if HOIST_JOINT in moves else options, route=route,
                                  keep_out=keep_out, origin=origin_of(move), vias=tuple(vias))
     try:
         return planner.variational(request)
