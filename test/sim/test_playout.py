@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from crane_sim.playout import ReferencePlayout
+from crane_sim.playout import ReferencePlayout, StallAllowance
 from crane_sim.simulator import SimulationError
 
 DT = 1e-3
@@ -71,8 +71,12 @@ def test_late_samples_leave_no_lasting_velocity_or_position_error(delay, interpo
     # a 20 ms hiccup: samples 30..49 arrive together at 50 ms, after the steps that needed them
     stamped = bump()
     arrival = [max(k * DT, 0.05) if 30 <= k < 50 else k * DT for k in range(100)]
-    late = play(ReferencePlayout(delay, 0.1, interpolation), list(zip(arrival, stamped)), 150)
-    exact = play(ReferencePlayout(delay, 0.1, interpolation), on_time(stamped), 150)
+    late_playout, exact_playout = (ReferencePlayout(delay, 0.1, interpolation) for _ in range(2))
+    late = play(late_playout, list(zip(arrival, stamped)), 150)
+    exact = play(exact_playout, on_time(stamped), 150)
+    # counted for the diagnostics: made up once, the first of them 20 ms (less the delay) past its playout
+    assert (late_playout.made_up, exact_playout.made_up) == (1, 0)
+    assert late_playout.made_up_late == pytest.approx(0.05 + 0.37e-3 - delay - 0.03, abs=1e-9)
     assert integrate(exact)[0] == pytest.approx(sum(s[2] for s in stamped) * DT, abs=1e-15)  # the reference
     assert not np.array_equal(late, exact)  # the steps in the hiccup did run without their samples
     v, y = integrate(late)
@@ -200,6 +204,23 @@ def test_a_stall_of_the_plant_s_own_loop_is_not_the_stream_s_silence():
     assert playout.step(1.701, 1.702) == (0.0, 0.0) and playout.timeouts == 1
     _, played = stalled(late=0.0)
     assert played == (0.0, 0.0)
+
+
+def test_a_stall_is_forgiven_for_the_timeout_after_it_while_its_backlog_arrives():
+    """The process stood still 1.5 s (SIGSTOP) and its loop caught up in 0.3 s: the samples of the stall are
+    still in its executor's backlog, so for the timeout (1 s) after the stall its newest sample may be
+    1 + 1.5 s old; after that the allowance is the loop's own lateness again."""
+    allowance = StallAllowance(hold=1.0)
+    assert allowance(0.0002, 10.0) == 0.0002  # on time: its jitter
+    assert allowance(1.5, 11.5) == 1.5  # the first step after the stall
+    assert allowance(0.0, 11.8) == 1.5  # caught up, the backlog still on its way
+    assert allowance(0.0, 12.49) == 1.5
+    assert allowance(0.0, 12.51) == 0.0  # the stall's timeout has passed
+    assert allowance(0.2, 13.0) == 0.2 and allowance(0.1, 13.9) == 0.2 and allowance(0.0, 14.01) == 0.0
+    playout = ReferencePlayout(delay=0.0, timeout=1.0)
+    playout.push(0.0, 0.0, 0.5)
+    playout.behind(StallAllowance(1.0)(1.5, 3.0))
+    assert playout.step(2.4, 2.401) == (0.5, 0.5) and playout.timeouts == 0  # 2.4 s old: within 1 + 1.5 s
 
 
 def test_stamps_must_increase_and_choices_are_checked():

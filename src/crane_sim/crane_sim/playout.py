@@ -59,6 +59,29 @@ def _interpolate(before: tuple, after: tuple, tau: float) -> float:
     return a0 + (a1 - a0) * (tau - t0) / (t1 - t0)
 
 
+class StallAllowance:
+    """How late (s) a step of the plant's loop counts as its own stall (``ReferencePlayout.behind``).
+
+    Its lateness now, or, for ``hold`` seconds of the clock after a stall, that stall's length: the samples
+    sent while the process stood still (SIGSTOP, a host pause) reach its executor only after it, a
+    backlog it works through while the loop has long caught up, so their gap is forgiven until the
+    executor has had ``hold`` (the reference timeout) to deliver them. A stream that stops within
+    ``hold`` of a stall is judged lost that much later, never not at all.
+    """
+
+    def __init__(self, hold: float):
+        self.hold = float(hold)
+        self._stall, self._until = 0.0, -math.inf
+
+    def __call__(self, late: float, now: float) -> float:
+        """The allowance for a step ``late`` s after its deadline, at ``now`` (s, the clock of ``hold``)."""
+        if now > self._until:
+            self._stall = 0.0
+        if late > self._stall:
+            self._stall, self._until = float(late), now + self.hold
+        return self._stall
+
+
 class ReferencePlayout:
     """Accelerations for consecutive plant steps from stamped references.
 
@@ -68,7 +91,10 @@ class ReferencePlayout:
         interpolation: ``zoh`` or ``linear``.
         source: ``acceleration`` (use each sample's acceleration) or ``position``.
 
-    ``timeouts`` counts the times the reference fell back to 0 after having had samples.
+    ``timeouts`` counts the times the reference fell back to 0 after having had samples; ``made_up`` the
+    times samples came too late for steps already played and their difference was made up, ``made_up_late``
+    the largest such lateness (s past the playout time): the reference ends right, the swing those steps
+    caused stays (a longer ``delay`` avoids it).
     """
 
     def __init__(self, delay: float, timeout: float, interpolation: str = 'zoh', source: str = 'acceleration'):
@@ -78,7 +104,8 @@ class ReferencePlayout:
             raise SimulationError(f'need delay >= 0 and timeout > 0, got {delay}, {timeout}')
         self.delay, self.timeout = float(delay), float(timeout)
         self.interpolation, self.source = interpolation, source
-        self.timeouts = 0
+        self.timeouts = self.made_up = 0
+        self.made_up_late = 0.0
         self.reset()
 
     def reset(self):
@@ -202,6 +229,9 @@ class ReferencePlayout:
                 d, span = queue[-1][1] - held, now_end - (pending[k][0] - pending[k][1])  # from the first one's start
                 ev += d * span
                 ep += d * span * span / 2
+            if queue[0][0] <= pending[-1][2]:  # (else ahead of the samples by design: no delay, linear)
+                self.made_up += 1  # came after the step that should have played it began
+                self.made_up_late = max(self.made_up_late, now - queue[0][0])
             while pending and pending[0][3] <= t_new:
                 pending.popleft()
             if ev or ep:

@@ -75,7 +75,7 @@ from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_
 from crane_msgs_py.runner import LoopThread, run
 from crane_sim.axis_controller import FAULT_STATES, AxisController, AxisState, FaultConfig, Offer
 from crane_sim.measurement import AngleNoise
-from crane_sim.playout import ReferencePlayout
+from crane_sim.playout import ReferencePlayout, StallAllowance
 from crane_sim.reference_intake import ReferenceIntake
 from crane_sim.simulator import INTERPOLATIONS, SOURCES, CraneSimulator, CraneState, SimulationError
 
@@ -182,7 +182,9 @@ class SimNode(Node):
         self._push: float | None = None  # a push for the loop to apply (m)
         # The loop's counts (out_of_order: a sample a swapped playout could not take); the
         # intake's own are the executor's: one writer per dict. The diagnostics add them up.
-        self.counts = dict.fromkeys(('out_of_order', 'timeouts', 'steps', 'skipped', 'published'), 0)
+        self.counts = dict.fromkeys(('out_of_order', 'timeouts', 'made_up', 'steps', 'skipped', 'published'), 0)
+        self.made_up_late = 0.0  # s: the latest a made-up sample came past its playout time
+        self._made_up_reported = 0
         self._lateness = Lateness()
         self._window = (time.monotonic(), 0, 0)  # (time, steps, published) at the last report
 
@@ -313,7 +315,7 @@ class SimNode(Node):
         ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
         epoch_ros = ros_now + (epoch - time.monotonic_ns())  # ROS time of step 0
         dt_ns, dt = ticker.period, ticker.period * 1e-9
-        playout_args, playouts, timeouts = None, (), 0  # a playout per axis, in sim.axes order
+        playout_args, playouts, timeouts, made_up = None, (), 0, 0  # a playout per axis, in sim.axes order
         seen = 0  # the cart's playout's timeouts handled: one more is a stream lost
         angles = slice(sim.joint_names.index('theta1'), None)  # of the swing's angles in joint_state()
         tracking = AxisState.TRACKING
@@ -330,8 +332,10 @@ class SimNode(Node):
             if self._playout_args is not playout_args:
                 playout_args = self._playout_args
                 timeouts += playouts[0].timeouts if playouts else 0
+                made_up += playouts[0].made_up if playouts else 0
                 playouts = tuple(ReferencePlayout(*playout_args) for _ in sim.axes)
                 playout, seen = playouts[0], 0  # the cart's: its timeouts are the stream's
+                allowance = StallAllowance(playout.timeout)
                 self._plant_clock = (epoch_ros, round(playout.delay * 1e9))
             if self._fault_config is not controller.config:
                 controller.config = self._fault_config
@@ -363,8 +367,9 @@ class SimNode(Node):
             t1 = t0 + dt
             self._played_ns = epoch_ros + ticker.tick * dt_ns  # what the intake judges staleness by
             if controller.state is tracking:
+                stall = allowance(late_ns * 1e-9, now * 1e-9)
                 for one in playouts:  # catching up after a stall: its samples may be on their way
-                    one.behind(late_ns * 1e-9)
+                    one.behind(stall)
                 tracked = [one.step(t0, t1) for one in playouts]
                 lost, seen = playout.timeouts > seen, playout.timeouts
                 sim.step(*zip(*controller.step(t0, t1, tracked, lost)))
@@ -378,6 +383,9 @@ class SimNode(Node):
                         self.get_logger().warn(f'axes {change.new.value}: {status.message}')
             counts['steps'] += 1
             counts['timeouts'] = timeouts + playout.timeouts
+            if playout.made_up + made_up > counts['made_up']:  # (every axis's playout has the same samples)
+                counts['made_up'] = made_up + playout.made_up
+                self.made_up_late = max(self.made_up_late, playout.made_up_late)
             if ticker.tick % self._publish_every == 0:
                 positions, velocities = sim.joint_state()
                 positions[angles] = self._noise(*positions[angles])
@@ -439,6 +447,7 @@ class SimNode(Node):
         if faulted and not error:
             message = f'{axes.message}; {message}'
         self._report_refusals(controller)
+        self._report_made_up(counts['made_up'])
         self._publish_status(axes, self.get_clock().now().nanoseconds - self._plant_clock[1])
         self._diagnostics.report(
             SIM_TASK, level, message, **self._axes_values(controller, axes),
@@ -446,7 +455,7 @@ class SimNode(Node):
             joint_states_rate_hz=(counts['published'] - published0) / elapsed,
             **lateness_summary_us(self._lateness.take()), **counts, ignored=ignored,
             reference_latency_p50_ms=p50, reference_latency_p99_ms=p99,
-            reference_interval_ms=self._intake.sender_period_ns * 1e-6,
+            reference_interval_ms=self._intake.sender_period_ns * 1e-6, made_up_late_ms=self.made_up_late * 1e3,
             reference_type=self._reference_type, reference_source=self._source,
             playout_delay=self._playout_args[0],
             interpolation=self._interpolation, y=state.y, theta1=state.theta1, theta2=state.theta2,
@@ -481,6 +490,17 @@ class SimNode(Node):
             f'{new} reference(s) refused after the reference stream was lost: the newest is off where the axes '
             f'{where} by {offsets} (resume_tolerance {controller.config.resume_tolerance * 1e3:g} mm); '
             'a stream resumes only from where the axes stand (or after ~/reset)')
+
+    def _report_made_up(self, made_up: int):
+        """A warning (at most once a report) when references came after the steps that needed them had run:
+        the reference was made up, the swing it caused was not."""
+        if made_up <= self._made_up_reported:
+            return
+        new, self._made_up_reported = made_up - self._made_up_reported, made_up
+        self.get_logger().warn(
+            f'{new} time(s) references came after their playout time (up to {self.made_up_late * 1e3:.0f} ms past '
+            f'it, playout_delay {self._playout_args[0] * 1e3:g} ms): the reference was made up at once, the swing '
+            'those steps caused stays; a host this busy needs a longer playout_delay')
 
     def destroy_node(self):
         self._loop_thread.stop()
