@@ -827,7 +827,10 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
         nodes.start(*STREAMER, namespace=ns, params={'output': 'float64_array'})
         nodes.start(*SIM, namespace=ns)
         sim_status = dict(name='crane_sim: sim', hardware_id=f'{ns}/crane_sim')
-        assert crane.diagnostics.wait_for(lambda s: status_values(s)['reference_type'] == 'float64_array',
+        # the type is known from the streamer's publisher; the streamer takes trajectories once it streams
+        # (after the sim's first joint_states): the sim then accepts references
+        assert crane.diagnostics.wait_for(lambda s: status_values(s)['reference_type'] == 'float64_array' and
+                                          int(status_values(s)['accepted']) > 0,
                                           30.0, after=crane.diagnostics.mark(), **sim_status) is not None
         pub = crane.publisher(JointTrajectory, f'{ns}/trajectory', TRAJECTORY_QOS)
         try:

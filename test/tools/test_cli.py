@@ -47,14 +47,29 @@ TASK = ['--displacement', '0.3', '--duration', '3']
     (['plan', '--method', 'zv', '--displacement', '0.3', '--fastest', '--max-velocity', '1', '--hoist', '0.47',
       '0.27'], 'fastest shaped plan with a hoist'),
 ])
-def test_bad_input_is_one_line_exit_2(args, needle):
-    r = run(*args)
-    assert r.returncode == 2, r.stderr
-    lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1, r.stderr
-    assert 'Traceback' not in r.stderr
+def test_bad_input_is_one_line_exit_2(args, needle, capsys):
+    """``main`` in this process (a process each would start Python and its imports 26 times; the next test
+    runs the executable)."""
+    from crane_planner.tools.cli import main
+    try:
+        code = main(args)
+    except SystemExit as exc:  # argparse's own refusals
+        code = exc.code
+    stderr = capsys.readouterr().err
+    assert code == 2, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    assert 'Traceback' not in stderr
     assert needle in lines[0]
     assert lines[0].startswith('crane-plan: error:')
+
+
+@pytest.mark.parametrize('args', [['plan', '--method', 'zv', '--displacement', '0.3', '--duration', '-1'],
+                                  ['plan', '--method', 'warp', *TASK]])
+def test_the_executable_refuses_bad_input_in_one_line_with_exit_2(args):
+    r = run(*args)
+    assert r.returncode == 2 and 'Traceback' not in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and r.stderr.startswith('crane-plan: error:'), r.stderr
 
 
 def test_help_exits_0():

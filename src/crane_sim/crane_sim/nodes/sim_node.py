@@ -135,10 +135,13 @@ PARAMETERS = {
     'seed': (0, 'seed of the measurement noise; fixed at start-up', {**int_range(0, 2**31 - 1), 'read_only': True}),
     'push_swing': (0.03, '~/push displaces the load this far (m) horizontally, cables in line, and lets go: a '
                          'swing for tests and the demo (the planner\'s ~/settle damps it)', float_range(-1.0, 1.0)),
-    'sched_priority': (0, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
+    # 45: the plant stands for a drive, real-time as the streamer (50) that feeds it. At normal priority a
+    # busy 2-core host kept its receive threads from references for up to 0.7 s, longer than the playout
+    # delay: made up late, they left a swing
+    'sched_priority': (45, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
                        'feeds it one below, the middleware\'s receive threads two below (without the privilege a '
-                       'warning and normal scheduling); '
-                       '0 = normal scheduling, enough: the playout delay absorbs late steps',
+                       'warning and normal scheduling: the playout delay absorbs late steps, and references '
+                       'held back longer are made up, see made_up on /diagnostics); 0 = normal scheduling',
                        {**int_range(0, 99), 'read_only': True}),
 }
 
