@@ -17,6 +17,7 @@ from crane_planner.planning import PlanOptions
 from crane_planner.planning.dispatch import VariationalRequest, hoisting_options, variational_solver
 from crane_planner.planning.keep_out import KeepOut
 from crane_planner.planning.routing import ROUTE_EXTRA, plateau, route_candidates
+from crane_planner.planning.shaped_route import shaped_route
 from crane_planner.tools.evaluate import simulate_plan
 from planning.test_keep_out import simulated_masses
 
@@ -78,3 +79,44 @@ def test_nvf_routes_keep_both_masses_out_leave_no_swing_and_end_at_the_goal(case
     assert ends['cart'] == pytest.approx(0.6, abs=1e-9) and abs(ends[next(n for n in moves if n != 'cart')]) < 1e-9
     detour = p.axes['hoist' if case == 'wall' else 'bridge'].evaluate(np.linspace(0.0, 4.0, 401)).position
     assert (detour.min() < -0.1) if case == 'wall' else (np.abs(detour).max() > 0.1)  # it did lift / step aside
+
+
+@pytest.mark.parametrize('case', ['wall', 'column'])
+def test_zv_routes_its_straight_move_with_a_shaped_detour_and_keeps_both_masses_out(case):
+    """A shaper's route: the straight ZV move, the hoist (wall) or the bridge (column) stepping aside and
+    back in two ZV-shaped legs; replayed in crane_sim both masses stay the margin out and the move ends
+    at its goal. The swing left: small around the column (each leg ends without swing on the linearized
+    model), a few mm over the wall (the cart's shaper is designed for the rope at its ends, not the
+    shortened one it passes the wall with)."""
+    from crane_planner.planning.dispatch import plan, shaper_design
+    from crane_planner.serving.moves import with_axes_held
+    if case == 'wall':
+        moves, keep_out, axis = {'cart': 0.6, 'hoist': 0.0}, WALL, 'hoist'
+        straight = with_axes_held(plan('zv', 0.6, 4.0, NOMINAL), {'hoist': NOMINAL.L1})
+    else:
+        moves, keep_out, axis = {'cart': 0.6, 'bridge': 0.0}, COLUMN, 'bridge'
+        straight = plan('zv', 0.6, 4.0, NOMINAL, bridge=0.0)
+    [route, *_] = route_candidates(keep_out, {}, moves, NOMINAL.L1, NOMINAL.L2, tuple(moves))
+    p = shaped_route(straight, route, NOMINAL, {}, keep_out, *shaper_design(NOMINAL, PlanOptions()))
+    assert p.info['route'] == route.kind and p.axes['cart'] is straight.axes['cart']
+    t, m1, m2 = simulated_masses(p, NOMINAL, 4.0)
+    for box in keep_out.boxes:
+        assert box.distance(m1).min() >= 0.02 and box.distance(m2).min() >= 0.02
+    # straight, the same move would not keep out
+    _, s1, s2 = simulated_masses(straight, NOMINAL, 4.0)
+    assert min(min(box.distance(s1).min(), box.distance(s2).min()) for box in keep_out.boxes) < 0.02
+    ev = simulate_plan(p, NOMINAL, settle=4.0)
+    assert ev.metrics[0]['residual']['load_mm'] <= (10.0 if case == 'wall' else 0.5)
+    detour = p.axes[axis].evaluate(np.linspace(0.0, 4.0, 4001))
+    assert detour.position[-1] == pytest.approx(0.0, abs=1e-12) and np.abs(detour.velocity[[0, -1]]).max() < 1e-12
+    assert np.abs(detour.position).max() == pytest.approx(abs(route.excursion), rel=1e-9)  # out, then back
+
+
+def test_a_duration_too_short_for_a_shaped_detour_is_refused_naming_the_time_it_leaves():
+    from crane_planner.planning.dispatch import plan, shaper_design
+    from crane_planner.planning.plan import PlanError
+    straight = plan('zvd', 0.6, 4.0, NOMINAL, bridge=0.0)
+    [route, *_] = route_candidates(COLUMN, {}, {'cart': 0.6, 'bridge': 0.0}, NOMINAL.L1, NOMINAL.L2,
+                                   ('cart', 'bridge'))
+    with pytest.raises(PlanError, match=r'the bridge has 1\.\d\d s to step aside .* the box, not more than the zvd'):
+        shaped_route(straight, route, NOMINAL, {}, COLUMN, *shaper_design(NOMINAL, PlanOptions()))

@@ -80,9 +80,10 @@ def test_a_goal_during_a_motion_whose_handover_would_enter_a_box_is_refused_and_
     assert crane.hold == pytest.approx(0.3)
 
 
-def test_nvf_past_the_wall_is_routed_over_it_a_shaper_and_a_cart_alone_are_refused_saying_why():
+def test_nvf_and_zv_past_the_wall_are_routed_over_it_a_long_shaper_and_a_cart_alone_are_refused_saying_why():
     """With a hoist (the rope 0.47 m at both ends), NVF lifts the load over the wall: its PlanInfo says
-    route over and a clearance of at least the margin; a shaper is refused pointing to nvf/rvf; on a
+    route over and a clearance of at least the margin; so does ZV (its straight move, the hoist's detour
+    shaped); ZVD, twice as long a shaper, leaves the hoist no time in 4 s and is refused saying so; on a
     planner of the cart alone NVF has no way past it."""
     from crane_planner.serving import Planner
     from crane_planner.serving.moves import check_move, plan_keeping_out
@@ -94,8 +95,13 @@ def test_nvf_past_the_wall_is_routed_over_it_a_shaper_and_a_cart_alone_are_refus
     assert summary.route == 'over' and 0.02 <= summary.min_clearance < 0.04
     assert plan.axes['hoist'].evaluate([4.0]).position[0] + plan.starts['hoist'] == pytest.approx(0.47, abs=1e-9)
     zv = check_move(Move('zv', goal=(0.6, 0.47), duration=4.0), hoisted.bounds, None, hoisted.params.L1)
-    with pytest.raises(MoveError, match='shapers do not route past boxes: nvf and rvf do'):
-        plan_keeping_out(planner, zv, hoisted.bounds, hoisted.params, hoisted.options, hoisted.keep_out)
+    shaped = plan_keeping_out(planner, zv, hoisted.bounds, hoisted.params, hoisted.options, hoisted.keep_out)
+    summary = summarize(shaped, zv.joints)  # its straight move, the hoist lifting the load over and back
+    assert summary.route == 'over' and summary.min_clearance >= 0.02
+    zvd = check_move(Move('zvd', goal=(0.6, 0.47), duration=4.0), hoisted.bounds, None, hoisted.params.L1)
+    with pytest.raises(MoveError, match=r'no route past it: over \(hoist -0.151 m\): the hoist has 1.\d\d s to '
+                                        'lift the load (before|after) the box, not more than the zvd shaper'):
+        plan_keeping_out(planner, zvd, hoisted.bounds, hoisted.params, hoisted.options, hoisted.keep_out)
     alone = config(keep_out=WALL, tau=0.0)
     cart = check_move(Move('nvf', goal=(0.6,), duration=4.0), alone.bounds, None, alone.params.L1)
     with pytest.raises(MoveError, match='no route past it: the served axes allow none'):

@@ -20,13 +20,14 @@ import numpy as np
 from crane_msgs_py.names import ACTUATED_JOINTS, BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 
-from ..planning.dispatch import PlanOptions, VariationalRequest, check_request, hoisting_options
+from ..planning.dispatch import PlanOptions, VariationalRequest, check_request, checked, hoisting_options, shaper_design
 from ..planning.hoisting import QuinticPlan
 from ..planning.keep_out import KeepOut, KeepOutError
 from ..planning.mass_path import predict_mass_path, rest_positions
 from ..planning.methods import METHODS, VARIATIONAL_METHODS
 from ..planning.plan import AxesPlan, Plan, PlanError
 from ..planning.routing import route_candidates
+from ..planning.shaped_route import shaped_route
 from .workers import WorkerDied
 
 
@@ -287,11 +288,12 @@ def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: Cra
 
     Via points: NVF/RVF pass them exactly (``direct.DirectSolver.solve_constrained``); a shaper's straight
     path must pass within ``bounds.via_tolerance`` of each, else ``move.via`` names the point. Boxes: the
-    plan if it keeps out (its clearance in its ``info``). Else, for NVF/RVF at a given duration, the routes
-    the served axes allow (``routing.route_candidates``: over a box with a hoist, around it with a bridge,
-    the smaller detour first), each planned with the keep-out path constraints and checked again on the
-    prediction: the first that keeps out (``info['route']`` says which). A shaper's, a fastest move's, or
-    one no route gets past is refused naming the box (``move.keep_out``), with each route's reason.
+    plan if it keeps out (its clearance in its ``info``). Else, at a given duration, the routes the served
+    axes allow (``routing.route_candidates``: over a box with a hoist, around it with a bridge, the smaller
+    detour first), each planned (NVF/RVF with the keep-out path constraints; a shaper's straight move with
+    the route's axis stepping aside and back, ``shaped_route``) and checked again on the prediction: the
+    first that keeps out (``info['route']`` says which). A fastest move, a shaper's with via points, or one
+    no route gets past is refused naming the box (``move.keep_out``), with each route's reason.
     """
     variational, vias = move.method in VARIATIONAL_METHODS, move.relative_vias
     if vias and variational:
@@ -308,9 +310,9 @@ def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: Cra
         if move.duration is None:
             raise MoveError('keep_out', f'{exc.reason}; the fastest move is planned direct only: give a duration '
                                         'and nvf or rvf route past the boxes') from None
-        if not variational:
-            raise MoveError('keep_out', f'{exc.reason}; shapers do not route past boxes: nvf and rvf do (over '
-                                        'a box with a hoist, around it with a bridge)') from None
+        if vias and not variational:
+            raise MoveError('keep_out', f'{exc.reason}; a shaper routes past boxes without via points: nvf and rvf '
+                                        'route through them') from None
         direct = exc
     model = model_at_rope(move, params)
     moves = {name: m.displacement for name, m in move.axes.items()}
@@ -318,7 +320,11 @@ def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: Cra
     reasons = []
     for route in routes:
         try:
-            routed = _constrained(planner, move, params, options, route=route, keep_out=keep_out, vias=vias)
+            if variational:
+                routed = _constrained(planner, move, params, options, route=route, keep_out=keep_out, vias=vias)
+            else:  # its straight move, the route's axis stepping aside and back (``shaped_route``)
+                routed = checked(shaped_route(plan, route, model, origin, keep_out, *shaper_design(model, options)),
+                                 options)
             keep_out_clearance(routed, origin, model, keep_out)
             return routed
         except WorkerDied:

@@ -2,7 +2,8 @@
 and protected areas").
 
 Each move is planned as the planner node serves it (``serving.moves.plan_keeping_out``: checked against the
-keep-out boxes on the planning model, NVF/RVF routed over or around a box the direct move would enter) and
+keep-out boxes on the planning model, routed over or around a box the direct move would enter: NVF/RVF with
+the path constraints, a shaper's straight move with a shaped detour, ``planning.shaped_route``) and
 replayed in ``crane_sim``'s batch model (``evaluate.simulate_plans``), without nodes: the nodes' path is
 covered by the ROS tests. On the Table 1 model (tau 10 ms), margin 0.02 m, every method asked:
 
@@ -12,9 +13,9 @@ covered by the ROS tests. On the Table 1 model (tau 10 ms), margin 0.02 m, every
   around it;
 - ``route:via``: (0, 0) -> (0.6, 0.4) m via (0.5, 0.0) in 4 s (a crane with a bridge).
 
-A method that cannot make a move (a shaper goes straight: through the wall, or far from the via point) is
-refused as the planner refuses it, and its reason printed. The figure shows the boxes and each method's load
-path in side and top views. No ROS import.
+A method that cannot make a move (a shaper's straight path far from the via point, a shaper too long to
+step aside in time) is refused as the planner refuses it, and its reason printed. The figure shows the boxes
+and each method's load path in side and top views. No ROS import.
 """
 from __future__ import annotations
 
