@@ -23,3 +23,12 @@ def test_each_box_and_its_margin_are_cubes_of_its_centre_and_size():
     assert (far.pose.position.x, far.scale.x) == pytest.approx((5.30, 0.10))
     assert (far.pose.position.y, far.scale.y) == pytest.approx((7.0 + KEEP_OUT_DRAWN / 2, KEEP_OUT_DRAWN))
     assert keep_out_markers([], 0.02, 'crane_base', 0).markers == []
+
+
+def test_the_route_is_a_line_strip_through_its_points_expiring():
+    from crane_msgs_py.conversions import route_markers
+    [line] = route_markers([(0.0, 0.0, -0.861), (0.1, 0.02, -0.8), (0.3, 0.0, -0.861)], 'crane_base', 5,
+                           lifetime=4.5).markers
+    assert (line.ns, line.type, line.header.frame_id) == ('route', line.LINE_STRIP, 'crane_base')
+    assert [(p.x, p.y, p.z) for p in line.points] == [(0.0, 0.0, -0.861), (0.1, 0.02, -0.8), (0.3, 0.0, -0.861)]
+    assert (line.lifetime.sec, line.lifetime.nanosec) == (4, 500_000_000) and line.scale.x > 0.0

@@ -3,6 +3,7 @@ predicted masses would come within the margin of a box, or whose start or goal i
 the box; one that keeps out says its clearance. On the fake clock and streamer of ``test_service``."""
 import math
 
+import numpy as np
 import pytest
 
 from crane_planner.planning.keep_out import KeepOutError
@@ -63,6 +64,26 @@ def test_a_bad_keep_out_parameter_is_refused_naming_it(values, words):
     with pytest.raises(KeepOutError) as refused:
         config(**values)
     assert str(refused.value).startswith(words)
+
+
+def test_a_goal_sent_with_boxes_set_draws_the_load_s_predicted_path_for_its_motion_and_settle():
+    """The route on crane_markers: the load's path as planned (every 50 ms, in crane_base: from the hold, the
+    load 0.861 m below the trolley), shown for the motion, its settle window and a second; without boxes none."""
+    drawn = []
+    crane = crane_with(keep_out=[1.0, 1.1, -math.inf, math.inf, -2.0, -0.76], tau=0.0)
+    crane.service._draw = lambda points, lifetime: drawn.append((points, lifetime))
+    goal = crane.goal('a', move(goal=0.3, duration=3.0), settle=0.5)
+    outcome, _ = crane.execute(goal, move(goal=0.3, duration=3.0), settle=0.5)
+    assert outcome.how == 'succeed', outcome.message
+    [(points, lifetime)] = drawn
+    assert lifetime == pytest.approx(3.0 + 0.5 + 1.0) and points.shape == (71, 3)
+    assert points[0] == pytest.approx([0.0, 0.0, -0.861])
+    assert points[-1] == pytest.approx([0.3, 0.0, -0.861], abs=1e-4)
+    assert np.abs(points[:, 0] - np.linspace(0, 0.3, 71)).max() > 0.01  # the load's, not the trolley's
+    crane = crane_with(tau=0.0)
+    crane.service._draw = lambda points, lifetime: drawn.append((points, lifetime))
+    crane.execute(crane.goal('b', move(goal=0.3, duration=3.0)), move(goal=0.3, duration=3.0))
+    assert len(drawn) == 1
 
 
 def test_a_goal_during_a_motion_whose_handover_would_enter_a_box_is_refused_and_the_motion_goes_on():

@@ -338,6 +338,21 @@ def keep_out_markers(boxes, margin: float, frame_id: str, stamp: int, lifetime: 
     return msg
 
 
+def route_markers(points, frame_id: str, stamp: int, lifetime: float) -> MarkerArray:
+    """The load's planned path ``points`` ((n, 3), m, in ``frame_id``) as a green line strip (namespace
+    ``route``), expiring after ``lifetime`` s: drawn while the motion runs and settles."""
+    m = Marker()
+    m.header.frame_id = frame_id
+    set_stamp(m.header.stamp, stamp)
+    m.ns, m.id, m.type, m.action = 'route', 0, Marker.LINE_STRIP, Marker.ADD
+    m.pose.orientation.w = 1.0
+    m.scale.x = 0.01  # the line's width (m)
+    m.color.r, m.color.g, m.color.b, m.color.a = 0.1, 0.8, 0.2, 0.9
+    m.points = [Point(x=float(x), y=float(y), z=float(z)) for x, y, z in points]
+    m.lifetime.sec, m.lifetime.nanosec = int(lifetime), round((lifetime % 1.0) * 1e9)
+    return MarkerArray(markers=[m])
+
+
 def move_message(goal, duration: float, start=(), method: str = '', joint_names=(), start_ns: int = 0,
                  via=()) -> Move:
     """A ``crane_interfaces/Move``: positions (m) per joint of ``joint_names`` (empty: the planner's

@@ -65,16 +65,17 @@ class PlannerNode(Node):
         self._planner.warmups = self._config.warmups()
         service.start_processes(self._planner, self._config, self.get_logger())  # before any request comes
         self._trajectory = self.create_publisher(JointTrajectory, names.TRAJECTORY_TOPIC, TRAJECTORY_QOS)
-        markers = self.create_publisher(MarkerArray, names.MARKERS_TOPIC, MARKERS_QOS)  # the keep-out boxes, 1 Hz
+        markers = self.create_publisher(MarkerArray, names.MARKERS_TOPIC, MARKERS_QOS)  # keep-out boxes (1 Hz), route
+        stamp = lambda: self.get_clock().now().nanoseconds  # noqa: E731
         self.create_timer(1.0, lambda: self._config.keep_out and markers.publish(conversions.keep_out_markers(
             [(b.lower, b.upper) for b in self._config.keep_out.boxes], self._config.keep_out.margin,
-            self._config.frame_id, self.get_clock().now().nanoseconds)))
+            self._config.frame_id, stamp())))
         self._service = service.MoveService(
-            self._planner, lambda: self._config, lambda: self.get_clock().now().nanoseconds,
-            lambda t: self._trajectory.publish(self._message(t)), self._report, self.get_logger())
-        # The two 50 Hz inputs on a node and SingleThreadedExecutor thread of their own: through the services'
-        # MultiThreadedExecutor (its wait set rebuilt for every entity) they cost far more CPU; the EventsExecutor,
-        # once many requests had been served, fell behind on them and goals found no stream_state.
+            self._planner, lambda: self._config, stamp,
+            lambda t: self._trajectory.publish(self._message(t)), self._report, self.get_logger(), draw=lambda
+            points, life: markers.publish(conversions.route_markers(points, self._config.frame_id, stamp(), life)))
+        # The two 50 Hz inputs on a node and executor thread of their own: the services' MultiThreadedExecutor costs
+        # far more CPU on them; the EventsExecutor fell behind on them after many requests (goals found no stream).
         self._inputs, self._inputs_spinning = self._spun('inputs', lambda node: [node.create_subscription(
             *topic) for topic in ((StreamState, names.STREAM_STATE_TOPIC, self._on_stream_state, STREAM_STATE_QOS),
                                   (JointState, names.JOINT_STATES_TOPIC, self._on_joint_state, JOINT_STATES_QOS))])

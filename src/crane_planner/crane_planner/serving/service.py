@@ -26,6 +26,7 @@ from typing import Any, Callable
 from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT, STREAM_STATE_TOPIC
 
 from ..planning.continuation import problem_start, swing_names
+from ..planning.mass_path import predict_mass_path
 from ..planning.methods import METHODS, SHAPER_METHODS, VARIATIONAL_METHODS
 from ..planning.plan import Plan, time_grid
 from ..streaming.knots import knot_times
@@ -54,6 +55,8 @@ from .moves import (
     check_move,
     check_rests_keep_out,
     keep_out_clearance,
+    model_at_rope,
+    origin_of,
     plan_keeping_out,
 )
 from .stops import STOP_LEAD, plan_stop
@@ -144,13 +147,16 @@ class MoveService:
             values, the ``Planned`` (None: refused), when its planning began and ended (``timer``), why not.
         log: has ``info``, ``warn`` and ``error`` (a message each).
         sleep, timer: how waits wait (s) and are timed (s, monotonic).
+        draw: ``draw(points, lifetime)``: with keep-out boxes set, the load's predicted path of a motion sent
+            ((n, 3), m, ``crane_base``), to be shown for ``lifetime`` s (its motion and settle window).
     """
 
     def __init__(self, planner, config: Callable[[], Config], clock: Callable[[], int],
                  publish: Callable[[Trajectory], Any], report: Callable[..., Any], log,
-                 sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter):
+                 sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter,
+                 draw: Callable[[Any, float], Any] | None = None):
         self.planner, self.config, self.clock = planner, config, clock
-        self._publish, self._report, self.log = publish, report, log
+        self._publish, self._report, self.log, self._draw = publish, report, log, draw
         self._sleep, self._timer = sleep, timer
         self.goals = Goals(clock)
         self.view = CraneView(clock, self.goals, sleep=sleep, monotonic=timer)
@@ -294,6 +300,9 @@ class MoveService:
                                                  'was streamed', planned)
             return self._end(goal, 'cancel', 'canceled before its motion started: nothing was streamed', planned)
         self._publish(planned.trajectory)
+        if config.keep_out and self._draw is not None:  # the route: the load's path as planned, every 50 ms
+            path = predict_mass_path(plan, model_at_rope(checked, config.params), origin_of(checked), settle)
+            self._draw(path.m2[::10], plan.duration + settle + 1.0)
         if checked.start_ns and not origin:
             self.log.warn(f'execute_move: its start_time had passed {(now - checked.start_ns) * 1e-9:.3f} s '
                           'before its trajectory was sent: the streamer streams it from its next tick')
