@@ -80,6 +80,10 @@ from crane_sim.reference_intake import ReferenceIntake
 from crane_sim.simulator import INTERPOLATIONS, SOURCES, CraneSimulator, CraneState, SimulationError
 
 SIM_TASK = 'sim'
+#: A step this late (ns) is caught up (``SimNode._await_samples``): waiting for samples in polls of
+#: CATCH_UP_POLL s while any arrive within CATCH_UP_QUIET s, CATCH_UP_WAIT s at most per step.
+CATCH_UP_NS = 5_000_000
+CATCH_UP_POLL, CATCH_UP_QUIET, CATCH_UP_WAIT = 2e-4, 2e-3, 0.05
 #: ``reference_type`` values: the streamer's two outputs, or whatever the topic's publisher sends.
 REFERENCE_TYPES = {OUTPUT_JOINT_TRAJECTORY: JointTrajectory, OUTPUT_FLOAT64_ARRAY: Float64MultiArray}
 _TYPE_NAMES = {'trajectory_msgs/msg/JointTrajectory': OUTPUT_JOINT_TRAJECTORY,
@@ -135,13 +139,13 @@ PARAMETERS = {
     'seed': (0, 'seed of the measurement noise; fixed at start-up', {**int_range(0, 2**31 - 1), 'read_only': True}),
     'push_swing': (0.03, '~/push displaces the load this far (m) horizontally, cables in line, and lets go: a '
                          'swing for tests and the demo (the planner\'s ~/settle damps it)', float_range(-1.0, 1.0)),
-    # 45: the plant stands for a drive, real-time as the streamer (50) that feeds it. At normal priority a
-    # busy 2-core host kept its receive threads from references for up to 0.7 s, longer than the playout
-    # delay: made up late, they left a swing
-    'sched_priority': (45, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
+    # 0: at SCHED_FIFO beside the streamer's the 1 kHz pair took most of a busy 2-core host from the planner's
+    # solver processes; a stall that holds the receive path back is caught up (_await_samples) instead
+    'sched_priority': (0, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
                        'feeds it one below, the middleware\'s receive threads two below (without the privilege a '
-                       'warning and normal scheduling: the playout delay absorbs late steps, and references '
-                       'held back longer are made up, see made_up on /diagnostics); 0 = normal scheduling',
+                       'warning and normal scheduling); 0 = normal scheduling: the playout delay absorbs late '
+                       'steps, a loop catching up waits for the samples the executor still has to hand over, and '
+                       'references later still are made up (made_up on /diagnostics)',
                        {**int_range(0, 99), 'read_only': True}),
 }
 
@@ -320,6 +324,7 @@ class SimNode(Node):
         dt_ns, dt = ticker.period, ticker.period * 1e-9
         playout_args, playouts, timeouts, made_up = None, (), 0, 0  # a playout per axis, in sim.axes order
         seen = 0  # the cart's playout's timeouts handled: one more is a stream lost
+        newest, playout_ns = 0, 0  # the newest sample's stamp taken (ROS ns); the playout delay (ns)
         angles = slice(sim.joint_names.index('theta1'), None)  # of the swing's angles in joint_state()
         tracking = AxisState.TRACKING
         self._publish_status(controller.status(), epoch_ros - round(self._playout_args[0] * 1e9))
@@ -340,6 +345,7 @@ class SimNode(Node):
                 playout, seen = playouts[0], 0  # the cart's: its timeouts are the stream's
                 allowance = StallAllowance(playout.timeout)
                 self._plant_clock = (epoch_ros, round(playout.delay * 1e9))
+                playout_ns = self._plant_clock[1]
             if self._fault_config is not controller.config:
                 controller.config = self._fault_config
             if self._push is not None:
@@ -354,8 +360,11 @@ class SimNode(Node):
                 for one in playouts:
                     one.reset()
                 controller.reset(self._axis_positions(), t0)
+            if late_ns > CATCH_UP_NS and controller.state is tracking:
+                newest = self._await_samples(newest, epoch_ros + (ticker.tick + 1) * dt_ns - playout_ns)
             while inbox:
                 stamp, *sample = inbox.popleft()  # (position, acceleration) per axis
+                newest = stamp
                 offer = Offer.ACCEPT if controller.state is tracking else controller.offer(sample[::2], t0)
                 if offer is Offer.REFUSE:  # a fault reaction holds: counted by the controller
                     continue
@@ -403,6 +412,20 @@ class SimNode(Node):
                     return
                 counts['published'] += 1
             counts['skipped'] += ticker.advance(time.monotonic_ns())
+
+    def _await_samples(self, newest: int, needed: int) -> int:
+        """While the loop catches up after a stall, wait for the executor to hand over the samples up to
+        ``needed`` (ROS ns: this step's playout time) before the step runs without them (each made up
+        later would leave a swing): the stall held the executor too, and the loop, run alone, would
+        outrun its backlog. Only while samples keep coming (none for ``CATCH_UP_QUIET`` s: a gap, or a
+        lost stream, for the playout to judge), ``CATCH_UP_WAIT`` s at most. The newest stamp taken."""
+        inbox, waited, quiet, count = self._inbox, 0.0, 0.0, len(self._inbox)
+        while (inbox[-1][0] if inbox else newest) < needed and waited < CATCH_UP_WAIT and quiet < CATCH_UP_QUIET:
+            time.sleep(CATCH_UP_POLL)  # (the GIL to the executor)
+            waited += CATCH_UP_POLL
+            quiet = 0.0 if len(inbox) != count else quiet + CATCH_UP_POLL
+            count = len(inbox)
+        return newest
 
     # -- the axis controller's reports ----------------------------------------
 
