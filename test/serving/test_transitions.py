@@ -118,9 +118,12 @@ def test_the_swing_is_predicted_from_the_measurement_or_else_the_model(variation
     for state in (measured, modelled):
         assert state.swing == pytest.approx(truth.swing, abs=1e-4)
         assert state.axis(CART_JOINT).position == pytest.approx(old.at(handover)[0][0][0])
-    # a measurement too old (or after the handover) is not used: the model's swing then
-    stale = handover_state(old, handover, measure(old, handover - 600_000_000), PARAMS)
-    assert stale.swing == pytest.approx(modelled.swing, abs=1e-12)
+    # one measured 1 s before (a handover planned again further ahead) is predicted as far
+    earlier = handover_state(old, handover, measure(old, handover - 1_000_000_000), PARAMS)
+    assert earlier.swing == pytest.approx(truth.swing, abs=1e-4)
+    # one after the handover is not used: the model's swing then
+    late = handover_state(old, handover, measure(old, handover + 100_000_000), PARAMS)
+    assert late.swing == pytest.approx(modelled.swing, abs=1e-12)
 
 
 def test_cancel_at_half_way_stops_without_swing_ten_times_better_than_a_hard_stop(variational):

@@ -82,8 +82,13 @@ STOP_BRAKING = 2.0
 STOP_SHORTEST = 0.5
 STOP_STEPS = 1.15
 STOP_TRIES = 10
-#: The newest measurement is used if it is at most this old (s) at the handover; else the model's swing.
+#: The newest measurement must be at most this old (s) when a handover is planned (a settle needs one).
 MEASUREMENT_AGE = 0.5
+#: The swing at a handover is predicted from the newest measurement if that is at most MEASUREMENT_AGE plus
+#: this (s) before it, else from the model alone: the handover lies up to its lead ahead (more when planned
+#: again further ahead on a loaded host), and the model predicts the measured swing along the reference
+#: for seconds (a swing measured falling back to the model's own, none at rest, was left undamped).
+HANDOVER_PREDICTION = 2.0
 
 
 @dataclass(frozen=True)
@@ -244,12 +249,13 @@ def taken_over(running: Running, new: Running, start_ns: int) -> Running:
 def handover_state(running: Running, handover_ns: int, measured: Measurement | None,
                    params: CraneParams, swing: bool = True) -> MotionState:
     """The crane's state at ``handover_ns``: the running reference there, the swing predicted from
-    ``measured`` (if it is recent and not after the handover) along it, else from the motion's start at
-    rest (the model's own swing); the axes' servos track the reference steadily (``MotionState``).
-    Without ``swing`` (what a shaper needs) the reference alone, at once."""
+    ``measured`` (if it is recent, ``HANDOVER_PREDICTION``, and not after the handover) along it, else
+    from the motion's start at rest (the model's own swing); the axes' servos track the reference
+    steadily (``MotionState``). Without ``swing`` (what a shaper needs) the reference alone, at once."""
     if not swing:
         return MotionState(_references(running, handover_ns))
-    if measured is not None and 0 <= handover_ns - measured.stamp_ns <= MEASUREMENT_AGE * 1e9:
+    horizon = (MEASUREMENT_AGE + HANDOVER_PREDICTION) * 1e9
+    if measured is not None and 0 <= handover_ns - measured.stamp_ns <= horizon:
         # the measured swing; the axes as their servos track the reference (their lag is tau times the
         # velocity: derived from a measured position it would carry the position's error over tau^2)
         t_m = measured.stamp_ns

@@ -195,6 +195,7 @@ class SimNode(Node):
         self._lateness = Lateness()
         self._window = (time.monotonic(), 0, 0)  # (time, steps, published) at the last report
 
+        self._stream_quiet = False  # a catch-up wait found no sample coming (``_await_samples``)
         self._played_ns: int | None = None  # ROS time of the step the loop runs (``ReferenceIntake.receive``)
         self._reference_sub = None
         self._reference_type = p['reference_type']
@@ -418,13 +419,21 @@ class SimNode(Node):
         ``needed`` (ROS ns: this step's playout time) before the step runs without them (each made up
         later would leave a swing): the stall held the executor too, and the loop, run alone, would
         outrun its backlog. Only while samples keep coming (none for ``CATCH_UP_QUIET`` s: a gap, or a
-        lost stream, for the playout to judge), ``CATCH_UP_WAIT`` s at most. The newest stamp taken."""
+        lost stream, for the playout to judge: not waited for again until a sample comes, or a loop behind
+        a dead stream would wait at every step and never catch up), ``CATCH_UP_WAIT`` s at most. The newest
+        stamp taken."""
         inbox, waited, quiet, count = self._inbox, 0.0, 0.0, len(self._inbox)
-        while (inbox[-1][0] if inbox else newest) < needed and waited < CATCH_UP_WAIT and quiet < CATCH_UP_QUIET:
+        if self._stream_quiet and not inbox:
+            return newest
+        self._stream_quiet = False
+        while (inbox[-1][0] if inbox else newest) < needed and waited < CATCH_UP_WAIT:
             time.sleep(CATCH_UP_POLL)  # (the GIL to the executor)
             waited += CATCH_UP_POLL
             quiet = 0.0 if len(inbox) != count else quiet + CATCH_UP_POLL
             count = len(inbox)
+            if quiet >= CATCH_UP_QUIET:
+                self._stream_quiet = True
+                break
         return newest
 
     # -- the axis controller's reports ----------------------------------------
