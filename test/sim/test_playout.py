@@ -217,6 +217,7 @@ def test_a_stall_is_forgiven_for_the_timeout_after_it_while_its_backlog_arrives(
     assert allowance(0.0, 12.49) == 1.5
     assert allowance(0.0, 12.51) == 0.0  # the stall's timeout has passed
     assert allowance(0.2, 13.0) == 0.2 and allowance(0.1, 13.9) == 0.2 and allowance(0.0, 14.01) == 0.0
+    assert allowance(0.05, 15.0) == 0.05 and allowance(0.0, 15.01) == 0.0  # jitter: its own step only
     playout = ReferencePlayout(delay=0.0, timeout=1.0)
     playout.push(0.0, 0.0, 0.5)
     playout.behind(StallAllowance(1.0)(1.5, 3.0))

@@ -59,6 +59,10 @@ def _interpolate(before: tuple, after: tuple, tau: float) -> float:
     return a0 + (a1 - a0) * (tau - t0) / (t1 - t0)
 
 
+#: How late (s) a step of the plant's loop must be to count as a stall of its process (``StallAllowance``).
+STALL = 0.1
+
+
 class StallAllowance:
     """How late (s) a step of the plant's loop counts as its own stall (``ReferencePlayout.behind``).
 
@@ -74,12 +78,14 @@ class StallAllowance:
         self._stall, self._until = 0.0, -math.inf
 
     def __call__(self, late: float, now: float) -> float:
-        """The allowance for a step ``late`` s after its deadline, at ``now`` (s, the clock of ``hold``)."""
+        """The allowance for a step ``late`` s after its deadline, at ``now`` (s, the clock of ``hold``): a
+        lateness under ``STALL`` is the loop's jitter, allowed for its own step only (held, it would delay
+        the judgement of a stream lost just after it)."""
         if now > self._until:
             self._stall = 0.0
-        if late > self._stall:
+        if late >= STALL and late > self._stall:
             self._stall, self._until = float(late), now + self.hold
-        return self._stall
+        return max(self._stall, late)
 
 
 class ReferencePlayout:
