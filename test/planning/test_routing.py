@@ -16,6 +16,7 @@ from crane_msgs_py.params import CraneParams
 from crane_planner.planning import PlanOptions
 from crane_planner.planning.dispatch import VariationalRequest, hoisting_options, variational_solver
 from crane_planner.planning.keep_out import KeepOut
+from crane_planner.planning.mass_path import predict_mass_path
 from crane_planner.planning.routing import ROUTE_EXTRA, plateau, route_candidates
 from crane_planner.planning.shaped_route import shaped_route
 from crane_planner.tools.evaluate import simulate_plan
@@ -97,7 +98,8 @@ def test_zv_routes_its_straight_move_with_a_shaped_detour_and_keeps_both_masses_
         moves, keep_out, axis = {'cart': 0.6, 'bridge': 0.0}, COLUMN, 'bridge'
         straight = plan('zv', 0.6, 4.0, NOMINAL, bridge=0.0)
     [route, *_] = route_candidates(keep_out, {}, moves, NOMINAL.L1, NOMINAL.L2, tuple(moves))
-    p = shaped_route(straight, route, NOMINAL, {}, keep_out, *shaper_design(NOMINAL, PlanOptions()))
+    path = predict_mass_path(straight, NOMINAL, {}, settle=0.0)
+    p = shaped_route(straight, route, path, keep_out, *shaper_design(NOMINAL, PlanOptions()))
     assert p.info['route'] == route.kind and p.axes['cart'] is straight.axes['cart']
     t, m1, m2 = simulated_masses(p, NOMINAL, 4.0)
     for box in keep_out.boxes:
@@ -119,4 +121,5 @@ def test_a_duration_too_short_for_a_shaped_detour_is_refused_naming_the_time_it_
     [route, *_] = route_candidates(COLUMN, {}, {'cart': 0.6, 'bridge': 0.0}, NOMINAL.L1, NOMINAL.L2,
                                    ('cart', 'bridge'))
     with pytest.raises(PlanError, match=r'the bridge has 1\.\d\d s to step aside .* the box, not more than the zvd'):
-        shaped_route(straight, route, NOMINAL, {}, COLUMN, *shaper_design(NOMINAL, PlanOptions()))
+        shaped_route(straight, route, predict_mass_path(straight, NOMINAL, {}, settle=0.0), COLUMN,
+                     *shaper_design(NOMINAL, PlanOptions()))

@@ -11,7 +11,8 @@ swing on the linearized model: the load has stopped swinging sideways (or
 bouncing from the hoist) before the box is reached, and again at the end.
 
 When the box is passed comes from the straight move itself: the times either
-mass of its prediction on the planning model (``mass_path``) is within
+mass of its prediction on the planning model (``mass_path``, made once for
+every route the caller tries) is within
 ``PASSING`` of the box's footprint in the coordinates other than the
 detour's. The out leg must end by then and the back leg start after, each
 longer than the shaper: a duration too short for that is refused. The
@@ -25,10 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.params import CraneParams
-
 from .keep_out import KeepOut
-from .mass_path import predict_mass_path
+from .mass_path import MassPath
 from .plan import AxesPlan, Plan, PlanError
 from .routing import ROUTE_EXTRA, Route
 from .shaped import ShapedPlan, shaped_plan
@@ -64,11 +63,10 @@ class DetourPlan(Plan):
         return self.along.quintic_pieces and self.out.quintic_pieces and self.back.quintic_pieces
 
 
-def passing_window(straight: Plan, params: CraneParams, origin: dict, keep_out: KeepOut,
-                   coordinate: int) -> tuple[float, float] | None:
-    """When (s: first, last) either mass of ``straight``'s prediction is within the margin and ``PASSING`` of a
-    box's footprint in every coordinate but ``coordinate``; None if never."""
-    path = predict_mass_path(straight, params, origin, settle=0.0)
+def passing_window(path: MassPath, keep_out: KeepOut, coordinate: int) -> tuple[float, float] | None:
+    """When (s: first, last) either mass of the straight move's predicted ``path`` (``mass_path``, over its
+    motion) is within the margin and ``PASSING`` of a box's footprint in every coordinate but ``coordinate``;
+    None if never."""
     reach = keep_out.margin + PASSING
     near = np.zeros(path.t.shape, dtype=bool)
     others = [k for k in range(3) if k != coordinate]
@@ -82,13 +80,13 @@ def passing_window(straight: Plan, params: CraneParams, origin: dict, keep_out: 
     return float(path.t[k[0]]), float(path.t[k[-1]])
 
 
-def shaped_route(straight: AxesPlan, route: Route, params: CraneParams, origin: dict, keep_out: KeepOut,
-                 omegas, zeta) -> AxesPlan:
-    """``straight`` (a shaper's plan with every served axis, ``route.axis`` among them) with ``route.axis``
-    stepping ``route.excursion`` aside while the straight move passes the boxes and back after it, both legs
-    shaped for ``omegas``, ``zeta`` (``shaped.shaped_plan``). PlanError if the duration leaves either leg
-    no longer than the shaper."""
-    window = passing_window(straight, params, origin, keep_out, _DETOUR_COORDINATE[route.axis])
+def shaped_route(straight: AxesPlan, route: Route, path: MassPath, keep_out: KeepOut, omegas, zeta) -> AxesPlan:
+    """``straight`` (a shaper's plan with every served axis, ``route.axis`` among them; ``path`` its masses
+    predicted on the planning model, ``mass_path.predict_mass_path``) with ``route.axis`` stepping
+    ``route.excursion`` aside while the straight move passes the boxes and back after it, both legs shaped
+    for ``omegas``, ``zeta`` (``shaped.shaped_plan``). PlanError if the duration leaves either leg no longer
+    than the shaper."""
+    window = passing_window(path, keep_out, _DETOUR_COORDINATE[route.axis])
     if window is None:
         return straight
     enter, leave = window

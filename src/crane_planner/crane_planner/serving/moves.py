@@ -318,13 +318,14 @@ def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: Cra
     moves = {name: m.displacement for name, m in move.axes.items()}
     routes = route_candidates(keep_out, origin, moves, model.L1, model.L2, tuple(move.axes))
     reasons = []
+    if routes and not variational:  # its straight move, the route's axis stepping aside and back (``shaped_route``)
+        straight_path, design = predict_mass_path(plan, model, origin, settle=0.0), shaper_design(model, options)
     for route in routes:
         try:
             if variational:
                 routed = _constrained(planner, move, params, options, route=route, keep_out=keep_out, vias=vias)
-            else:  # its straight move, the route's axis stepping aside and back (``shaped_route``)
-                routed = checked(shaped_route(plan, route, model, origin, keep_out, *shaper_design(model, options)),
-                                 options)
+            else:
+                routed = checked(shaped_route(plan, route, straight_path, keep_out, *design), options)
             keep_out_clearance(routed, origin, model, keep_out)
             return routed
         except WorkerDied:

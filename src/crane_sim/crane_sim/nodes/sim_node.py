@@ -325,7 +325,7 @@ class SimNode(Node):
         dt_ns, dt = ticker.period, ticker.period * 1e-9
         playout_args, playouts, timeouts, made_up = None, (), 0, 0  # a playout per axis, in sim.axes order
         seen = 0  # the cart's playout's timeouts handled: one more is a stream lost
-        newest, playout_ns = 0, 0  # the newest sample's stamp taken (ROS ns); the playout delay (ns)
+        newest = 0  # the newest sample's stamp taken (ROS ns)
         angles = slice(sim.joint_names.index('theta1'), None)  # of the swing's angles in joint_state()
         tracking = AxisState.TRACKING
         self._publish_status(controller.status(), epoch_ros - round(self._playout_args[0] * 1e9))
@@ -346,7 +346,6 @@ class SimNode(Node):
                 playout, seen = playouts[0], 0  # the cart's: its timeouts are the stream's
                 allowance = StallAllowance(playout.timeout)
                 self._plant_clock = (epoch_ros, round(playout.delay * 1e9))
-                playout_ns = self._plant_clock[1]
             if self._fault_config is not controller.config:
                 controller.config = self._fault_config
             if self._push is not None:
@@ -362,7 +361,7 @@ class SimNode(Node):
                     one.reset()
                 controller.reset(self._axis_positions(), t0)
             if late_ns > CATCH_UP_NS and controller.state is tracking:
-                newest = self._await_samples(newest, epoch_ros + (ticker.tick + 1) * dt_ns - playout_ns)
+                self._await_samples(newest, epoch_ros + (ticker.tick + 1) * dt_ns - self._plant_clock[1])
             while inbox:
                 stamp, *sample = inbox.popleft()  # (position, acceleration) per axis
                 newest = stamp
@@ -414,17 +413,17 @@ class SimNode(Node):
                 counts['published'] += 1
             counts['skipped'] += ticker.advance(time.monotonic_ns())
 
-    def _await_samples(self, newest: int, needed: int) -> int:
+    def _await_samples(self, newest: int, needed: int) -> None:
         """While the loop catches up after a stall, wait for the executor to hand over the samples up to
         ``needed`` (ROS ns: this step's playout time) before the step runs without them (each made up
         later would leave a swing): the stall held the executor too, and the loop, run alone, would
         outrun its backlog. Only while samples keep coming (none for ``CATCH_UP_QUIET`` s: a gap, or a
         lost stream, for the playout to judge: not waited for again until a sample comes, or a loop behind
-        a dead stream would wait at every step and never catch up), ``CATCH_UP_WAIT`` s at most. The newest
-        stamp taken."""
+        a dead stream would wait at every step and never catch up), ``CATCH_UP_WAIT`` s at most. ``newest``:
+        the newest stamp the loop has taken."""
         inbox, waited, quiet, count = self._inbox, 0.0, 0.0, len(self._inbox)
         if self._stream_quiet and not inbox:
-            return newest
+            return
         self._stream_quiet = False
         while (inbox[-1][0] if inbox else newest) < needed and waited < CATCH_UP_WAIT:
             time.sleep(CATCH_UP_POLL)  # (the GIL to the executor)
@@ -434,7 +433,6 @@ class SimNode(Node):
             if quiet >= CATCH_UP_QUIET:
                 self._stream_quiet = True
                 break
-        return newest
 
     # -- the axis controller's reports ----------------------------------------
 
