@@ -114,19 +114,42 @@ def streamer(clock, execution, takes_at=None, duration=1.0):
     return tick
 
 
-def test_taken_once_the_streamer_streams_it_and_not_once_its_clock_passed_the_handover():
+def test_taken_once_the_streamer_streams_it_and_refused_once_its_clock_passed_the_handover():
     clock = FakeClock(T0)
     execution = Execution(1.0, 1.0, T0 + 10 * MS, 0.6, 0.2)
     streamer(clock, execution, takes_at=T0 + 20 * MS)
-    assert handover.taken(execution, T0 + 10 * MS, sleep=clock.sleep, timer=clock.timer)
+    assert handover.taken(execution, T0 + 10 * MS, sleep=clock.sleep, timer=clock.timer) is handover.Verdict.TAKEN
     clock = FakeClock(T0)
     execution = Execution(1.0, 1.0, T0 + 10 * MS, 0.6, 0.2)
     streamer(clock, execution)
-    assert not handover.taken(execution, T0 + 10 * MS, sleep=clock.sleep, timer=clock.timer)
-    assert clock() - T0 <= 100 * MS  # its stream_state passed the handover by 50 ms: not the 0.5 s wait
-    clock = FakeClock(T0)  # no stream_state at all: the wait
-    assert not handover.taken(Execution(1.0, 1.0, T0, 0.6, 0.2), T0, wait=0.5, sleep=clock.sleep, timer=clock.timer)
-    assert clock() - T0 == pytest.approx(500 * MS, abs=3 * MS)
+    verdict = handover.taken(execution, T0 + 10 * MS, sleep=clock.sleep, timer=clock.timer)
+    assert verdict is handover.Verdict.REFUSED
+    assert clock() - T0 <= 100 * MS  # its stream_state passed the handover by 50 ms: no longer wait
+
+
+def test_a_handover_planned_far_ahead_is_judged_by_the_streamers_clock_not_by_a_fixed_wait():
+    """A retry's handover lies 0.67 s ahead: the streamer takes it only then, and says so only then."""
+    clock = FakeClock(T0)
+    at = T0 + 672 * MS
+    execution = Execution(1.0, 1.0, at, 0.6, 0.2)
+    streamer(clock, execution, takes_at=at)
+    assert handover.taken(execution, at, silence=0.5, sleep=clock.sleep, timer=clock.timer) is handover.Verdict.TAKEN
+    assert clock() >= at
+
+
+def test_a_silent_stream_state_leaves_a_handover_unknown_and_the_policy_sends_no_more():
+    clock = FakeClock(T0)  # no stream_state at all
+    verdict = handover.taken(Execution(1.0, 1.0, T0, 0.6, 0.2), T0, silence=0.5, sleep=clock.sleep, timer=clock.timer)
+    assert verdict is handover.Verdict.SILENT and clock() - T0 == pytest.approx(500 * MS, abs=3 * MS)
+    calls = []
+
+    def send(lead_scale, first):
+        calls.append(lead_scale)
+        return handover.Sent(SimpleNamespace(handover_ns=clock() + MS), Execution(1.0, 1.0, clock() + MS, 0.6, 0.2))
+
+    with pytest.raises(ValueError, match='no stream_state for 0.5 s'):
+        handover.HandoverPolicy(send, clock.sleep, clock.timer, silence=0.5).run()
+    assert calls == [1.0]
 
 
 class Sender:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from enum import Enum
 from typing import Any, Callable
 
 from ..planning.continuation import MotionState
@@ -127,18 +128,33 @@ def plan_handover(clock: Callable[[], int], running: Running, lead: float,
                                 f'(last lead {tried:.3f} s); raise handover_lead')
 
 
-def taken(execution: Execution, handover_ns: int, wait: float = 0.5,
-          sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter) -> bool:
-    """Whether the streamer streams the handover at ``handover_ns`` (its stream_state says so), waiting
-    until its clock is ``NOT_TAKEN_AFTER_NS`` past the handover, or ``wait`` s."""
-    deadline = timer() + wait
-    while timer() < deadline:
+class Verdict(Enum):
+    """What the streamer did with a handover sent (``taken``)."""
+
+    TAKEN = 'taken'  # its stream_state streams the handover's motion
+    REFUSED = 'refused'  # its clock passed the handover without streaming it (it came late)
+    SILENT = 'silent'  # no stream_state came for a while: what it did is not known
+
+
+def taken(execution: Execution, handover_ns: int, silence: float = 1.0,
+          sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter) -> Verdict:
+    """What the streamer did with the handover at ``handover_ns``, by its stream_state: wait until it streams
+    the handover's motion, or until its clock is ``NOT_TAKEN_AFTER_NS`` past the handover without doing so.
+    Judged by the streamer's clock, not this one's: a handover planned far ahead (a retry's) is taken only
+    then, and a busy host delays the stream_state that says so. SILENT once no new stream_state has come for
+    ``silence`` s."""
+    heard, last = timer(), execution.stream_ns
+    while True:
         if execution.motion_start_ns is not None:
-            return True
-        if execution.stream_ns is not None and execution.stream_ns > handover_ns + NOT_TAKEN_AFTER_NS:
-            return False
+            return Verdict.TAKEN
+        stream_ns = execution.stream_ns
+        if stream_ns is not None and stream_ns > handover_ns + NOT_TAKEN_AFTER_NS:
+            return Verdict.REFUSED
+        if stream_ns != last:
+            heard, last = timer(), stream_ns
+        elif timer() - heard >= silence:
+            return Verdict.SILENT
         sleep(0.002)
-    return False
 
 
 class HandoverPolicy:
@@ -151,13 +167,16 @@ class HandoverPolicy:
         sleep, timer: how ``taken`` waits.
         attempts: handovers sent before giving up.
         warn: told of each retry.
+        silence: how long (s) the streamer's stream_state may be silent before what it did with a handover
+            counts as unknown (the node's ``stream_timeout``).
     """
 
     def __init__(self, send: Callable[[float, bool], Sent],
                  sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter,
-                 attempts: int = HANDOVER_ATTEMPTS, warn: Callable[[str], None] = lambda message: None):
+                 attempts: int = HANDOVER_ATTEMPTS, warn: Callable[[str], None] = lambda message: None,
+                 silence: float = 1.0):
         self._send, self._sleep, self._timer = send, sleep, timer
-        self.attempts, self._warn = attempts, warn
+        self.attempts, self._warn, self.silence = attempts, warn, silence
 
     def run(self, first: Sent | None = None,
             planned: Callable[[HandoverResult], Any] = lambda result: None,
@@ -165,7 +184,9 @@ class HandoverPolicy:
         """The handover the streamer took (None: it took none of ``attempts``). ``first``: the first one,
         already sent (on the goal's arrival); ``planned`` is told of the first one planned. A cancel
         (``canceled()``) before a handover is sent again raises NotSent: the streamer took none, the running
-        motion goes on and nothing of the goal streams."""
+        motion goes on and nothing of the goal streams. ValueError if the streamer's stream_state falls
+        silent meanwhile: whether it took the handover is not known, and sending another could not be judged
+        either."""
         lead_scale = 1.0
         for attempt in range(self.attempts):
             if attempt and canceled():
@@ -173,9 +194,13 @@ class HandoverPolicy:
             sent = first if attempt == 0 and first is not None else self._send(lead_scale, attempt == 0)
             if attempt == 0:
                 planned(sent.result)
-            if taken(sent.execution, sent.result.handover_ns, sleep=self._sleep, timer=self._timer):
+            verdict = taken(sent.execution, sent.result.handover_ns, self.silence, self._sleep, self._timer)
+            if verdict is Verdict.TAKEN:
                 return sent.result
+            if verdict is Verdict.SILENT:
+                raise ValueError(f'no stream_state for {self.silence:g} s after the handover was sent: whether the '
+                                 'streamer took it is not known (is it running?); nothing more is sent')
             lead_scale *= RETRY_LEAD_SCALE
-            self._warn(f'execute_move: the streamer did not take the handover (late on arrival?): planning it '
+            self._warn(f'execute_move: the streamer refused the handover (it came late): planning it '
                        f'again {lead_scale:g} times further ahead')
         return None

@@ -331,7 +331,8 @@ class MoveService:
             reported.append(planning)
             feedback(progress=0.0, time_remaining=result.plan.duration, swing=math.nan)
 
-        policy = HandoverPolicy(send, self._sleep, self._timer, warn=self.log.warn)
+        policy = HandoverPolicy(send, self._sleep, self._timer, warn=self.log.warn,
+                                silence=self.config().stream_timeout)
         try:
             if take_over.error is not None:  # a refusal, or a bug's (for the node)
                 raise take_over.error
