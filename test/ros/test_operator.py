@@ -118,8 +118,7 @@ def test_operator_mode_refuses_trajectories_and_its_stop_brakes_without_swing(cr
 
 def test_the_streamers_stop_during_a_planned_motion_brakes_without_swing(crane):
     driver = crane
-    driver.set_parameters('streamer', {'mode': 'trajectory'})
-    driver.sleep(0.2)  # the planner hears the new mode on stream_state
+    driver.set_parameters('streamer', {'mode': 'trajectory'})  # (returns once the planner can hear it)
     start, _, _ = driver.move('rvf', None, driver.last_state()[3] + 0.3, 3.0, settle=0.5)
     driver.sleep(max(0.0, (start + round(1.5e9) - driver.now_ns()) * 1e-9))
     response = driver.call_streamer('stop')

@@ -101,6 +101,11 @@ def start_crane_nodes(nodes: NodeGroup, namespace: str, streamer_params: dict | 
     nodes.start(*SIM, namespace=namespace, params=joints or None)
 
 
+#: A mode set on the streamer counts as heard by the planner once a stream_state this long (ns) after the change
+#: says so (three of them at 50 Hz: the planner gets them as this harness does, on a thread of its own).
+MODE_HEARD_AFTER_NS = 60_000_000
+
+
 class CraneHarness:
     """An rclpy node beside running crane nodes: plans and executes over the planner's
     PlanMove service and ExecuteMove action, sets parameters, resets the sim, reads the streamer's word and records
@@ -262,14 +267,26 @@ class CraneHarness:
     def set_parameters(self, target: str, values: dict):
         """Set parameters on the ``planner``, ``sim`` or ``streamer`` node; HarnessError names any refused.
 
-        An empty list is an empty double array (rclpy would take it for a byte array)."""
+        An empty list is an empty double array (rclpy would take it for a byte array). The streamer's
+        ``mode`` returns once its stream_state has said so for a few messages: the planner, which refuses a
+        goal while the streamer is in operator mode, hears the mode there."""
         client = self._params[target]
+        changed = self.now_ns()
         params = [Parameter(k, Parameter.Type.DOUBLE_ARRAY, []) if isinstance(v, list) and not v
                   else Parameter(k, value=v) for k, v in values.items()]
         result = self._wait(client.set_parameters(params), 5.0, f'{target} parameter service')
         refused = [f'{p.name}: {r.reason}' for p, r in zip(params, result.results) if not r.successful]
         if refused:
             raise HarnessError(f'{target} refused parameters: {"; ".join(refused)}')
+        if target == 'streamer' and 'mode' in values:
+            operator = values['mode'] == 'operator'
+            heard_after = changed + MODE_HEARD_AFTER_NS
+
+            def heard():
+                state = self._stream_state
+                return state is not None and state[1][0] >= heard_after and (state[1][1] == 'operator') == operator
+
+            self.wait_until(heard, 5.0, f'the streamer\'s stream_state never said mode {values["mode"]}')
 
     def reset_sim(self):
         response = self._wait(self._reset.call_async(Trigger.Request()), 5.0, 'sim reset service')
