@@ -6,6 +6,11 @@ Reads (with ``rosbags``, no ROS install needed) what ``crane-record`` or
 for execution), ``/diagnostics`` (the streamer's tick timing) and
 ``crane_markers`` (the drawn crane, whose cable lengths the load's position
 needs). Topics may be namespaced. Pure Python (no rclpy).
+
+A motion starts where the reference starts it: a trajectory that reached the
+streamer after its start stamp is streamed whole from a later tick, and its
+settle window counts from there (the reference's first sample of it is the
+last at rest: the next one moves).
 """
 from __future__ import annotations
 
@@ -33,8 +38,8 @@ class BagData:
     t0_ns: int
     states: np.ndarray                 # (n, 8): t, cart, theta1, theta2, hoist (the rope length), bridge, phi1,
     #                                    phi2 (NaN: a joint the crane has not)
-    reference: np.ndarray              # (m, 2): t, position
-    motions: list                      # [(start t, duration, goal position)]
+    reference: np.ndarray              # (m, 3): t, position, moving (1: a joint's velocity is not 0)
+    motions: list                      # [(start t as streamed, duration, goal position)]
     timing: np.ndarray                 # (k, 4): t, lateness p50, p99, max (us)
     markers: list = field(default_factory=list)  # [(t, [(x, y, z) of the trolley, m1, m2])]
     L1: float = CraneParams.L1
@@ -62,7 +67,9 @@ def read_bag(path) -> BagData:
                         states.append((_ns(msg.header.stamp), *(msg.position[index[j]] if j in index else math.nan
                                                               for j in STATE_JOINTS)))
                 elif name == 'reference' and getattr(msg, 'points', None):
-                    reference.append((_ns(msg.header.stamp), msg.points[0].positions[_cart(msg)]))
+                    point = msg.points[0]
+                    reference.append((_ns(msg.header.stamp), point.positions[_cart(msg)],
+                                      float(any(v != 0.0 for v in point.velocities))))
                 elif name == 'trajectory' and msg.points:
                     last = msg.points[-1]
                     motions.append((_ns(msg.header.stamp), _ns(last.time_from_start) * 1e-9,
@@ -84,9 +91,9 @@ def read_bag(path) -> BagData:
     states = np.array(sorted(states), dtype=float)
     t0 = int(states[0, 0])
     states[:, 0] = (states[:, 0] - t0) * 1e-9
-    data = BagData(t0, states,
-                   np.array([((s - t0) * 1e-9, p) for s, p in sorted(reference)]).reshape(-1, 2),
-                   [((s - t0) * 1e-9, d, g) for s, d, g in sorted(set(motions))],
+    reference = np.array([((s - t0) * 1e-9, p, m) for s, p, m in sorted(reference)]).reshape(-1, 3)
+    data = BagData(t0, states, reference, streamed_starts(reference, [((s - t0) * 1e-9, d, g)
+                                                                     for s, d, g in sorted(set(motions))]),
                    np.array([((s - t0) * 1e-9, *v) for s, *v in sorted(timing)]).reshape(-1, 4),
                    [((s - t0) * 1e-9, p) for s, p in markers])
     if markers:  # the cable lengths the sim drew with
@@ -94,6 +101,22 @@ def read_bag(path) -> BagData:
         data.L1 = math.dist(m1, cart)
         data.L2 = math.dist(m2, m1)
     return data
+
+
+def streamed_starts(reference: np.ndarray, motions: list) -> list:
+    """``motions`` [(stamp t, duration, goal)] with each start where the reference starts it: the sample
+    before its first moving one at or after the stamp (before the next motion's stamp); the stamp without
+    such a sample (no reference recorded, or a handover: moving at its stamp already)."""
+    t, moving = reference[:, 0], reference[:, 2] > 0
+    starts = []
+    for k, (stamp, duration, goal) in enumerate(motions):
+        until = motions[k + 1][0] if k + 1 < len(motions) else math.inf
+        first = np.flatnonzero((t >= stamp) & (t < until) & moving)
+        start = stamp
+        if first.size and first[0] > 0 and not moving[first[0] - 1] and t[first[0] - 1] >= stamp:
+            start = float(t[first[0] - 1])
+        starts.append((start, duration, goal))
+    return starts
 
 
 def _cart(msg) -> int:
