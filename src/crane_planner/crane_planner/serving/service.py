@@ -41,6 +41,7 @@ from .handover import (
     HandoverResult,
     NotSent,
     Sent,
+    Verdict,
     arrival_lead,
     plan_handover,
     send_at,
@@ -512,7 +513,7 @@ class MoveService:
         self._publish(trajectory)
         # a stop ending after the motion would have (one near its end) is streamed with its change delayed to
         # the tick at or after its stamp: what a next handover must continue
-        if taken(goal.execution, handover, STOP_LEAD + 0.2, self._sleep, self._timer):
+        if taken(goal.execution, handover, config.stream_timeout, self._sleep, self._timer) is Verdict.TAKEN:
             self.goals.replace(goal, stop, transitions.taken_over(running, stop, goal.execution.motion_start_ns))
         where = _where(interp.position[-1] for interp in stop.interps)
         self.log.info(f'execute_move: canceled during its motion: stopping at {where} m in '
