@@ -25,7 +25,9 @@ WALL = [-0.35, -0.25, -np.inf, np.inf, -3.0, -(NOMINAL.L1 + NOMINAL.L2) + 0.10]
 
 @pytest.fixture(scope='module')
 def hoist_crane(start_crane):
-    with start_crane(NS, hoist=True, planner_params={'keep_out': WALL, 'max_solve_time': 10.0}) as driver:
+    # one solver process: the requests come one at a time, and each process builds the route NLPs too
+    with start_crane(NS, hoist=True, planner_params={'keep_out': WALL, 'max_solve_time': 10.0,
+                                                     'solver_processes': 1}) as driver:
         yield driver
 
 

@@ -25,7 +25,8 @@ def crane(operator_crane):
 
 @pytest.fixture(scope='module')
 def operator_crane(start_crane):
-    with start_crane(NS, streamer_params={'mode': 'operator'}) as driver:
+    # one solver process: the requests come one at a time (and none builds NLPs beside the first goal)
+    with start_crane(NS, streamer_params={'mode': 'operator'}, planner_params={'solver_processes': 1}) as driver:
         yield driver
 
 

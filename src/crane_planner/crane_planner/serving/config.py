@@ -29,6 +29,7 @@ from ..planning.keep_out import KeepOut
 from ..planning.profiles import BASES
 from ..planning.routing import Route
 from .moves import MoveBounds
+from .transitions import stop_options
 
 #: The crane model's parameters' upper bounds (each from 0) for rclpy's range check.
 MODEL_BOUNDS = {'L1': 100.0, 'L2': 100.0, 'm1': 1e5, 'm2': 1e5, 'g': 100.0, 'tau': 10.0, 'c1': 1e3, 'c2': 1e3,
@@ -228,8 +229,9 @@ class Config:
         options = hoisting_options(self.options) if hoisting else self.options
         displacement = {CART_JOINT: D, **({BRIDGE_JOINT: 0.0} if spatial else {}),
                         **({HOIST_JOINT: 0.0} if hoisting else {})}
-        for free_end in (False, True):
-            requests += [VariationalRequest('plan', method, displacement, duration, model, options, start, free_end)
+        for free_end in (False, True):  # (a stop's tries are solved within STOP_SOLVE_TIME each)
+            requests += [VariationalRequest('plan', method, displacement, duration, model,
+                                            stop_options(options) if free_end else options, start, free_end)
                          for method in VARIATIONAL_METHODS]
         # with keep-out boxes, NVF's NLPs of the routes past them the served axes allow (``moves.plan_keeping_out``);
         # RVF's builds on first use: on the spatial crane its build (~8 s) and solve (~40 iterations of 0.2 s)

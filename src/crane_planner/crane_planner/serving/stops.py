@@ -109,7 +109,8 @@ def warmups(params: CraneParams, hoist: bool = False, options=None, bridge: bool
     crane's (every axis of the crane planned together)."""
     from ..planning.continuation import first_period, problem_start
     from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options
-    options = PlanOptions() if options is None else options
+    from .transitions import stop_options
+    options = stop_options(PlanOptions() if options is None else options)
     state = moving_state(params, (CART_JOINT, *((BRIDGE_JOINT,) if bridge else ()), *((HOIST_JOINT,) if hoist else ())))
     start, model = problem_start(state, params)
     duration = first_period(model)

@@ -42,6 +42,7 @@ Pure Python, no ROS import.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -82,6 +83,10 @@ STOP_BRAKING = 2.0
 STOP_SHORTEST = 0.5
 STOP_STEPS = 1.15
 STOP_TRIES = 10
+#: Each of a stop's tries is solved within at most this long (s), whatever ``max_solve_time`` allows: a stop is
+#: worth having within its lead, and a try that cannot be solved (too short: IPOPT proves it infeasible only
+#: after seconds, with a hoist) must not hold the ones after it.
+STOP_SOLVE_TIME = 1.0
 #: The newest measurement must be at most this old (s) when a handover is planned (a settle needs one).
 MEASUREMENT_AGE = 0.5
 #: The swing at a handover is predicted from the newest measurement if that is at most MEASUREMENT_AGE plus
@@ -382,6 +387,7 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
     motion's hardest (its peak on any travel axis, or an axis's acceleration now): one bound for the
     horizontal axes, so that an axis the motion held (peak 0) may still move to damp its swing."""
     shaped = _shaped_travel(running.plan) if method in SHAPER_METHODS else None
+    options = stop_options(options)
     if shaped is not None:
         t0 = float(running.time_of(handover_ns))
         new = {}
@@ -421,6 +427,12 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
         speeds = ', '.join(f'{name} {s.velocity:.3g} m/s' for name, s in state.axes.items())
         raise PlanError(f'{method}: no stop within the axis limits from {speeds}')
     return last  # the longest tried: its peak above the braking target, within the axis limits
+
+
+def stop_options(options: PlanOptions) -> PlanOptions:
+    """``options`` as a stop's tries are solved with: within ``STOP_SOLVE_TIME`` each."""
+    budget = min(options.max_solve_time or STOP_SOLVE_TIME, STOP_SOLVE_TIME)
+    return options if options.max_solve_time == budget else dataclasses.replace(options, max_solve_time=budget)
 
 
 def settle(variational, state: MotionState, params: CraneParams, options: PlanOptions, method: str = 'nvf') -> Plan:
