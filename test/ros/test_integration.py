@@ -838,17 +838,20 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
             pub.publish(quintic_trajectory(0.0, D, 2.0, start_ns))
             crane.sleep_until(start_ns + 3_500_000_000)  # 2 s motion, 0.2 s playout, a report
             mark = crane.diagnostics.mark()
-            # the sim reports once a second; the wait only guards against a hang (a loaded host delays reports)
-            status = crane.diagnostics.wait_for(None, 15.0, after=mark, **sim_status)
-            assert status is not None, 'the sim sent no status within 15 s of the motion'
+            # the sim reports once a second. Unstamped samples are timed by their arrival: a stall of the sim
+            # longer than the playout delay delays the rest of the stream by its length (it cannot be told from
+            # the sender's pause), so a loaded host may see the cart arrive later: the reference must end at the
+            # goal and the cart be there
+            status = crane.diagnostics.wait_for(lambda s: abs(float(status_values(s)['y']) - D) < 5e-3 and
+                                                abs(float(status_values(s)['cart_reference']) - D) < 1e-6, 15.0,
+                                                after=mark, **sim_status)
+            seen = crane.diagnostics.wait_for(None, 0.0, after=mark, **sim_status)
+            assert status is not None, f'the cart did not end at the goal: {seen and status_values(seen)}'
             values = status_values(status)
         finally:
             crane.node.destroy_publisher(pub)
         nodes.check_alive()
     assert int(values['accepted']) > 2000 and values['reference_type'] == 'float64_array'
-    # the positions are played out and differentiated over the plant's steps: the cart comes to rest
-    # at the goal even when a stall re-anchored the unstamped samples' grid (which must not shift where it ends)
-    assert float(values['y']) == pytest.approx(D, abs=5e-3)
 
 
 def test_markers_draw_the_crane_of_the_published_joint_states(crane):
