@@ -330,8 +330,12 @@ def test_a_link_stall_mid_move_brakes_the_axes_and_the_streamer_starts_again_whe
     crane.set_parameters('streamer', {'network.loss': 0.0})
     status, result = crane.outcome(start, timeout=30.0)
     assert status == STATUS_ABORTED and 'stopped streaming the motion' in result.message, result.message
-    states_after(crane, recorder, lambda s: any(x[1] == 'tracking' for x in s[count:] if 'fault_hold' in
-                                                 [y[1] for y in s[count:]]), 30.0, 'tracking after the fault')
+
+    def tracking_after_the_hold(statuses):
+        states = [x[1] for x in statuses[count:]]
+        return 'fault_hold' in states and 'tracking' in states[states.index('fault_hold'):]
+
+    states_after(crane, recorder, tracking_after_the_hold, 30.0, 'tracking after the fault')
     seen = [x[1] for x in recorder.status_list()[count:]]
     assert seen.index('fault_stopping') < seen.index('fault_hold') < len(seen) - 1 - seen[::-1].index('tracking')
     held = next(x for x in recorder.status_list()[count:] if x[1] == 'fault_hold')[2][0]

@@ -6,6 +6,7 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 BIN = Path(sys.executable).parent
@@ -27,7 +28,7 @@ def test_every_message_of_a_500_hz_publisher_is_recorded_with_its_receive_time(r
     rclpy.init()
     node = rclpy.create_node('record_source', namespace='/rec_test')
     publisher = node.create_publisher(JointState, 'joint_states', JOINT_STATES_QOS)
-    sent, done = [], threading.Event()
+    done = threading.Event()
 
     def publish():
         msg, k = JointState(name=['cart', 'theta1', 'theta2']), 0
@@ -37,7 +38,6 @@ def test_every_message_of_a_500_hz_publisher_is_recorded_with_its_receive_time(r
             msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(now, 10**9)
             msg.position = [0.001 * k, -1e-3 * k, 2e-3 * k]
             publisher.publish(msg)
-            sent.append((now, k, time.time_ns()))
             time.sleep(0.002)
 
     bag = tmp_path / 'bag'
@@ -62,20 +62,17 @@ def test_every_message_of_a_500_hz_publisher_is_recorded_with_its_receive_time(r
     assert int(summary.split()[2]) == len(got) > 1000  # ~4 s at 500 Hz
     ks = [round(ros.position[0] / 0.001) for _, ros in got]
     assert ks == list(range(ks[0], ks[0] + len(ks)))  # consecutive: none missing, none twice, in order
-    returned = {k: after for _, k, after in sent}  # when publish() gave the message back
-    late = []
     for log_time, ros in got:
         k = round(ros.position[0] / 0.001)
         assert list(ros.position) == pytest.approx([0.001 * k, -1e-3 * k, 2e-3 * k], abs=1e-15)
         assert list(ros.name) == ['cart', 'theta1', 'theta2']
-        # received after it was sent, and (drained in batches every 10 ms) not stamped when drained: within
-        # 5 ms of publish() returning (not of its call: the first can block while Fast DDS matches the new reader)
         stamp = ros.header.stamp.sec * 10**9 + ros.header.stamp.nanosec
-        assert log_time >= stamp, (k, log_time - stamp)
-        if log_time - returned[k] >= 5_000_000:
-            late.append((k, (log_time - stamp) * 1e-6, (returned[k] - stamp) * 1e-6))
-    assert not late, (f'{len(late)} of {len(got)} received >= 5 ms after publish() returned; first (k, ms after '
-                      f'the stamp, ms publish() took): {late[:5]}')
+        assert log_time >= stamp, (k, log_time - stamp)  # received after it was sent
+    # logged at its receipt (the middleware's receive time), not when drained in batches every 10 ms: the log
+    # times are spaced as the 2 ms publishing is, not bunched five to a batch (how late each comes after its
+    # publish() measures the host, which can pause for hundreds of milliseconds)
+    gaps = np.diff([log_time for log_time, _ in got]) * 1e-6
+    assert np.all(gaps >= 0.0) and np.median(gaps) > 1.0, np.percentile(gaps, [10, 50, 90])
 
 
 @pytest.mark.parametrize('args, message', [
