@@ -8,6 +8,7 @@ from crane_msgs_py.params import CraneParams
 
 NS = '/crane_any_state'
 T = 3.0
+T_PREEMPTED = 5.0  # s, the motion a new goal takes over at 40 %
 SETTLE = 1.0  # s of residual window: more than half the slow mode's 1.73 s period, so its peak shows
 NOMINAL = CraneParams()
 STATUS_ABORTED, STATUS_CANCELED = 6, 5  # action_msgs/GoalStatus
@@ -63,14 +64,16 @@ def steps_at(references: np.ndarray, stamp_ns: int) -> tuple:
 
 @pytest.mark.parametrize('method', ['rvf', 'nvf', 'zv'])
 def test_a_new_goal_at_40_percent_takes_over_without_a_step_and_leaves_no_swing(crane, method):
+    """The running motion lasts 5 s, so at 40 % 3 s are left: on a loaded host a handover planned again further
+    ahead twice (a solve 20 times slower than alone) still falls within it."""
     driver = crane
     driver.keep_references()
-    start, _, _ = driver.move(method, 0.0, 0.3, T, settle=SETTLE)
-    driver.sleep(max(0.0, (start + round(0.4 * T * 1e9) - driver.now_ns()) * 1e-9))
+    start, _, _ = driver.move(method, 0.0, 0.3, T_PREEMPTED, settle=SETTLE)
+    driver.sleep(max(0.0, (start + round(0.4 * T_PREEMPTED * 1e9) - driver.now_ns()) * 1e-9))
     sent = driver.now_ns()
     handover = driver.retarget(method, 0.5, T, settle=SETTLE)
     # the handover lies in the motion, after the goal was sent (how long after: bench/any_state.py)
-    assert start + round(0.4 * T * 1e9) <= sent < handover < start + round(T * 1e9)
+    assert start + round(0.4 * T_PREEMPTED * 1e9) <= sent < handover < start + round(T_PREEMPTED * 1e9)
     end = handover + round(T * 1e9)
     residual, rec = residual_mm(driver, end, end + round(SETTLE * 1e9))
     references = driver.keep_references(False)
