@@ -387,7 +387,6 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
     motion's hardest (its peak on any travel axis, or an axis's acceleration now): one bound for the
     horizontal axes, so that an axis the motion held (peak 0) may still move to damp its swing."""
     shaped = _shaped_travel(running.plan) if method in SHAPER_METHODS else None
-    options = stop_options(options)
     if shaped is not None:
         t0 = float(running.time_of(handover_ns))
         new = {}
@@ -400,7 +399,7 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
             new[name] = Continuation.of(method, braked, t0, None, info={'stop': 'shaped'})
         return with_axes_held(_together(new), _held(state, new))
     # NVF: RVF's sensitivities forced to zero at a free end make it wander (metres past the goal)
-    method = 'nvf'
+    method, options = 'nvf', stop_options(options)
     travel = [name for name in state.axes if axis(name).kind == 'travel']
     hardest = max(max(_peak_acceleration(running, name), abs(state.axis(name).acceleration)) for name in travel)
     # how hard each axis may brake: its limit, else (a travel axis) STOP_BRAKING times the motion's hardest
