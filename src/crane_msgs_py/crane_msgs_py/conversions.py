@@ -31,6 +31,7 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
+from .cdr import ReferenceSample
 from .names import CART_JOINT, DEFAULT_FRAME_ID, OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, OUTPUTS, SIM_JOINTS
 from .params import check_choice
 
@@ -186,37 +187,49 @@ def fill_reference(msg, stamp: int, position, velocity, acceleration):
         msg.data[0] = position
 
 
+def reference_sample(msg) -> ReferenceSample:
+    """What a typed reference message (a JointTrajectory or a Float64MultiArray) says, as ``cdr`` reads it
+    from the message's bytes."""
+    if type(msg) is JointTrajectory:
+        first = msg.points[0] if msg.points else None
+        columns = (tuple(first.positions), tuple(first.velocities), tuple(first.accelerations)) if first else ()
+        return ReferenceSample(stamp_ns(msg.header.stamp), tuple(msg.joint_names), len(msg.points), *columns)
+    return ReferenceSample(None, None, 1, tuple(msg.data))
+
+
 def read_reference(msg, joints=None) -> tuple:
     """(stamp ns or None, position, velocity, acceleration) of a reference message.
 
+    ``msg`` is a JointTrajectory, a Float64MultiArray, or what ``cdr`` read
+    from the bytes of one (a ``ReferenceSample``).
     With ``joints`` None: one joint, floats. With ``joints`` (names, e.g.
     [cart, hoist]): arrays in that order; a JointTrajectory is matched by its
     joint names, a Float64MultiArray must hold one position per joint.
     A Float64MultiArray has no stamp, velocity or acceleration: None, NaN, NaN.
     A message that is not one sample of these joints raises ValueError.
     """
+    sample = msg if isinstance(msg, ReferenceSample) else reference_sample(msg)
     width = 1 if joints is None else len(joints)
-    if type(msg) is JointTrajectory:
-        if len(msg.points) != 1 or len(msg.joint_names) != width:
-            raise ValueError(f'reference must be one point of {width} joint(s), got {len(msg.points)} '
-                             f'point(s) of {len(msg.joint_names)} joint(s)')
-        point = msg.points[0]
-        if len(point.positions) != width:
+    if sample.joint_names is not None:  # a JointTrajectory
+        if sample.points != 1 or len(sample.joint_names) != width:
+            raise ValueError(f'reference must be one point of {width} joint(s), got {sample.points} '
+                             f'point(s) of {len(sample.joint_names)} joint(s)')
+        if len(sample.positions) != width:
             raise ValueError('reference point has no position per joint')
-        v = point.velocities if len(point.velocities) == width else [math.nan] * width
-        a = point.accelerations if len(point.accelerations) == width else [math.nan] * width
+        v = sample.velocities if len(sample.velocities) == width else (math.nan,) * width
+        a = sample.accelerations if len(sample.accelerations) == width else (math.nan,) * width
         if joints is None:
-            return stamp_ns(msg.header.stamp), point.positions[0], v[0], a[0]
-        names = list(msg.joint_names)
+            return sample.stamp_ns, sample.positions[0], v[0], a[0]
+        names = list(sample.joint_names)
         if sorted(names) != sorted(joints):
             raise ValueError(f'reference joints {names} are not {list(joints)}')
         order = [names.index(j) for j in joints]
-        return (stamp_ns(msg.header.stamp), *(np.asarray(x, dtype=float)[order] for x in (point.positions, v, a)))
-    if len(msg.data) != width:
-        raise ValueError(f'reference array must hold {width} position(s), got {len(msg.data)} values')
+        return (sample.stamp_ns, *(np.asarray(x, dtype=float)[order] for x in (sample.positions, v, a)))
+    if len(sample.positions) != width:
+        raise ValueError(f'reference array must hold {width} position(s), got {len(sample.positions)} values')
     if joints is None:
-        return None, msg.data[0], math.nan, math.nan
-    return None, np.asarray(msg.data, dtype=float), np.full(width, math.nan), np.full(width, math.nan)
+        return None, sample.positions[0], math.nan, math.nan
+    return None, np.asarray(sample.positions, dtype=float), np.full(width, math.nan), np.full(width, math.nan)
 
 
 def joint_state_message(names=None) -> JointState:

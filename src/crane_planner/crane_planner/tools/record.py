@@ -35,6 +35,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.type_support import check_for_type_support
 
 from crane_msgs_py.realtime import die_with_parent, set_threads_fifo
+from crane_msgs_py.taking import take_all
 
 PROG = 'crane-record'
 #: What ``crane-demo --record`` records (relative names resolve in the nodes' namespace).
@@ -159,12 +160,7 @@ class Recorder:
                 return 0
             for topic, sub in self._subscriptions.items():
                 connection = self._connections[topic]
-                while True:
-                    with sub.handle:
-                        taken = sub.handle.take_message(sub.msg_type, True)
-                    if taken is None:
-                        break
-                    data, info = taken
+                for data, info in take_all(sub):
                     self._writer.write(connection, info['received_timestamp'], data)
                     self.counts[topic] += 1
                     written += 1

@@ -3,11 +3,12 @@
 The plant (``crane_sim.simulator.CraneSimulator``: Eqs. 18-19 plus the servo
 of Eq. 6) is stepped every ``step`` seconds on its own thread at absolute
 deadlines of the monotonic clock and publishes ``joint_states`` every
-1/``publish_rate`` of simulated time. References arrive on the executor, are
-checked, stamped and counted there (``reference_intake.ReferenceIntake``:
-non-finite, stale and out-of-order ones are ignored, latency and gaps
-measured, unstamped ones put on a grid) and handed to the loop through a queue;
-the loop plays them out by their stamps, ``playout_delay`` behind
+1/``publish_rate`` of simulated time. Each step the loop takes the references
+the middleware received since the last (``reference_reader.ReferenceReader``:
+no executor hands 1 kHz messages over), checks, stamps and counts them
+(``reference_intake.ReferenceIntake``: non-finite, stale and out-of-order ones
+are ignored, latency and gaps measured, unstamped ones put on a grid) and
+plays them out by their stamps, ``playout_delay`` behind
 (``playout.ReferencePlayout``): the plant's time runs that far behind the
 clock, and ``joint_states`` carry plant time, so they line up with the
 reference stamps. Between the playouts and the plant sits the axis
@@ -18,8 +19,8 @@ fault reaction's ramp (``fault_deceleration``, ``fault_jerk``) and holds
 until a stream starts where the axes stand; its state goes to
 ``axis_status`` (crane_interfaces/AxisStatus) and ``/diagnostics``. The loop
 alone touches the simulator and the controller, so parameter changes and
-resets are handed over too. The EventsExecutor keeps the 1 kHz subscription
-at a fraction of the CPU the Python executors need.
+resets are handed over too. The executor (an EventsExecutor) serves the
+parameters, services and timers.
 """
 from __future__ import annotations
 
@@ -33,9 +34,7 @@ from crane_interfaces.msg import AxisStatus
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
-from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from crane_msgs_py.conversions import (
@@ -75,6 +74,7 @@ from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_
 from crane_msgs_py.runner import LoopThread, run
 from crane_sim.axis_controller import FAULT_STATES, AxisController, AxisState, FaultConfig, Offer
 from crane_sim.measurement import AngleNoise
+from crane_sim.nodes.reference_reader import REFERENCE_TYPES, ReferenceReader
 from crane_sim.playout import ReferencePlayout, StallAllowance
 from crane_sim.reference_intake import ReferenceIntake
 from crane_sim.simulator import INTERPOLATIONS, SOURCES, CraneSimulator, CraneState, SimulationError
@@ -84,8 +84,6 @@ SIM_TASK = 'sim'
 #: CATCH_UP_POLL s while any arrive within CATCH_UP_QUIET s, CATCH_UP_WAIT s at most per step.
 CATCH_UP_NS = 5_000_000
 CATCH_UP_POLL, CATCH_UP_QUIET, CATCH_UP_WAIT = 2e-4, 2e-3, 0.05
-#: ``reference_type`` values: the streamer's two outputs, or whatever the topic's publisher sends.
-REFERENCE_TYPES = {OUTPUT_JOINT_TRAJECTORY: JointTrajectory, OUTPUT_FLOAT64_ARRAY: Float64MultiArray}
 _TYPE_NAMES = {'trajectory_msgs/msg/JointTrajectory': OUTPUT_JOINT_TRAJECTORY,
                'std_msgs/msg/Float64MultiArray': OUTPUT_FLOAT64_ARRAY}
 
@@ -144,7 +142,7 @@ PARAMETERS = {
     'sched_priority': (0, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
                        'feeds it one below, the middleware\'s receive threads two below (without the privilege a '
                        'warning and normal scheduling); 0 = normal scheduling: the playout delay absorbs late '
-                       'steps, a loop catching up waits for the samples the executor still has to hand over, and '
+                       'steps, a loop catching up waits for the samples still on their way, and '
                        'references later still are made up (made_up on /diagnostics)',
                        {**int_range(0, 99), 'read_only': True}),
 }
@@ -179,16 +177,13 @@ class SimNode(Node):
         self._plant_clock = (self.get_clock().now().nanoseconds, 0)  # ROS ns of plant time 0, playout delay ns
         self._refused_reported = 0
 
-        # Handed from the executor to the loop; deque append/popleft are atomic.
-        # (stamp ns, then position, acceleration per axis), checked. Room for 10 s of a 1 kHz stream: a loop
-        # that falls behind on a busy host catches up on every sample; one dropped here would be a gap that
-        # the fault reaction takes for a lost stream.
-        self._inbox: deque = deque(maxlen=10_000)
+        # Taken and checked by the loop, not yet played: (stamp ns, then position, acceleration per axis).
+        self._inbox: deque = deque()
         self._pending_params: CraneParams | None = None
         self._reset_requested = threading.Event()
         self._push: float | None = None  # a push for the loop to apply (m)
-        # The loop's counts (out_of_order: a sample a swapped playout could not take); the
-        # intake's own are the executor's: one writer per dict. The diagnostics add them up.
+        # The loop's counts (out_of_order: a sample a swapped playout could not take) and the intake's,
+        # both written by the loop alone; the diagnostics add them up.
         self.counts = dict.fromkeys(('out_of_order', 'timeouts', 'made_up', 'steps', 'skipped', 'published'), 0)
         self.made_up_late = 0.0  # s: the latest a made-up sample came past its playout time
         self._made_up_reported = 0
@@ -197,7 +192,7 @@ class SimNode(Node):
 
         self._stream_quiet = False  # a catch-up wait found no sample coming (``_await_samples``)
         self._played_ns: int | None = None  # ROS time of the step the loop runs (``ReferenceIntake.receive``)
-        self._reference_sub = None
+        self._reader: ReferenceReader | None = None
         self._reference_type = p['reference_type']
         self._playout_args = self._playout_args_of(p)
         self._intake = ReferenceIntake(*self._intake_args_of(p))
@@ -268,8 +263,7 @@ class SimNode(Node):
 
     def _subscribe(self, kind: str):
         self._reference_type = kind
-        self._reference_sub = self.create_subscription(REFERENCE_TYPES[kind], REFERENCE_TOPIC,
-                                                       self._on_reference, REFERENCE_EVERY_SAMPLE_QOS)
+        self._reader = ReferenceReader(self, kind, REFERENCE_EVERY_SAMPLE_QOS)  # the loop takes from it
         self.get_logger().info(f'reference type {kind}')
         if kind == OUTPUT_FLOAT64_ARRAY:  # positions only, timed by their arrival
             self._playout_args = (*self._playout_args[:3], 'position')  # what _playout_args_of gives now
@@ -278,22 +272,29 @@ class SimNode(Node):
                 self.get_logger().warn('float64_array references carry positions only: '
                                        'reconstructing the acceleration from them')
 
-    def _on_reference(self, msg):
-        now = self.get_clock().now().nanoseconds
-        try:
-            if len(self._joints) > 1:  # a column per axis: the cart's, then the others' pairs
-                stamp, position, _, acceleration = read_reference(msg, self._joints)
-                others = tuple(zip(position[1:], acceleration[1:]))
-                position, acceleration = position[0], acceleration[0]
-            else:
-                stamp, position, _, acceleration = read_reference(msg)
-                others = ()
-        except ValueError:
-            self._intake.count_malformed()
+    def _take_references(self, now_ns: int) -> None:
+        """Check what the reader received since the last step (the intake) and queue the accepted samples."""
+        reader = self._reader
+        if reader is None:
             return
-        sample = self._intake.receive(now, stamp, position, acceleration, others, self._played_ns)
-        if sample is not None:
-            self._inbox.append(sample)
+        joints, intake, inbox, played = self._joints, self._intake, self._inbox, self._played_ns
+        for received, content in reader.take(now_ns):
+            try:
+                if content is None:
+                    raise ValueError('not a reference')
+                if len(joints) > 1:  # a column per axis: the cart's, then the others' pairs
+                    stamp, position, _, acceleration = read_reference(content, joints)
+                    others = tuple(zip(position[1:], acceleration[1:]))
+                    position, acceleration = position[0], acceleration[0]
+                else:
+                    stamp, position, _, acceleration = read_reference(content)
+                    others = ()
+            except ValueError:
+                intake.count_malformed()
+                continue
+            sample = intake.receive(received, stamp, position, acceleration, others, played)
+            if sample is not None:
+                inbox.append(sample)
 
     def _on_push(self, request, response):
         push = float(self.get_parameter('push_swing').value)
@@ -322,6 +323,7 @@ class SimNode(Node):
         inbox, controller = self._inbox, self._controller
         ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
         epoch_ros = ros_now + (epoch - time.monotonic_ns())  # ROS time of step 0
+        ros_offset = epoch_ros - epoch  # ROS time (ns) minus monotonic time (ns)
         dt_ns, dt = ticker.period, ticker.period * 1e-9
         playout_args, playouts, timeouts, made_up = None, (), 0, 0  # a playout per axis, in sim.axes order
         seen = 0  # the cart's playout's timeouts handled: one more is a stream lost
@@ -360,8 +362,10 @@ class SimNode(Node):
                 for one in playouts:
                     one.reset()
                 controller.reset(self._axis_positions(), t0)
+            self._played_ns = epoch_ros + ticker.tick * dt_ns  # what the intake judges staleness by
+            self._take_references(now + ros_offset)
             if late_ns > CATCH_UP_NS and controller.state is tracking:
-                self._await_samples(newest, epoch_ros + (ticker.tick + 1) * dt_ns - self._plant_clock[1])
+                self._await_samples(newest, epoch_ros + (ticker.tick + 1) * dt_ns - self._plant_clock[1], ros_offset)
             while inbox:
                 stamp, *sample = inbox.popleft()  # (position, acceleration) per axis
                 newest = stamp
@@ -377,7 +381,6 @@ class SimNode(Node):
                 except SimulationError:  # not after the last one (a playout swapped meanwhile)
                     counts['out_of_order'] += 1
             t1 = t0 + dt
-            self._played_ns = epoch_ros + ticker.tick * dt_ns  # what the intake judges staleness by
             if controller.state is tracking:
                 stall = allowance(late_ns * 1e-9, now * 1e-9)
                 for one in playouts:  # catching up after a stall: its samples may be on their way
@@ -413,11 +416,11 @@ class SimNode(Node):
                 counts['published'] += 1
             counts['skipped'] += ticker.advance(time.monotonic_ns())
 
-    def _await_samples(self, newest: int, needed: int) -> None:
-        """While the loop catches up after a stall, wait for the executor to hand over the samples up to
-        ``needed`` (ROS ns: this step's playout time) before the step runs without them (each made up
-        later would leave a swing): the stall held the executor too, and the loop, run alone, would
-        outrun its backlog. Only while samples keep coming (none for ``CATCH_UP_QUIET`` s: a gap, or a
+    def _await_samples(self, newest: int, needed: int, ros_offset: int) -> None:
+        """While the loop catches up after a stall, wait for the samples up to ``needed`` (ROS ns: this
+        step's playout time) before the step runs without them (each made up later would leave a swing):
+        a stall of the host held the streamer too, and the loop, run alone, would outrun what it sends.
+        Only while samples keep coming (none for ``CATCH_UP_QUIET`` s: a gap, or a
         lost stream, for the playout to judge: not waited for again until a sample comes, or a loop behind
         a dead stream would wait at every step and never catch up), ``CATCH_UP_WAIT`` s at most. ``newest``:
         the newest stamp the loop has taken."""
@@ -426,7 +429,8 @@ class SimNode(Node):
             return
         self._stream_quiet = False
         while (inbox[-1][0] if inbox else newest) < needed and waited < CATCH_UP_WAIT:
-            time.sleep(CATCH_UP_POLL)  # (the GIL to the executor)
+            time.sleep(CATCH_UP_POLL)
+            self._take_references(time.monotonic_ns() + ros_offset)
             waited += CATCH_UP_POLL
             quiet = 0.0 if len(inbox) != count else quiet + CATCH_UP_POLL
             count = len(inbox)
@@ -537,6 +541,8 @@ class SimNode(Node):
 
     def destroy_node(self):
         self._loop_thread.stop()
+        if self._reader is not None:
+            self._reader.destroy()
         super().destroy_node()
 
 
