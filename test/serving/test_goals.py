@@ -26,7 +26,7 @@ def test_every_state_has_its_transitions_and_the_ends_lead_nowhere():
 
 
 @pytest.mark.parametrize('path, illegal', [
-    ((S.SENT,), S.HELD),  # a sent trajectory is never held again
+    ((S.SENT, S.FOLLOWING), S.HELD),  # a streaming trajectory is never held again
     ((S.PREEMPTED,), S.SENT),  # a goal that gave way never streams
     ((S.CANCELED,), S.SENT),
     ((S.SENT, S.FOLLOWING), S.SENT),

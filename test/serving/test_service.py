@@ -244,3 +244,20 @@ def test_the_handover_warm_up_rehearses_a_shapers_handover_sends_nothing_and_cou
     with crane.service.handing_over:  # a handover being planned: no rehearsal takes the core from it
         crane.service.warm_handover(rehearsed.append)
     assert len(rehearsed) == 1
+
+
+def test_a_goal_whose_motion_ends_before_its_handover_is_taken_is_planned_from_where_the_motion_ended():
+    """Nothing accepted is lost: a new goal near the end of a motion, its handover refused (late on a busy
+    host) until the motion has ended, is planned from rest once the streamer says it holds there."""
+    crane = Crane()
+    old, running = run_old_goal_until(crane, T0 + 2_950_000_000)  # 3 s motion: 50 ms left
+    crane.refuse = 1  # the first handover came late
+    new_move = move(goal=0.5, duration=2.0)
+    goal = crane.goal('new', new_move)
+    outcome, _ = crane.execute(goal, new_move)
+    assert outcome.success and '0.3 -> 0.5 m' in outcome.message, outcome.message
+    assert goal.history == [S.ARRIVED, S.SENT, S.HELD, S.SENT, S.FOLLOWING]
+    sent_at, trajectory = crane.published[-1]
+    assert sent_at >= running.end_ns and trajectory.starts[0] == pytest.approx(0.3)  # from rest, where it ended
+    assert crane.hold == pytest.approx(0.5) and old.state is not S.TAKEN_OVER
+    assert any(level == 'warn' and 'planning it from where the motion ended' in line for level, line in crane.log.lines)

@@ -8,7 +8,9 @@ ours, for what the planner does with it):
 - ``HELD``: planned; its trajectory held until ``publish_lead`` before its
   start, so that a cancel before then streams nothing.
 - ``SENT``: its trajectory (or handover) went to the streamer; a handover
-  the streamer did not take is sent again (``SENT`` again).
+  the streamer did not take is sent again (``SENT`` again), or, if the
+  motion it was to take over has ended meanwhile, the goal is planned from
+  rest (``HELD``).
 - ``FOLLOWING``: the streamer streams it; followed to its result.
 - ``STOPPING``: canceled during its motion: a stop was sent and is followed.
 - ``TAKEN_OVER``: a newer goal took its motion over (preempted once sent).
@@ -52,7 +54,7 @@ S = GoalState
 TRANSITIONS = {
     S.ARRIVED: {S.HELD, S.SENT, S.PREEMPTED, S.CANCELED, S.ENDED, S.FORGOTTEN},
     S.HELD: {S.SENT, S.PREEMPTED, S.CANCELED, S.ENDED},
-    S.SENT: {S.SENT, S.FOLLOWING, S.TAKEN_OVER, S.ENDED, S.FORGOTTEN},
+    S.SENT: {S.SENT, S.HELD, S.FOLLOWING, S.TAKEN_OVER, S.ENDED, S.FORGOTTEN},
     S.FOLLOWING: {S.STOPPING, S.TAKEN_OVER, S.ENDED},
     S.STOPPING: {S.TAKEN_OVER, S.ENDED},
     S.TAKEN_OVER: {S.ENDED},

@@ -69,6 +69,14 @@ DEFAULT_SETTLE = 2.0
 FEEDBACK_PERIOD = 0.05
 
 
+class MotionEnded(MoveError):
+    """The motion a goal was to take over ended before its handover could be planned (a host too busy to
+    plan it in the time left): the goal is then planned from rest, where the motion ended."""
+
+    def __init__(self):
+        super().__init__('goal', 'the running motion ended while this goal was planned')
+
+
 @dataclass(frozen=True)
 class Planned:
     """A move planned: checked, its plan, its trajectory, its status values (/diagnostics) and how long
@@ -277,6 +285,10 @@ class MoveService:
         settle = settle or DEFAULT_SETTLE
         if goal.take_over is not None:  # a new goal during a motion: it takes over (preemption)
             return self._take_over(goal, move, settle, feedback, canceled)
+        return self._from_rest(goal, move, settle, feedback, canceled, t0)
+
+    def _from_rest(self, goal: Goal, move: Move, settle: float, feedback, canceled, t0: float) -> Outcome:
+        """A goal with the crane at rest: plan, hold for its lead, send, follow. ``t0``: its arrival (timer)."""
         try:
             planned = self.plan(move, 'execute_move', execute=True)
         except ValueError as exc:
@@ -344,6 +356,8 @@ class MoveService:
                                                  'was streamed', reported[0] if reported else None)
             return self._end(goal, 'cancel', 'canceled before its motion started: nothing was streamed',
                              reported[0] if reported else None)
+        except MotionEnded:
+            return self._after_the_motion(goal, move, settle, feedback, canceled)
         except ValueError as exc:
             self._report({'service': 'execute_move', 'method': '', **getattr(exc, 'values', {})}, None,
                          take_over.arrived_t, take_over.arrived_t, error=str(exc))
@@ -358,6 +372,29 @@ class MoveService:
         what = (f'{checked.method}: from {cart.start:g} m (taking over the motion) -> {cart.goal:g} m in '
                 f'{plan.duration:.4g} s')
         return self._follow(goal, reported[0], feedback, canceled, settle, what)
+
+    def _after_the_motion(self, goal: Goal, move: Move, settle: float, feedback, canceled) -> Outcome:
+        """A goal whose running motion ended before its handover could be planned: planned from rest where the
+        streamer holds, once its stream_state says it holds there (nothing accepted is lost)."""
+        take_over = goal.take_over
+        self.log.warn('execute_move: the motion this goal was to take over ended before its handover could be '
+                      'planned: planning it from where the motion ended')
+        stream_timeout = self.config().stream_timeout
+        heard_t = self._timer()
+        last = None
+        while True:
+            heard = self.view.heard()
+            if heard is not None and heard.state == HOLDING and heard.stamp_ns >= take_over.running.end_ns:
+                break
+            if canceled():
+                return self._end(goal, 'cancel', 'canceled before its motion started: nothing was streamed')
+            if heard is not None and heard.stamp_ns != last:
+                heard_t, last = self._timer(), heard.stamp_ns
+            elif self._timer() - heard_t >= stream_timeout:
+                return self._end(goal, 'abort', f'the motion it was to take over ended, and no stream_state said '
+                                                f'the streamer holds after it within {stream_timeout:g} s')
+            self._sleep(0.005)
+        return self._from_rest(goal, move, settle, feedback, canceled, take_over.arrived_t)
 
     def _send_handover(self, goal: Goal, move: Move, running: Running, settle: float, lead_scale: float = 1.0,
                        arrived_ns: int | None = None) -> Sent:
@@ -476,7 +513,7 @@ class MoveService:
             except ValueError as exc:
                 raise MoveError('duration', str(exc)) from None
             if done is None:
-                raise MoveError('goal', 'the running motion ended while this goal was planned; send it again')
+                raise MotionEnded()
         except ValueError as exc:
             exc.values = values
             raise
