@@ -759,9 +759,14 @@ def test_fastest_services_answer_the_shortest_plan_within_the_limits_and_refuse_
     from crane_planner.serving import Planner
     with pytest.raises(PlanError, match='needs max_velocity or max_acceleration'):
         crane.planner.fastest('zv', 5.0, 5.3)
+    mark = crane.diagnostics.mark()
     crane.driver.set_parameters('planner', {'max_velocity': 0.25, 'max_acceleration': 0.5})
     sent = len(crane.driver.sent_trajectories())
     try:
+        # limits add the fastest plan's NLPs: the workers build them in the background and say when they have
+        # (a request meanwhile may be refused as still building: its answer is due within its budget)
+        rebuilt = crane.status('crane_planner', 'solvers', mark, timeout=120.0)
+        assert rebuilt.message.startswith('solvers rebuilt for the new parameters in'), rebuilt.message
         offline = Planner()
         for method in ('zv', 'nvf'):
             plan = crane.planner.fastest(method, 5.0, 5.3)

@@ -123,32 +123,33 @@ class PlannerNode(Node):
         if config.handover_priority != self._config.handover_priority:
             self._prioritize_receiving(config.handover_priority)
         if config.handover_warmup != self._config.handover_warmup:
+            self._warm_timer.timer_period_ns = round((config.handover_warmup or 1.0) * 1e9)
             if config.handover_warmup:
-                self._warm_timer.timer_period_ns = round(config.handover_warmup * 1e9)
                 self._warm_timer.reset()
             else:
                 self._warm_timer.cancel()
         self._planner.pool_size = config.solver_pool_size
-        self._planner.warmups = config.warmups()  # what a replaced worker builds first
+        warmups = config.warmups()  # what the workers build in the background, and a replaced one first
+        if warmups != self._planner.warmups:
+            self._planner.warmups = warmups
+            if config.solver_processes:  # (without workers the first request of a new NLP builds it)
+                service.report_when_built(self._planner, lambda text: self._diagnostics.report('solvers', OK, text))
         self._config = config  # applies to the next request
 
     def executor_threads(self) -> int:
-        """Enough executor threads for every solver busy at once, plus the shapers' and parameter requests,
-        the goals being executed (each holds a thread until its result: one moving, one settling) and
-        the stream_state / joint_states callbacks."""
+        """Enough executor threads for every solver busy at once, the shapers' and parameter requests and the
+        goals being executed (each holds a thread until its result: one moving, one settling)."""
         return self._config.solver_processes + self._config.solver_pool_size * len(VARIATIONAL_METHODS) + 7
 
     def _build_solvers(self):
-        """Every method built once with the start-up configuration (``service.build_solvers``), reported on
-        /diagnostics (task ``solvers``) with the time each took."""
+        """Every method built once at start-up (``service.build_solvers``); a ``solvers`` status with the times."""
         built = service.build_solvers(self._planner, self._config, self.get_logger())
         self._diagnostics.report('solvers', WARN if built.failed else OK, built.message,
                                  **{f'{m}_s': v for m, v in built.times.items()},
                                  **{f'{m}_error': e for m, e in built.failed.items()})
 
     def _prioritize_receiving(self, handover_priority: int):
-        """The middleware's receive threads one below the goals' thread: a goal reaches it through them, and
-        at normal priority waits for a core there first, behind whatever else a loaded machine runs."""
+        """The middleware's receive threads one below the goals' thread (a goal reaches it through them)."""
         _, refused = set_threads_fifo(max(0, handover_priority - 1))
         if refused:
             self.get_logger().warn(f'handover_priority: the middleware\'s receive threads: {refused}')
@@ -205,9 +206,8 @@ class PlannerNode(Node):
     def _on_goal(self, request) -> GoalResponse:
         """Every goal is accepted (a refusal is its result's reason) and registered here, on the goals'
         thread, and a shaper's during a motion handed over at once (``MoveService.arrive``): before rclpy's
-        acceptance of it (its goal handle, response and status: a noticeable share of that handover's 5 ms
-        budget; rclpy fails to accept a goal only on an internal error, which it logs), and before the executor
-        runs ``_execute``."""
+        acceptance of it (a noticeable share of that handover's 5 ms budget; rclpy fails to accept a goal
+        only on an internal error, which it logs), and before the executor runs ``_execute``."""
         self._service.arrive(id(request), _move(request.move), request.settle)
         return GoalResponse.ACCEPT
 
@@ -236,9 +236,9 @@ class PlannerNode(Node):
             outcome = self._service.execute(goal, _move(request.move), request.settle, lambda **feedback: goal_handle
                                             .publish_feedback(ExecuteMove.Feedback(**feedback)),
                                             lambda: goal_handle.is_cancel_requested)
-        except InvalidHandle:  # the node is being destroyed (a signal), its action server too: no one to tell
-            return result
         except Exception as exc:  # a bug must not leave the caller waiting forever
+            if isinstance(exc, InvalidHandle) or not self.context.ok():  # shut down (a signal): no one to tell
+                return result
             self.get_logger().error(f'execute_move: unexpected {type(exc).__name__}: {exc}')
             if not goal_handle.is_active:  # it already ended: the caller has its status
                 return result

@@ -626,6 +626,22 @@ def start_processes(planner, config: Config, log) -> None:
         log.error('no solver process started within 60 s; NVF/RVF requests will be refused')
 
 
+#: Longest wait (s) for the workers to build a parameter change's solvers before nothing is reported.
+REBUILD_WAIT = 600.0
+
+
+def report_when_built(planner, report: Callable[[str], None]) -> None:
+    """After a parameter change that changes the NLPs to build: ``report(message)`` once every worker has built
+    them in the background (``Planner.wait_built``), saying how long that took. Returns at once."""
+    t0 = time.perf_counter()
+
+    def wait():
+        if planner.wait_built(REBUILD_WAIT):
+            report(f'solvers rebuilt for the new parameters in {time.perf_counter() - t0:.2f} s')
+
+    threading.Thread(target=wait, name='solvers-rebuilt', daemon=True).start()
+
+
 def build_solvers(planner, config: Config, log) -> Built:
     """Build every method once with ``config``, so first requests are warm. With solver processes, every one
     is started first (one still building takes a core), and what they lack of the configuration's warm-ups

@@ -229,13 +229,15 @@ def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: s
     # window untouched.
     request_back(driver, start_ns + round(T * 1e9), back_start_ns)
     back_duration = args.return_duration if case.hoist is None else max(args.return_duration, HOIST_RETURN)
-    back_ns, _, _ = driver.move('nvf', D, 0.0, back_duration, start_ns=back_start_ns, hoist=back_hoist)
+    # (its result after 50 ms of watching: nothing is measured of it, and none is left pending at the end)
+    back_ns, _, _ = driver.move('nvf', D, 0.0, back_duration, start_ns=back_start_ns, hoist=back_hoist, settle=0.05)
     t, load, rope, residual = _window_residual(driver, case, start_ns, start_ns, start_ns + round(T * 1e9), end_ns)
     action_residual = driver.move_result(start_ns).residual_swing  # what the caller of the action is told
     plan_t, plan_v, plan_a, peak = _served(driver, start_ns)
     # After the move back, zero the swing: the simulated crane has no damping to wait for.
     back_end_ns = back_ns + round((back_duration + 0.05) * 1e9)
     driver.sleep((back_end_ns - driver.now_ns()) * 1e-9)
+    driver.move_result(back_ns)
     driver.wait_for_state_after(back_end_ns)
     driver.reset_sim()
     return Run(name or case.name, method, plan_time, peak, residual, 1e3 * action_residual, t, load, plan_t, plan_v,
@@ -377,7 +379,7 @@ def commission(driver: CraneHarness, args, model: CraneParams):
     start_ns = driver.send(samples, 0.0, 'the excitation')
     end_ns = start_ns + round((T + EXCITATION_RECORD) * 1e9)
     request_back(driver, start_ns + round(T * 1e9), end_ns)
-    back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns)
+    back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns, settle=0.05)
     c = state_columns(driver.states_between(start_ns, end_ns))
     driver.set_parameters('sim', {'noise': 0.0})
     t_rec = (c['stamp'] - start_ns) * 1e-9
@@ -385,6 +387,7 @@ def commission(driver: CraneHarness, args, model: CraneParams):
     result = identify(recording, model)
     back_end_ns = back_ns + round((args.return_duration + 0.05) * 1e9)
     driver.sleep((back_end_ns - driver.now_ns()) * 1e-9)
+    driver.move_result(back_ns)
     driver.wait_for_state_after(back_end_ns)
     driver.reset_sim()
     return recording, result
