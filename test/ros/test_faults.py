@@ -23,6 +23,7 @@ from crane_msgs_py.braking import stopping_distance
 from crane_msgs_py.params import CraneParams
 
 NS = '/crane_faults'
+PLANNER_PARAMS = {'solver_processes': 1}
 STATUS_ABORTED = 6  # action_msgs/GoalStatus
 LOST_STREAM = 'lost the reference stream'
 T = 4.0          # s of the move
@@ -84,7 +85,8 @@ class Recorder:
 
 @pytest.fixture(scope='module')
 def crane(start_crane):
-    with start_crane(NS) as driver:
+    # one solver process: goals come one at a time here, and each planner (re)start builds a third as much
+    with start_crane(NS, planner_params=PLANNER_PARAMS) as driver:
         recorder = Recorder()
         try:
             yield driver, recorder
@@ -209,6 +211,7 @@ def restart(driver, name: str, **params):
     from crane_planner.tools.processes import PLANNER, SIM, STREAMER
     executable = {'planner': PLANNER, 'streamer': STREAMER, 'sim': SIM}[name]
     count = sum(p.name.startswith(name) for p in driver.nodes.processes)
+    params = {**(PLANNER_PARAMS if name == 'planner' else {}), **params}
     driver.nodes.start(*executable, name=f'{name}-{driver.now_ns()}', namespace=NS, params=params or None)
     assert sum(p.name.startswith(name) for p in driver.nodes.processes) == count + 1
 
