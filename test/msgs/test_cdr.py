@@ -75,3 +75,35 @@ def test_a_corrupt_count_is_refused_before_anything_is_allocated():
     data[20:24] = (2**32 - 1).to_bytes(4, 'little')  # joint_names' count (after the header's stamp and frame_id)
     with pytest.raises(ValueError, match='more than'):
         read_joint_trajectory(bytes(data))
+
+
+@pytest.mark.parametrize('joints', [('cart',), ('cart', 'hoist'), ('cart', 'bridge', 'hoist')])
+@pytest.mark.parametrize('output', ['joint_trajectory', 'float64_array'])
+def test_the_writer_s_bytes_are_what_rclpy_serializes_of_the_filled_message(output, joints):
+    """The streamer's reference bytes written in place are, to rclpy, the message it fills with the same sample
+    (compared as messages: rclpy leaves its padding bytes uninitialized)."""
+    from rclpy.serialization import deserialize_message
+
+    from crane_msgs_py.cdr import ReferenceWriter
+    from crane_msgs_py.conversions import fill_reference, reference_message
+    msg = reference_message(output, joint=list(joints))
+    writer = ReferenceWriter(serialize_message(msg), trajectory=output == 'joint_trajectory')
+    assert writer.width == len(joints)
+    rng = __import__('numpy').random.default_rng(3)
+    for stamp in (1, 1_795_756_847_724_352_513, 2**31 * 1_000_000_000 - 1):
+        values = [tuple(float(x) for x in rng.normal(size=len(joints))) for _ in range(3)]
+        if len(joints) == 1:
+            values = [v[0] for v in values]
+        fill_reference(msg, stamp, *values)
+        data = writer.write(stamp, *values)
+        assert deserialize_message(data, type(msg)) == msg and len(data) == len(serialize_message(msg))
+
+
+def test_the_writer_refuses_a_template_of_another_shape():
+    from crane_msgs_py.cdr import ReferenceWriter
+    two_points = JointTrajectory(joint_names=['cart'], points=[point([1.0], [0.0], [0.0])] * 2)
+    with pytest.raises(ValueError, match='one point'):
+        ReferenceWriter(serialize_message(two_points))
+    uneven = JointTrajectory(joint_names=['cart'], points=[point([1.0], [], [0.0])])
+    with pytest.raises(ValueError, match='as many velocities'):
+        ReferenceWriter(serialize_message(uneven))

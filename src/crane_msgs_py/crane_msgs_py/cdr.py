@@ -1,4 +1,4 @@
-"""The streamer's one-sample references read straight from their serialized bytes (CDR).
+"""The streamer's one-sample references read straight from their serialized bytes (CDR), and written so.
 
 At 1 kHz the simulator cannot afford rclpy's typed messages: taking one JointTrajectory as a
 Python object costs about ten times what taking its bytes does (``bench/reference_take.py``).
@@ -11,8 +11,9 @@ little-endian, ``0x00 0x00`` big-endian plain CDR), then the fields in declarati
 each primitive aligned to its size counted from the end of that header; a string is its
 length (with the terminating NUL) and its bytes; a sequence its count and its elements (an
 empty sequence of doubles adds no padding). Truncated or inconsistent bytes raise ValueError,
-as a message of the wrong shape does in ``conversions.read_reference``. Pure Python, no ROS
-import; tested against rclpy's own serializer.
+as a message of the wrong shape does in ``conversions.read_reference``. The streamer, for its part,
+publishes bytes written in place into a template rclpy serialized (``ReferenceWriter``). Pure Python,
+no ROS import; tested against rclpy's own serializer.
 """
 from __future__ import annotations
 
@@ -115,3 +116,59 @@ def read_float64_array(data: bytes) -> ReferenceSample:
         r.u32()
     r.u32()  # layout.data_offset
     return ReferenceSample(None, None, 1, r.doubles())
+
+
+class ReferenceWriter:
+    """A one-sample reference's bytes with each sample's values written in place, for the streamer's 1 kHz
+    publishing (an rclpy message filled and serialized costs several times as much).
+
+    ``template`` is a serialized reference as rclpy writes it (``serialize_message`` of
+    ``conversions.reference_message``): a one-point JointTrajectory with positions, velocities and
+    accelerations of one size (``trajectory``), or a Float64MultiArray (positions only). Its layout is kept;
+    ``write`` puts the stamp and the values where the template has them. ValueError if the template is not
+    one of these.
+    """
+
+    def __init__(self, template: bytes, trajectory: bool = True):
+        r = _Reader(template)
+        self._buffer = bytearray(template)
+        if trajectory:
+            self._stamp = (_STAMP[r.order], r.at)
+            r.stamp()
+            r.string()  # frame_id
+            for _ in range(r.count(len(template) // 5)):
+                r.string()
+            if r.count(len(template) // 24) != 1:
+                raise ValueError('the template must have one point')
+            self._blocks = [self._block(r) for _ in range(3)]
+            if len({n for _, _, n in self._blocks}) != 1:
+                raise ValueError("the template's point must have as many velocities and accelerations as positions")
+        else:
+            for _ in range(r.count(len(template) // 12)):  # layout.dim
+                r.string()
+                r.u32()
+                r.u32()
+            r.u32()  # layout.data_offset
+            self._stamp, self._blocks = None, [self._block(r)]
+        self.width = self._blocks[0][2]
+
+    @staticmethod
+    def _block(r: _Reader) -> tuple:
+        """(its Struct, where its doubles start, how many) of the next sequence of doubles."""
+        at, n = r.at, len(r.doubles())
+        start = r.at - 8 * n
+        return struct.Struct(f'{r.order}{n}d'), start if n else at, n
+
+    def write(self, stamp_ns: int, position, velocity=(), acceleration=()) -> bytes:
+        """The reference's bytes with this stamp (ns; ignored by an array) and values (floats for one joint,
+        sequences of ``width`` for several; an array takes the positions only)."""
+        buffer = self._buffer
+        if self._stamp is not None:
+            stamp, at = self._stamp
+            stamp.pack_into(buffer, at, *divmod(stamp_ns, 1_000_000_000))
+        for (pack, at, n), values in zip(self._blocks, (position, velocity, acceleration)):
+            if n == 1 and not isinstance(values, (tuple, list)):
+                pack.pack_into(buffer, at, values)
+            else:
+                pack.pack_into(buffer, at, *values)
+        return bytes(buffer)

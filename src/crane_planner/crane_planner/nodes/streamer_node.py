@@ -55,6 +55,7 @@ class StreamerNode(Node):
         p = declare(self, PARAMETERS)
         self._joints = names.check_joints(p['joints'])  # ValueError: see main()
         self._msg = conversions.reference_message(p['output'], joint=list(self._joints))  # (ParameterError)
+        self._write = conversions.reference_writer(self._msg).write  # its bytes, what is published
         self._operator: OperatorStream | None = None  # the operator mode's stream while in that mode
         self._stop_at_rest = False  # a ~/stop waits for the crane to come to rest
         self._config = config = self._config_of(p)  # ParameterError on a bad override
@@ -259,7 +260,8 @@ class StreamerNode(Node):
             return  # stopped meanwhile
         if self._first_tick_ns is None:  # where the timing log starts
             self._first_tick_ns = epoch_ros
-        msg, publisher, lateness, sample, link = self._msg, self._publisher, self._lateness, stream.sample, self._link
+        write, publisher, lateness, sample = self._write, self._publisher, self._lateness, stream.sample
+        link = self._link
         # stream.running, not _running: a ~/stop and ~/start between two ticks still restart the epoch
         while stream.running and not self._loop_thread.stopping.is_set():
             self._deliver(link.use(self._impairment))  # a new impairment: what was in flight on the old link
@@ -282,8 +284,7 @@ class StreamerNode(Node):
             if k % self._state_every == 0:
                 self._publish_state(stamp, position, velocity, acceleration)
             if link.line is None:
-                conversions.fill_reference(msg, stamp, position, velocity, acceleration)
-                if not self._publish(msg, publisher):
+                if not self._publish(write(stamp, position, velocity, acceleration), publisher):
                     return
             else:
                 link.line.send(now * 1e-9, (stamp, position, velocity, acceleration))
@@ -304,12 +305,11 @@ class StreamerNode(Node):
 
     def _deliver(self, items):
         for stamp, position, velocity, acceleration in items:
-            conversions.fill_reference(self._msg, stamp, position, velocity, acceleration)
-            self._publish(self._msg, self._publisher)
+            self._publish(self._write(stamp, position, velocity, acceleration), self._publisher)
 
-    def _publish(self, msg, publisher) -> bool:
+    def _publish(self, data: bytes, publisher) -> bool:
         try:
-            publisher.publish(msg)
+            publisher.publish(data)  # (serialized: rclpy publishes bytes as they are)
         except Exception:  # the context is shut down (SIGINT): end quietly
             self._loop_thread.stopping.set()
             return False
