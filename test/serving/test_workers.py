@@ -81,18 +81,17 @@ def run_in_thread(target, done, name):
 
 def test_a_request_finding_every_worker_busy_waits_for_one_and_nothing_is_built_in_this_process(planner):
     done = []
-    started = time.monotonic()
     threads = [run_in_thread(lambda: planner.plan(*HOPELESS), done, 'hopeless') for _ in range(2)]
     wait_until(lambda: planner._processes.instances == 2 and not planner._processes._idle)
     # due long after a hopeless request's budget of 1 s ends: it waits for that worker, then is solved there
-    # (how long the wait and the solve take is the host's: a budget of its own keeps them apart)
+    # (how long the wait and the solve take is the host's: a budget of its own keeps them apart; when a
+    # hopeless request gives up is IPOPT's, at its budget or earlier)
     plan = planner.plan('rvf', 0.3, 3.0, MODEL, dataclasses.replace(OPTIONS, max_solve_time=5.0))
-    answered = time.monotonic()
     for th in threads:
         th.join()
-    # it had a worker only once a hopeless request's budget was spent (the order of the threads' own
-    # records after their answers is the scheduler's, not the planner's)
-    assert answered - started >= HOPELESS[-1].max_solve_time
+    # solved by one of the two workers (no third was started for it), which it had only once a hopeless
+    # request had given up
+    assert planner._processes.instances == 2
     assert len(done) == 2 and all(isinstance(result, PlanError) for _, result in done)
     assert plan.evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-9)
     assert planner._pools == {}  # no solver of this process's own, built or used
