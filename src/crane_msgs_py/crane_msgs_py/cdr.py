@@ -143,6 +143,8 @@ class ReferenceWriter:
             self._blocks = [self._block(r) for _ in range(3)]
             if len({n for _, _, n in self._blocks}) != 1:
                 raise ValueError("the template's point must have as many velocities and accelerations as positions")
+            r.doubles()  # effort
+            r.stamp()  # time_from_start, the last field
         else:
             for _ in range(r.count(len(template) // 12)):  # layout.dim
                 r.string()
@@ -150,6 +152,9 @@ class ReferenceWriter:
                 r.u32()
             r.u32()  # layout.data_offset
             self._stamp, self._blocks = None, [self._block(r)]
+        # up to the last field: rclpy's serialize_message gives 4 bytes more than the middleware sends, and a
+        # strict reader (rosbags, recording what the streamer sent) refuses a message longer than its fields
+        del self._buffer[r.at:]
         self.width = self._blocks[0][2]
 
     @staticmethod
