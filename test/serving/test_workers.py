@@ -236,3 +236,21 @@ def test_a_worker_answers_the_fastest_plan_as_an_in_process_planner_does(planner
     local = Planner().fastest('nvf', 0.3, MODEL, options)
     assert remote.duration == pytest.approx(local.duration, rel=1e-6)
     assert 'fastest' in remote.info
+
+
+def test_a_parameter_change_is_reported_once_every_worker_has_built_it(planner):
+    """``service.report_when_built``: the solvers status of a parameter change comes once no worker lacks the
+    new warm-ups (here the fastest plan's NLP that limits add), not before."""
+    from crane_planner.serving.service import report_when_built
+    limited = PlanOptions(max_solve_time=1.0, max_velocity=0.25)
+    wanted = WARMUPS + [VariationalRequest('fastest', 'nvf', 0.3, None, MODEL, limited)]
+    reported = []
+    try:
+        planner.warmups = wanted
+        report_when_built(planner, lambda message: reported.append(
+            (message, [worker.needs(wanted) for worker in planner._workers])))  # what they lacked when told
+        wait_until(lambda: reported, timeout=120.0)
+        message, lacking = reported[0]
+        assert message.startswith('solvers rebuilt for the new parameters in') and not any(lacking), reported
+    finally:
+        planner.warmups = WARMUPS
