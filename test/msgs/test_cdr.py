@@ -1,6 +1,7 @@
 """The CDR reader against rclpy's own serializer (the RMW's bytes): every field it reads, any lengths."""
 import math
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -92,7 +93,7 @@ def test_the_writer_s_bytes_are_what_rclpy_serializes_of_the_filled_message(outp
     msg = reference_message(output, joint=list(joints))
     writer = ReferenceWriter(serialize_message(msg), trajectory=output == 'joint_trajectory')
     assert writer.width == len(joints)
-    rng = __import__('numpy').random.default_rng(3)
+    rng = np.random.default_rng(3)
     for stamp in (1, 1_795_756_847_724_352_513, 2**31 * 1_000_000_000 - 1):
         values = [tuple(float(x) for x in rng.normal(size=len(joints))) for _ in range(3)]
         if len(joints) == 1:

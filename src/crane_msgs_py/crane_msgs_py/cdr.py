@@ -60,10 +60,12 @@ class _Reader:
         return self._u32.unpack_from(self.data, at)[0]
 
     def stamp(self) -> int:
-        if self.at + 8 > len(self.data):
-            raise ValueError(f'CDR truncated: {len(self.data)} bytes, {self.at + 8} needed')
-        sec, nanosec = _STAMP[self.order].unpack_from(self.data, self.at)
-        self.at += 8
+        """A builtin_interfaces Time or Duration (int32 sec, uint32 nanosec) as ns."""
+        at = self.at + (-self.at & 3)
+        if at + 8 > len(self.data):
+            raise ValueError(f'CDR truncated: {len(self.data)} bytes, {at + 8} needed')
+        sec, nanosec = _STAMP[self.order].unpack_from(self.data, at)
+        self.at = at + 8
         return sec * 1_000_000_000 + nanosec
 
     def count(self, limit: int) -> int:
@@ -94,14 +96,26 @@ class _Reader:
         self.at = at + 8 * n
         return unpack(self.data, at)
 
+    def trajectory_head(self) -> tuple[int, tuple, int]:
+        """A JointTrajectory's fields before its first point: (header stamp ns, joint names, point count)."""
+        stamp = self.stamp()
+        self.string()  # frame_id
+        names = tuple(self.string() for _ in range(self.count(len(self.data) // 5)))
+        return stamp, names, self.count(len(self.data) // 24)
+
+    def array_layout(self) -> None:
+        """Past a Float64MultiArray's layout, to its data."""
+        for _ in range(self.count(len(self.data) // 12)):  # layout.dim: (label, size, stride) each
+            self.string()
+            self.u32()
+            self.u32()
+        self.u32()  # layout.data_offset
+
 
 def read_joint_trajectory(data: bytes) -> ReferenceSample:
     """The stamp, joint names and first point of a serialized ``trajectory_msgs/JointTrajectory``."""
     r = _Reader(data)
-    stamp = r.stamp()
-    r.string()  # frame_id
-    names = tuple(r.string() for _ in range(r.count(len(data) // 5)))
-    points = r.count(len(data) // 24)
+    stamp, names, points = r.trajectory_head()
     if not points:
         return ReferenceSample(stamp, names, 0, ())
     return ReferenceSample(stamp, names, points, r.doubles(), r.doubles(), r.doubles())
@@ -110,11 +124,7 @@ def read_joint_trajectory(data: bytes) -> ReferenceSample:
 def read_float64_array(data: bytes) -> ReferenceSample:
     """The data of a serialized ``std_msgs/Float64MultiArray`` as the positions of one sample."""
     r = _Reader(data)
-    for _ in range(r.count(len(data) // 12)):  # layout.dim: (label, size, stride) each
-        r.string()
-        r.u32()
-        r.u32()
-    r.u32()  # layout.data_offset
+    r.array_layout()
     return ReferenceSample(None, None, 1, r.doubles())
 
 
@@ -134,11 +144,7 @@ class ReferenceWriter:
         self._buffer = bytearray(template)
         if trajectory:
             self._stamp = (_STAMP[r.order], r.at)
-            r.stamp()
-            r.string()  # frame_id
-            for _ in range(r.count(len(template) // 5)):
-                r.string()
-            if r.count(len(template) // 24) != 1:
+            if r.trajectory_head()[2] != 1:
                 raise ValueError('the template must have one point')
             self._blocks = [self._block(r) for _ in range(3)]
             if len({n for _, _, n in self._blocks}) != 1:
@@ -146,11 +152,7 @@ class ReferenceWriter:
             r.doubles()  # effort
             r.stamp()  # time_from_start, the last field
         else:
-            for _ in range(r.count(len(template) // 12)):  # layout.dim
-                r.string()
-                r.u32()
-                r.u32()
-            r.u32()  # layout.data_offset
+            r.array_layout()
             self._stamp, self._blocks = None, [self._block(r)]
         # up to the last field: rclpy's serialize_message gives 4 bytes more than the middleware sends, and a
         # strict reader (rosbags, recording what the streamer sent) refuses a message longer than its fields
