@@ -22,6 +22,7 @@ import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.signals import SignalHandlerOptions
 
+from .dds import use_node_profiles
 from .params import ParameterError
 from .realtime import die_with_parent, set_fifo, set_threads_fifo, tune_thread
 
@@ -36,6 +37,7 @@ def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     die_with_parent()
+    use_node_profiles()  # (before the middleware starts: it reads its profiles once)
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = executor = None
     status = 0
