@@ -77,11 +77,10 @@ demo: install
 	$(VENV)/bin/crane-demo --out $(OUT)
 
 # The linter first: a finding fails the suite before any test runs (ruff.toml says which rules).
-# Three workers: one runs the ROS tests in order (one node set at a time, real time, mostly waiting),
-# the other two the pure tests meanwhile, a module at a time, at a lower CPU priority (test/conftest.py):
-# what the nodes leave of the two cores is about one, and the pure tests take it between them.
+# Two workers: one runs the ROS tests in order (one node set at a time, real time, mostly waiting),
+# the other the pure tests meanwhile, at a lower CPU priority (test/conftest.py).
 test: lint
-	$(PY) -m pytest -q -n 3 --dist loadgroup test
+	$(PY) -m pytest -q -n 2 --dist loadgroup test
 
 # Every test that starts no ROS node (pytest marker ros, see test/conftest.py): about 5 minutes on 2 cores.
 test-pure: install

@@ -58,18 +58,17 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
-    """``make test`` runs ``pytest -n 3 --dist loadgroup``: every test under test/ros/ in one unit, in order on
+    """``make test`` runs ``pytest -n 2 --dist loadgroup``: every test under test/ros/ in one unit, in order on
     one worker (one node set at a time: two on 2 cores starve each other's 1 kHz threads), the pure tests on
-    the others meanwhile, a module per unit (its module-scoped fixtures are computed once). (xdist's own
-    ``xdist_group`` marks do nothing under pytest 9: the group it appends to a test's nodeid no longer
-    reaches the scheduler.)"""
+    the other meanwhile. (xdist's own ``xdist_group`` marks do nothing under pytest 9: the group it appends to
+    a test's nodeid no longer reaches the scheduler.)"""
     if config.getvalue('dist') != 'loadgroup':
         return None
     from xdist.scheduler import LoadScopeScheduling
 
     class RosTestsTogether(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
-            return 'ros' if nodeid.startswith('test/ros/') else nodeid.split('::', 1)[0]
+            return 'ros' if nodeid.startswith('test/ros/') else nodeid
 
     return RosTestsTogether(config, log)
 
