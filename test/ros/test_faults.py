@@ -5,10 +5,11 @@ reference to rest at ``fault_deceleration`` (jerk-limited) once no fresh sample 
 ``reference_timeout``, holds, and says so on ``axis_status`` and ``/diagnostics``; the planner aborts the
 goal naming the lost stream; a streamer started again holds where the cart stands, the sim resumes from it
 and the next goal runs. A planner killed mid-move (the streamer finishes the motion; a restarted planner
-serves the next goal from where the crane stands), the two restarted in either order, and joint_states lost
-during a goal (it ends saying it could not measure the residual). Everything is judged from what the nodes
-publish (``joint_states`` and ``axis_status`` in plant time, ``stream_state``), never from how fast this host
-runs: the timeouts only guard against a hang.
+serves the next goal from where the crane stands), the two restarted in either order, a streamer paused
+mid-move (it sends what it missed; the cart ends at its goal), and joint_states lost during a goal (it ends
+saying it could not measure the residual). Everything is judged from what the nodes publish
+(``joint_states`` and ``axis_status`` in plant time, ``stream_state``), never from how fast this host runs:
+the timeouts only guard against a hang.
 """
 import math
 import os
@@ -349,6 +350,16 @@ def test_a_link_stall_mid_move_brakes_the_axes_and_the_streamer_starts_again_whe
     crane.reset_sim()  # the swing gone for the next test
 
 
+def pause(driver, name: str, seconds: float) -> None:
+    """Stop the node ``name``'s process (SIGSTOP) for ``seconds``, then let it continue (SIGCONT)."""
+    proc = next(p for p in driver.nodes.processes if p.name.startswith(name))
+    os.kill(proc.popen.pid, signal.SIGSTOP)
+    try:
+        time.sleep(seconds)
+    finally:
+        os.kill(proc.popen.pid, signal.SIGCONT)
+
+
 def test_a_sim_paused_longer_than_its_reference_timeout_resumes_tracking_without_a_fault(crane):
     """The sim's process stopped (SIGSTOP) for 1.5 s, longer than its reference_timeout (1 s), while the stream
     holds, then continued: its own stall is not the stream's silence (``ReferencePlayout.behind``), so the axes
@@ -356,17 +367,36 @@ def test_a_sim_paused_longer_than_its_reference_timeout_resumes_tracking_without
     crane, recorder = crane
     here = streamed_hold(crane)
     count = len(recorder.status_list())
-    sim = next(p for p in crane.nodes.processes if p.name.startswith('sim'))
-    os.kill(sim.popen.pid, signal.SIGSTOP)
-    try:
-        time.sleep(1.5)
-    finally:
-        os.kill(sim.popen.pid, signal.SIGCONT)
+    pause(crane, 'sim', 1.5)
     crane.sleep(1.5)
     seen = [x[1] for x in recorder.status_list()[count:]]
     assert not {'fault_stopping', 'fault_hold'} & set(seen), f'the sim ran its fault reaction: {seen}'
     result = crane.planner.result(crane.planner.send_execute('zv', None, here - 0.2, 2.0, settle=0.5), timeout=30.0)
     assert result.success, result.message
+
+
+def test_a_streamer_paused_mid_move_sends_what_it_missed_and_the_cart_ends_at_its_goal(crane):
+    """The streamer's process stopped (SIGSTOP) for 0.4 s mid-move: longer than the sim's playout delay
+    (0.2 s), shorter than its reference timeout (1 s). Continued, it sends every sample it missed, back to
+    back, and the sim makes up those that came late: the cart ends at the goal, at rest (a sample skipped
+    would have left it off by what its acceleration carried, and moving), and no fault reaction runs."""
+    crane, recorder = crane
+    here = streamed_hold(crane)
+    count = len(recorder.status_list())
+    goal, duration, settle = here + 0.3, 3.0, 1.0
+    start, _, _ = crane.move('nvf', None, goal, duration, settle=settle)
+    crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.0))
+    pause(crane, 'streamer', 0.4)
+    crane.outcome(start)  # (its residual is not this test's: the samples made up late swing the load)
+    end = start + round((duration + settle) * 1e9)
+    crane.wait_for_state_after(end, timeout=30.0)
+    rows = recorder.rows(start + round((duration + 0.5) * 1e9))
+    assert len(rows) >= 20, len(rows)
+    assert np.max(np.abs(rows[:, 1] - goal)) < 1e-4, (rows[0], rows[-1], goal)
+    assert np.max(np.abs(rows[:, 2])) < 1e-4, rows[:, 2]
+    seen = [x[1] for x in recorder.status_list()[count:]]
+    assert not {'fault_stopping', 'fault_hold'} & set(seen), f'the sim ran its fault reaction: {seen}'
+    crane.reset_sim()  # the swing gone for the next test
 
 
 def test_joint_states_lost_during_a_goal_end_it_saying_the_residual_was_not_measured(crane):

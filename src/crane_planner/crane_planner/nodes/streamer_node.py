@@ -38,7 +38,7 @@ from crane_planner.streaming.braking_stop import brake
 from crane_planner.streaming.config import INITIAL_POSITIONS, PARAMETERS, StreamerConfig
 from crane_planner.streaming.impairment import Link
 from crane_planner.streaming.operator import OperatorStream, twist_velocities
-from crane_planner.streaming.reference_stream import ReferenceStream, position_text
+from crane_planner.streaming.reference_stream import CATCH_UP, ReferenceStream, position_text
 from crane_planner.streaming.start_position import Hold, StartPosition
 from crane_planner.streaming.status import stream_status
 from crane_planner.streaming.trajectory_intake import trajectory_refusal
@@ -60,7 +60,7 @@ class StreamerNode(Node):
         self._stop_at_rest = False  # a ~/stop waits for the crane to come to rest
         self._config = config = self._config_of(p)  # ParameterError on a bad override
         self._impairment = config.impairment
-        self._ticker = Ticker(round(1e9 / p['rate']))
+        self._ticker = Ticker(round(1e9 / p['rate']), max_backlog=round(CATCH_UP * p['rate']))
         self._period_ns = self._ticker.period
         self._busy_wait_ns = round(p['busy_wait'] * 1e9)
         self._timing_log = p['timing_log']
