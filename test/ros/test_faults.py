@@ -6,10 +6,10 @@ reference to rest at ``fault_deceleration`` (jerk-limited) once no fresh sample 
 goal naming the lost stream; a streamer started again holds where the cart stands, the sim resumes from it
 and the next goal runs. A planner killed mid-move (the streamer finishes the motion; a restarted planner
 serves the next goal from where the crane stands), the two restarted in either order, a streamer paused
-mid-move (it sends what it missed; the cart ends at its goal), and joint_states lost during a goal (it ends
-saying it could not measure the residual). Everything is judged from what the nodes publish
-(``joint_states`` and ``axis_status`` in plant time, ``stream_state``), never from how fast this host runs:
-the timeouts only guard against a hang.
+mid-move (it sends what it missed; the cart ends at its goal), the whole crane paused longer than that (the sim
+brakes), and joint_states lost during a goal (it ends saying it could not measure the residual). Everything is
+judged from what the nodes publish (``joint_states`` and ``axis_status`` in plant time, ``stream_state``),
+never from how fast this host runs: the timeouts only guard against a hang.
 """
 import math
 import os
@@ -396,6 +396,41 @@ def test_a_streamer_paused_mid_move_sends_what_it_missed_and_the_cart_ends_at_it
     assert np.max(np.abs(rows[:, 2])) < 1e-4, rows[:, 2]
     seen = [x[1] for x in recorder.status_list()[count:]]
     assert not {'fault_stopping', 'fault_hold'} & set(seen), f'the sim ran its fault reaction: {seen}'
+    crane.reset_sim()  # the swing gone for the next test
+
+
+def test_the_whole_crane_paused_mid_move_longer_than_the_streamer_catches_up_stops_it_under_control(crane):
+    """Every node stopped (SIGSTOP) for 1.3 s mid-move, as a paused host stops them all: longer than the
+    streamer sends what it missed (1 s), so the stream has a gap no sample fills. The sim, whose own stall
+    is forgiven, counts the samples missing mid-motion as a lost stream and brakes (before, it played the gap
+    with the last acceleration held and the cart ran on at 0.19 m/s); the cart ends at rest where the
+    streamer then holds, and the goal aborts."""
+    crane, recorder = crane
+    here = streamed_hold(crane)
+    count = len(recorder.status_list())
+    start, _, _ = crane.move('nvf', None, here + 0.3, 3.0, settle=1.0)
+    crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.0))
+    processes = list(crane.nodes.processes)
+    for proc in processes:
+        os.kill(proc.popen.pid, signal.SIGSTOP)
+    try:
+        time.sleep(1.3)
+    finally:
+        for proc in processes:
+            os.kill(proc.popen.pid, signal.SIGCONT)
+    status, result = crane.outcome(start, timeout=60.0)
+    assert status == STATUS_ABORTED, result.message
+    statuses = states_after(crane, recorder, lambda s: 'fault_hold' in [x[1] for x in s[count:]], 30.0,
+                            'fault_hold')
+    stopping = next(x for x in statuses[count:] if x[1] == 'fault_stopping')
+    assert 'samples missing for over 10 ms mid-motion' in stopping[3], stopping[3]
+    stopped, _, (held, *_) = next(x for x in statuses[count:] if x[1] == 'fault_hold')[:3]
+    assert here < held < here + 0.3 + 0.1
+    crane.wait_until(lambda: crane.stream_hold() is not None and abs(crane.stream_hold() - held) < 1e-3, 30.0,
+                     'the streamer never held where the axes stopped')
+    crane.wait_for_state_after(stopped + 500_000_000, timeout=30.0)
+    after = recorder.rows(stopped)  # from the stop on: at rest where it held
+    assert np.max(np.abs(after[:, 1] - held)) < 1e-3 and np.max(np.abs(after[:, 2])) < 1e-3, after[[0, -1]]
     crane.reset_sim()  # the swing gone for the next test
 
 

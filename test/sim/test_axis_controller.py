@@ -297,6 +297,18 @@ def test_the_status_says_when_the_stream_was_lost_and_where_each_axis_stops():
     assert controller.status(S.TRACKING).state is S.TRACKING and S.TRACKING not in FAULT_STATES
 
 
+def test_a_stream_lost_for_another_reason_says_it_while_braking_and_holding():
+    rig = Rig().run(1.0, accelerating)
+    controller = rig.controller
+    controller.step(rig.t, rig.t + DT, [(0.0, 0.0)], lost='samples missing for over 10 ms mid-motion')
+    status = controller.status()
+    assert status.state is S.FAULT_STOPPING
+    assert '(samples missing for over 10 ms mid-motion)' in status.message and 'no fresh sample' not in status.message
+    rig.run(rig.t + 2.0)
+    status = controller.status()
+    assert status.state is S.FAULT_HOLD and '(samples missing for over 10 ms mid-motion)' in status.message
+
+
 def test_the_next_fault_uses_a_changed_configuration():
     rig = Rig().run(1.5, accelerating)
     rig.controller.config = FaultConfig(deceleration=2.0, jerk=50.0, resume_tolerance=1e-3, timeout=TIMEOUT)

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from crane_sim.playout import ReferencePlayout, StallAllowance
+from crane_sim.playout import MAX_GAP, ReferencePlayout, StallAllowance, moved_across_gap
 from crane_sim.simulator import SimulationError
 
 DT = 1e-3
@@ -184,6 +184,32 @@ def test_a_stopped_stream_falls_back_to_zero_once():
     playout = ReferencePlayout(delay=0.0, timeout=0.02)
     a = play(playout, [(s[0], s) for s in samples(lambda t: 1.0, 10)], 100)[:, 0]
     assert np.all(a[:10] == 1.0) and np.all(a[40:] == 0.0) and playout.timeouts == 1
+
+
+def test_a_gap_while_the_reference_moves_is_told_from_one_while_it_holds():
+    """(stamp s, position, acceleration per axis): samples missing mid-motion cannot be made up; missing while
+    the reference holds (the same position, no acceleration) they changed nothing."""
+    held = (1.0, 0.3, 0.0, 0.47, 0.0)
+    assert not moved_across_gap(held, (1.0 + MAX_GAP / 2, 0.3, 0.2, 0.47, 0.0))  # no gap: a few ticks on
+    assert not moved_across_gap(held, (1.5, 0.3, 0.0, 0.47, 0.0))  # holding on both sides
+    assert moved_across_gap(held, (1.5, 0.3, 0.0, 0.46, 0.0))  # the hoist moved across it
+    assert moved_across_gap(held, (1.5, 0.3, 0.1, 0.47, 0.0))  # accelerating after it
+    assert moved_across_gap((1.0, 0.3, -0.2, 0.47, 0.0), (1.5, 0.3, 0.0, 0.47, 0.0))  # and before it
+
+
+def test_a_gap_mid_motion_leaves_a_lasting_error_which_is_why_it_counts_as_lost():
+    """Played out, a 0.3 m, 3 s rest-to-rest stream with 0.3 s of its samples missing mid-move ends moving: the
+    steps in the gap held the last acceleration, and nothing later makes it up (so the sim brakes instead,
+    ``moved_across_gap``); the whole stream ends at rest at 0.3 m."""
+    def acceleration(t):
+        s = min(max(t / 3.0, 0.0), 1.0)
+        return 0.3 / 9.0 * (60 * s - 180 * s ** 2 + 120 * s ** 3)
+    stream = samples(acceleration, 3500)
+    full = integrate(play(ReferencePlayout(delay=0.0, timeout=1.0), [(x[0], x) for x in stream], 3600))
+    gap = integrate(play(ReferencePlayout(delay=0.0, timeout=1.0),
+                         [(x[0], x) for x in stream if not 1.0 <= x[0] < 1.3], 3600))
+    assert abs(full[0]) < 1e-4 and full[1] == pytest.approx(0.3, abs=1e-3)
+    assert abs(gap[0]) > 1e-2  # still moving, for ever
 
 
 def test_a_stall_of_the_plant_s_own_loop_is_not_the_stream_s_silence():

@@ -128,6 +128,7 @@ class Fault:
     brakings: tuple[Braking, ...]
     origins: tuple[float, ...]
     stopped_at: float | None = None
+    reason: str = ''  # why it counts as lost, if not the timeout
 
     @property
     def stops(self) -> tuple[float, ...]:
@@ -232,13 +233,13 @@ class AxisController:
         return Offer.REFUSE
 
     def step(self, t0: float, t1: float, tracked: Sequence[tuple[float, float]] | None = None,
-             lost: bool = False) -> list[tuple[float, float]]:
+             lost: bool | str = False) -> list[tuple[float, float]]:
         """Each axis's reference acceleration (m/s^2) at the start and the end of the step [t0, t1] (s of
         plant time), ramping linearly in between, for the plant.
 
         ``tracked``: the playouts' (r0, r1) per axis, needed while TRACKING; ``lost``: the playouts declared
-        the stream lost in this step (their timeout): the fault reaction starts at t0 from each reference's
-        velocity and acceleration then.
+        the stream lost in this step (their timeout; a text: why else, e.g. samples missing mid-motion): the
+        fault reaction starts at t0 from each reference's velocity and acceleration then.
         """
         h = t1 - t0
         if self.state is S.TRACKING:
@@ -249,18 +250,18 @@ class AxisController:
                     ref.velocity = v + h * (r0 + r1) / 2.0
                     ref.acceleration = r1
                 return list(tracked)
-            self._lose(t0)
+            self._lose(t0, lost if isinstance(lost, str) else '')
         if self.state is S.FAULT_STOPPING:
             return self._brake(t0, t1)
         return [(0.0, 0.0)] * len(self.references)  # IDLE, FAULT_HOLD: at rest
 
-    def _lose(self, t: float) -> None:
+    def _lose(self, t: float, reason: str = '') -> None:
         config = self.config
         for ref in self.references:
             ref.braking = Braking(ref.velocity, ref.acceleration, config.deceleration, config.jerk)
             ref.origin = ref.position
         self.fault = Fault(float(t), tuple(ref.braking for ref in self.references),
-                           tuple(ref.origin for ref in self.references))
+                           tuple(ref.origin for ref in self.references), reason=reason)
         self._change(S.FAULT_STOPPING, t)
 
     def _brake(self, t0: float, t1: float) -> list[tuple[float, float]]:
@@ -280,7 +281,7 @@ class AxisController:
         if t1 - start >= self.fault.duration:
             for ref in self.references:
                 ref.rest(ref.stop)
-            self.fault = Fault(start, self.fault.brakings, self.fault.origins, float(t1))
+            self.fault = Fault(start, self.fault.brakings, self.fault.origins, float(t1), self.fault.reason)
             self._change(S.FAULT_HOLD, t1)
         return out
 
@@ -304,8 +305,8 @@ class AxisController:
             message = ('idle: at rest, waiting for a first reference (taken wherever it starts)' if state is S.IDLE
                        else 'tracking the reference stream')
             return Status(state, tuple(ref.position for ref in self.references), message)
-        lost = (f'reference stream lost at {clock(fault.lost_at):.3f} s (no fresh sample for '
-                f'{config.timeout:g} s)')
+        lost = (f'reference stream lost at {clock(fault.lost_at):.3f} s '
+                f'({fault.reason or f"no fresh sample for {config.timeout:g} s"})')
         if state is S.FAULT_STOPPING or fault.stopped_at is None:
             axes = ', '.join(f'{name} from {o:.6g} m at {b.v0:.4g} m/s, {b.a0:.4g} m/s^2 to stop at {s:.6g} m'
                              for name, o, b, s in zip(self.axes, fault.origins, fault.brakings, fault.stops))

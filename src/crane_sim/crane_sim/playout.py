@@ -59,6 +59,22 @@ def _interpolate(before: tuple, after: tuple, tau: float) -> float:
     return a0 + (a1 - a0) * (tau - t0) / (t1 - t0)
 
 
+#: A gap (s) between consecutive samples of a stream that no later sample fills (a sender that skipped
+#: ticks, samples the receive queue dropped): the steps in it played the last acceleration held, and the
+#: reference integrated from it keeps that error, in velocity and then position, for ever.
+MAX_GAP = 0.01
+
+
+def moved_across_gap(before: tuple, after: tuple, max_gap: float = MAX_GAP) -> bool:
+    """Whether consecutive samples ``before``, ``after`` (stamp s, then position and acceleration per axis) lie
+    more than ``max_gap`` apart while the reference moves: a position changed across the gap, or an
+    acceleration on either side is not 0. Across a gap while the reference holds, nothing was missed."""
+    if after[0] - before[0] <= max_gap:
+        return False
+    return (any(p0 != p1 for p0, p1 in zip(before[1::2], after[1::2]))
+            or any(a != 0.0 for a in (*before[2::2], *after[2::2])))
+
+
 #: How late (s) a step of the plant's loop must be to count as a stall of its process (``StallAllowance``).
 STALL = 0.1
 
