@@ -90,7 +90,7 @@ def no_box_in_the_way(repeats: int) -> dict:
     for cart_goal in goals(repeats, 0.3):
         times['none'].append(timed(without, cart_goal)[0])
         dt, p = timed(beyond, cart_goal)
-        assert 'route' not in p.info or not p.info['route'], p.info.get('route')
+        assert not p.info.get('route'), p.info['route']
         times['beyond'].append(dt)
     none, beyond_ms = (1e3 * statistics.median(times[k]) for k in ('none', 'beyond'))
     return {'no_box_ms': round(none, 2), 'box_beyond_ms': round(beyond_ms, 2), 'ratio': round(beyond_ms / none, 2)}

@@ -350,14 +350,17 @@ def test_a_link_stall_mid_move_brakes_the_axes_and_the_streamer_starts_again_whe
     crane.reset_sim()  # the swing gone for the next test
 
 
-def pause(driver, name: str, seconds: float) -> None:
-    """Stop the node ``name``'s process (SIGSTOP) for ``seconds``, then let it continue (SIGCONT)."""
-    proc = next(p for p in driver.nodes.processes if p.name.startswith(name))
-    os.kill(proc.popen.pid, signal.SIGSTOP)
+def pause(driver, seconds: float, name: str | None = None) -> None:
+    """Stop the node ``name``'s process (None: every node's, as a paused host stops them all) with SIGSTOP for
+    ``seconds``, then let it continue (SIGCONT)."""
+    processes = [p for p in driver.nodes.processes if name is None or p.name.startswith(name)]
+    for proc in processes:
+        os.kill(proc.popen.pid, signal.SIGSTOP)
     try:
         time.sleep(seconds)
     finally:
-        os.kill(proc.popen.pid, signal.SIGCONT)
+        for proc in processes:
+            os.kill(proc.popen.pid, signal.SIGCONT)
 
 
 def test_a_sim_paused_longer_than_its_reference_timeout_resumes_tracking_without_a_fault(crane):
@@ -367,7 +370,7 @@ def test_a_sim_paused_longer_than_its_reference_timeout_resumes_tracking_without
     crane, recorder = crane
     here = streamed_hold(crane)
     count = len(recorder.status_list())
-    pause(crane, 'sim', 1.5)
+    pause(crane, 1.5, 'sim')
     crane.sleep(1.5)
     seen = [x[1] for x in recorder.status_list()[count:]]
     assert not {'fault_stopping', 'fault_hold'} & set(seen), f'the sim ran its fault reaction: {seen}'
@@ -386,7 +389,7 @@ def test_a_streamer_paused_mid_move_sends_what_it_missed_and_the_cart_ends_at_it
     goal, duration, settle = here + 0.3, 3.0, 1.0
     start, _, _ = crane.move('nvf', None, goal, duration, settle=settle)
     crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.0))
-    pause(crane, 'streamer', 0.4)
+    pause(crane, 0.4, 'streamer')
     crane.outcome(start)  # (its residual is not this test's: the samples made up late swing the load)
     end = start + round((duration + settle) * 1e9)
     crane.wait_for_state_after(end, timeout=30.0)
@@ -410,14 +413,7 @@ def test_the_whole_crane_paused_mid_move_longer_than_the_streamer_catches_up_sto
     count = len(recorder.status_list())
     start, _, _ = crane.move('nvf', None, here + 0.3, 3.0, settle=1.0)
     crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.0))
-    processes = list(crane.nodes.processes)
-    for proc in processes:
-        os.kill(proc.popen.pid, signal.SIGSTOP)
-    try:
-        time.sleep(1.3)
-    finally:
-        for proc in processes:
-            os.kill(proc.popen.pid, signal.SIGCONT)
+    pause(crane, 1.3)
     status, result = crane.outcome(start, timeout=60.0)
     assert status == STATUS_ABORTED, result.message
     statuses = states_after(crane, recorder, lambda s: 'fault_hold' in [x[1] for x in s[count:]], 30.0,

@@ -297,10 +297,15 @@ def test_the_status_says_when_the_stream_was_lost_and_where_each_axis_stops():
     assert controller.status(S.TRACKING).state is S.TRACKING and S.TRACKING not in FAULT_STATES
 
 
-def test_a_stream_lost_for_another_reason_says_it_while_braking_and_holding():
+def test_samples_missing_mid_motion_lose_the_stream_saying_so_while_braking_and_holding():
     rig = Rig().run(1.0, accelerating)
     controller = rig.controller
-    controller.step(rig.t, rig.t + DT, [(0.0, 0.0)], lost='samples missing for over 10 ms mid-motion')
+    controller.played((rig.t, 0.0, 0.0))
+    controller.played((rig.t + 0.5, 0.0, 0.0))  # a gap while the reference holds: nothing was missed
+    controller.step(rig.t, rig.t + DT, [(0.0, 0.0)])
+    assert controller.state is S.TRACKING
+    controller.played((rig.t + 1.0, 0.1, 0.2))  # a gap across which it moved
+    controller.step(rig.t, rig.t + DT, [(0.0, 0.0)])
     status = controller.status()
     assert status.state is S.FAULT_STOPPING
     assert '(samples missing for over 10 ms mid-motion)' in status.message and 'no fresh sample' not in status.message

@@ -13,7 +13,7 @@ follows the reference accelerations it returns, as always. Its states
 - ``TRACKING``: the reference is the playout's (``playout.ReferencePlayout``),
   integrated here step by step into the reference's velocity and position.
 - ``FAULT_STOPPING``: the stream was lost (the playout had no fresh sample for
-  its timeout): each axis brakes its reference from its velocity and
+  its timeout, or samples went missing mid-motion, ``played``): each axis brakes its reference from its velocity and
   acceleration then to rest along ``crane_msgs_py.braking.Braking`` at
   ``FaultConfig.deceleration`` and ``jerk``. Samples are refused meanwhile.
 - ``FAULT_HOLD``: braked to rest, holding. A sample whose position is within
@@ -39,6 +39,8 @@ from typing import Callable, Sequence
 
 from crane_msgs_py.braking import Braking
 from crane_msgs_py.params import ParameterError, check_positive
+
+from .playout import MAX_GAP, moved_across_gap
 
 
 class AxisState(enum.Enum):
@@ -192,6 +194,8 @@ class AxisController:
         self.refused = 0  # samples refused during fault reactions, ever
         self.last_refusal: Refusal | None = None
         self.changes: deque[Change] = deque()  # the changes the caller has not taken yet
+        self._previous: tuple | None = None  # the last sample played since the state changed (``played``)
+        self._gap = ''  # why the stream counts as lost at the next step, if samples went missing mid-motion
 
     def _check(self, positions) -> tuple[float, ...]:
         positions = tuple(float(p) for p in positions)
@@ -203,6 +207,7 @@ class AxisController:
         check_transition(self.state, new)
         self.changes.append(Change(float(t), self.state, new))
         self.state = new
+        self._previous, self._gap = None, ''  # a new stream's samples, or none played
 
     # -- what the loop calls ------------------------------------------------------------------
 
@@ -232,25 +237,33 @@ class AxisController:
         self.last_refusal = Refusal(float(t), self.state, offsets)
         return Offer.REFUSE
 
+    def played(self, sample: tuple) -> None:
+        """A sample the playouts took while tracking (stamp s of plant time, then position and acceleration per
+        axis). Samples missing before it while the reference moved (``playout.moved_across_gap``) cannot be
+        made up: the stream counts as lost at the next step."""
+        if self._previous is not None and moved_across_gap(self._previous, sample):
+            self._gap = f'samples missing for over {MAX_GAP * 1e3:g} ms mid-motion'
+        self._previous = sample
+
     def step(self, t0: float, t1: float, tracked: Sequence[tuple[float, float]] | None = None,
-             lost: bool | str = False) -> list[tuple[float, float]]:
+             lost: bool = False) -> list[tuple[float, float]]:
         """Each axis's reference acceleration (m/s^2) at the start and the end of the step [t0, t1] (s of
         plant time), ramping linearly in between, for the plant.
 
         ``tracked``: the playouts' (r0, r1) per axis, needed while TRACKING; ``lost``: the playouts declared
-        the stream lost in this step (their timeout; a text: why else, e.g. samples missing mid-motion): the
+        the stream lost in this step (their timeout); samples ``played`` after a gap mid-motion lose it too. The
         fault reaction starts at t0 from each reference's velocity and acceleration then.
         """
         h = t1 - t0
         if self.state is S.TRACKING:
-            if not lost:
+            if not (lost or self._gap):
                 for ref, (r0, r1) in zip(self.references, tracked):  # the exact integral of the ramp
                     v = ref.velocity
                     ref.position += h * (v + h * (r0 / 3.0 + r1 / 6.0))
                     ref.velocity = v + h * (r0 + r1) / 2.0
                     ref.acceleration = r1
                 return list(tracked)
-            self._lose(t0, lost if isinstance(lost, str) else '')
+            self._lose(t0, self._gap)
         if self.state is S.FAULT_STOPPING:
             return self._brake(t0, t1)
         return [(0.0, 0.0)] * len(self.references)  # IDLE, FAULT_HOLD: at rest

@@ -75,7 +75,7 @@ from crane_msgs_py.runner import LoopThread, run
 from crane_sim.axis_controller import FAULT_STATES, AxisController, AxisState, FaultConfig, Offer
 from crane_sim.measurement import AngleNoise
 from crane_sim.nodes.reference_reader import REFERENCE_TYPES, ReferenceReader
-from crane_sim.playout import MAX_GAP, ReferencePlayout, StallAllowance, moved_across_gap
+from crane_sim.playout import ReferencePlayout, StallAllowance
 from crane_sim.reference_intake import ReferenceIntake
 from crane_sim.simulator import INTERPOLATIONS, SOURCES, CraneSimulator, CraneState, SimulationError
 
@@ -328,7 +328,6 @@ class SimNode(Node):
         playout_args, playouts, timeouts, made_up = None, (), 0, 0  # a playout per axis, in sim.axes order
         seen = 0  # the cart's playout's timeouts handled: one more is a stream lost
         newest = 0  # the newest sample's stamp taken (ROS ns)
-        previous, gapped = None, False  # the last sample played while tracking (stamp s, values); a gap in motion
         angles = slice(sim.joint_names.index('theta1'), None)  # of the swing's angles in joint_state()
         tracking = AxisState.TRACKING
         self._publish_status(controller.status(), epoch_ros - round(self._playout_args[0] * 1e9))
@@ -363,7 +362,6 @@ class SimNode(Node):
                 for one in playouts:
                     one.reset()
                 controller.reset(self._axis_positions(), t0)
-                previous = None
             self._played_ns = epoch_ros + ticker.tick * dt_ns  # what the intake judges staleness by
             self._take_references(now + ros_offset)
             if late_ns > CATCH_UP_NS and controller.state is tracking:
@@ -377,29 +375,22 @@ class SimNode(Node):
                 if offer is Offer.START:  # a stream from rest where the references are
                     for one in playouts:
                         one.reset()
-                    previous = None
                 try:
                     for k, one in enumerate(playouts):
                         one.push((stamp - epoch_ros) * 1e-9, sample[2 * k], sample[2 * k + 1])
                 except SimulationError:  # not after the last one (a playout swapped meanwhile)
                     counts['out_of_order'] += 1
                     continue
-                # samples missing mid-motion cannot be made up: the stream counts as lost (a controlled stop)
-                current = ((stamp - epoch_ros) * 1e-9, *sample)
-                gapped = gapped or (previous is not None and moved_across_gap(previous, current))
-                previous = current
+                controller.played(((stamp - epoch_ros) * 1e-9, *sample))  # (a gap mid-motion: a lost stream)
             t1 = t0 + dt
             if controller.state is tracking:
                 stall = allowance(late_ns * 1e-9, now * 1e-9)
                 for one in playouts:  # catching up after a stall: its samples may be on their way
                     one.behind(stall)
                 tracked = [one.step(t0, t1) for one in playouts]
-                lost = (f'samples missing for over {MAX_GAP * 1e3:g} ms mid-motion' if gapped
-                        else playout.timeouts > seen)
-                seen, gapped = playout.timeouts, False
+                lost, seen = playout.timeouts > seen, playout.timeouts
                 sim.step(*zip(*controller.step(t0, t1, tracked, lost)))
             else:  # at rest, or the fault reaction: the playouts have nothing to play
-                gapped = False
                 sim.step(*zip(*controller.step(t0, t1)))
             if controller.changes:
                 for change in controller.take_changes():
