@@ -4,6 +4,7 @@ The simulator (crane_sim) integrates its own implementation of Eqs. 18-19 and
 the servo; residual load swing is the contract's metric (crane_sim.metrics).
 """
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -203,6 +204,18 @@ def test_not_converged_is_an_error_naming_the_status():
     s = DirectSolver('nvf', PlanOptions(), max_iter=1)
     with pytest.raises(PlanError, match='Maximum_Iterations_Exceeded'):
         s.solve(D, 2.5, MODEL)
+
+
+def test_without_a_budget_the_solve_is_capped_by_its_own_cpu_time_not_the_hosts_load():
+    """No max_solve_time: IPOPT stops at max_cpu_time of the solver's own work, and says so; a busy
+    host (a wall-time cap) would otherwise turn a slow proof of infeasibility into a different error."""
+    s = DirectSolver('nvf', PlanOptions())
+    s.max_cpu_time = 0.2
+    cpu = time.process_time()
+    with pytest.raises(PlanError, match=r"nvf: no plan for D=10 m, T=0.5 s within the solver's cap of 0.2 s "
+                                        r'of CPU time \(IPOPT stopped after \d+ iterations\)'):
+        s.solve(10.0, 0.5, MODEL)
+    assert time.process_time() - cpu >= 0.2
 
 
 @pytest.mark.parametrize('limit,value', [('max_velocity', 0.16), ('max_acceleration', 0.18)])
