@@ -15,8 +15,10 @@ import pytest
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import PlanOptions
 from crane_planner.planning.dispatch import SolverCache, plan
+from crane_planner.planning.dynamics import mass_positions
 from crane_planner.planning.keep_out import Box, KeepOut, KeepOutError, boxes_from_flat
-from crane_planner.planning.mass_path import predict_mass_path, rest_positions
+from crane_planner.planning.mass_path import predict_mass_path, rest_positions, solved_mass_path
+from crane_planner.serving.moves import keep_out_clearance
 from crane_planner.tools.evaluate import simulate_plan
 from crane_planner.tools.evaluate import simulated_masses as masses_of
 
@@ -97,6 +99,54 @@ def test_the_predicted_masses_follow_crane_sim_s_within_10_micrometres(method, a
     assert path.t[-1] == pytest.approx(3.0 + 1.5) and path.duration == 3.0
     swing = np.hypot(*(m2[:, :2] - m1[:, :2]).T).max()
     assert swing > 0.01  # the masses did swing: the agreement is not that of two rests
+
+
+def test_the_masses_at_rest_hang_where_the_model_places_them_with_every_angle_0():
+    rest = rest_positions(0.2, -0.1, 0.47, 0.391)
+    p1, p2 = mass_positions()(0.2, -0.1, 0.47, 0.391, 0.0, 0.0, 0.0, 0.0)
+    assert np.allclose(rest['m1'], np.asarray(p1).ravel(), atol=1e-15)
+    assert np.allclose(rest['m2'], np.asarray(p2).ravel(), atol=1e-15)
+    assert rest['m2'][2] == pytest.approx(-0.861)
+
+
+@pytest.mark.parametrize('method, axes', [('nvf', {}), ('rvf', {'bridge': 0.2}), ('nvf', {'hoist': (0.47, 0.30)})])
+def test_the_solved_masses_follow_crane_sim_s_and_rest_after_the_motion(method, axes):
+    """An NVF/RVF plan's own solution places the masses where the independent simulator finds them, at each
+    collocation point (no integration of ours), and at rest at the goal over the settle window."""
+    p = plan(method, 0.3, 3.0, NOMINAL, PlanOptions(), variational=SolverCache(), **axes)
+    path = solved_mass_path(p, NOMINAL, {'cart': 0.1, 'bridge': -0.05}, settle=1.5)
+    t, m1, m2 = simulated_masses(p, NOMINAL, 1.5)
+    offset = np.array([0.1, -0.05, 0.0])
+    for solved, simulated in ((path.m1, m1), (path.m2, m2)):
+        at_t = np.stack([np.interp(path.t, t, simulated[:, i]) for i in range(3)], axis=1) + offset
+        assert np.abs(solved - at_t).max() < 2e-5
+    assert path.t[-1] == pytest.approx(3.0 + 1.5) and 0.005 < np.diff(path.t[:-1]).max() < 0.05
+    assert np.abs(m2[t > 3.0] + offset - path.m2[-1]).max() < 1e-4  # at rest where the solution ends
+    assert np.hypot(*(m2[:, :2] - m1[:, :2]).T).max() > 0.01  # the masses did swing
+
+
+def test_only_a_solvers_plan_carries_a_solved_path():
+    assert solved_mass_path(plan('zv', 0.3, 3.0, NOMINAL, PlanOptions()), NOMINAL) is None
+
+
+def test_a_box_far_from_the_solved_path_gets_its_clearance_from_it_and_a_near_one_is_predicted_step_by_step():
+    """Far: the solved path's clearance, within one step of the step-by-step prediction's; near (the load
+    passes 49 mm above the wall, the margin 40 mm): exactly the prediction's, the solved points not trusted
+    so close."""
+    p = plan('nvf', 0.6, 4.0, NOMINAL.replace(L1=0.32), PlanOptions(), variational=SolverCache())
+    lifted = NOMINAL.replace(L1=0.32)
+    solved = solved_mass_path(p, lifted)
+    for box, margin, far in ((WALL, 0.04, False), ((1.4, 1.5, -0.1, 0.1, -2.0, -0.1), 0.02, True)):
+        keep_out = KeepOut.from_values(box, margin)
+        predicted = keep_out.clearance(predict_mass_path(p, lifted)).distance
+        distance = keep_out_clearance(p, {}, lifted, keep_out)
+        assert p.info['min_clearance'] == distance
+        if far:
+            assert distance == keep_out.clearance(solved).distance
+            assert abs(distance - predicted) <= solved.largest_step()
+        else:
+            assert keep_out.clearance(solved).distance - solved.largest_step() < margin  # too near to trust
+            assert distance == predicted
 
 
 def test_a_direct_move_past_the_wall_enters_it_and_is_refused_naming_the_wall():

@@ -22,7 +22,7 @@ from .collocation import CollocationPlan, Transcription, keep_out_values
 from .free_time import FreeTimeSearch
 from .ipopt import Instance, IterationCallback
 from .keep_out import KeepOut
-from .plan import AxesPlan, Plan, PlanError
+from .plan import AxesPlan, ModelPath, Plan, PlanError
 from .problem import AXIS_SCALES, AXIS_STATES, PROBLEM_PARAMETERS, Form, axis_displacements, breakpoints, displacements
 from .routing import NLP_EXTRA, Route, route_guess, via_nodes
 from .variational import VariationalSolver
@@ -333,10 +333,14 @@ class DirectSolver(VariationalSolver):
             plans[axis] = CollocationPlan(self.method, float(D), float(duration), info,
                                           mesh=duration * breakpoints(frac), coef=acc @ tr.basis,
                                           start=np.stack([pos[:, 0], vel[:, 0]], axis=1))
+        # the model as solved, at every collocation point: where the masses go, without integrating again
+        path = ModelPath(duration * tr.node_times(frac), dict(zip(pb.states, tr.states(w) * np.reshape(sx, (-1, 1)))))
         if len(plans) == 1:
+            plans['cart'].model_path = path
             return plans['cart']
         return AxesPlan(method=self.method, displacement=plans['cart'].displacement, duration=float(duration),
-                        info=info, axes=plans, starts={axis: params.L1 if axis == 'hoist' else 0.0 for axis in plans})
+                        info=info, model_path=path, axes=plans,
+                        starts={axis: params.L1 if axis == 'hoist' else 0.0 for axis in plans})
 
     @staticmethod
     def sign(displacement):

@@ -13,9 +13,11 @@ Python, no ROS import.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 
 from crane_msgs_py.params import CraneParams
@@ -30,6 +32,14 @@ from .problem import AXIS_STATES, Form
 PREDICTION_STEP = 5e-3
 #: Seconds after the motion the masses are predicted over unless told otherwise (ExecuteMove's default settle).
 DEFAULT_SETTLE = 2.0
+#: The states that place an axis (each relative to its start); every other state, a sensitivity aside, is 0 at rest.
+POSITIONS = tuple(states[0] for states in AXIS_STATES.values())
+#: The swing angles that place the masses below the suspension point (``dynamics.mass_positions``).
+ANGLES = ('theta1', 'theta2', 'phi1', 'phi2')
+#: The states that place both masses.
+PLACING = POSITIONS + ANGLES
+#: A solved model whose every non-position state ends within this (SI) is at rest: it stays where it ends.
+REST_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -41,6 +51,10 @@ class MassPath:
     m1: np.ndarray
     m2: np.ndarray
     duration: float
+
+    def largest_step(self) -> float:
+        """The largest distance (m) either mass moves from one time to the next."""
+        return max(float(np.linalg.norm(np.diff(m, axis=0), axis=1).max(initial=0.0)) for m in (self.m1, self.m2))
 
 
 def plan_axes(plan: Plan) -> dict:
@@ -79,15 +93,51 @@ def predict_mass_path(plan: Plan, params: CraneParams, origin: dict | None = Non
         chunk = np.asarray(rk4(x, u[:, k:k + CHUNK], p, h[None, k:k + CHUNK]))
         states.append(chunk)
         x = chunk[:, -1]
-    s = dict(zip(names, np.hstack(states)))
-    zero = np.zeros(n + 1)
+    return _placed(t, dict(zip(names, np.hstack(states))), params, origin, plan.duration)
+
+
+def solved_mass_path(plan: Plan, params: CraneParams, origin: dict | None = None,
+                     settle: float = DEFAULT_SETTLE) -> MassPath | None:
+    """Both masses where ``plan``'s solver put the planning model ``params`` (``Plan.model_path``: an NVF/RVF
+    solution's collocation points, some 10 ms apart), and at rest at the goal ``settle`` s later; None if the
+    plan carries no model path, or its model does not end at rest (then ``predict_mass_path``).
+
+    No integration: the solution's states are the model's own prediction (the collocation equations hold
+    at these points). Between two points a mass may come closer to a box than at either, by at most about
+    ``MassPath.largest_step``.
+    """
+    solved = plan.model_path
+    if solved is None:
+        return None
+    end = {name: values[-1] for name, values in solved.states.items()}
+    if any(abs(v) > REST_TOLERANCE for name, v in end.items() if name not in POSITIONS and '/' not in name):
+        return None
+    if 'hoist' in plan_axes(plan):
+        params = params.replace(L1=float(plan.starts.get('hoist', params.L1)))
+    t = np.append(solved.t, solved.t[-1] + max(settle, 0.0))
+    states = {name: np.append(values, values[-1]) for name, values in solved.states.items() if name in PLACING}
+    return _placed(t, states, params, origin or {}, plan.duration)
+
+
+def _placed(t: np.ndarray, s: dict, params: CraneParams, origin: dict, duration: float) -> MassPath:
+    """The MassPath of the model's states ``s`` (SI, by name) at the times ``t``: the travel axes' positions
+    relative to ``origin``, the hoist's to ``params.L1``; an axis without states stands still."""
+    zero = np.zeros(len(t))
     x_cart = s[AXIS_STATES['cart'][0]] + origin.get('cart', 0.0)
-    y_bridge = s[AXIS_STATES['bridge'][0]] + origin.get('bridge', 0.0) if form.bridge else zero + origin.get(
-        'bridge', 0.0)
-    L1 = params.L1 + (s[AXIS_STATES['hoist'][0]] if hoist else zero)
-    angles = [s.get(k, zero) for k in ('theta1', 'theta2', 'phi1', 'phi2')]
-    p1, p2 = mass_positions().map(n + 1)(x_cart, y_bridge, L1, params.L2, *angles)
-    return MassPath(t, np.asarray(p1).T, np.asarray(p2).T, plan.duration)
+    y_bridge = s.get(AXIS_STATES['bridge'][0], zero) + origin.get('bridge', 0.0)
+    L1 = params.L1 + s.get(AXIS_STATES['hoist'][0], zero)
+    angles = [s.get(k, zero) for k in ANGLES]
+    p = np.asarray(_masses_at(len(t))(np.vstack([x_cart, y_bridge, L1, zero + params.L2, *angles])))
+    return MassPath(t, p[:3].T, p[3:].T, duration)
+
+
+@functools.lru_cache(maxsize=16)
+def _masses_at(n: int) -> ca.Function:
+    """``dynamics.mass_positions`` at ``n`` points in one call: its inputs the rows of one (8, n) matrix
+    (converted once, not eight times), p1 and p2 the rows of its (6, n) result."""
+    inputs = ca.SX.sym('inputs', 8)
+    p1, p2 = mass_positions()(*ca.vertsplit(inputs))
+    return ca.Function('masses', [inputs], [ca.vertcat(p1, p2)]).map(n)
 
 
 def _time_grid(plan: Plan, settle: float, step: float) -> np.ndarray:
@@ -103,6 +153,6 @@ def _time_grid(plan: Plan, settle: float, step: float) -> np.ndarray:
 
 
 def rest_positions(x: float, y: float, L1: float, L2: float) -> dict:
-    """Both masses hanging at rest below the suspension point (x, y, 0): {mass: (3,)} (m)."""
-    p1, p2 = mass_positions()(x, y, L1, L2, 0.0, 0.0, 0.0, 0.0)
-    return {'m1': np.asarray(p1).ravel(), 'm2': np.asarray(p2).ravel()}
+    """Both masses hanging at rest below the suspension point (x, y, 0): {mass: (3,)} (m); the cables
+    straight down (``dynamics.mass_positions`` with every angle 0)."""
+    return {'m1': np.array([x, y, -L1]), 'm2': np.array([x, y, -L1 - L2])}

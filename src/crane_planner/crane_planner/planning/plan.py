@@ -40,6 +40,16 @@ def time_grid(duration: float, period: float) -> np.ndarray:
     return np.append(t, duration)
 
 
+@dataclass(frozen=True)
+class ModelPath:
+    """The planning model along a plan as its solver predicted it: the states at an NVF/RVF solution's
+    collocation points. ``t``: times (s from the plan's start, increasing); ``states``: each state (SI,
+    ``dynamics`` names: an axis's relative to its start) by name, arrays as long as ``t``."""
+
+    t: np.ndarray
+    states: dict
+
+
 @dataclass
 class Plan(ABC):
     """A rest-to-rest cart reference of one method.
@@ -50,12 +60,15 @@ class Plan(ABC):
         duration: T (s).
         info: method-specific facts (solver status, iterations, solve time,
             shaper impulses ...), JSON-serialisable.
+        model_path: the planning model's states along the plan as its solver
+            found them (NVF/RVF), None otherwise or once the plan is changed.
     """
 
     method: str
     displacement: float
     duration: float
     info: dict = field(default_factory=dict)
+    model_path: ModelPath | None = field(default=None, repr=False, compare=False)
 
     @abstractmethod
     def _evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
