@@ -830,7 +830,12 @@ def test_sim_ignores_and_counts_nonfinite_out_of_order_and_stale_references(cran
 
 def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_domain, tmp_path):
     """A streamer with ``output: float64_array`` and a sim of their own: the sim detects the type
-    and reconstructs the acceleration from the positions, so the cart still ends at the goal."""
+    and reconstructs the acceleration from the positions, so the cart still ends at the goal; also when
+    the streamer stalls (SIGSTOP) 0.4 s mid-motion, longer than the playout delay: its unstamped samples,
+    sent late, are timed from their arrival again, a delay the sim must not take for a lost stream."""
+    import os
+    import signal
+
     from trajectory_msgs.msg import JointTrajectory
 
     from crane_msgs_py.diagnostics import status_values
@@ -838,7 +843,7 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
     from crane_planner.tools.processes import SIM, STREAMER, NodeGroup
     ns = f'{NS}_f64'
     with NodeGroup(ros_domain, tmp_path) as nodes:
-        nodes.start(*STREAMER, namespace=ns, params={'output': 'float64_array'})
+        streamer = nodes.start(*STREAMER, namespace=ns, params={'output': 'float64_array'})
         nodes.start(*SIM, namespace=ns)
         sim_status = dict(name='crane_sim: sim', hardware_id=f'{ns}/crane_sim')
         # the type is known from the streamer's publisher; the streamer takes trajectories once it streams
@@ -850,7 +855,13 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
         try:
             start_ns = crane.now() + 500_000_000
             pub.publish(quintic_trajectory(0.0, D, 2.0, start_ns))
-            crane.sleep_until(start_ns + 3_500_000_000)  # 2 s motion, 0.2 s playout, a report
+            crane.sleep_until(start_ns + 800_000_000)
+            os.kill(streamer.popen.pid, signal.SIGSTOP)
+            try:
+                time.sleep(0.4)
+            finally:
+                os.kill(streamer.popen.pid, signal.SIGCONT)
+            crane.sleep_until(start_ns + 3_900_000_000)  # 2 s motion, its 0.4 s pause, 0.2 s playout, a report
             mark = crane.diagnostics.mark()
             # the sim reports once a second. Unstamped samples are timed by their arrival: a stall of the sim
             # longer than the playout delay delays the rest of the stream by its length (it cannot be told from

@@ -314,6 +314,22 @@ def test_samples_missing_mid_motion_lose_the_stream_saying_so_while_braking_and_
     assert status.state is S.FAULT_HOLD and '(samples missing for over 10 ms mid-motion)' in status.message
 
 
+def test_unstamped_samples_timed_by_their_arrival_never_lose_the_stream_across_a_gap():
+    """A Float64MultiArray's samples are placed on a grid from their arrival (``reference_intake``): after a
+    delay of the sender or of delivery the grid starts again at the arrival, a jump in the timing that shows a
+    delay, not samples lost. Neither is a stamped sample's gap judged against an unstamped one before it."""
+    rig = Rig().run(1.0, accelerating)
+    controller = rig.controller
+    controller.played((rig.t, 0.0, 0.2), stamped=False)
+    controller.played((rig.t + 0.3, 0.01, 0.2), stamped=False)  # re-anchored 0.3 s on, mid-motion
+    controller.played((rig.t + 0.6, 0.02, 0.2))  # a stamped one after an unstamped one: no pair to judge
+    controller.step(rig.t, rig.t + DT, [(0.2, 0.2)])
+    assert controller.state is S.TRACKING
+    controller.played((rig.t + 0.9, 0.03, 0.2))  # two stamped ones 0.3 s apart: judged
+    controller.step(rig.t, rig.t + DT, [(0.2, 0.2)])
+    assert controller.state is S.FAULT_STOPPING
+
+
 def test_the_next_fault_uses_a_changed_configuration():
     rig = Rig().run(1.5, accelerating)
     rig.controller.config = FaultConfig(deceleration=2.0, jerk=50.0, resume_tolerance=1e-3, timeout=TIMEOUT)

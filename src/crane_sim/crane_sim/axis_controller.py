@@ -237,13 +237,16 @@ class AxisController:
         self.last_refusal = Refusal(float(t), self.state, offsets)
         return Offer.REFUSE
 
-    def played(self, sample: tuple) -> None:
+    def played(self, sample: tuple, stamped: bool = True) -> None:
         """A sample the playouts took while tracking (stamp s of plant time, then position and acceleration per
         axis). Samples missing before it while the reference moved (``playout.moved_across_gap``) cannot be
-        made up: the stream counts as lost at the next step."""
-        if self._previous is not None and moved_across_gap(self._previous, sample):
+        made up: the stream counts as lost at the next step.
+
+        ``stamped``: whether its stamp is its sender's. An unstamped sample is timed by its arrival
+        (``reference_intake``): a gap before it shows a delay, not a loss, and is not judged."""
+        if stamped and self._previous is not None and moved_across_gap(self._previous, sample):
             self._gap = f'samples missing for over {MAX_GAP * 1e3:g} ms mid-motion'
-        self._previous = sample
+        self._previous = sample if stamped else None
 
     def step(self, t0: float, t1: float, tracked: Sequence[tuple[float, float]] | None = None,
              lost: bool = False) -> list[tuple[float, float]]:

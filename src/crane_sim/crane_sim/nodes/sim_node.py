@@ -294,7 +294,7 @@ class SimNode(Node):
                 continue
             sample = intake.receive(received, stamp, position, acceleration, others, played)
             if sample is not None:
-                inbox.append(sample)
+                inbox.append((bool(stamp), sample))  # (whether its sender stamped it: its gaps are judged)
 
     def _on_push(self, request, response):
         push = float(self.get_parameter('push_swing').value)
@@ -367,7 +367,7 @@ class SimNode(Node):
             if late_ns > CATCH_UP_NS and controller.state is tracking:
                 self._await_samples(newest, epoch_ros + (ticker.tick + 1) * dt_ns - self._plant_clock[1], ros_offset)
             while inbox:
-                stamp, *sample = inbox.popleft()  # (position, acceleration) per axis
+                stamped, (stamp, *sample) = inbox.popleft()  # (position, acceleration) per axis
                 newest = stamp
                 offer = Offer.ACCEPT if controller.state is tracking else controller.offer(sample[::2], t0)
                 if offer is Offer.REFUSE:  # a fault reaction holds: counted by the controller
@@ -381,7 +381,7 @@ class SimNode(Node):
                 except SimulationError:  # not after the last one (a playout swapped meanwhile)
                     counts['out_of_order'] += 1
                     continue
-                controller.played(((stamp - epoch_ros) * 1e-9, *sample))  # (a gap mid-motion: a lost stream)
+                controller.played(((stamp - epoch_ros) * 1e-9, *sample), stamped)  # (a gap mid-motion: lost)
             t1 = t0 + dt
             if controller.state is tracking:
                 stall = allowance(late_ns * 1e-9, now * 1e-9)
@@ -430,7 +430,7 @@ class SimNode(Node):
         if self._stream_quiet and not inbox:
             return
         self._stream_quiet = False
-        while (inbox[-1][0] if inbox else newest) < needed and waited < CATCH_UP_WAIT:
+        while (inbox[-1][1][0] if inbox else newest) < needed and waited < CATCH_UP_WAIT:
             time.sleep(CATCH_UP_POLL)
             self._take_references(time.monotonic_ns() + ros_offset)
             waited += CATCH_UP_POLL
