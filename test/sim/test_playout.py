@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from crane_sim.playout import MAX_GAP, ReferencePlayout, StallAllowance, moved_across_gap
+from crane_sim.playout import MAX_GAP, MAX_VELOCITY_ERROR, ReferencePlayout, StallAllowance, moved_across_gap
 from crane_sim.simulator import SimulationError
 
 DT = 1e-3
@@ -190,11 +190,25 @@ def test_a_gap_while_the_reference_moves_is_told_from_one_while_it_holds():
     """(stamp s, position, acceleration per axis): samples missing mid-motion cannot be made up; missing while
     the reference holds (the same position, no acceleration) they changed nothing."""
     held = (1.0, 0.3, 0.0, 0.47, 0.0)
-    assert not moved_across_gap(held, (1.0 + MAX_GAP / 2, 0.3, 0.2, 0.47, 0.0))  # no gap: a few ticks on
+    assert not moved_across_gap(held, (1.005, 0.3, 0.2, 0.47, 0.0))  # a few ticks on: 0.5 mm/s off at most
     assert not moved_across_gap(held, (1.5, 0.3, 0.0, 0.47, 0.0))  # holding on both sides
-    assert moved_across_gap(held, (1.5, 0.3, 0.0, 0.46, 0.0))  # the hoist moved across it
+    assert moved_across_gap(held, (1.0 + MAX_GAP * 1.1, 0.3, 0.0, 0.46, 0.0))  # the hoist moved across it
     assert moved_across_gap(held, (1.5, 0.3, 0.1, 0.47, 0.0))  # accelerating after it
     assert moved_across_gap((1.0, 0.3, -0.2, 0.47, 0.0), (1.5, 0.3, 0.0, 0.47, 0.0))  # and before it
+
+
+def test_a_short_gap_loses_the_stream_only_if_holding_the_acceleration_across_it_errs():
+    """Below MAX_GAP the error of holding the acceleration is what counts: none at a constant acceleration or
+    cruising, |a_after - a_before| gap / 2 in velocity where it changes (MAX_VELOCITY_ERROR 5 mm/s)."""
+    assert not moved_across_gap((1.0, 0.10, 0.3), (1.2, 0.11, 0.3))  # constant acceleration: exact
+    assert not moved_across_gap((1.0, 0.10, 0.0), (1.2, 0.16, 0.0))  # cruising: exact
+    assert not moved_across_gap((1.0, 0.10, 0.30), (1.027, 0.11, 0.33))  # 27 ms late, jerk 1.1: 0.4 mm/s
+    assert moved_across_gap((1.0, 0.10, 0.30), (1.05, 0.11, 0.55))  # a step of 0.25 m/s^2 in 50 ms: 6 mm/s
+    assert moved_across_gap((1.0, 0.10, 0.3), (1.0 + MAX_GAP * 1.1, 0.2, 0.3))  # too long to trust the estimate
+    # the estimate against the playout's own error: a 50 ms gap of a ramp 0 -> 0.25 m/s^2 played holding 0
+    t = np.arange(0.0, 0.05, DT)
+    held_error = float(np.sum(0.25 * (t + DT) / 0.05) * DT)  # the velocity the held acceleration misses
+    assert 0.25 * 0.05 / 2 == pytest.approx(held_error, rel=0.05) and held_error > MAX_VELOCITY_ERROR
 
 
 def test_a_gap_mid_motion_leaves_a_lasting_error_which_is_why_it_counts_as_lost():

@@ -40,7 +40,7 @@ from typing import Callable, Sequence
 from crane_msgs_py.braking import Braking
 from crane_msgs_py.params import ParameterError, check_positive
 
-from .playout import MAX_GAP, moved_across_gap
+from .playout import moved_across_gap
 
 
 class AxisState(enum.Enum):
@@ -245,7 +245,8 @@ class AxisController:
         ``stamped``: whether its stamp is its sender's. An unstamped sample is timed by its arrival
         (``reference_intake``): a gap before it shows a delay, not a loss, and is not judged."""
         if stamped and self._previous is not None and moved_across_gap(self._previous, sample):
-            self._gap = f'samples missing for over {MAX_GAP * 1e3:g} ms mid-motion'
+            gap = sample[0] - self._previous[0]  # said, so that a log tells a burst lost from a stopped stream
+            self._gap = f'samples missing for {gap * 1e3:.0f} ms mid-motion'
         self._previous = sample if stamped else None
 
     def step(self, t0: float, t1: float, tracked: Sequence[tuple[float, float]] | None = None,

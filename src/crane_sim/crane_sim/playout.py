@@ -59,20 +59,32 @@ def _interpolate(before: tuple, after: tuple, tau: float) -> float:
     return a0 + (a1 - a0) * (tau - t0) / (t1 - t0)
 
 
-#: A gap (s) between consecutive samples of a stream that no later sample fills (a sender that skipped
-#: ticks, samples the receive queue dropped): the steps in it played the last acceleration held, and the
-#: reference integrated from it keeps that error, in velocity and then position, for ever.
-MAX_GAP = 0.01
+#: Samples missing between two consecutive ones (a sender that skipped ticks, samples the receive queue
+#: dropped, samples that came after their playout time and were made up): the steps in the gap played the
+#: last acceleration held, and the reference integrated from it keeps that error, in velocity and then
+#: position, for ever. A gap longer than this (s) while the reference moves always loses the stream.
+MAX_GAP = 0.25
+#: A shorter gap loses it if holding the acceleration across it errs by more than this in velocity (m/s):
+#: |a_after - a_before| * gap / 2, the acceleration taken as changing linearly across the gap. Holding is
+#: exact where it does not change (at rest, cruising, a constant acceleration).
+MAX_VELOCITY_ERROR = 0.005
 
 
-def moved_across_gap(before: tuple, after: tuple, max_gap: float = MAX_GAP) -> bool:
-    """Whether consecutive samples ``before``, ``after`` (stamp s, then position and acceleration per axis) lie
-    more than ``max_gap`` apart while the reference moves: a position changed across the gap, or an
-    acceleration on either side is not 0. Across a gap while the reference holds, nothing was missed."""
-    if after[0] - before[0] <= max_gap:
+def moved_across_gap(before: tuple, after: tuple, max_gap: float = MAX_GAP,
+                     max_velocity_error: float = MAX_VELOCITY_ERROR) -> bool:
+    """Whether the samples missing between consecutive samples ``before``, ``after`` (stamp s, then position
+    and acceleration per axis) leave the reference played across them off: while it moves (a position
+    changed across the gap, or an acceleration on either side is not 0), a gap over ``max_gap``, or one
+    across which holding an axis's acceleration errs by over ``max_velocity_error`` in velocity. Across a gap
+    while the reference holds, nothing was missed."""
+    gap = after[0] - before[0]
+    moving = (any(p0 != p1 for p0, p1 in zip(before[1::2], after[1::2]))
+              or any(a != 0.0 for a in (*before[2::2], *after[2::2])))
+    if not moving:
         return False
-    return (any(p0 != p1 for p0, p1 in zip(before[1::2], after[1::2]))
-            or any(a != 0.0 for a in (*before[2::2], *after[2::2])))
+    if gap > max_gap:
+        return True
+    return max(abs(a1 - a0) for a0, a1 in zip(before[2::2], after[2::2])) * gap / 2.0 > max_velocity_error
 
 
 #: How late (s) a step of the plant's loop must be to count as a stall of its process (``StallAllowance``).
