@@ -139,7 +139,6 @@ def cable_direction(a, b):
 
 
 @functools.lru_cache(maxsize=1)
-@functools.lru_cache(maxsize=1)
 def mass_positions() -> ca.Function:
     """(p1, p2): both masses' positions (m) in ``crane_base`` (contract "The spatial crane").
 
