@@ -209,3 +209,26 @@ def test_a_worker_killed_while_idle_is_replaced_before_any_request_finds_it():
         assert_served(planner)
     finally:
         planner.close()
+
+
+def test_a_death_read_while_another_worker_starts_keeps_its_signal(monkeypatch):
+    """``Process.start`` polls every child for its exit status, which the fork server sends once: a worker's
+    death read at the same moment must still name its signal, not an EOF's "fork server died too"."""
+    import multiprocessing.connection
+    import time
+
+    from crane_planner.serving.workers import SolverProcess
+    dead = SolverProcess()
+    os.kill(dead.pid, signal.SIGKILL)
+    assert multiprocessing.connection.wait([dead._process.sentinel], GUARD)  # its status is there to read
+    read_signed = forkserver.read_signed
+    # each read of a status (and of a new worker's pid) a little slow, so that the two reads overlap
+    monkeypatch.setattr(forkserver, 'read_signed', lambda fd: time.sleep(0.3) or read_signed(fd))
+    started = {}
+    starting = threading.Thread(target=lambda: started.setdefault('worker', SolverProcess()))
+    starting.start()  # its Process.start polls the dead worker too
+    time.sleep(0.1)
+    death = dead.died()
+    starting.join(GUARD)
+    started['worker'].close()
+    assert death.signal == signal.SIGKILL and death.cause == 'signal 9', death

@@ -31,7 +31,7 @@ Pure Python, no ROS import.
 """
 from __future__ import annotations
 
-import multiprocessing
+import multiprocessing.connection
 import os
 import signal
 import threading
@@ -267,6 +267,17 @@ class WorkerLate(PlanError):
 START_RETRIES = (0.05, 0.2, 0.5, 1.0)
 #: Longest wait (s) for a dead worker's exit status (its fork server reports it within milliseconds).
 STATUS_WAIT = 0.5
+#: ``multiprocessing`` reads a fork-server child's exit status from a pipe once, in whichever thread polls it
+#: first, and ``Process.start`` polls every child: of two threads polling one process at once the second reads
+#: an EOF and takes it for the fork server's death (exit code 255). Every start and poll of a worker holds this.
+_POLLING = threading.Lock()
+
+
+def _exitcode(process, wait: float) -> int | None:
+    """``process``'s exit code once it has ended, waited for up to ``wait`` s (None: still running)."""
+    multiprocessing.connection.wait([process.sentinel], wait)  # (not under the lock: the wait reads nothing)
+    with _POLLING:
+        return process.exitcode
 
 
 class SolverProcess:
@@ -306,7 +317,8 @@ class SolverProcess:
             conn, child = ctx.Pipe()
             process = ctx.Process(target=_serve, args=(child, warmups), name='crane-solver', daemon=True)
             try:
-                process.start()
+                with _POLLING:
+                    process.start()
                 return conn, process
             except (EOFError, OSError) as exc:
                 conn.close()
@@ -332,14 +344,16 @@ class SolverProcess:
 
     def died(self) -> Death:
         """Close a worker found dead and say how it ended (its status waited for up to ``STATUS_WAIT`` s)."""
-        self._process.join(STATUS_WAIT)
-        death = Death(self.pid, self._process.exitcode)
+        death = Death(self.pid, _exitcode(self._process, STATUS_WAIT))
         self.close(kill=death.exitcode is None)  # (a process already reported dead is not signalled again)
         return death
 
     @property
     def alive(self) -> bool:
-        return not self.closed and self._process.is_alive()
+        if self.closed:
+            return False
+        with _POLLING:
+            return self._process.is_alive()
 
     def has(self, request) -> bool:
         """Whether the worker has a solver of the request's NLP structure (so it builds none for it)."""
@@ -415,7 +429,6 @@ class SolverProcess:
         except OSError:
             pass
         self._conn.close()
-        self._process.join(timeout=0.0 if kill else 0.5)
-        if self._process.is_alive():
+        if _exitcode(self._process, 0.0 if kill else 0.5) is None:
             self._process.kill()
-            self._process.join(timeout=1.0)
+            _exitcode(self._process, 1.0)
