@@ -126,7 +126,7 @@ def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new
     driver.sleep(max(0.0, (start + round(KILL_AT * T * 1e9) - driver.now_ns()) * 1e-9))
     mark = driver.planner.diagnostics.mark()
     kill_before, kill_after = kill_streamer(driver)
-    # the planner: the goal aborted, naming the lost stream (its stream_timeout, 1 s, after the last word)
+    # the planner: the goal aborted, naming the lost stream (its stream_timeout, 2 s, after the last word)
     status, result = driver.outcome(start, timeout=20.0)
     assert status == STATUS_ABORTED and LOST_STREAM in result.message, result.message
     assert 'no stream_state for' in result.message  # by the planner's stream_timeout, not a hang guard

@@ -108,6 +108,42 @@ def test_a_stream_silent_during_the_motion_fails_it_naming_the_lost_stream():
     assert 'lost the reference stream at 40 %' in ex.failure and 'stream_state' in ex.failure
 
 
+
+def test_the_silence_counts_only_while_the_planner_looks():
+    """A planner paused itself (its checks, every 50 ms, resume 1.5 s after the last) finds the newest
+    stream_state old: what the streamer sent meanwhile may still wait in its queue, so that is no loss yet."""
+    ex = execution(stream_timeout=1.0)
+    for k in range(0, 1201, 20):
+        ex.on_stream_state(START + k * 1_000_000, START, 3.0)
+        ex.phase(START + k * 1_000_000)
+    last = START + 1200 * 1_000_000
+    resumed = last + 3 * S // 2
+    assert ex.phase(resumed) == MOVING  # 1.5 s since the newest stream_state, but the planner was not looking
+    for k in range(1, 20):  # looking again every 50 ms, and still nothing: lost once silent for the timeout
+        assert ex.phase(resumed + k * 50_000_000) == MOVING
+    assert ex.phase(resumed + S + 1) == FAILED
+    assert 'no stream_state for 2.5 s' in ex.failure  # the silence named is the stream's own
+    queued = execution(stream_timeout=1.0)  # the same pause, the queue then delivers: the motion goes on
+    queued.on_stream_state(last, START, 3.0)
+    queued.phase(last)
+    assert queued.phase(resumed) == MOVING
+    queued.on_stream_state(resumed - 10_000_000, START, 3.0)
+    assert queued.phase(resumed + S) == MOVING and not queued.failure
+
+
+def test_by_default_a_stall_the_streamer_catches_up_on_is_no_loss():
+    """The streamer sends the ticks it missed, up to CATCH_UP (1 s) of them, after a stall: the default
+    timeout waits longer than that, as the sim does."""
+    from crane_planner.streaming.reference_stream import CATCH_UP
+    ex = execution()
+    assert ex.stream_timeout > CATCH_UP
+    ex.on_stream_state(START + 1200 * 1_000_000, START, 3.0)
+    last = START + 1200 * 1_000_000
+    for k in range(1, 21):  # the planner looks every 50 ms through a 1 s stall of the streamer
+        assert ex.phase(last + k * 50_000_000) == MOVING
+    looks = [ex.phase(last + k * 50_000_000) for k in range(21, 60)]  # the streamer is gone: lost after 2 s
+    assert looks == [MOVING] * 20 + [FAILED] * 19 and ex.stream_timeout == 2.0
+
 def test_a_silent_stream_after_the_motion_only_closes_the_settle_window():
     ex = execution(stream_timeout=0.5)
     ex.on_stream_state(START + 3 * S, START, 3.0)  # the motion's last tick, then the streamer is gone

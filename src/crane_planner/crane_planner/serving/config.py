@@ -80,9 +80,10 @@ PARAMETERS = {
     'publish_lead': (0.3, 'an executed trajectory is sent to the streamer this long (s) before its start '
                           'time, so that a goal canceled before then streams nothing (one starting as '
                           'soon as possible is sent at once)', parameter_range(0.0, 10.0)),
-    'stream_timeout': (1.0, 'an executed goal whose stream_state is silent this long (s) while its motion moves is '
+    'stream_timeout': (2.0, 'an executed goal whose stream_state is silent this long (s) while its motion moves is '
                             'aborted naming the lost stream (the streamer died or stopped; the axes brake to rest '
-                            'by their fault reaction)', parameter_range(0.05, 60.0)),
+                            'by their fault reaction); longer than the 1 s of ticks a stalled streamer catches up on',
+                       parameter_range(0.05, 60.0)),
     'max_duration': (60.0, 'longest motion served (s), > 0', parameter_range(0.0, 3600.0)),
     'max_displacement': (10.0, 'largest |goal - start| served (m), > 0',
                          parameter_range(0.0, 1e4)),
@@ -155,7 +156,7 @@ class Config:
     settle_method: str = 'nvf'
     handover_priority: int = 40
     handover_warmup: float = 0.02
-    stream_timeout: float = 1.0
+    stream_timeout: float = 2.0
     keep_out: KeepOut = KeepOut()
     via_tolerance: float = 0.01
 

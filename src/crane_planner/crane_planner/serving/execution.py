@@ -11,7 +11,10 @@ peak load excursion from ``joint_states`` stamped in
 [end, end + settle]. Without ``joint_states`` the swing and the residual
 are NaN and the window is timed by the streamer's clock. A ``stream_state``
 silent for ``stream_timeout`` while the motion moves fails it: the stream
-is lost, and a goal must not wait for it. Pure Python, no ROS import.
+is lost, and a goal must not wait for it. The silence counts only while the
+planner itself looks: after a pause of its own (a check ``LOOK_GAP`` or more
+after the previous one) the stream_state sent meanwhile may still wait in its
+queue, so the silence counts again from there. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
@@ -24,6 +27,8 @@ from crane_sim.spatial import load_swing
 #: A streamer holding this long (ns) before the motion's end has dropped it (its last ticks are sampled at or
 #: past the end: a stream_state just before it may say holding by a tick).
 DROPPED_BEFORE_END_NS = 5_000_000
+#: A check of the phase this long (ns) after the previous one (they come every 50 ms) finds the planner itself paused.
+LOOK_GAP_NS = 250_000_000
 #: ``Execution.phase`` values.
 WAITING, MOVING, SETTLING, DONE, FAILED = 'waiting', 'moving', 'settling', 'done', 'failed'
 
@@ -47,6 +52,8 @@ class Execution:
             motion moves before the stream counts as lost: the streamer died or
             stopped, the axes run their fault reaction, and the goal fails
             saying so instead of waiting for a motion that no longer streams.
+            Longer than the streamer's catch-up (``streaming.reference_stream.CATCH_UP``, 1 s) by default:
+            a stall it makes up for is not a loss.
     """
 
     duration: float
@@ -56,7 +63,7 @@ class Execution:
     L2: float
     start_timeout: float = 1.0
     late_joint_states: float = 1.0
-    stream_timeout: float = 1.0
+    stream_timeout: float = 2.0
 
     def __post_init__(self):
         self.motion_start_ns: int | None = None  # the streamer's first tick of this motion
@@ -67,6 +74,8 @@ class Execution:
         self._residual = math.nan
         self._failure = ''
         self.cut_ns: int | None = None  # a next motion's start: the settle window ends there at the latest
+        self._looked_ns: int | None = None  # the newest phase check's time
+        self._resumed_ns = 0  # when a check last found the planner itself paused: the silence counts from there
 
     # -- inputs -------------------------------------------------------------------
 
@@ -154,8 +163,12 @@ class Execution:
                 return FAILED
             return WAITING
         if self.progress < 1.0:
+            if now_ns >= self.stream_ns:  # (not a check asking the phase only, at a time before it: phase(0))
+                if self._looked_ns is not None and now_ns - self._looked_ns >= LOOK_GAP_NS:
+                    self._resumed_ns = now_ns  # what the streamer sent meanwhile may wait in the queue still
+                self._looked_ns = now_ns
             silent = (now_ns - self.stream_ns) * 1e-9
-            if silent > self.stream_timeout:
+            if (now_ns - max(self.stream_ns, self._resumed_ns)) * 1e-9 > self.stream_timeout:
                 self._failure = (f'lost the reference stream at {100 * self.progress:.0f} % of the motion: no '
                                  f'{STREAM_STATE_TOPIC} for {silent:.2g} s (the streamer stopped or died; the axes '
                                  'brake to rest by their fault reaction, the next goal starts where they stand)')
