@@ -98,37 +98,53 @@ def test_a_next_motion_ends_the_settle_window_at_its_start():
     assert ex.residual == pytest.approx(excursion(0.0, 0.01), abs=1e-15)
 
 
+def streamed_to(ex, ms: int):
+    """stream_state every 20 ms from the motion's start to ``ms``, the planner checking at each: its time (ns)."""
+    for k in range(0, ms + 1, 20):
+        ex.on_stream_state(START + k * 1_000_000, START, 3.0)
+        assert ex.phase(START + k * 1_000_000) == MOVING
+    return START + ms * 1_000_000
+
+
+def looks(ex, since: int, step_ms: int, count: int) -> list:
+    """The phases of ``count`` checks every ``step_ms`` after ``since``."""
+    return [ex.phase(since + k * step_ms * 1_000_000) for k in range(1, count + 1)]
+
+
 def test_a_stream_silent_during_the_motion_fails_it_naming_the_lost_stream():
     ex = execution(stream_timeout=1.0)
-    for k in range(0, 1201, 20):  # 40 % of the 3 s motion streamed, then nothing
-        ex.on_stream_state(START + k * 1_000_000, START, 3.0)
-    last = START + 1200 * 1_000_000
-    assert ex.phase(last + S) == MOVING  # silent for exactly the timeout: not yet lost
+    last = streamed_to(ex, 1200)  # 40 % of the 3 s motion streamed, then nothing
+    assert looks(ex, last, 50, 20) == [MOVING] * 20  # silent for exactly the timeout: not yet lost
     assert ex.phase(last + S + 1) == FAILED
-    assert 'lost the reference stream at 40 %' in ex.failure and 'stream_state' in ex.failure
-
+    assert 'lost the reference stream at 40 %' in ex.failure and 'stream_state for 1.0 s' in ex.failure
 
 
 def test_the_silence_counts_only_while_the_planner_looks():
     """A planner paused itself (its checks, every 50 ms, resume 1.5 s after the last) finds the newest
-    stream_state old: what the streamer sent meanwhile may still wait in its queue, so that is no loss yet."""
+    stream_state old: what the streamer sent meanwhile may still wait in its queue, so of the pause only
+    LOOK_GAP_NS (0.25 s) counts as silence."""
     ex = execution(stream_timeout=1.0)
-    for k in range(0, 1201, 20):
-        ex.on_stream_state(START + k * 1_000_000, START, 3.0)
-        ex.phase(START + k * 1_000_000)
-    last = START + 1200 * 1_000_000
+    last = streamed_to(ex, 1200)
     resumed = last + 3 * S // 2
-    assert ex.phase(resumed) == MOVING  # 1.5 s since the newest stream_state, but the planner was not looking
-    for k in range(1, 20):  # looking again every 50 ms, and still nothing: lost once silent for the timeout
-        assert ex.phase(resumed + k * 50_000_000) == MOVING
-    assert ex.phase(resumed + S + 1) == FAILED
-    assert 'no stream_state for 2.5 s' in ex.failure  # the silence named is the stream's own
-    queued = execution(stream_timeout=1.0)  # the same pause, the queue then delivers: the motion goes on
-    queued.on_stream_state(last, START, 3.0)
-    queued.phase(last)
+    assert ex.phase(resumed) == MOVING  # 1.5 s since the newest stream_state, the planner not looking
+    # looking again every 50 ms and hearing nothing: lost once 0.75 s more are silent
+    assert looks(ex, resumed, 50, 16) == [MOVING] * 15 + [FAILED]
+    assert 'no stream_state for 2.3 s' in ex.failure  # the silence named is the stream's own
+    queued = execution(stream_timeout=1.0)  # the same pause, then the queue delivers: the motion goes on
+    last = streamed_to(queued, 1200)
     assert queued.phase(resumed) == MOVING
-    queued.on_stream_state(resumed - 10_000_000, START, 3.0)
-    assert queued.phase(resumed + S) == MOVING and not queued.failure
+    queued.on_stream_state(last + 20_000_000, START, 3.0)  # sent during the pause, taken only now
+    assert looks(queued, resumed, 50, 20) == [MOVING] * 20 and not queued.failure
+    # then silent for the timeout, counted from the first check after that stream_state
+    assert looks(queued, resumed + S, 50, 2) == [MOVING, FAILED]
+
+
+def test_a_dead_stream_is_found_however_seldom_the_planner_looks():
+    """Checks a second apart (a planner starved of CPU): each adds LOOK_GAP_NS of silence, so the goal still
+    fails, after stream_timeout / 0.25 s of them."""
+    ex = execution(stream_timeout=1.0)
+    last = streamed_to(ex, 1200)
+    assert looks(ex, last, 1000, 5) == [MOVING] * 4 + [FAILED]
 
 
 def test_by_default_a_stall_the_streamer_catches_up_on_is_no_loss():
@@ -136,13 +152,14 @@ def test_by_default_a_stall_the_streamer_catches_up_on_is_no_loss():
     timeout waits longer than that, as the sim does."""
     from crane_planner.streaming.reference_stream import CATCH_UP
     ex = execution()
-    assert ex.stream_timeout > CATCH_UP
-    ex.on_stream_state(START + 1200 * 1_000_000, START, 3.0)
-    last = START + 1200 * 1_000_000
-    for k in range(1, 21):  # the planner looks every 50 ms through a 1 s stall of the streamer
-        assert ex.phase(last + k * 50_000_000) == MOVING
-    looks = [ex.phase(last + k * 50_000_000) for k in range(21, 60)]  # the streamer is gone: lost after 2 s
-    assert looks == [MOVING] * 20 + [FAILED] * 19 and ex.stream_timeout == 2.0
+    assert ex.stream_timeout == 2.0 > CATCH_UP
+    last = streamed_to(ex, 1200)
+    assert looks(ex, last, 50, 20) == [MOVING] * 20  # a 1 s stall of the streamer
+    ex.on_stream_state(last + 20_000_000, START, 3.0)  # then what it missed, at once
+    assert ex.phase(last + S) == MOVING
+    # and if it never comes back: lost 2 s after its last word
+    assert looks(ex, last + S, 50, 41) == [MOVING] * 40 + [FAILED]
+
 
 def test_a_silent_stream_after_the_motion_only_closes_the_settle_window():
     ex = execution(stream_timeout=0.5)

@@ -12,9 +12,10 @@ peak load excursion from ``joint_states`` stamped in
 are NaN and the window is timed by the streamer's clock. A ``stream_state``
 silent for ``stream_timeout`` while the motion moves fails it: the stream
 is lost, and a goal must not wait for it. The silence counts only while the
-planner itself looks: after a pause of its own (a check ``LOOK_GAP`` or more
-after the previous one) the stream_state sent meanwhile may still wait in its
-queue, so the silence counts again from there. Pure Python, no ROS import.
+planner itself looks: of the time between two checks at most ``LOOK_GAP_NS``
+counts (after a pause of the planner's own, the stream_state sent meanwhile
+may still wait in its queue), so a dead stream is still found however seldom
+the checks come. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
@@ -27,7 +28,8 @@ from crane_sim.spatial import load_swing
 #: A streamer holding this long (ns) before the motion's end has dropped it (its last ticks are sampled at or
 #: past the end: a stream_state just before it may say holding by a tick).
 DROPPED_BEFORE_END_NS = 5_000_000
-#: A check of the phase this long (ns) after the previous one (they come every 50 ms) finds the planner itself paused.
+#: The most (ns) of the time between two checks of the phase (they come every 50 ms) that counts as silence: a
+#: longer gap is a pause of the planner's own.
 LOOK_GAP_NS = 250_000_000
 #: ``Execution.phase`` values.
 WAITING, MOVING, SETTLING, DONE, FAILED = 'waiting', 'moving', 'settling', 'done', 'failed'
@@ -74,8 +76,8 @@ class Execution:
         self._residual = math.nan
         self._failure = ''
         self.cut_ns: int | None = None  # a next motion's start: the settle window ends there at the latest
-        self._looked_ns: int | None = None  # the newest phase check's time
-        self._resumed_ns = 0  # when a check last found the planner itself paused: the silence counts from there
+        self._looked_ns: int | None = None  # the newest phase check's time since the newest stream_state
+        self._silent_ns = 0  # the silence of stream_state looked at since then
 
     # -- inputs -------------------------------------------------------------------
 
@@ -84,6 +86,8 @@ class Execution:
         """A ``stream_state``: its tick's stamp and the current (or last) motion's start, duration and origin
         (when its first knot is streamed; default its start), and whether it streams a motion: one that holds
         before this motion's end has dropped it (its ~/stop, or the axes' fault reaction)."""
+        if self.stream_ns is None or stamp_ns > self.stream_ns:  # the silence counts from the next check
+            self._silent_ns, self._looked_ns = 0, None
         self.stream_ns = stamp_ns
         end = self.end_ns
         if end is not None and not streaming and stamp_ns < end - DROPPED_BEFORE_END_NS and not self._failure:
@@ -149,8 +153,17 @@ class Execution:
     def failure(self) -> str:
         return self._failure
 
+    @property
+    def in_motion(self) -> bool:
+        """Whether the motion is still to start or streams (not failed), by what was heard: no clock read."""
+        return not self._failure and (self.motion_start_ns is None or self.progress < 1.0)
+
     def phase(self, now_ns: int) -> str:
-        """Where the execution is, at ROS time ``now_ns`` (for the timeouts)."""
+        """Where the execution is, checked at ROS time ``now_ns`` (for the timeouts; the checks count the
+        stream's silence, ``LOOK_GAP_NS``)."""
+        if self._looked_ns is not None and now_ns > self._looked_ns:
+            self._silent_ns += min(now_ns - self._looked_ns, LOOK_GAP_NS)
+        self._looked_ns = now_ns if self._looked_ns is None else max(self._looked_ns, now_ns)
         if self._failure:
             return FAILED
         clock = max(now_ns, self.stream_ns or 0)
@@ -163,15 +176,11 @@ class Execution:
                 return FAILED
             return WAITING
         if self.progress < 1.0:
-            if now_ns >= self.stream_ns:  # (not a check asking the phase only, at a time before it: phase(0))
-                if self._looked_ns is not None and now_ns - self._looked_ns >= LOOK_GAP_NS:
-                    self._resumed_ns = now_ns  # what the streamer sent meanwhile may wait in the queue still
-                self._looked_ns = now_ns
-            silent = (now_ns - self.stream_ns) * 1e-9
-            if (now_ns - max(self.stream_ns, self._resumed_ns)) * 1e-9 > self.stream_timeout:
+            if self._silent_ns > round(self.stream_timeout * 1e9):
                 self._failure = (f'lost the reference stream at {100 * self.progress:.0f} % of the motion: no '
-                                 f'{STREAM_STATE_TOPIC} for {silent:.2g} s (the streamer stopped or died; the axes '
-                                 'brake to rest by their fault reaction, the next goal starts where they stand)')
+                                 f'{STREAM_STATE_TOPIC} for {(now_ns - self.stream_ns) * 1e-9:.1f} s (the streamer '
+                                 'stopped or died; the axes brake to rest by their fault reaction, the next goal '
+                                 'starts where they stand)')
                 return FAILED
             return MOVING
         window_end = self.window_end_ns

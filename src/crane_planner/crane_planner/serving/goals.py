@@ -29,7 +29,7 @@ import threading
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from .execution import MOVING, WAITING, Execution
+from .execution import Execution
 from .transitions import Running
 
 #: A goal registered on arrival but not accepted this long after (s) is forgotten.
@@ -231,8 +231,7 @@ class Goals:
             for other in self._goals:
                 if other is not goal and other.execution is not None:
                     other.execution.cut(handover_ns)
-                    if other.sent and other.state is not S.TAKEN_OVER and \
-                            other.execution.phase(0) in (WAITING, MOVING):
+                    if other.sent and other.state is not S.TAKEN_OVER and other.execution.in_motion:
                         other.change(S.TAKEN_OVER)
             if goal.state is not S.TAKEN_OVER:  # (a newer goal took it over while the streamer took it)
                 goal.change(S.FOLLOWING)
