@@ -224,11 +224,16 @@ def test_a_death_read_while_another_worker_starts_keeps_its_signal(monkeypatch):
     read_signed = forkserver.read_signed
     # each read of a status (and of a new worker's pid) a little slow, so that the two reads overlap
     monkeypatch.setattr(forkserver, 'read_signed', lambda fd: time.sleep(0.3) or read_signed(fd))
+    pollers, popen = set(), dead._process._popen
+    poll = popen.poll
+    monkeypatch.setattr(popen, 'poll', lambda *flag: pollers.add(threading.current_thread().name) or poll(*flag))
     started = {}
-    starting = threading.Thread(target=lambda: started.setdefault('worker', SolverProcess()))
+    starting = threading.Thread(target=lambda: started.setdefault('worker', SolverProcess()), name='starting')
     starting.start()  # its Process.start polls the dead worker too
     time.sleep(0.1)
     death = dead.died()
     starting.join(GUARD)
+    assert started.get('worker') is not None, 'the second worker did not start'
     started['worker'].close()
+    assert pollers == {'starting', threading.current_thread().name}  # both read the dead worker's status
     assert death.signal == signal.SIGKILL and death.cause == 'signal 9', death

@@ -32,12 +32,14 @@ Pure Python, no ROS import.
 from __future__ import annotations
 
 import multiprocessing.connection
+import multiprocessing.context
 import os
 import signal
 import threading
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
+from multiprocessing import popen_forkserver
 
 from crane_msgs_py.params import ParameterError
 
@@ -267,17 +269,38 @@ class WorkerLate(PlanError):
 START_RETRIES = (0.05, 0.2, 0.5, 1.0)
 #: Longest wait (s) for a dead worker's exit status (its fork server reports it within milliseconds).
 STATUS_WAIT = 0.5
-#: ``multiprocessing`` reads a fork-server child's exit status from a pipe once, in whichever thread polls it
-#: first, and ``Process.start`` polls every child: of two threads polling one process at once the second reads
-#: an EOF and takes it for the fork server's death (exit code 255). Every start and poll of a worker holds this.
-_POLLING = threading.Lock()
+
+
+class _Popen(popen_forkserver.Popen):
+    """``multiprocessing``'s fork-server ``Popen``, its exit-status read one thread's at a time.
+
+    It reads a child's status from a pipe once, in whichever thread polls first, and ``Process.start`` polls
+    every child: of two threads polling one process at once the second read an EOF and took it for the fork
+    server's death (exit code 255). The lock is held only while the status is read: it is there to be read
+    once the process's sentinel is ready, and ``_exitcode`` waits for that first.
+    """
+
+    def __init__(self, process_obj):
+        self._polling = threading.Lock()
+        super().__init__(process_obj)
+
+    def poll(self, flag=os.WNOHANG):
+        with self._polling:
+            return super().poll(flag)
+
+
+class _WorkerProcess(multiprocessing.context.ForkServerProcess):
+    """A fork-server process whose exit status threads may poll at once (``_Popen``)."""
+
+    @staticmethod
+    def _Popen(process_obj):
+        return _Popen(process_obj)
 
 
 def _exitcode(process, wait: float) -> int | None:
     """``process``'s exit code once it has ended, waited for up to ``wait`` s (None: still running)."""
-    multiprocessing.connection.wait([process.sentinel], wait)  # (not under the lock: the wait reads nothing)
-    with _POLLING:
-        return process.exitcode
+    multiprocessing.connection.wait([process.sentinel], wait)
+    return process.exitcode
 
 
 class SolverProcess:
@@ -315,10 +338,9 @@ class SolverProcess:
         ctx = _context()
         for delay in (*START_RETRIES, None):
             conn, child = ctx.Pipe()
-            process = ctx.Process(target=_serve, args=(child, warmups), name='crane-solver', daemon=True)
+            process = _WorkerProcess(target=_serve, args=(child, warmups), name='crane-solver', daemon=True)
             try:
-                with _POLLING:
-                    process.start()
+                process.start()
                 return conn, process
             except (EOFError, OSError) as exc:
                 conn.close()
@@ -350,10 +372,7 @@ class SolverProcess:
 
     @property
     def alive(self) -> bool:
-        if self.closed:
-            return False
-        with _POLLING:
-            return self._process.is_alive()
+        return not self.closed and self._process.is_alive()
 
     def has(self, request) -> bool:
         """Whether the worker has a solver of the request's NLP structure (so it builds none for it)."""
