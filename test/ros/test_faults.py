@@ -34,6 +34,8 @@ KILL_AT = 0.4    # of the move
 PLANT = CraneParams()
 #: the sim's defaults (config/sim.yaml): its fault reaction and its playout
 D, J, DELAY, TIMEOUT = 0.5, 5.0, 0.2, 1.0
+#: the planner's default (config/planner.yaml)
+STREAM_TIMEOUT = 2.0
 
 
 class Recorder:
@@ -94,6 +96,26 @@ def crane(start_crane):
             yield driver, recorder
         finally:
             recorder.close()
+
+
+@pytest.fixture(autouse=True)
+def whole_crane(crane):
+    """After each test the node set whole again, whatever the test did before it failed: a node it killed
+    (and took out of the node group) started again, the sim's fault reaction cleared. The module's tests share
+    the nodes, so that one failure stays that test's own instead of failing every later one."""
+    yield
+    driver, _ = crane
+    missing = [name for name in ('planner', 'streamer', 'sim')
+               if not any(p.name.startswith(name) for p in driver.nodes.processes)]
+    for name in missing:
+        mark = driver.planner.diagnostics.mark()
+        restart(driver, name)
+        if name == 'planner':
+            wait_planner_up(driver, mark)
+    if missing:  # past the planner's stream_timeout: it has ended every goal of a streamer gone
+        driver.sleep(STREAM_TIMEOUT + 0.5)
+        streamed_hold(driver)  # and the streamer streams (from where the axes hold)
+        driver.reset_sim()
 
 
 def states_after(driver, recorder, predicate, timeout: float, what: str):
