@@ -16,6 +16,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from crane_msgs_py.dds import use_loopback_udp
 from crane_msgs_py.realtime import DIE_WITH_PARENT
 
 #: Fast DDS maps domain ids 0..232 to UDP ports; 0 is everyone's default, so avoid it.
@@ -32,20 +33,14 @@ class NodeDied(RuntimeError):
 
 
 def isolated_ros_env(domain_id: int | None = None) -> dict:
-    """This process's environment for a private ROS graph: a random domain id, localhost-only discovery, UDP.
+    """This process's environment for a private ROS graph: a random domain id, Fast DDS on 127.0.0.1 UDP only.
 
-    Other projects share these machines; a random ``ROS_DOMAIN_ID`` and
-    ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` keep our traffic to ourselves.
+    Other projects share these machines; a random ``ROS_DOMAIN_ID`` and sockets bound to loopback
+    (``crane_msgs_py.dds.use_loopback_udp``) keep our traffic to ourselves.
     """
     env = dict(os.environ)
     env['ROS_DOMAIN_ID'] = str(random.randint(*DOMAIN_ID_RANGE) if domain_id is None else int(domain_id))
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    env.pop('ROS_LOCALHOST_ONLY', None)  # deprecated in Jazzy; conflicts with the range
-    # Fast DDS over UDP only, not shared memory: opening a healthy SHM port stalls senders for a third
-    # of a second (Fast-DDS#6535), which holds up our 1 kHz stream and the planner's 50 Hz inputs
-    # whenever a participant joins (a recorder, a test process's clients), and killed processes leave
-    # stale ports behind. Loopback UDP carries our few hundred kB/s with latency far below a tick.
-    env.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
+    use_loopback_udp(env)  # 127.0.0.1 UDP only: Fast DDS's shared memory stalls joins and hangs on stale ports
     env.setdefault('PYTHONUNBUFFERED', '1')
     env.setdefault('RCUTILS_COLORIZED_OUTPUT', '0')
     return env
