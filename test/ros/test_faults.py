@@ -23,6 +23,7 @@ import pytest
 
 from crane_msgs_py.braking import stopping_distance
 from crane_msgs_py.params import CraneParams
+from crane_planner.serving.execution import STREAM_TIMEOUT  # the planner's default (config/planner.yaml)
 
 NS = '/crane_faults'
 PLANNER_PARAMS = {'solver_processes': 1}
@@ -34,8 +35,6 @@ KILL_AT = 0.4    # of the move
 PLANT = CraneParams()
 #: the sim's defaults (config/sim.yaml): its fault reaction and its playout
 D, J, DELAY, TIMEOUT = 0.5, 5.0, 0.2, 1.0
-#: the planner's default (config/planner.yaml)
-STREAM_TIMEOUT = 2.0
 
 
 class Recorder:

@@ -28,6 +28,7 @@ from ..planning.hoisting import HOIST_SHAPER_DESIGNS
 from ..planning.keep_out import KeepOut
 from ..planning.profiles import BASES
 from ..planning.routing import Route
+from .execution import STREAM_TIMEOUT
 from .moves import MoveBounds
 from .transitions import stop_options
 
@@ -80,9 +81,10 @@ PARAMETERS = {
     'publish_lead': (0.3, 'an executed trajectory is sent to the streamer this long (s) before its start '
                           'time, so that a goal canceled before then streams nothing (one starting as '
                           'soon as possible is sent at once)', parameter_range(0.0, 10.0)),
-    'stream_timeout': (2.0, 'an executed goal whose stream_state is silent this long (s) while its motion moves is '
-                            'aborted naming the lost stream (the streamer died or stopped; the axes brake to rest '
-                            'by their fault reaction); longer than the 1 s of ticks a stalled streamer catches up on',
+    'stream_timeout': (STREAM_TIMEOUT,
+                       'an executed goal whose stream_state is silent this long (s) while its motion moves is '
+                       'aborted naming the lost stream (the streamer died or stopped; the axes brake to rest '
+                       'by their fault reaction); longer than the 1 s of ticks a stalled streamer catches up on',
                        parameter_range(0.05, 60.0)),
     'max_duration': (60.0, 'longest motion served (s), > 0', parameter_range(0.0, 3600.0)),
     'max_displacement': (10.0, 'largest |goal - start| served (m), > 0',
@@ -156,7 +158,7 @@ class Config:
     settle_method: str = 'nvf'
     handover_priority: int = 40
     handover_warmup: float = 0.02
-    stream_timeout: float = 2.0
+    stream_timeout: float = STREAM_TIMEOUT
     keep_out: KeepOut = KeepOut()
     via_tolerance: float = 0.01
 

@@ -28,6 +28,11 @@ from crane_sim.spatial import load_swing
 #: A streamer holding this long (ns) before the motion's end has dropped it (its last ticks are sampled at or
 #: past the end: a stream_state just before it may say holding by a tick).
 DROPPED_BEFORE_END_NS = 5_000_000
+
+#: How long (s) stream_state may be silent while a motion moves before the stream counts as lost (the planner's
+#: ``stream_timeout`` default): longer than the 1 s of ticks a stalled streamer catches up on
+#: (``streaming.reference_stream.CATCH_UP``), so a stall it makes up for is not a loss.
+STREAM_TIMEOUT = 2.0
 #: The most (ns) of the time between two checks of the phase (they come every 50 ms) that counts as silence: a
 #: longer gap is a pause of the planner's own.
 LOOK_GAP_NS = 250_000_000
@@ -65,7 +70,7 @@ class Execution:
     L2: float
     start_timeout: float = 1.0
     late_joint_states: float = 1.0
-    stream_timeout: float = 2.0
+    stream_timeout: float = STREAM_TIMEOUT
 
     def __post_init__(self):
         self.motion_start_ns: int | None = None  # the streamer's first tick of this motion

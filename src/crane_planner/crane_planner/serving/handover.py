@@ -21,7 +21,7 @@ from typing import Any, Callable
 from ..planning.continuation import MotionState
 from ..planning.plan import Plan
 from ..streaming.reference_stream import MAX_HANDOVER_SHIFT
-from .execution import Execution
+from .execution import STREAM_TIMEOUT, Execution
 from .moves import CheckedMove, MoveError
 from .transitions import Running, Trajectory
 
@@ -136,7 +136,7 @@ class Verdict(Enum):
     SILENT = 'silent'  # no stream_state came for a while: what it did is not known
 
 
-def taken(execution: Execution, handover_ns: int, silence: float = 2.0,
+def taken(execution: Execution, handover_ns: int, silence: float = STREAM_TIMEOUT,
           sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter) -> Verdict:
     """What the streamer did with the handover at ``handover_ns``, by its stream_state: wait until it streams
     the handover's motion, or until its clock is ``NOT_TAKEN_AFTER_NS`` past the handover without doing so.
@@ -174,7 +174,7 @@ class HandoverPolicy:
     def __init__(self, send: Callable[[float, bool], Sent],
                  sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter,
                  attempts: int = HANDOVER_ATTEMPTS, warn: Callable[[str], None] = lambda message: None,
-                 silence: float = 2.0):
+                 silence: float = STREAM_TIMEOUT):
         self._send, self._sleep, self._timer = send, sleep, timer
         self.attempts, self._warn, self.silence = attempts, warn, silence
 
