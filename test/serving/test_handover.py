@@ -52,6 +52,7 @@ def test_a_late_plan_is_planned_again_further_ahead_with_a_longer_lead():
     second_lead = (asked[1][1] - asked[1][0]) * 1e-9
     assert second_lead == pytest.approx(max(2 * 0.010, 1.5 * 0.030 + handover.TRANSPORT_MARGIN))  # the lead grew
     assert done.handover_ns == asked[1][1] and clock() < done.handover_ns
+    assert done.lead == pytest.approx(second_lead)  # (which a retry of it starts from: HandoverPolicy)
 
 
 def test_planning_always_longer_than_the_lead_is_refused_after_its_attempts():
@@ -155,8 +156,9 @@ def test_a_silent_stream_state_leaves_a_handover_unknown_and_the_policy_sends_no
 class Sender:
     """A goal's handovers sent: the k-th is taken by the fake streamer if ``taken[k]``."""
 
-    def __init__(self, clock, taken):
+    def __init__(self, clock, taken, growth=None):
         self.clock, self.taken, self.calls = clock, taken, []
+        self.growth = growth or [1.0] * len(taken)  # the k-th one's lead over the one asked for
         self.streamer = None
 
     def __call__(self, lead_scale, first):
@@ -166,7 +168,7 @@ class Sender:
         if self.streamer is not None:
             self.clock.hooks.remove(self.streamer)
         self.streamer = streamer(self.clock, execution, at if self.taken[len(self.calls) - 1] else None)
-        return handover.Sent(SimpleNamespace(handover_ns=at), execution)
+        return handover.Sent(SimpleNamespace(handover_ns=at, lead_growth=self.growth[len(self.calls) - 1]), execution)
 
 
 def test_a_handover_the_streamer_did_not_take_is_sent_again_four_times_further_ahead():
@@ -176,6 +178,16 @@ def test_a_handover_the_streamer_did_not_take_is_sent_again_four_times_further_a
     result = policy.run(planned=planned.append)
     assert send.calls == [(1.0, True), (4.0, False)] and len(warnings) == 1 and '4 times further' in warnings[0]
     assert len(planned) == 1 and result is not None
+
+
+def test_a_handover_whose_planning_needed_a_longer_lead_is_sent_again_half_as_far_again_as_that():
+    """Planned 19 times further ahead than asked (planning took that long) and not taken all the same (its
+    transport came late): four times the lead asked for would be doomed, half as far again as it needed is
+    not."""
+    clock, warnings = FakeClock(T0), []
+    send = Sender(clock, [False, True], growth=[19.0, 1.0])
+    assert handover.HandoverPolicy(send, clock.sleep, clock.timer, warn=warnings.append).run() is not None
+    assert send.calls == [(1.0, True), (28.5, False)] and '28.5 times further' in warnings[0]
 
 
 def test_a_handover_never_taken_gives_up_after_the_attempts():

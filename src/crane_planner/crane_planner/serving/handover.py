@@ -5,7 +5,7 @@ running motion will be in at the handover, ``lead`` s from now. Planning
 that takes longer than the lead (less the transport's share) is planned
 again further ahead (``plan_handover``); a handover the streamer did not take
 all the same (it came late on a busy host) is sent again, four times further
-ahead (``HandoverPolicy``). An executed goal is held until ``publish_lead``
+ahead, or half as far again as planning needed (``HandoverPolicy``). An executed goal is held until ``publish_lead``
 before its start (``send_at``); one whose start passed meanwhile streams
 from the streamer's next tick (``streamed_origin``). Every time comes from
 the clocks given, so the rules run on a fake clock in the tests. Pure
@@ -32,31 +32,38 @@ TRANSPORT_MARGIN = 0.008
 #: Attempts at a handover whose plan took longer than its lead (the lead doubles each time), and at one the
 #: streamer did not take (the lead grows fourfold each time).
 HANDOVER_ATTEMPTS = 3
-#: How much further ahead a handover the streamer did not take is planned again.
+#: How much further ahead a handover the streamer did not take is planned again: this many times the lead
+#: asked for, or, if its planning needed a longer lead than that, ``RETRY_PLANNED_SCALE`` times the lead it
+#: was planned with (what planning takes now is known: a lead shorter than that would be doomed).
 RETRY_LEAD_SCALE = 4.0
+RETRY_PLANNED_SCALE = 1.5
 #: A handover counts as not taken once the streamer's clock is this far (ns) past it without taking it.
 NOT_TAKEN_AFTER_NS = 50_000_000
 
 
 @dataclass(frozen=True)
 class Handover:
-    """A planned handover: the plan from ``state``, the running motion's state at ``handover_ns``."""
+    """A planned handover: the plan from ``state``, the running motion's state at ``handover_ns``, planned
+    ``lead`` s ahead (longer than asked for if planning took longer)."""
 
     plan: Plan
     handover_ns: int
     state: MotionState
+    lead: float
 
 
 @dataclass(frozen=True)
 class HandoverResult:
     """A goal's handover as planned (and sent): the move checked from the handover state, its plan, its
-    trajectory, its status values (/diagnostics) and the handover (ns)."""
+    trajectory, its status values (/diagnostics), the handover (ns), and the lead it was planned with over
+    the lead asked for (``Handover.lead``: above 1 if its planning took longer than that)."""
 
     checked: CheckedMove
     plan: Plan
     trajectory: Trajectory
     values: dict
     handover_ns: int
+    lead_growth: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -120,7 +127,7 @@ def plan_handover(clock: Callable[[], int], running: Running, lead: float,
         slack = (0.5 * MAX_HANDOVER_SHIFT if handover + round(plan.duration * 1e9) >= running.end_ns
                  else -min(TRANSPORT_MARGIN, 0.4 * lead))
         if rehearse or clock() < handover + slack * 1e9:
-            return Handover(plan, handover, state)
+            return Handover(plan, handover, state, lead)
         warn(f'handover: planning took {1e3 * took:.1f} ms (the state {1e3 * (t1 - t0):.1f} ms), beyond the '
              f'lead {1e3 * lead:.1f} ms: planning again further ahead')
         tried, lead = lead, max(2.0 * lead, 1.5 * took + TRANSPORT_MARGIN)
@@ -200,7 +207,7 @@ class HandoverPolicy:
             if verdict is Verdict.SILENT:
                 raise ValueError(f'no stream_state for {self.silence:g} s after the handover was sent: whether the '
                                  'streamer took it is not known (is it running?); nothing more is sent')
-            lead_scale *= RETRY_LEAD_SCALE
+            lead_scale *= max(RETRY_LEAD_SCALE, RETRY_PLANNED_SCALE * sent.result.lead_growth)
             self._warn(f'execute_move: the streamer refused the handover (it came late): planning it '
                        f'again {lead_scale:g} times further ahead')
         return None

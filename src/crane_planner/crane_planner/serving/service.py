@@ -523,7 +523,7 @@ class MoveService:
         values.update(method=checked.method, start=cart.start, goal=cart.goal, duration=plan.duration,
                       handover_lead=(handover - self.clock()) * 1e-9)
         return HandoverResult(checked, plan, self._trajectory(plan, state, running.joints, handover), values,
-                              handover)
+                              handover, done.lead / lead)
 
     def _trajectory(self, plan: Plan, state, joints, handover_ns: int) -> Trajectory:
         starts = transitions.joint_starts(plan, state)
