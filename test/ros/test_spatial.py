@@ -8,6 +8,7 @@ streamed reference from the 1 kHz ``reference`` topic.
 import numpy as np
 import pytest
 
+from crane_msgs_py.errors import PlanError
 from crane_msgs_py.params import CraneParams
 
 NS = '/crane_bridge'
@@ -33,10 +34,19 @@ def crane(bridge_nodes):
     driver = bridge_nodes
     driver.keep_references(False)
     driver.call_streamer('start')
-    last = driver.last_state()
-    if last is not None and (abs(last[3]) > 1e-6 or abs(last[4]) > 1e-6):  # (a shaper: no solver to be late)
-        start, _, _ = driver.move('zv', None, 0.0, 2.0, settle=0.05, bridge=(None, 0.0))
+    for attempt in range(2):  # a motion a failed test left running, or one its goal sent after, ends first
+        driver.wait_until_holding()
+        last = driver.last_state()
+        if last is None or (abs(last[3]) <= 1e-6 and abs(last[4]) <= 1e-6):
+            break
+        try:  # (a shaper: no solver to be late)
+            start, _, _ = driver.move('zv', None, 0.0, 2.0, settle=0.05, bridge=(None, 0.0))
+        except PlanError:
+            if attempt:
+                raise
+            continue
         driver.move_result(start)
+        break
     driver.reset_sim()
 
 
@@ -75,12 +85,13 @@ def test_a_diagonal_move_ends_at_its_goal_on_both_axes_without_swing(crane, meth
 
 
 def test_a_new_goal_at_40_percent_that_turns_the_direction_takes_over_without_a_step(crane):
-    """Going along x to (0.6, 0), retargeted at 40 % to (0.3, 0.4): the reference of both axes goes on
+    """Going along x to (0.6, 0) in 8 s, retargeted at 40 % to (0.3, 0.4): the reference of both axes goes on
     without a step, and the load ends without swing at the new goal."""
     driver = crane
     driver.keep_references(joints=JOINTS)
-    # 5 s: at 40 % 3 s remain, room for a handover planned again further ahead on a loaded host
-    first = 5.0
+    # 8 s: at 40 % 4.8 s remain, room for a handover planned again further ahead on a loaded host (beside a
+    # CPU-bound process a spatial handover took 0.3-0.6 s to plan, and one came late: 2.5 s went by)
+    first = 8.0
     start, _, _ = driver.move('nvf', 0.0, 0.6, first, settle=SETTLE, bridge=(0.0, 0.0))
     driver.sleep(max(0.0, (start + round(0.4 * first * 1e9) - driver.now_ns()) * 1e-9))
     handover = driver.retarget('nvf', 0.3, T, settle=SETTLE, bridge_goal=0.4)

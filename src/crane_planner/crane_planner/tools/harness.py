@@ -177,6 +177,14 @@ class CraneHarness:
             return None
         return state[1][2].get(joint)
 
+    def wait_until_holding(self, timeout: float = 30.0):
+        """Wait until the streamer's newest ``stream_state`` (within 0.5 s) says it holds: no motion streams.
+        A test that failed mid-motion leaves the motion running, which a goal with a start time would find."""
+        def holding():
+            state = self._stream_state
+            return state is not None and self.now_ns() - state[0] <= 0.5e9 and state[1][1] == 'holding'
+        self.wait_until(holding, timeout, f'the streamer did not hold within {timeout:g} s')
+
     def references(self) -> list:
         """The references kept so far (``keep_references``): rows of (stamp ns, position, velocity,
         acceleration, received ns)."""
