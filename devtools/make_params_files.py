@@ -8,7 +8,8 @@ description as a comment, in the ROS 2 parameters-file layout
 applies in any namespace. Run after changing a node's parameters;
 test/ros/test_params_files.py checks the files match.
 
-    .venv/bin/python devtools/make_params_files.py
+    .venv/bin/python devtools/make_params_files.py          # write them
+    .venv/bin/python devtools/make_params_files.py --check  # only compare
 """
 import json
 import sys
@@ -77,12 +78,26 @@ def config_path(stem: str, executable: str) -> Path:
     return ROOT / 'src' / executable.split()[0] / 'config' / f'{stem}.yaml'
 
 
-def main() -> int:
+def main(argv=None) -> int:
+    import argparse
+    parser = argparse.ArgumentParser(description='Write each node\'s config/<node>.yaml (planner, streamer, sim) '
+                                                 'from its declared parameters: defaults and descriptions.')
+    parser.add_argument('--check', action='store_true',
+                        help='write nothing; exit 1 naming each file that differs from what would be written')
+    args = parser.parse_args(argv)
+    stale = []
     for stem, node, executable, table in nodes():
         path = config_path(stem, executable)
-        path.write_text(render(node, executable, table))
+        text = render(node, executable, table)
+        if args.check:
+            if not path.exists() or path.read_text() != text:
+                stale.append(path)
+                print(f'{path} differs from the declared parameters: run devtools/make_params_files.py',
+                      file=sys.stderr)
+            continue
+        path.write_text(text)
         print(f'wrote {path}')
-    return 0
+    return 1 if stale else 0
 
 
 if __name__ == '__main__':
