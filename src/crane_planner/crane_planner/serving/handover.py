@@ -5,11 +5,11 @@ running motion will be in at the handover, ``lead`` s from now. Planning
 that takes longer than the lead (less the transport's share) is planned
 again further ahead (``plan_handover``); a handover the streamer did not take
 all the same (it came late on a busy host) is sent again, four times further
-ahead, or half as far again as planning needed (``HandoverPolicy``). An executed goal is held until ``publish_lead``
-before its start (``send_at``); one whose start passed meanwhile streams
-from the streamer's next tick (``streamed_origin``). Every time comes from
-the clocks given, so the rules run on a fake clock in the tests. Pure
-Python, no ROS import.
+ahead, or half as far again as its planning needed (``HandoverPolicy``). An
+executed goal is held until ``publish_lead`` before its start (``send_at``);
+one whose start passed meanwhile streams from the streamer's next tick
+(``streamed_origin``). Every time comes from the clocks given, so the rules
+run on a fake clock in the tests. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
@@ -29,8 +29,8 @@ from .transitions import Running, Trajectory
 #: the streamer and the streamer's check, which a busy machine delays; one that arrives late all the
 #: same is refused by the streamer and planned again further ahead (``HandoverPolicy``).
 TRANSPORT_MARGIN = 0.008
-#: Attempts at a handover whose plan took longer than its lead (the lead doubles each time), and at one the
-#: streamer did not take (the lead grows fourfold each time).
+#: Attempts at a handover whose plan took longer than its lead (the lead at least doubles each time), and at
+#: one the streamer did not take (``RETRY_LEAD_SCALE``, ``RETRY_PLANNED_SCALE``).
 HANDOVER_ATTEMPTS = 3
 #: How much further ahead a handover the streamer did not take is planned again: this many times the lead
 #: asked for, or, if its planning needed a longer lead than that, ``RETRY_PLANNED_SCALE`` times the lead it
@@ -56,7 +56,7 @@ class Handover:
 class HandoverResult:
     """A goal's handover as planned (and sent): the move checked from the handover state, its plan, its
     trajectory, its status values (/diagnostics), the handover (ns), and the lead it was planned with over
-    the lead asked for (``Handover.lead``: above 1 if its planning took longer than that)."""
+    the lead asked for, before a late arrival shortened it (above 1 if its planning took longer)."""
 
     checked: CheckedMove
     plan: Plan

@@ -494,8 +494,8 @@ class MoveService:
             check_rests_keep_out(checked, config.params, config.keep_out)
             goal = checked.goals
             shaper = checked.method not in VARIATIONAL_METHODS
-            lead = arrival_lead((config.shaper_handover_lead if shaper else config.handover_lead) * lead_scale,
-                                arrived_ns, self.clock())
+            asked = (config.shaper_handover_lead if shaper else config.handover_lead) * lead_scale
+            lead = arrival_lead(asked, arrived_ns, self.clock())
 
             def make(handover_ns, state):
                 plan = transitions.retarget(self.planner.variational, running, handover_ns, state, checked.method,
@@ -523,7 +523,7 @@ class MoveService:
         values.update(method=checked.method, start=cart.start, goal=cart.goal, duration=plan.duration,
                       handover_lead=(handover - self.clock()) * 1e-9)
         return HandoverResult(checked, plan, self._trajectory(plan, state, running.joints, handover), values,
-                              handover, done.lead / lead)
+                              handover, done.lead / asked)
 
     def _trajectory(self, plan: Plan, state, joints, handover_ns: int) -> Trajectory:
         starts = transitions.joint_starts(plan, state)
