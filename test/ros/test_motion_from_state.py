@@ -41,16 +41,10 @@ def residual_mm(driver, begin_ns: int, end_ns: int) -> tuple[float, np.ndarray]:
 
 
 def home(driver):
-    """Back to 0 m at rest, the sim reset (no swing left from a test)."""
-    sent = driver.sent_trajectories()
-    if sent:  # the last motion (a failed test's, say) over first
-        end = driver.trajectory(sent[-1]).points[-1].time_from_start
-        driver.sleep(max(0.0, (sent[-1] + end.sec * 1e9 + end.nanosec - driver.now_ns()) * 1e-9 + 0.3))
-    last = driver.last_state()
-    if last is None or abs(last[3]) > 1e-6:
-        start, _, _ = driver.move('nvf', None, 0.0, 1.5, settle=0.05)  # from where the streamer holds it
-        driver.move_result(start)
-    driver.reset_sim()
+    """Back to 0 m at rest, the sim reset (no swing left from a test), once a motion a failed test left
+    running has ended."""
+    driver.home(lambda: driver.move('nvf', None, 0.0, 1.5, settle=0.05)[0],  # from where the streamer holds it
+                lambda last: abs(last[3]) <= 1e-6)
 
 
 def steps_at(references: np.ndarray, stamp_ns: int) -> tuple:

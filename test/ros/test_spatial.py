@@ -8,7 +8,6 @@ streamed reference from the 1 kHz ``reference`` topic.
 import numpy as np
 import pytest
 
-from crane_msgs_py.errors import PlanError
 from crane_msgs_py.params import CraneParams
 
 NS = '/crane_bridge'
@@ -34,20 +33,8 @@ def crane(bridge_nodes):
     driver = bridge_nodes
     driver.keep_references(False)
     driver.call_streamer('start')
-    for attempt in range(2):  # a motion a failed test left running, or one its goal sent after, ends first
-        driver.wait_until_holding()
-        last = driver.last_state()
-        if last is None or (abs(last[3]) <= 1e-6 and abs(last[4]) <= 1e-6):
-            break
-        try:  # (a shaper: no solver to be late)
-            start, _, _ = driver.move('zv', None, 0.0, 2.0, settle=0.05, bridge=(None, 0.0))
-        except PlanError:
-            if attempt:
-                raise
-            continue
-        driver.move_result(start)
-        break
-    driver.reset_sim()
+    driver.home(lambda: driver.move('zv', None, 0.0, 2.0, settle=0.05, bridge=(None, 0.0))[0],  # (no solver)
+                lambda last: abs(last[3]) <= 1e-6 and abs(last[4]) <= 1e-6)
 
 
 def record(driver, begin_ns: int, end_ns: int) -> dict:

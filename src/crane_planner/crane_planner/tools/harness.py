@@ -185,6 +185,27 @@ class CraneHarness:
             return state is not None and self.now_ns() - state[0] <= 0.5e9 and state[1][1] == 'holding'
         self.wait_until(holding, timeout, f'the streamer did not hold within {timeout:g} s')
 
+    def home(self, move: Callable[[], int], at_home: Callable[[tuple], bool]):
+        """Bring the crane home after a test, whatever it left, and reset the sim: once the streamer holds (a
+        motion a failed test left running, or one its goal sent later, has ended), ``move()`` (a move home,
+        its start stamp) unless ``at_home(the newest joint_states row)``; once more if the planner refused it
+        because a motion started meanwhile after all."""
+        from crane_msgs_py.errors import PlanError
+        for attempt in range(2):
+            self.wait_until_holding()
+            last = self.last_state()
+            if last is not None and at_home(last):
+                break
+            try:
+                start = move()
+            except PlanError:
+                if attempt:
+                    raise
+                continue
+            self.move_result(start)
+            break
+        self.reset_sim()
+
     def references(self) -> list:
         """The references kept so far (``keep_references``): rows of (stamp ns, position, velocity,
         acceleration, received ns)."""
