@@ -43,10 +43,11 @@ def test_the_loopback_profiles_carry_the_nodes_service_profile():
 
 def test_loopback_udp_overrides_what_would_bring_shared_memory_back():
     env = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', 'FASTDDS_DEFAULT_PROFILES_FILE': '/etc/mine.xml',
-           'FASTDDS_BUILTIN_TRANSPORTS': 'DEFAULT', 'ROS_STATIC_PEERS': '10.0.0.7', 'ROS_DOMAIN_ID': '17'}
+           'FASTDDS_BUILTIN_TRANSPORTS': 'DEFAULT', 'ROS_STATIC_PEERS': '10.0.0.7', 'ROS_DOMAIN_ID': '17',
+           'ROS_DISCOVERY_SERVER': '127.0.0.1:11811', 'RMW_IMPLEMENTATION': 'rmw_cyclonedds_cpp'}
     use_loopback_udp(env)
     assert env == {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SYSTEM_DEFAULT', 'ROS_DOMAIN_ID': '17',
-                   'FASTRTPS_DEFAULT_PROFILES_FILE': str(LOOPBACK_PROFILES)}
+                   'RMW_IMPLEMENTATION': 'rmw_fastrtps_cpp', 'FASTRTPS_DEFAULT_PROFILES_FILE': str(LOOPBACK_PROFILES)}
 
 
 #: A real process of the real middleware: creates a node and a publisher, then prints the Fast DDS shared-memory
@@ -68,6 +69,8 @@ for fd in os.listdir("/proc/self/fd"):
         sockets.add(int(target[8:-1]))
 bound = {row.split()[1].split(":")[0] for row in open("/proc/self/net/udp").readlines()[1:]
          if int(row.split()[9]) in sockets}
+node.destroy_node()
+rclpy.shutdown()  # (its segments, under LOCALHOST, removed)
 print(repr((maps, sorted(bound))))
 '''
 

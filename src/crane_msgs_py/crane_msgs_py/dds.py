@@ -50,10 +50,14 @@ def use_loopback_udp(environ=os.environ) -> None:
     127.0.0.1 UDP only, no shared memory (``LOOPBACK_PROFILES``), overriding any profiles file named.
 
     The discovery range must be ``SYSTEM_DEFAULT``: for ``LOCALHOST`` rmw_fastrtps sets the transports
-    itself, shared memory first; for ``SYSTEM_DEFAULT`` it leaves them to the profile. Static peers and
-    builtin-transport choices are removed, as they would widen or override the profile.
+    itself, shared memory first; for ``SYSTEM_DEFAULT`` it leaves them to the profile. The middleware is
+    set to rmw_fastrtps (another one would read ``SYSTEM_DEFAULT`` as its own default, the whole subnet).
+    Static peers, a discovery server and builtin-transport choices are removed, as they would widen or
+    override the profile.
     """
     environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SYSTEM_DEFAULT'
-    for name in ('ROS_LOCALHOST_ONLY', 'ROS_STATIC_PEERS', 'FASTDDS_BUILTIN_TRANSPORTS', *PROFILE_VARIABLES):
+    environ['RMW_IMPLEMENTATION'] = 'rmw_fastrtps_cpp'
+    for name in ('ROS_LOCALHOST_ONLY', 'ROS_STATIC_PEERS', 'ROS_DISCOVERY_SERVER', 'ROS_SUPER_CLIENT',
+                 'FASTDDS_BUILTIN_TRANSPORTS', *PROFILE_VARIABLES):
         environ.pop(name, None)
     environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(LOOPBACK_PROFILES)

@@ -32,9 +32,9 @@ TRANSPORT_MARGIN = 0.008
 #: Attempts at a handover whose plan took longer than its lead (the lead at least doubles each time), and at
 #: one the streamer did not take (``RETRY_LEAD_SCALE``, ``RETRY_PLANNED_SCALE``).
 HANDOVER_ATTEMPTS = 3
-#: How much further ahead a handover the streamer did not take is planned again: this many times the lead
-#: asked for, or, if its planning needed a longer lead than that, ``RETRY_PLANNED_SCALE`` times the lead it
-#: was planned with (what planning takes now is known: a lead shorter than that would be doomed).
+#: How much further ahead a handover the streamer did not take is planned again: the further of this many
+#: times the lead asked for and ``RETRY_PLANNED_SCALE`` times the lead it was planned with, which re-planning
+#: lengthened if planning took longer (a retry shorter than what planning took then would be doomed).
 RETRY_LEAD_SCALE = 4.0
 RETRY_PLANNED_SCALE = 1.5
 #: A handover counts as not taken once the streamer's clock is this far (ns) past it without taking it.
@@ -56,7 +56,7 @@ class Handover:
 class HandoverResult:
     """A goal's handover as planned (and sent): the move checked from the handover state, its plan, its
     trajectory, its status values (/diagnostics), the handover (ns), and the lead it was planned with over
-    the lead asked for, before a late arrival shortened it (above 1 if its planning took longer)."""
+    the lead asked for, before a late arrival shortened it (above 1 where re-planning had to lengthen it)."""
 
     checked: CheckedMove
     plan: Plan

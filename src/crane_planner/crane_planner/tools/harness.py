@@ -177,6 +177,16 @@ class CraneHarness:
             return None
         return state[1][2].get(joint)
 
+    def trajectories_end_ns(self) -> int:
+        """When the newest trajectory seen on the ``trajectory`` topic ends (ns; 0 if none): a motion queued
+        on the streamer, not started yet, streams until then although the streamer still says it holds."""
+        with self._lock:
+            if not self._trajectories:
+                return 0
+            stamp = max(self._trajectories)
+            end = self._trajectories[stamp].points[-1].time_from_start
+        return stamp + end.sec * 1_000_000_000 + end.nanosec
+
     def wait_until_holding(self, timeout: float = 30.0):
         """Wait until the streamer's newest ``stream_state`` (within 0.5 s) says it holds: no motion streams.
         A test that failed mid-motion leaves the motion running, which a goal with a start time would find."""
@@ -186,12 +196,14 @@ class CraneHarness:
         self.wait_until(holding, timeout, f'the streamer did not hold within {timeout:g} s')
 
     def home(self, move: Callable[[], int], at_home: Callable[[tuple], bool]):
-        """Bring the crane home after a test, whatever it left, and reset the sim: once the streamer holds (a
-        motion a failed test left running, or one its goal sent later, has ended), ``move()`` (a move home,
-        its start stamp) unless ``at_home(the newest joint_states row)``; once more if the planner refused it
-        because a motion started meanwhile after all."""
+        """Bring the crane home after a test, whatever it left, and reset the sim: once the newest trajectory
+        sent has ended and the streamer holds (a motion a failed test left running or queued, or one its goal
+        sent later, is over), ``move()`` (a move home, its start stamp) unless ``at_home(the newest
+        joint_states row)``; once more if the planner refused it because a motion started meanwhile after
+        all."""
         from crane_msgs_py.errors import PlanError
         for attempt in range(2):
+            self.sleep(max(0.0, (self.trajectories_end_ns() - self.now_ns()) * 1e-9))
             self.wait_until_holding()
             last = self.last_state()
             if last is not None and at_home(last):
