@@ -27,6 +27,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.client import PlannerClient
 from crane_msgs_py.conversions import (
+    HOLDING,
     move_message,
     read_reference,
     read_stream_state,
@@ -172,10 +173,15 @@ class CraneHarness:
     def stream_hold(self, joint: str = 'cart', fresh: float = 0.5) -> float | None:
         """Where the streamer holds (or streams) ``joint`` now (m), from a ``stream_state`` received within
         ``fresh`` s; None if none was."""
+        state = self._fresh_stream_state(fresh)
+        return None if state is None else state[2].get(joint)
+
+    def _fresh_stream_state(self, fresh: float):
+        """``read_stream_state`` of the newest ``stream_state`` if it was received within ``fresh`` s, else None."""
         state = self._stream_state
         if state is None or self.now_ns() - state[0] > fresh * 1e9:
             return None
-        return state[1][2].get(joint)
+        return state[1]
 
     def trajectories_end_ns(self) -> int:
         """When the newest trajectory seen on the ``trajectory`` topic ends (ns; 0 if none): a motion queued
@@ -185,16 +191,14 @@ class CraneHarness:
                 return 0
             stamp = max(self._trajectories)
             points = self._trajectories[stamp].points
-        if not points:  # (one a test sent to be refused)
-            return stamp
-        return stamp + points[-1].time_from_start.sec * 1_000_000_000 + points[-1].time_from_start.nanosec
+        return stamp + (stamp_ns(points[-1].time_from_start) if points else 0)  # (no points: one sent to be refused)
 
     def wait_until_holding(self, timeout: float = 30.0):
         """Wait until the streamer's newest ``stream_state`` (within 0.5 s) says it holds: no motion streams.
         A test that failed mid-motion leaves the motion running, which a goal with a start time would find."""
         def holding():
-            state = self._stream_state
-            return state is not None and self.now_ns() - state[0] <= 0.5e9 and state[1][1] == 'holding'
+            state = self._fresh_stream_state(0.5)
+            return state is not None and state[1] == HOLDING
         self.wait_until(holding, timeout, f'the streamer did not hold within {timeout:g} s')
 
     def home(self, move: Callable[[], int], at_home: Callable[[tuple], bool]):
