@@ -60,7 +60,8 @@ def pytest_collection_modifyitems(config, items):
 def pytest_xdist_make_scheduler(config, log):
     """``make test`` runs ``pytest -n 2 --dist loadgroup``: every test under test/ros/ in one unit, in order on
     one worker (one node set at a time: two on 2 cores starve each other's 1 kHz threads), the pure tests on
-    the other meanwhile. (xdist's own ``xdist_group`` marks do nothing under pytest 9: the group it appends to
+    the other meanwhile, a module at a time (split between the workers, a module-scoped fixture would be
+    computed on both). (xdist's own ``xdist_group`` marks do nothing under pytest 9: the group it appends to
     a test's nodeid no longer reaches the scheduler.)"""
     if config.getvalue('dist') != 'loadgroup':
         return None
@@ -68,7 +69,7 @@ def pytest_xdist_make_scheduler(config, log):
 
     class RosTestsTogether(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
-            return 'ros' if nodeid.startswith('test/ros/') else nodeid
+            return 'ros' if nodeid.startswith('test/ros/') else nodeid.split('::', 1)[0]
 
     return RosTestsTogether(config, log)
 
