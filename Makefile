@@ -25,10 +25,12 @@ all: install
 $(PY):
 	$(PYTHON) -m venv $(VENV)
 
-# uv installs requirements.txt (the same pins, resolved alike) in seconds where pip takes over a minute;
+# uv installs requirements.txt (the same pins; here it resolved every package under them as pip does) in seconds
+# where pip takes over a minute;
 # make INSTALLER=pip uses pip alone (an index set in pip's configuration, which uv does not read). Copied from
 # uv's cache, not hard-linked: devtools/patch_ros_cmake.py rewrites files of the venv in place.
 INSTALLER ?= uv
+$(if $(filter uv pip,$(INSTALLER)),,$(error INSTALLER must be uv or pip, not '$(INSTALLER)'))
 UV_VERSION := 0.13.9
 $(DEPS): requirements.txt | $(PY)
 ifeq ($(INSTALLER),uv)
@@ -92,7 +94,7 @@ demo: install
 test: lint
 	$(PY) -m pytest -q -n 2 --dist loadgroup test
 
-# Every test that starts no ROS node (pytest marker ros, see test/conftest.py): about 5 minutes on 2 cores.
+# Every test that starts no ROS node (pytest marker ros, see test/conftest.py): about 10 minutes on 2 cores.
 test-pure: install
 	$(PY) -m pytest -q -m "not ros" test
 

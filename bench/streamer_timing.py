@@ -159,14 +159,17 @@ def measure(args, env: dict) -> int:
 
 
 def bare_loop(duration: float):
-    """Print the tick lateness (us) of a bare 1 kHz loop with the streamer's settings (SCHED_FIFO 50, 100 us spin)."""
+    """Print the tick lateness (us) of a bare 1 kHz loop with the streamer's default settings (SCHED_FIFO 50, its
+    busy_wait)."""
     from crane_msgs_py.realtime import sleep_until, tune_thread
+    from crane_planner.streaming.config import PARAMETERS
+    spin_ns = round(PARAMETERS['busy_wait'][0] * 1e9)
     tune_thread(50)
     late = []
     t0 = time.monotonic_ns() + 1_000_000
     for k in range(int(duration * RATE)):
         deadline = t0 + k * 1_000_000
-        late.append(sleep_until(deadline, 100_000) - deadline)
+        late.append(sleep_until(deadline, spin_ns) - deadline)
     late = np.asarray(late) * 1e-3
     p50, p99 = np.percentile(late, [50, 99])
     print(json.dumps({'p50': round(float(p50), 1), 'p99': round(float(p99), 1), 'max': round(float(late.max()), 1)}))

@@ -124,9 +124,9 @@ def test_a_diagonal_stick_released_leaves_no_swing(crane):
         driver.set_parameters('streamer', {'mode': 'trajectory'})
 
 
-def recording(recorder, timeout: float = 60.0) -> list:
-    """Once crane-record says it records (its subscriptions matched every topic's publishers): the lines of its
-    stderr, which a thread goes on collecting until it ends."""
+def recording(recorder, timeout: float = 60.0):
+    """Once crane-record says it records (it subscribed, and waited for its subscriptions to match the topics'
+    publishers): the lines of its stderr and the thread that goes on collecting them until it ends."""
     import threading
     lines, said = [], threading.Event()
 
@@ -137,9 +137,10 @@ def recording(recorder, timeout: float = 60.0) -> list:
                 said.set()
         said.set()  # it ended without saying so
 
-    threading.Thread(target=read, daemon=True).start()
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
     assert said.wait(timeout) and any(': recording ' in line for line in lines), ''.join(lines)
-    return lines
+    return lines, reader
 
 
 def test_a_recorded_diagonal_move_is_reported_with_the_spatial_swing_and_identify_refuses_it(crane, tmp_path):
@@ -154,11 +155,13 @@ def test_a_recorded_diagonal_move_is_reported_with_the_spatial_swing_and_identif
     driver = crane
     bag = tmp_path / 'bag'
     recorder = driver.run_tool('crane-record', '--namespace', NS, '--out', str(bag), '--duration', '9')
-    said = recording(recorder)  # (a fixed wait was once too short: the recording began after the move)
+    said, reader = recording(recorder)  # (a fixed wait was once too short: the recording began after the move)
     start_ns, _, _ = driver.move('zv', 0.0, 0.3, T, settle=SETTLE, bridge=(0.0, 0.2))
     end_ns = start_ns + round(T * 1e9)
     residual = swing_mm(record(driver, end_ns, end_ns + round(SETTLE * 1e9))).max()
-    assert recorder.wait(timeout=30.0) == 0, ''.join(said)
+    code = recorder.wait(timeout=30.0)
+    reader.join(5.0)  # (its last lines, for the message)
+    assert code == 0, ''.join(said)
     rep = subprocess.run([str(bin_dir / 'crane-plan'), 'report', str(bag), '--out', str(tmp_path), '--json',
                           '--settle', str(SETTLE)], capture_output=True, text=True, timeout=120)
     assert rep.returncode == 0, rep.stderr

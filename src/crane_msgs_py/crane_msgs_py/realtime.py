@@ -2,8 +2,8 @@
 
 The streamer's 1 kHz publisher and the simulator's 1 kHz stepper share this:
 tick k is due at ``epoch + k * period`` on CLOCK_MONOTONIC (absolute, so
-lateness never accumulates into drift); the thread sleeps until shortly
-before each deadline and spins for the rest. Pure Python, no ROS import.
+lateness never accumulates into drift); the thread sleeps until each
+deadline, or (given a busy wait) until shortly before it and spins the rest. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
