@@ -25,10 +25,10 @@ all: install
 $(PY):
 	$(PYTHON) -m venv $(VENV)
 
-# uv installs requirements.txt (the same pins; here it resolved every package under them as pip does) in seconds
-# where pip takes over a minute;
-# make INSTALLER=pip uses pip alone (an index set in pip's configuration, which uv does not read). Copied from
-# uv's cache, not hard-linked: devtools/patch_ros_cmake.py rewrites files of the venv in place.
+# uv installs requirements.txt in seconds where pip takes over a minute (the same pins; here it resolved every
+# package under them as pip does). It copies from its cache rather than hard-linking, because
+# devtools/patch_ros_cmake.py rewrites files of the venv in place. make INSTALLER=pip uses pip alone (for an
+# index set in pip's configuration, which uv does not read).
 INSTALLER ?= uv
 $(if $(filter uv pip,$(INSTALLER)),,$(error INSTALLER must be uv or pip, not '$(INSTALLER)'))
 UV_VERSION := 0.13.9
