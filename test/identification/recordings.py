@@ -1,10 +1,7 @@
 """Recorded moves for the identification tests: crane_sim's independent numpy simulator with seeded
 sensor noise (crane_sim.measurement), as CSV and as rosbag2 MCAP, and ``crane-plan identify``."""
-import subprocess
-import sys
-from pathlib import Path
-
 import numpy as np
+from crane_plan_cli import crane_plan
 
 from crane_msgs_py.params import CraneParams
 from crane_planner.identification import Recording
@@ -12,7 +9,6 @@ from crane_planner.planning.profiles import quintic
 from crane_sim.measurement import measured_angles
 from crane_sim.simulator import simulate
 
-CRANE_PLAN = str(Path(sys.executable).parent / 'crane-plan')
 TABLE1 = CraneParams()
 
 
@@ -36,8 +32,8 @@ def write_csv(path, rec: Recording):
 
 
 def run_identify(*args):
-    """``crane-plan identify ARGS`` (completed process)."""
-    return subprocess.run([CRANE_PLAN, 'identify', *args], capture_output=True, text=True, timeout=120)
+    """``crane-plan identify ARGS`` (``crane_plan_cli.Completed``)."""
+    return crane_plan('identify', *args)
 
 
 def write_bag(path, rec: Recording, namespace='/crane'):

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from crane_plan_cli import crane_plan
 
 BIN = Path(sys.executable).parent
 DURATION, SETTLE = 2.5, 2.0  # the demo's default settle: more than the slow mode's 1.73 s period
@@ -17,9 +18,8 @@ DURATION, SETTLE = 2.5, 2.0  # the demo's default settle: more than the slow mod
 
 def offline_residuals_mm(methods, plant_L1: float) -> dict:
     """crane-plan compare's residual (mm) per method on a plant with this L1."""
-    r = subprocess.run([str(BIN / 'crane-plan'), 'compare', '--methods', ','.join(methods), '--displacement', '0.3',
-                        '--duration', str(DURATION), '--settle', str(SETTLE), '--plant-L1', str(plant_L1), '--json'],
-                       capture_output=True, text=True, timeout=120)
+    r = crane_plan('compare', '--methods', ','.join(methods), '--displacement', 0.3, '--duration', DURATION,
+                   '--settle', SETTLE, '--plant-L1', plant_L1, '--json')
     assert r.returncode == 0, r.stderr
     return {row['method']: row['residual']['load_mm'] for row in json.loads(r.stdout)}
 
@@ -88,13 +88,11 @@ def test_the_demo_runs_a_hoisting_case_on_nodes_with_a_hoist(tmp_path):
     assert names == {True}  # the hoisting nodes' joint_states, with the rope's length
     # crane-plan report reads it (the residual with the rope length joint_states carry: the demo's), and
     # identify refuses it in one line: its model has one L1, and the rope moved
-    rep = subprocess.run([str(BIN / 'crane-plan'), 'report', str(bag), '--out', str(tmp_path / 'report'), '--json'],
-                         capture_output=True, text=True, timeout=120)
+    rep = crane_plan('report', bag, '--out', tmp_path / 'report', '--json')
     assert rep.returncode == 0, rep.stderr
     hoisting = [m for m in json.loads(rep.stdout)['motions'] if m['duration_s'] == 3.0]
     assert [m['residual_mm'] for m in hoisting] == pytest.approx([nvf, rvf], abs=0.05)
-    ident = subprocess.run([str(BIN / 'crane-plan'), 'identify', '--bag', str(bag)], capture_output=True, text=True,
-                           timeout=120)
+    ident = crane_plan('identify', '--bag', bag)
     assert ident.returncode == 2 and 'the hoist moved during the recording' in ident.stderr, ident.stderr
 
 
@@ -209,8 +207,7 @@ def test_the_demo_records_a_rosbag2_mcap_that_an_independent_reader_reads(cart_d
     assert ends[:2] == [(0.3, pytest.approx(2.5)), (0.0, pytest.approx(1.5))]
     assert ends[2:8] == [(0.3, pytest.approx(2.5)), (0.0, pytest.approx(1.5))] * 3, ends
     # crane-plan report reads the same recording: the motions, and the demo's residual for the ZV move
-    rep = subprocess.run([str(BIN / 'crane-plan'), 'report', str(bag), '--out', str(tmp_path / 'report'),
-                          '--json'], capture_output=True, text=True, timeout=120)
+    rep = crane_plan('report', bag, '--out', tmp_path / 'report', '--json')
     assert rep.returncode == 0, rep.stderr
     report = json.loads(rep.stdout)
     assert report['L1'] == pytest.approx(0.47, abs=1e-9) and report['L2'] == pytest.approx(0.391, abs=1e-9)

@@ -148,10 +148,8 @@ def test_a_recorded_diagonal_move_is_reported_with_the_spatial_swing_and_identif
     of the load's offset, from phi1, phi2 too), and identify refuses the recording in one line (it fits the
     cart's plane; the bridge moved)."""
     import json
-    import subprocess
-    import sys
-    from pathlib import Path
-    bin_dir = Path(sys.executable).parent
+
+    from crane_plan_cli import crane_plan
     driver = crane
     bag = tmp_path / 'bag'
     recorder = driver.run_tool('crane-record', '--namespace', NS, '--out', str(bag), '--duration', '9')
@@ -162,13 +160,11 @@ def test_a_recorded_diagonal_move_is_reported_with_the_spatial_swing_and_identif
     code = recorder.wait(timeout=30.0)
     reader.join(5.0)  # (its last lines, for the message)
     assert code == 0, ''.join(said)
-    rep = subprocess.run([str(bin_dir / 'crane-plan'), 'report', str(bag), '--out', str(tmp_path), '--json',
-                          '--settle', str(SETTLE)], capture_output=True, text=True, timeout=120)
+    rep = crane_plan('report', bag, '--out', tmp_path, '--json', '--settle', SETTLE)
     assert rep.returncode == 0, rep.stderr
     [motion] = [m for m in json.loads(rep.stdout)['motions'] if m['duration_s'] == T]
     assert motion['residual_mm'] == pytest.approx(residual, abs=0.05)
-    ident = subprocess.run([str(bin_dir / 'crane-plan'), 'identify', '--bag', str(bag)], capture_output=True,
-                           text=True, timeout=120)
+    ident = crane_plan('identify', '--bag', bag)
     assert ident.returncode == 2 and 'the bridge moved during the recording' in ident.stderr, ident.stderr
     assert ident.stderr.count('\n') == 1
 

@@ -1,20 +1,15 @@
-"""crane-plan choose (crane_planner.tools.choose), run as the installed console script: the fastest method
-within the residual tolerance over the L1 band, the others' reasons, the figure, the refusal."""
+"""crane-plan choose (crane_planner.tools.choose), through ``cli.main``: the fastest method within the
+residual tolerance over the L1 band, the others' reasons, the figure, the refusal."""
 import json
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
-
-CRANE_PLAN = str(Path(sys.executable).parent / 'crane-plan')
+from crane_plan_cli import crane_plan
 
 
 def test_choose_marks_the_fastest_method_within_the_tolerance_and_says_why_not_the_others(tmp_path):
-    out = subprocess.run([CRANE_PLAN, 'choose', '--displacement', '0.3', '--max-velocity', '0.25',
-                          '--max-acceleration', '0.5', '--methods', 'zv,zvd,zvdd', '--points', '5',
-                          '--tolerance-mm', '1', '--json', '--plot', str(tmp_path / 'choose.png')],
-                         capture_output=True, text=True, timeout=300)
+    out = crane_plan('choose', '--displacement', '0.3', '--max-velocity', '0.25', '--max-acceleration', '0.5',
+                     '--methods', 'zv,zvd,zvdd', '--points', '5', '--tolerance-mm', '1', '--json',
+                     '--plot', tmp_path / 'choose.png')
     assert out.returncode == 0, out.stderr
     data = json.loads(out.stdout)
     rows = {m['method']: m for m in data['methods']}
@@ -27,5 +22,5 @@ def test_choose_marks_the_fastest_method_within_the_tolerance_and_says_why_not_t
     # the worst residual is the band's: ZV, tuned to the nominal L1, leaves far more at L1 -20 %
     assert rows['zv']['worst_residual_mm'] > 10 * min(rows['zv']['residual_mm'])
     assert (tmp_path / 'choose.png').stat().st_size > 10_000
-    bad = subprocess.run([CRANE_PLAN, 'choose', '--displacement', '0.3'], capture_output=True, text=True, timeout=60)
+    bad = crane_plan('choose', '--displacement', '0.3')
     assert bad.returncode == 2 and 'needs axis limits' in bad.stderr
