@@ -173,7 +173,9 @@ def test_colcon_installed_node_starts_and_answers(colcon_install, ros_domain, tm
     env = colcon_env(colcon_install, ros_domain)
     namespace = f'/colcon_{exe}'
     log = open(tmp_path / f'{exe}.log', 'w')
-    proc = subprocess.Popen([str(colcon_install / pkg / 'lib' / pkg / exe), *ros_args(namespace)],
+    # (one solver process, not the default three: starting them is not what this checks, and each builds)
+    params = {'solver_processes': 1} if exe == 'planner' else None
+    proc = subprocess.Popen([str(colcon_install / pkg / 'lib' / pkg / exe), *ros_args(namespace, params)],
                             env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     rclpy.init()
     node = rclpy.create_node('colcon_probe', namespace=namespace)
