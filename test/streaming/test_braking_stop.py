@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from crane_msgs_py.braking import stopping_distance
-from crane_planner.streaming.braking_stop import brake, braking_stop
+from crane_planner.streaming.braking_stop import LEADS, brake, braking_stop
 from crane_planner.streaming.reference_stream import ReferenceStream
 
 from .test_reference_stream import EPOCH, MS, PERIOD, Loop, quintic
@@ -59,6 +59,31 @@ def test_a_motion_braked_at_40_percent_never_steps_its_acceleration_and_stops_wh
     assert p[-1] == pytest.approx(expected, abs=1e-9)
     assert np.all(v[-1] == 0.0) and np.all(a[-1] == 0.0)
     assert p[-1, 0] < 0.6  # braked short of the goal
+
+
+def test_a_ramp_whose_first_tick_the_loop_streams_meanwhile_is_taken_at_the_next_lead():
+    """The ramp starts at the request's time plus the lead, here 0.12 ms before a tick, so its first sample
+    is the ramp 0.88 ms in. The loop streams that tick from the motion while the handover is made (a busy
+    executor thread): installed anyway, the ramp would take over at the next tick 1.88 ms in, a step of the
+    acceleration beyond the jerk limit. The stream refuses it as too late, and the next lead is taken."""
+    stream = ReferenceStream(PERIOD, hold=0.0)
+    loop = Loop(stream)
+    streaming_quintic(stream)
+    rows = [run(loop, 1602)]
+    now = EPOCH + (loop.tick + 5) * PERIOD - round(LEADS[0] * 1e9) - 120_000
+    install, meanwhile = stream._install, []
+
+    def loop_gets_there_first(handover):
+        if not meanwhile:  # (once: the next lead's handover is made with the loop left alone)
+            meanwhile.append(handover.first_tick)
+            rows.append(run(loop, handover.first_tick - loop.tick + 1))
+        return install(handover)
+    stream._install = loop_gets_there_first
+    stop = brake(stream, lambda: now, D, J)
+    rows.append(run(loop, round(stop.duration * 1e3) + 200))
+    a = np.vstack(rows)[:, 3]
+    assert np.max(np.abs(np.diff(a))) <= J * PERIOD * 1e-9 * (1 + 1e-6) + 1e-12
+    assert stop.handover_ns == now + round(LEADS[1] * 1e9)  # the first lead's came too late
 
 
 def test_an_axis_at_rest_holds_and_a_ramp_of_no_time_still_has_two_knots():

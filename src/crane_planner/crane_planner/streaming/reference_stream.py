@@ -379,9 +379,12 @@ class ReferenceStream:
             sampled = self._last_tick
 
     def _install(self, handover: Motion) -> bool:
-        """Hand ``handover`` to the loop unless it has sampled past the handover's first tick meanwhile."""
+        """Hand ``handover`` to the loop unless it has sampled past the handover's first tick meanwhile, or
+        sampled that tick from the old motion and the handover's first sample is not the old motion's state
+        there (its first knot between ticks: taken over a tick later, it would step by that fraction)."""
         with self._sampling:
-            if self._last_tick > handover.first_tick:
+            if self._last_tick > handover.first_tick or (self._last_tick == handover.first_tick
+                                                         and handover.origin_ns != handover.start_ns):
                 return False
             self._incoming = handover
             return True
