@@ -19,7 +19,7 @@ from collections.abc import Callable
 from contextlib import contextmanager
 
 import rclpy
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.exceptions import InvalidHandle, InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.signals import SignalHandlerOptions
 
 from .dds import use_node_profiles
@@ -46,7 +46,7 @@ def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
         executor = executor_class(**{k: v(node) if callable(v) else v for k, v in executor_kwargs.items()})
         executor.add_node(node)
         while not stop.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
+            spin_once(executor, 0.1)
     except KeyboardInterrupt:
         pass
     except (ParameterError, InvalidParameterValueException, InvalidParameterTypeException) as exc:
@@ -63,6 +63,21 @@ def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
             node.destroy_node()
         rclpy.try_shutdown()
     return status
+
+
+def spin_once(executor, timeout_sec: float) -> None:
+    """``executor.spin_once``, unharmed by an entity destroyed on another thread meanwhile.
+
+    rclpy's executor lists a node's entities, then adds each to its wait set;
+    a subscription destroyed in between raises InvalidHandle there (from its
+    QoS event handlers: ros2/rclpy#1284), which would end a spin loop for
+    good and leave every later response and message unread. The next call
+    lists the entities again, without the destroyed one.
+    """
+    try:
+        executor.spin_once(timeout_sec=timeout_sec)
+    except InvalidHandle:
+        pass
 
 
 class LoopThread:
@@ -138,7 +153,7 @@ def spinning(executor, priority: Callable[[], int] | None = None, refused: Calla
                 reason = set_fifo(applied)
                 if reason and refused is not None:
                     refused(reason)
-            executor.spin_once(timeout_sec=0.05)
+            spin_once(executor, 0.05)
 
     thread = threading.Thread(target=spin, daemon=True)
     thread.start()
