@@ -63,8 +63,8 @@ def test_a_motion_braked_at_40_percent_never_steps_its_acceleration_and_stops_wh
 
 def test_a_ramp_whose_first_tick_the_loop_streams_meanwhile_is_taken_at_the_next_lead():
     """The ramp starts at the request's time plus the lead, here 0.12 ms before a tick, so its first sample
-    is the ramp 0.88 ms in. The loop streams that tick from the motion while the handover is made (a busy
-    executor thread): installed anyway, the ramp would take over at the next tick 1.88 ms in, a step of the
+    is the ramp 0.12 ms in. The loop streams that tick from the motion while the handover is made (a busy
+    executor thread): installed anyway, the ramp would take over at the next tick 1.12 ms in, a step of the
     acceleration beyond the jerk limit. The stream refuses it as too late, and the next lead is taken."""
     stream = ReferenceStream(PERIOD, hold=0.0)
     loop = Loop(stream)

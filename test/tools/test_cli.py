@@ -128,8 +128,9 @@ def test_compare_and_sweep_json(tmp_path):
 
 
 def test_progress_goes_to_stderr_as_plain_lines_and_json_stays_clean():
-    """Not a terminal: one line per step on stderr; stdout holds the JSON alone."""
-    r = run('sweep', '--param', 'L1', '--points', '3', '--displacement', '0.3', '--duration', '3',
+    """Not a terminal: one line per step on stderr; stdout holds the JSON alone (the executable's own
+    streams: what IPOPT or CasADi might write natively would show here)."""
+    r = run_executable('sweep', '--param', 'L1', '--points', '3', '--displacement', '0.3', '--duration', '3',
             '--methods', 'zv,nvf', '--json')
     assert r.returncode == 0, r.stderr
     json.loads(r.stdout)

@@ -1,8 +1,7 @@
-"""crane-demo's route case (``route_demo``, offline): NVF routes past the wall and the column and through the via
-point, measured on crane_sim's independent model (clearance by its own cable directions); ZV routes its
+"""crane-demo's route case (``route_demo``, offline): NVF and RVF route past the wall and the column and through
+the via point, measured on crane_sim's independent model (clearance by its own cable directions); ZV routes its
 straight move with a shaped detour and is refused the via point as the planner refuses it; the figure is
-written. (RVF's routes run the same code with a larger NLP: planning/test_keep_out.py and test_via.py hold
-them.)"""
+written."""
 import math
 
 import pytest
@@ -12,13 +11,13 @@ from crane_planner.tools.route_demo import COLUMN, VIA, WALL, plot_routes, run_r
 
 @pytest.fixture(scope='module')
 def routes():
-    return run_routes(['nvf', 'zv'])
+    return run_routes(['nvf', 'rvf', 'zv'])
 
 
-def test_nvf_routes_every_move_keeping_the_margin_and_leaving_no_swing(routes):
+def test_nvf_and_rvf_route_every_move_keeping_the_margin_and_leaving_no_swing(routes):
     runs, _ = routes
     by = {(r.column, r.method): r for r in runs}
-    for method in ('nvf',):
+    for method in ('nvf', 'rvf'):
         assert by[(WALL, method)].route == 'over' and by[(COLUMN, method)].route == 'around'
         assert by[(VIA, method)].route == 'via' and math.isinf(by[(VIA, method)].clearance_mm)
         for column in (WALL, COLUMN):

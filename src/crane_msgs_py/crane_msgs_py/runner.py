@@ -45,8 +45,9 @@ def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
         node = node_class()
         executor = executor_class(**{k: v(node) if callable(v) else v for k, v in executor_kwargs.items()})
         executor.add_node(node)
+        spin = Spin(executor, 0.1)
         while not stop.is_set() and rclpy.ok():
-            spin_once(executor, 0.1)
+            spin()
     except KeyboardInterrupt:
         pass
     except (ParameterError, InvalidParameterValueException, InvalidParameterTypeException) as exc:
@@ -65,19 +66,50 @@ def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
     return status
 
 
-def spin_once(executor, timeout_sec: float) -> None:
-    """``executor.spin_once``, unharmed by an entity destroyed on another thread meanwhile.
+#: How many spins in a row may fail to gather their wait set (``spin_once``) before the failure is raised: a
+#: destroyed entity is gone from the next gathering, so one that keeps failing is a fault, not that race.
+GATHER_FAILURES = 100
+
+
+def spin_once(executor, timeout_sec: float) -> bool:
+    """``executor.spin_once``, unharmed by an entity destroyed on another thread meanwhile; False if its wait
+    set could not be gathered because of that.
 
     rclpy's executor lists a node's entities, then adds each to its wait set;
     a subscription destroyed in between raises InvalidHandle there (from its
     QoS event handlers: ros2/rclpy#1284), which would end a spin loop for
     good and leave every later response and message unread. The next call
-    lists the entities again, without the destroyed one.
+    lists the entities again, without the destroyed one. An InvalidHandle
+    from anywhere else (a callback using a destroyed entity) is raised.
     """
     try:
         executor.spin_once(timeout_sec=timeout_sec)
-    except InvalidHandle:
-        pass
+    except InvalidHandle as exc:
+        tb = exc.__traceback__
+        while tb is not None and tb.tb_frame.f_code.co_name != 'add_to_wait_set':
+            tb = tb.tb_next
+        if tb is None:
+            raise
+        return False
+    return True
+
+
+class Spin:
+    """Repeated ``spin_once`` calls (``__call__``) that count the wait sets in a row they could not gather,
+    and raise once there are ``GATHER_FAILURES`` of them."""
+
+    def __init__(self, executor, timeout_sec: float):
+        self.executor, self.timeout_sec = executor, timeout_sec
+        self.failures = 0
+
+    def __call__(self) -> None:
+        if spin_once(self.executor, self.timeout_sec):
+            self.failures = 0
+            return
+        self.failures += 1
+        if self.failures >= GATHER_FAILURES:
+            raise RuntimeError(f'the executor could not gather its wait set {self.failures} times in a row '
+                               '(an entity destroyed but still listed by its node)')
 
 
 class LoopThread:
@@ -144,8 +176,8 @@ def spinning(executor, priority: Callable[[], int] | None = None, refused: Calla
     """
     stop = threading.Event()
 
-    def spin():
-        applied = 0
+    def run_spin():
+        applied, spin = 0, Spin(executor, 0.05)
         while not stop.is_set():
             wanted = applied if priority is None else priority()
             if wanted != applied:
@@ -153,9 +185,9 @@ def spinning(executor, priority: Callable[[], int] | None = None, refused: Calla
                 reason = set_fifo(applied)
                 if reason and refused is not None:
                     refused(reason)
-            spin_once(executor, 0.05)
+            spin()
 
-    thread = threading.Thread(target=spin, daemon=True)
+    thread = threading.Thread(target=run_spin, name='spin', daemon=True)
     thread.start()
     try:
         yield executor

@@ -351,10 +351,12 @@ class ReferenceStream:
         delayable = extends(running.interps[0], running.origin_ns, interps[0], start_ns)
         while True:
             # The tick after the one the loop had sampled when the trajectory arrived will do, even should the
-            # loop sample it before the hand-over: a handover's first sample is the old motion's state there,
-            # so the old motion is streamed there and the handover from its second sample on, on the same
-            # smooth path. _install hands it over only if the loop has not sampled past it meanwhile; else it
-            # is made again from the loop's next tick.
+            # loop sample it before the hand-over, if the handover's first knot is on that tick (a spliced
+            # handover, or a stop stamped on a tick): its first sample is the old motion's state there, so the
+            # old motion is streamed there and the handover from its second sample on, on the same smooth
+            # path. _install hands it over only if the loop has not sampled past it meanwhile, nor sampled the
+            # first tick of one whose first knot lies between ticks; else it is made again from the loop's
+            # next tick (a stop then comes too late, and is refused saying so).
             first = sampled + 1
             if not delayable:
                 if due < first:
