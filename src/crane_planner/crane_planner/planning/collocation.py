@@ -151,12 +151,13 @@ class Transcription:
         Xc, Uc = body[:nx, :], body[nx:, :]
         Pm = ca.repmat(Pp, 1, N * d)
         Fc, Gc = problem.F.map(N * d)(Xc, Uc, Pm), problem.G.map(N * d)(Xc, Uc, Pm)
-        res, J, xs = [], 0, [w[:nx]]
+        # the collocation residuals xp - h F: their linear part here, the dynamics h F apart (``nlpsol``)
+        res, dyn, J, xs = [], [], 0, [w[:nx]]
         for k in range(N):
             xs = [xs[-1]] + [Xc[:, k * d + j] for j in range(d)]
             for j in range(1, d + 1):
-                xp = sum(C[r, j] * xs[r] for r in range(d + 1))
-                res.append(xp - frac[k] * Fc[:, k * d + j - 1])
+                res.append(sum(C[r, j] * xs[r] for r in range(d + 1)))
+                dyn.append(frac[k] * Fc[:, k * d + j - 1])
                 J += frac[k] * self.B[j] * Gc[k * d + j - 1]
         g = [ca.vertcat(*res), xs[-1]]
         if limits:
@@ -187,9 +188,13 @@ class Transcription:
             block = ca.reshape(P[npar + N + nkeep:], nu + N * d, vias)
             for v in range(vias):
                 g.append(ca.mtimes(positions, block[nu:, v]) - block[:nu, v])
-        self.nlp = {'x': w, 'p': P, 'f': objective, 'g': ca.vertcat(*g)}
-        self.ng = self.nlp['g'].shape[0]
+        g = ca.vertcat(*g)
         self.nres = nx * N * d
+        self.ng = g.shape[0]
+        self.nlp = {'x': w, 'p': P, 'f': objective,
+                    'g': g - ca.vertcat(*dyn, ca.SX(self.ng - self.nres, 1))}
+        #: the constraints without the dynamics' part (linear in the collocation residuals' rows)
+        self._g_rest = g
         self.nu = nu
         self.nw = w.shape[0]
         self._derivatives = None
@@ -243,8 +248,9 @@ class Transcription:
         """A new IPOPT instance of this NLP with ``options``.
 
         The first one generates the NLP's derivatives (most of a solver's
-        build time); later ones reuse them and cost a small fraction of
-        that. Instances share only those functions, which each
+        build time; at a fixed duration by collocation point,
+        ``_derivatives_by_point``); later ones reuse them and cost a small
+        fraction of that. Instances share only those functions, which each
         instance calls with its own work arrays, so instances solve side by
         side in different threads; one instance keeps per-call state and must
         serve one call at a time.
@@ -253,13 +259,61 @@ class Transcription:
         with self._lock:
             if self._derivatives is None:
                 t0 = time.perf_counter()
-                solver = ca.nlpsol('variational', 'ipopt', self.nlp, options)
-                self._derivatives = {'grad_f': solver.get_function('nlp_grad_f'),
-                                     'jac_g': solver.get_function('nlp_jac_g'),
-                                     'hess_lag': solver.get_function('nlp_hess_l')}
+                if self.free_time:  # (sigma scales the dynamics: CasADi differentiates the whole NLP)
+                    solver = ca.nlpsol('variational', 'ipopt', self.nlp, options)
+                    self._derivatives = {'grad_f': solver.get_function('nlp_grad_f'),
+                                         'jac_g': solver.get_function('nlp_jac_g'),
+                                         'hess_lag': solver.get_function('nlp_hess_l')}
+                    self.build_time += time.perf_counter() - t0
+                    return solver
+                self._derivatives = self._derivatives_by_point()
                 self.build_time += time.perf_counter() - t0
-                return solver
         return ca.nlpsol('variational', 'ipopt', self.nlp, dict(options, **self._derivatives))
+
+    def _derivatives_by_point(self) -> dict:
+        """The NLP's gradient, constraint Jacobian and Lagrangian Hessian (as ``nlpsol`` takes them), with the
+        dynamics differentiated once per collocation point rather than over the whole NLP.
+
+        The dynamics enter only the collocation residuals, each point's rows through h_k F(X_i, U_i) of that
+        point's own variables. So their Jacobian is block diagonal, of blocks -h_k dF/d(X, U), and their part
+        of the Hessian of the Lagrangian too, of blocks -h_k d2(mu_i^T F)/d(X, U)2 with mu_i the point's
+        multipliers: ``Problem.F`` differentiated once, symbolically, and evaluated at every point
+        (``map``). The rest of the NLP (the residuals' linear part, the ends, the limits, the keep-out and
+        via rows, the cost) is differentiated as a whole; it is small. Both are the exact derivatives: IPOPT
+        takes the same steps as with CasADi's own of the whole NLP, which cost many times more to build,
+        the Hessian most (a third derivative of the crane's dynamics, for RVF).
+        """
+        pb, nx, nu, N, d = self.problem, self.problem.nx, self.nu, self.intervals, self.degree
+        n, npar, width = N * d, len(PROBLEM_PARAMETERS), nx + nu
+        w, P, J = self.nlp['x'], self.nlp['p'], self.nlp['f']
+        lam_f, lam_g = ca.SX.sym('lam_f'), ca.SX.sym('lam_g', self.ng)
+        jac_rest = ca.Function('jac_rest', [w, P], [ca.jacobian(self._g_rest, w)])
+        hess_rest = ca.Function('hess_rest', [w, P, lam_f, lam_g],
+                                [ca.hessian(lam_f * J + ca.dot(lam_g, self._g_rest), w)[0]])
+        # one point: c dF/d(X, U) and d2(mu^T F)/d(X, U)2 (c = -h_k, and mu scaled by it)
+        XU, c, mu = ca.vertcat(pb.X, pb.U), ca.SX.sym('c'), ca.SX.sym('mu', nx)
+        f = pb.F(pb.X, pb.U, pb.P)
+        jac = ca.Function('jac_F', [pb.X, pb.U, pb.P, c], [c * ca.jacobian(f, XU)])
+        hess = ca.Function('hess_F', [pb.X, pb.U, pb.P, mu], [ca.hessian(ca.dot(mu, f), XU)[0]])
+        wm, Pm, lfm, lgm = ca.MX.sym('x', self.nw), ca.MX.sym('p', P.shape[0]), ca.MX.sym('lam_f'), \
+            ca.MX.sym('lam_g', self.ng)
+        body = ca.reshape(wm[nx:nx + n * width], width, n)
+        Xc, Uc, Pp = body[:nx, :], body[nx:, :], ca.repmat(Pm[:npar], 1, n)
+        h = ca.kron(Pm[npar:npar + N].T, ca.DM.ones(1, d))  # each point's interval fraction, (1, n)
+        jblocks = ca.horzsplit(jac.map(n)(Xc, Uc, Pp, -h), width)
+        hblocks = ca.horzsplit(hess.map(n)(Xc, Uc, Pp, ca.reshape(lgm[:self.nres], nx, n) * ca.repmat(-h, nx, 1)),
+                               width)
+        after = self.nw - nx - n * width  # the free time's sigma and the keep-out face weights
+        jac_dyn = ca.vertcat(ca.horzcat(ca.MX(self.nres, nx), ca.diagcat(*jblocks), ca.MX(self.nres, after)),
+                             ca.MX(self.ng - self.nres, self.nw))
+        hess_dyn = ca.diagcat(ca.MX(nx, nx), *hblocks, ca.MX(after, after))
+        g = ca.Function('g', [w, P], [self.nlp['g']])(wm, Pm)
+        return {'grad_f': ca.Function('nlp_grad_f', [w, P], [J, ca.gradient(J, w)], ['x', 'p'], ['f', 'grad_f_x']),
+                'jac_g': ca.Function('nlp_jac_g', [wm, Pm], [g, jac_rest(wm, Pm) + jac_dyn], ['x', 'p'],
+                                     ['g', 'jac_g_x']),
+                'hess_lag': ca.Function('nlp_hess_l', [wm, Pm, lfm, lgm],
+                                        [ca.triu(hess_rest(wm, Pm, lfm, lgm) + hess_dyn)],
+                                        ['x', 'p', 'lam_f', 'lam_g'], ['triu_hess_gamma_x_x'])}
 
     # views of the variable vector
     def states(self, w: np.ndarray) -> np.ndarray:
