@@ -259,13 +259,6 @@ class Transcription:
         with self._lock:
             if self._derivatives is None:
                 t0 = time.perf_counter()
-                if self.free_time:  # (sigma scales the dynamics: CasADi differentiates the whole NLP)
-                    solver = ca.nlpsol('variational', 'ipopt', self.nlp, options)
-                    self._derivatives = {'grad_f': solver.get_function('nlp_grad_f'),
-                                         'jac_g': solver.get_function('nlp_jac_g'),
-                                         'hess_lag': solver.get_function('nlp_hess_l')}
-                    self.build_time += time.perf_counter() - t0
-                    return solver
                 self._derivatives = self._derivatives_by_point()
                 self.build_time += time.perf_counter() - t0
         return ca.nlpsol('variational', 'ipopt', self.nlp, dict(options, **self._derivatives))
@@ -274,10 +267,12 @@ class Transcription:
         """The NLP's gradient, constraint Jacobian and Lagrangian Hessian (as ``nlpsol`` takes them), with the
         dynamics differentiated once per collocation point rather than over the whole NLP.
 
-        The dynamics enter only the collocation residuals, each point's rows through h_k F(X_i, U_i) of that
-        point's own variables. So their Jacobian is block diagonal, of blocks -h_k dF/d(X, U), and their part
-        of the Hessian of the Lagrangian too, of blocks -h_k d2(mu_i^T F)/d(X, U)2 with mu_i the point's
-        multipliers: ``Problem.F`` differentiated once, symbolically, and evaluated at every point
+        The dynamics enter only the collocation residuals, each point's rows through h F(X_i, U_i) of that
+        point's own variables (h its interval's length: frac_k, times sigma for the free time). So their
+        Jacobian is block diagonal, of blocks -h dF/d(X, U), and so is their part of the Hessian of the
+        Lagrangian, of blocks -h d2(mu_i^T F)/d(X, U)2 with mu_i the point's multipliers; with the free time
+        sigma also has the column -frac_k F of the Jacobian and the cross terms -frac_k dF/d(X, U)^T mu_i of
+        the Hessian. ``Problem.F`` is differentiated once, symbolically, and evaluated at every point
         (``map``). The rest of the NLP (the residuals' linear part, the ends, the limits, the keep-out and
         via rows, the cost) is differentiated as a whole; it is small. Both are the exact derivatives: IPOPT
         takes the same steps as with CasADi's own of the whole NLP, which cost many times more to build,
@@ -290,7 +285,7 @@ class Transcription:
         jac_rest = ca.Function('jac_rest', [w, P], [ca.jacobian(self._g_rest, w)])
         hess_rest = ca.Function('hess_rest', [w, P, lam_f, lam_g],
                                 [ca.hessian(lam_f * J + ca.dot(lam_g, self._g_rest), w)[0]])
-        # one point: c dF/d(X, U) and d2(mu^T F)/d(X, U)2 (c = -h_k, and mu scaled by it)
+        # one point: F, c dF/d(X, U), dF/d(X, U)^T mu and d2(mu^T F)/d(X, U)2
         XU, c, mu = ca.vertcat(pb.X, pb.U), ca.SX.sym('c'), ca.SX.sym('mu', nx)
         f = pb.F(pb.X, pb.U, pb.P)
         jac = ca.Function('jac_F', [pb.X, pb.U, pb.P, c], [c * ca.jacobian(f, XU)])
@@ -299,14 +294,24 @@ class Transcription:
             ca.MX.sym('lam_g', self.ng)
         body = ca.reshape(wm[nx:nx + n * width], width, n)
         Xc, Uc, Pp = body[:nx, :], body[nx:, :], ca.repmat(Pm[:npar], 1, n)
-        h = ca.kron(Pm[npar:npar + N].T, ca.DM.ones(1, d))  # each point's interval fraction, (1, n)
+        frac = ca.kron(Pm[npar:npar + N].T, ca.DM.ones(1, d))  # each point's interval fraction, (1, n)
+        h = frac * wm[-1] if self.free_time else frac
+        mu_c = ca.reshape(lgm[:self.nres], nx, n)  # each point's multipliers of its residual rows
         jblocks = ca.horzsplit(jac.map(n)(Xc, Uc, Pp, -h), width)
-        hblocks = ca.horzsplit(hess.map(n)(Xc, Uc, Pp, ca.reshape(lgm[:self.nres], nx, n) * ca.repmat(-h, nx, 1)),
-                               width)
-        after = self.nw - nx - n * width  # the free time's sigma and the keep-out face weights
+        hblocks = ca.horzsplit(hess.map(n)(Xc, Uc, Pp, mu_c * ca.repmat(-h, nx, 1)), width)
+        after = self.nw - nx - n * width  # the free time's sigma or the keep-out face weights
         jac_dyn = ca.vertcat(ca.horzcat(ca.MX(self.nres, nx), ca.diagcat(*jblocks), ca.MX(self.nres, after)),
                              ca.MX(self.ng - self.nres, self.nw))
         hess_dyn = ca.diagcat(ca.MX(nx, nx), *hblocks, ca.MX(after, after))
+        if self.free_time:  # sigma, the last variable: its column of each, above the diagonal for the Hessian
+            F_c = pb.F.map(n)(Xc, Uc, Pp) * ca.repmat(-frac, nx, 1)
+            vjp = ca.Function('vjp_F', [pb.X, pb.U, pb.P, mu], [ca.jtimes(f, XU, mu, True)])
+            cross = vjp.map(n)(Xc, Uc, Pp, mu_c * ca.repmat(-frac, nx, 1))
+            jac_dyn += ca.vertcat(ca.horzcat(ca.MX(self.nres, self.nw - 1), ca.vec(F_c)),
+                                  ca.MX(self.ng - self.nres, self.nw))
+            hess_dyn += ca.vertcat(ca.MX(nx, self.nw),
+                                   ca.horzcat(ca.MX(n * width, self.nw - 1), ca.vec(cross)),
+                                   ca.MX(1, self.nw))
         g = ca.Function('g', [w, P], [self.nlp['g']])(wm, Pm)
         return {'grad_f': ca.Function('nlp_grad_f', [w, P], [J, ca.gradient(J, w)], ['x', 'p'], ['f', 'grad_f_x']),
                 'jac_g': ca.Function('nlp_jac_g', [wm, Pm], [g, jac_rest(wm, Pm) + jac_dyn], ['x', 'p'],
