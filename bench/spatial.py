@@ -5,7 +5,8 @@ process runs requests):
 - warm NVF and RVF (robust to L1) solves cycling over varied requests (D 0.28..0.32 m, T 2.9..3.1 s),
   of the cart alone and of the cart with the bridge (0.3 x 0.2 m scaled alike): medians, and the ratio
   two axes / one axis (target <= 3);
-- the first solve of each (the NLP built);
+- the first solve of each (the NLP built), then the wait until its derivatives are compiled
+  (``planning.compiled``: 0 s from the machine's cache; ``compiled`` false when compiling is off);
 - a ZV handover planned as the planner serves a new goal mid-move (``transitions.handover_state``
   from a measurement, then ``transitions.retarget``): a ZV motion to 0.6 m, at 40 % a new goal that
   turns it, with one axis and with two (target: median <= 5 ms with two).
@@ -28,18 +29,36 @@ def varied(k: int) -> tuple[float, float]:
     return 0.93 + 0.14 * (k % 5) / 4, 0.97 + 0.06 * (k % 7) / 6
 
 
+def wait_compiled(cache, limit: float = 300.0) -> bool:
+    """Wait until every NLP built so far has its derivatives compiled (``planning.compiled``, in the
+    background); whether they all were within ``limit`` s (not, when compiling is off or fails)."""
+    from crane_planner.planning.compiled import cache_dir
+    if cache_dir() is None:
+        return False
+    deadline = time.monotonic() + limit
+    while time.monotonic() < deadline:
+        if all(tr.generation for solver in cache._solvers.values() for tr in solver._transcriptions.values()):
+            return True
+        time.sleep(0.1)
+    return False
+
+
 def solves(method: str, options, params, bridge: float | None, repeats: int, cache) -> dict:
     from crane_planner.planning.dispatch import plan
     t0 = time.perf_counter()
     plan(method, D, T, params, options, variational=cache, bridge=bridge)
     first = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    compiled = wait_compiled(cache)
+    compile_s = time.perf_counter() - t0
     times = []
     for k in range(repeats):
         s, r = varied(k)
         t0 = time.perf_counter()
         plan(method, D * s, T * r, params, options, variational=cache, bridge=None if bridge is None else bridge * s)
         times.append(time.perf_counter() - t0)
-    return {'first_s': round(first, 3), 'warm_ms': round(1e3 * statistics.median(times), 2)}
+    return {'first_s': round(first, 3), 'compiled': compiled, 'compile_wait_s': round(compile_s, 2),
+            'warm_ms': round(1e3 * statistics.median(times), 2)}
 
 
 def handovers(params, cache, joints: tuple, repeats: int) -> dict:

@@ -1,9 +1,16 @@
 """Shared fixtures, and the ``ros`` marker (pytest.ini) on every test that joins a ROS graph."""
+import os
 from pathlib import Path
 
 import pytest
 
 ROS_TESTS = Path(__file__).resolve().parent / 'ros'
+
+# The NLPs' derivatives are not compiled in the background (``planning.compiled``) in the tests or the nodes
+# they start: a solver that swaps them in mid-test would give plans that differ in the last bits from an
+# interpreted one's, which tests comparing two solvers' plans exactly would see. test_compiled.py compiles
+# into a directory of its own.
+os.environ['CRANE_PLANNER_CACHE'] = 'off'
 
 
 @pytest.fixture(scope='session')

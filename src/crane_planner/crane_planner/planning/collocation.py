@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from .compiled import in_background as compile_in_background
 from .plan import Plan, PlanError
 from .problem import PROBLEM_PARAMETERS, Problem, breakpoints
 
@@ -195,9 +196,13 @@ class Transcription:
                     'g': g - ca.vertcat(*dyn, ca.SX(self.ng - self.nres, 1))}
         #: the constraints without the dynamics' part (linear in the collocation residuals' rows)
         self._g_rest = g
+        self._rest = None  # the derivatives of all but the dynamics (``_derivatives_by_point``)
         self.nu = nu
         self.nw = w.shape[0]
         self._derivatives = None
+        #: how many times the derivatives were replaced (by their compiled form): instances made before
+        #: are made again (``ipopt.Instance.refresh``)
+        self.generation = 0
         self._lock = threading.Lock()
         self.build_time = time.perf_counter() - t0
 
@@ -259,11 +264,33 @@ class Transcription:
         with self._lock:
             if self._derivatives is None:
                 t0 = time.perf_counter()
-                self._derivatives = self._derivatives_by_point()
+                points = self._point_functions()
+                self._derivatives = self._derivatives_by_point(points)
                 self.build_time += time.perf_counter() - t0
-        return ca.nlpsol('variational', 'ipopt', self.nlp, dict(options, **self._derivatives))
+                compile_in_background(points, self._use_compiled)
+            derivatives = self._derivatives
+        return ca.nlpsol('variational', 'ipopt', self.nlp, dict(options, **derivatives))
 
-    def _derivatives_by_point(self) -> dict:
+    def _use_compiled(self, points: dict) -> None:
+        """The derivatives from the per-point functions compiled (``compiled.in_background``), from now on."""
+        derivatives = self._derivatives_by_point(points)
+        with self._lock:
+            self._derivatives = derivatives
+            self.generation += 1
+
+    def _point_functions(self) -> dict:
+        """The functions ``_derivatives_by_point`` evaluates at every collocation point: ``Problem.F``'s
+        Jacobian c dF/d(X, U), the Hessian d2(mu^T F)/d(X, U)2, with the free time dF/d(X, U)^T mu too."""
+        pb = self.problem
+        XU, c, mu = ca.vertcat(pb.X, pb.U), ca.SX.sym('c'), ca.SX.sym('mu', pb.nx)
+        f = pb.F(pb.X, pb.U, pb.P)
+        points = {'jac': ca.Function('jac_F', [pb.X, pb.U, pb.P, c], [c * ca.jacobian(f, XU)]),
+                  'hess': ca.Function('hess_F', [pb.X, pb.U, pb.P, mu], [ca.hessian(ca.dot(mu, f), XU)[0]])}
+        if self.free_time:
+            points['vjp'] = ca.Function('vjp_F', [pb.X, pb.U, pb.P, mu], [ca.jtimes(f, XU, mu, True)])
+        return points
+
+    def _derivatives_by_point(self, points: dict) -> dict:
         """The NLP's gradient, constraint Jacobian and Lagrangian Hessian (as ``nlpsol`` takes them), with the
         dynamics differentiated once per collocation point rather than over the whole NLP.
 
@@ -276,20 +303,21 @@ class Transcription:
         (``map``). The rest of the NLP (the residuals' linear part, the ends, the limits, the keep-out and
         via rows, the cost) is differentiated as a whole; it is small. Both are the exact derivatives: IPOPT
         takes the same steps as with CasADi's own of the whole NLP, which cost many times more to build,
-        the Hessian most (a third derivative of the crane's dynamics, for RVF).
+        the Hessian most (a third derivative of the crane's dynamics, for RVF). ``points``: the per-point
+        functions (``_point_functions``), interpreted or compiled.
         """
         pb, nx, nu, N, d = self.problem, self.problem.nx, self.nu, self.intervals, self.degree
         n, npar, width = N * d, len(PROBLEM_PARAMETERS), nx + nu
         w, P, J = self.nlp['x'], self.nlp['p'], self.nlp['f']
-        lam_f, lam_g = ca.SX.sym('lam_f'), ca.SX.sym('lam_g', self.ng)
-        jac_rest = ca.Function('jac_rest', [w, P], [ca.jacobian(self._g_rest, w)])
-        hess_rest = ca.Function('hess_rest', [w, P, lam_f, lam_g],
-                                [ca.hessian(lam_f * J + ca.dot(lam_g, self._g_rest), w)[0]])
-        # one point: F, c dF/d(X, U), dF/d(X, U)^T mu and d2(mu^T F)/d(X, U)2
-        XU, c, mu = ca.vertcat(pb.X, pb.U), ca.SX.sym('c'), ca.SX.sym('mu', nx)
-        f = pb.F(pb.X, pb.U, pb.P)
-        jac = ca.Function('jac_F', [pb.X, pb.U, pb.P, c], [c * ca.jacobian(f, XU)])
-        hess = ca.Function('hess_F', [pb.X, pb.U, pb.P, mu], [ca.hessian(ca.dot(mu, f), XU)[0]])
+        if self._rest is None:  # (the same for the interpreted and the compiled per-point functions)
+            lam_f, lam_g = ca.SX.sym('lam_f'), ca.SX.sym('lam_g', self.ng)
+            self._rest = (ca.Function('nlp_grad_f', [w, P], [J, ca.gradient(J, w)], ['x', 'p'], ['f', 'grad_f_x']),
+                          ca.Function('jac_rest', [w, P], [ca.jacobian(self._g_rest, w)]),
+                          ca.Function('hess_rest', [w, P, lam_f, lam_g],
+                                      [ca.hessian(lam_f * J + ca.dot(lam_g, self._g_rest), w)[0]]),
+                          ca.Function('g', [w, P], [self.nlp['g']]))
+        grad_f, jac_rest, hess_rest, g_of = self._rest
+        jac, hess = points['jac'], points['hess']
         wm, Pm, lfm, lgm = ca.MX.sym('x', self.nw), ca.MX.sym('p', P.shape[0]), ca.MX.sym('lam_f'), \
             ca.MX.sym('lam_g', self.ng)
         body = ca.reshape(wm[nx:nx + n * width], width, n)
@@ -305,16 +333,14 @@ class Transcription:
         hess_dyn = ca.diagcat(ca.MX(nx, nx), *hblocks, ca.MX(after, after))
         if self.free_time:  # sigma, the last variable: its column of each, above the diagonal for the Hessian
             F_c = pb.F.map(n)(Xc, Uc, Pp) * ca.repmat(-frac, nx, 1)
-            vjp = ca.Function('vjp_F', [pb.X, pb.U, pb.P, mu], [ca.jtimes(f, XU, mu, True)])
-            cross = vjp.map(n)(Xc, Uc, Pp, mu_c * ca.repmat(-frac, nx, 1))
+            cross = points['vjp'].map(n)(Xc, Uc, Pp, mu_c * ca.repmat(-frac, nx, 1))
             jac_dyn += ca.vertcat(ca.horzcat(ca.MX(self.nres, self.nw - 1), ca.vec(F_c)),
                                   ca.MX(self.ng - self.nres, self.nw))
             hess_dyn += ca.vertcat(ca.MX(nx, self.nw),
                                    ca.horzcat(ca.MX(n * width, self.nw - 1), ca.vec(cross)),
                                    ca.MX(1, self.nw))
-        g = ca.Function('g', [w, P], [self.nlp['g']])(wm, Pm)
-        return {'grad_f': ca.Function('nlp_grad_f', [w, P], [J, ca.gradient(J, w)], ['x', 'p'], ['f', 'grad_f_x']),
-                'jac_g': ca.Function('nlp_jac_g', [wm, Pm], [g, jac_rest(wm, Pm) + jac_dyn], ['x', 'p'],
+        return {'grad_f': grad_f,
+                'jac_g': ca.Function('nlp_jac_g', [wm, Pm], [g_of(wm, Pm), jac_rest(wm, Pm) + jac_dyn], ['x', 'p'],
                                      ['g', 'jac_g_x']),
                 'hess_lag': ca.Function('nlp_hess_l', [wm, Pm, lfm, lgm],
                                         [ca.triu(hess_rest(wm, Pm, lfm, lgm) + hess_dyn)],

@@ -127,9 +127,9 @@ class DirectSolver(VariationalSolver):
             if boxes or vias:  # started from a guess without multipliers: the adaptive barrier
                 # parameter takes a third of the iterations of the monotone one from it (a wall: 40, not 117)
                 options.update({'ipopt.warm_start_init_point': 'no', 'ipopt.mu_strategy': 'adaptive'})
-            inst = self._instances[key] = Instance(tr, tr.nlpsol(options), callback,
-                                                   source.warm if source is not None else None)
-        return inst
+            inst = self._instances[key] = Instance.new(tr, options, callback,
+                                                       source.warm if source is not None else None)
+        return inst.refresh()
 
     def ipopt_options(self) -> dict:
         # A budget is a promise to a caller, so it is wall time; without one, only the work is capped.

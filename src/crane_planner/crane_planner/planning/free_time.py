@@ -153,5 +153,5 @@ class FreeTimeSearch:
             # request 15 -> 8 NVF, 9 -> 4 RVF; a new D of 0.5 m after 0.3 m 197 -> 88)
             options = dict(solver.ipopt_options(), iteration_callback=callback,
                            **{'ipopt.mu_init': 1e-6, 'ipopt.mu_strategy': 'adaptive'})
-            inst = self._instances[form] = Instance(tr, tr.nlpsol(options), callback)
-        return inst
+            inst = self._instances[form] = Instance.new(tr, options, callback)
+        return inst.refresh()

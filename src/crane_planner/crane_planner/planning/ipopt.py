@@ -78,3 +78,21 @@ class Instance:
     warm: tuple | None = None  # (sign of D, x0 / lam_x0 / lam_g0 of the solution)
     warm_state: tuple | None = None  # the same of the last plan from a state (``continuation``)
     T0: float | None = None  # free-time instances: the duration T = sigma T0 is scaled by
+    options: dict | None = None  # what ``solver`` was made with (``refresh``)
+    generation: int = 0  # the transcription's derivatives ``solver`` was made with
+
+    @classmethod
+    def new(cls, transcription: Transcription, options: dict, callback: IterationCallback,
+            warm: tuple | None = None) -> 'Instance':
+        """An IPOPT instance of ``transcription`` with ``options`` (their iteration callback ``callback``)."""
+        generation = transcription.generation
+        return cls(transcription, transcription.nlpsol(options), callback, warm, options=options,
+                   generation=generation)
+
+    def refresh(self) -> 'Instance':
+        """Itself, its IPOPT instance made again if the transcription's derivatives were replaced since (by
+        their compiled form: ``collocation.Transcription``); the warm starts are kept. Before a solve."""
+        if self.generation != self.transcription.generation and self.options is not None:
+            self.generation = self.transcription.generation
+            self.solver = self.transcription.nlpsol(self.options)
+        return self
