@@ -32,8 +32,8 @@ def varied(k: int) -> tuple[float, float]:
 def wait_compiled(cache, limit: float = 300.0) -> bool:
     """Wait until every NLP built so far has its derivatives compiled (``planning.compiled``, in the
     background); whether they all were within ``limit`` s (not, when compiling is off or fails)."""
-    from crane_planner.planning.compiled import cache_dir
-    if cache_dir() is None:
+    from crane_planner.planning.compiled import cache_dir, compiler
+    if cache_dir() is None or compiler() is None:
         return False
     deadline = time.monotonic() + limit
     while time.monotonic() < deadline:

@@ -12,23 +12,22 @@ from crane_msgs_py.params import CraneParams
 from crane_planner.planning.collocation import Transcription
 from crane_planner.planning.problem import Form, Problem
 
-CASES = {  # robust, hoist, bridge, limits, keep-out boxes, via points; or the free final time
-    'nvf': ((), False, False, False, 0, 0),
-    'rvf-free-time': (('L1',), False, False, True, 0, 'free'),
-    'spatial-rvf-free-time': (('L1',), False, True, True, 0, 'free'),
-    'rvf-limits': (('L1',), False, False, True, 0, 0),
-    'rvf-hoist': (('L1',), True, False, False, 0, 0),
-    'spatial-nvf-box': ((), False, True, False, 1, 0),
-    'spatial-rvf-via': (('L1',), False, True, True, 0, 1),
+CASES = {  # robust, hoist, bridge, limits, keep-out boxes, via points, free final time
+    'nvf': ((), False, False, False, 0, 0, False),
+    'rvf-free-time': (('L1',), False, False, True, 0, 0, True),
+    'spatial-rvf-free-time': (('L1',), False, True, True, 0, 0, True),
+    'rvf-limits': (('L1',), False, False, True, 0, 0, False),
+    'rvf-hoist': (('L1',), True, False, False, 0, 0, False),
+    'spatial-nvf-box': ((), False, True, False, 1, 0, False),
+    'spatial-rvf-via': (('L1',), False, True, True, 0, 1, False),
 }
 
 
 @pytest.mark.parametrize('case', list(CASES))
 def test_the_derivatives_by_point_are_casadis_of_the_whole_nlp(case):
-    robust, hoist, bridge, limits, boxes, vias = CASES[case]
-    free = vias == 'free'
-    tr = Transcription(Problem(robust, Form.of(CraneParams(), hoist, bridge)), 6, limits, free_time=free,
-                       boxes=boxes, vias=0 if free else vias)
+    robust, hoist, bridge, limits, boxes, vias, free_time = CASES[case]
+    tr = Transcription(Problem(robust, Form.of(CraneParams(), hoist, bridge)), 6, limits, free_time=free_time,
+                       boxes=boxes, vias=vias)
     options = {'print_time': False, 'ipopt.print_level': 0, 'ipopt.sb': 'yes'}
     ours = tr.nlpsol(options)
     whole = ca.nlpsol('whole', 'ipopt', tr.nlp, options)

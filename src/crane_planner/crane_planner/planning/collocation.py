@@ -253,8 +253,7 @@ class Transcription:
         """A new IPOPT instance of this NLP with ``options``.
 
         The first one generates the NLP's derivatives (most of a solver's
-        build time; at a fixed duration by collocation point,
-        ``_derivatives_by_point``); later ones reuse them and cost a small
+        build time; by collocation point, ``_derivatives_by_point``); later ones reuse them and cost a small
         fraction of that. Instances share only those functions, which each
         instance calls with its own work arrays, so instances solve side by
         side in different threads; one instance keeps per-call state and must
@@ -323,6 +322,7 @@ class Transcription:
         body = ca.reshape(wm[nx:nx + n * width], width, n)
         Xc, Uc, Pp = body[:nx, :], body[nx:, :], ca.repmat(Pm[:npar], 1, n)
         frac = ca.kron(Pm[npar:npar + N].T, ca.DM.ones(1, d))  # each point's interval fraction, (1, n)
+        assert not (self.free_time and self.nweights)  # (refused in __init__): sigma is the last variable
         h = frac * wm[-1] if self.free_time else frac
         mu_c = ca.reshape(lgm[:self.nres], nx, n)  # each point's multipliers of its residual rows
         jblocks = ca.horzsplit(jac.map(n)(Xc, Uc, Pp, -h), width)

@@ -4,26 +4,31 @@ CasADi evaluates a symbolic function in its virtual machine, one instruction at 
 generated as C and compiled runs several times faster (the spatial crane's per-point Hessian: 29 ms over
 96 points in the virtual machine, 3.6 ms compiled). Compiling takes seconds to tens of seconds, so it
 never holds a caller: ``in_background`` returns at once, compiles in a thread (the compiler is a niced
-subprocess, off the interpreter lock), and hands the compiled functions to a callback, which swaps
-them in. Until then, or if no compiler is found or compiling fails, the caller keeps the functions it
-has: only slower.
+subprocess; generating its C source holds the interpreter lock, up to 0.4 s), and hands the compiled
+functions to a callback, which swaps them in. Until then, or if no compiler is found or compiling
+fails, the caller keeps the functions it has: only slower.
 
-The shared libraries are kept in a cache directory, named by a hash of their C source, the compiler's
-flags and CasADi's version, so each is compiled once per machine: ``CRANE_PLANNER_CACHE`` (default
-``$XDG_CACHE_HOME/crane_planner``, else ``~/.cache/crane_planner``); ``off`` turns compiling off.
-Processes that need the same library at once (a planner's solver processes) compile it once: a lock
-file per library. Pure Python, no ROS import.
+The shared libraries are kept in a cache directory, named by a hash of their C source, the flags and
+the versions of CasADi and of the compiler, so each is compiled once per machine:
+``CRANE_PLANNER_CACHE`` (default ``$XDG_CACHE_HOME/crane_planner``, else ``~/.cache/crane_planner``);
+``off`` turns compiling off. Processes that need the same library at once (a planner's solver
+processes) compile it once: a lock file per library. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
+import atexit
 import fcntl
+import functools
 import hashlib
 import logging
 import os
+import platform
 import shutil
+import signal
 import subprocess
 import tempfile
 import threading
+import time
 from pathlib import Path
 from typing import Callable
 
@@ -53,7 +58,7 @@ def cache_dir() -> Path | None:
 
 
 def compiler() -> str | None:
-    """The C compiler (``CC``, else cc or gcc on the PATH), or None."""
+    """The C compiler (``$CC`` if it names one program on the PATH, else cc or gcc there), or None."""
     for name in (os.environ.get('CC'), 'cc', 'gcc'):
         if name and shutil.which(name):
             return shutil.which(name)
@@ -73,6 +78,17 @@ def source(fn: ca.Function) -> str:
     return gen.dump()
 
 
+@functools.lru_cache(maxsize=4)
+def _compiler_identity(cc: str) -> str:
+    """What the cache key needs of the compiler: its path, version and the machine it targets."""
+    try:
+        version = subprocess.run([cc, '-dumpfullversion', '-dumpversion'], capture_output=True, text=True,
+                                 timeout=30).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        version = '?'
+    return f'{cc} {version} {platform.machine()}'
+
+
 def compile_function(fn: ca.Function) -> ca.Function | None:
     """``fn`` compiled (from the cache if it is there), or None when compiling is off or fails. Blocks while
     it compiles: call it from a background thread (``in_background``)."""
@@ -80,50 +96,99 @@ def compile_function(fn: ca.Function) -> ca.Function | None:
     if where is None:
         return None
     if cc is None:
-        _warn_once('no C compiler (cc, gcc or $CC) found: NVF/RVF derivatives stay interpreted (slower solves)')
+        _warn_once('no C compiler ($CC, cc or gcc) found: NVF/RVF derivatives stay interpreted (slower solves)')
         return None
-    code = source(fn)
-    key = hashlib.sha256('\n'.join([code, *FLAGS, ca.__version__]).encode()).hexdigest()[:20]
-    library = where / f'{fn.name()}-{key}.so'
     try:
+        code = source(fn)
+        key = hashlib.sha256('\n'.join([code, *FLAGS, ca.__version__, _compiler_identity(cc)]).encode())
+        library = where / f'{fn.name()}-{key.hexdigest()[:20]}.so'
         where.mkdir(parents=True, exist_ok=True)
         with open(where / f'{library.name}.lock', 'w') as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)  # another process compiling it: wait for its library
-            if not library.exists():
-                _compile(cc, code, library)
-        return ca.external(fn.name(), str(library))
-    except (OSError, RuntimeError, subprocess.SubprocessError) as exc:
+            _remove_stale_builds(where)
+            for attempt in (0, 1):
+                if not library.exists():
+                    _compile(cc, code, library)
+                try:
+                    return ca.external(fn.name(), str(library))
+                except RuntimeError:  # a damaged or foreign library: compiled again, once
+                    if attempt:
+                        raise
+                    library.unlink(missing_ok=True)
+    except Exception as exc:  # (compiling is an optimization: whatever fails leaves the function interpreted)
         _warn_once(f'compiling {fn.name()} failed ({type(exc).__name__}: {str(exc).strip()[:200]}): it stays '
                    'interpreted (slower solves)')
         return None
 
 
+#: Prefix of the build directories in the cache (one per compile; a process killed meanwhile leaves its own).
+BUILD_PREFIX = '.build-'
+
+
+def _remove_stale_builds(where: Path) -> None:
+    """Remove build directories older than the longest compile (their process is gone)."""
+    now = time.time()
+    for build in where.glob(BUILD_PREFIX + '*'):
+        try:
+            if now - build.stat().st_mtime > COMPILE_TIMEOUT:
+                shutil.rmtree(build, ignore_errors=True)
+        except OSError:
+            pass
+
+
 def _compile(cc: str, code: str, library: Path) -> None:
-    """Compile ``code`` into ``library``, which appears whole or not at all."""
-    with tempfile.TemporaryDirectory(dir=library.parent) as tmp:
+    """Compile ``code`` into ``library``, which appears whole or not at all.
+
+    The compiler and the final rename run in a shell of their own session: a process killed meanwhile (a
+    solver process replaced, a CLI run ended) still leaves the library in the cache for the next one, and a
+    compile past ``COMPILE_TIMEOUT`` is killed with everything it started."""
+    with tempfile.TemporaryDirectory(dir=library.parent, prefix=BUILD_PREFIX) as tmp:
         c_file, built = Path(tmp) / 'f.c', Path(tmp) / library.name
         c_file.write_text(code)
         nice = shutil.which('nice')
-        command = ([nice, '-n', str(COMPILER_NICE)] if nice else []) + [cc, *FLAGS, str(c_file), '-o', str(built),
-                                                                        '-lm']
-        done = subprocess.run(command, capture_output=True, text=True, timeout=COMPILE_TIMEOUT)
-        if done.returncode != 0:
-            raise RuntimeError(done.stderr or f'{cc} exited with {done.returncode}')
-        os.replace(built, library)
+        script = ('nice -n "$NICENESS" ' if nice else '') + '"$@" && mv -f -- "$BUILT" "$LIBRARY"'
+        env = dict(os.environ, NICENESS=str(COMPILER_NICE), BUILT=str(built), LIBRARY=str(library))
+        proc = subprocess.Popen(['sh', '-c', script, 'compile', cc, *FLAGS, str(c_file), '-o', str(built), '-lm'],
+                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                start_new_session=True)
+        try:
+            _, err = proc.communicate(timeout=COMPILE_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+            raise
+        if proc.returncode != 0:
+            raise RuntimeError(err or f'{cc} exited with {proc.returncode}')
+
+
+#: One compile at a time in a process (a planner builds several NLPs at once: one compiler each would
+#: crowd the cores and the memory).
+_ONE_AT_A_TIME = threading.Lock()
+_exiting = threading.Event()
+atexit.register(_exiting.set)  # a compile thread still running stops at its next step, not inside CasADi
 
 
 def in_background(functions: dict[str, ca.Function], ready: Callable[[dict[str, ca.Function]], None]) -> None:
-    """Compile every one of ``functions`` in a daemon thread, then call ``ready`` with them compiled (by the
-    same keys), if every one compiled; returns at once. Nothing is called when compiling is off or fails."""
+    """Compile every one of ``functions`` in a daemon thread, one compile at a time in the process, then call
+    ``ready`` with them compiled (by the same keys), if every one compiled; returns at once. Nothing is
+    called when compiling is off or fails (said once in the log)."""
     if cache_dir() is None:
         return
 
     def run():
-        done = {}
-        for name, fn in functions.items():
-            done[name] = compile_function(fn)
-            if done[name] is None:
-                return
-        ready(done)
+        try:
+            done = {}
+            for name, fn in functions.items():
+                with _ONE_AT_A_TIME:
+                    if _exiting.is_set():
+                        return
+                    done[name] = compile_function(fn)
+                if done[name] is None:
+                    return
+            if not _exiting.is_set():
+                ready(done)
+        except Exception as exc:  # (a failure here only leaves the functions interpreted)
+            _warn_once(f'using the compiled derivatives failed ({type(exc).__name__}: {exc}): they stay '
+                       'interpreted')
 
     threading.Thread(target=run, name='compile-derivatives', daemon=True).start()
