@@ -94,7 +94,7 @@ demo: install
 test: lint
 	$(PY) -m pytest -q -n 2 --dist loadgroup test
 
-# Every test that starts no ROS node (pytest marker ros, see test/conftest.py): about 10 minutes on 2 cores.
+# Every test that starts no ROS node (pytest marker ros, see test/conftest.py): about 8 minutes on 2 cores.
 test-pure: install
 	$(PY) -m pytest -q -m "not ros" test
 
