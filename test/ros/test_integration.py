@@ -580,6 +580,9 @@ def test_impaired_stream_shows_delay_and_loss_and_every_node_survives(crane):
     accepted = int(sim_after['accepted']) - int(sim_before['accepted'])
     missing = int(sim_after['missing']) - int(sim_before['missing'])
     assert missing / (accepted + missing) == pytest.approx(loss, abs=0.02)
+    # a sample lost alone (a fraction (1 - loss)^2 of those lost, 90 %) is bridged, never two in a row
+    bridged = int(sim_after['bridged']) - int(sim_before['bridged'])
+    assert 0.8 * missing < bridged < missing, (bridged, missing)
     # and so does this recorder: gaps in the stamps, never out of order (FIFO link), the motion complete
     assert np.all(np.diff(stamps) > 0)
     assert 1.0 - len(stamps) / ((stamps[-1] - stamps[0]) // 1_000_000 + 1) == pytest.approx(loss, abs=0.02)

@@ -292,8 +292,7 @@ class SimNode(Node):
             except ValueError:
                 intake.count_malformed()
                 continue
-            sample = intake.receive(received, stamp, position, acceleration, others, played)
-            if sample is not None:
+            for sample in intake.receive(received, stamp, position, acceleration, others, played):
                 inbox.append((bool(stamp), sample))  # (whether its sender stamped it: its gaps are judged)
 
     def _on_push(self, request, response):
