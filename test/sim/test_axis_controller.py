@@ -215,17 +215,38 @@ def test_a_stream_starting_where_the_axes_stand_resumes_from_rest():
     held = controller.fault.stops[0]
     start = rig.t
 
-    def move(t):  # a new stream 0.5 mm off where the cart holds, accelerating at 0.2 m/s^2 for 0.5 s
-        s = t - start
-        return [(held + 5e-4 + 0.1 * s * s, 0.2)] if s < 0.5 else [(held + 5e-4 + 0.025 + 0.1 * (s - 0.5), 0.0)]
+    def move(t):  # a new stream 0.5 mm off where the cart holds: held 0.1 s, then 0.2 m/s^2 for 0.5 s
+        k = round((t - start) / DT) - 100  # the motion's step (1 ms each), negative while held
+        s = max(k, 0) * DT
+        return [(held + 5e-4 + 0.1 * s * s, 0.2 if k >= 0 else 0.0)] if k < 500 else \
+            [(held + 5e-4 + 0.025 + 0.1 * (s - 0.5), 0.0)]
 
+    offered = len(rig.offers)
     rig.run(start + 1.0, move)
     assert [c.new for c in rig.changes[-1:]] == [S.TRACKING] and controller.fault is None
-    assert rig.offers[0] is Offer.START and rig.offers[-1] is Offer.ACCEPT
+    # its first sample: whether the stream rests there, the second tells (and the first is not counted)
+    assert rig.offers[offered:offered + 2] == [Offer.REFUSE, Offer.START] and rig.offers[-1] is Offer.ACCEPT
+    assert controller.refused == 0
     # from rest where it held: the new stream's accelerations, played DELAY later
     ref = controller.references[0]
     assert ref.velocity == pytest.approx(0.1, abs=1e-9)
-    assert ref.position == pytest.approx(held + 0.025 + 0.1 * (1.0 - DELAY - 0.5), abs=1e-9)
+    assert ref.position == pytest.approx(held + 0.025 + 0.1 * (1.0 - DELAY - 0.1 - 0.5), abs=1e-9)
+
+
+def test_a_stream_in_motion_passing_where_the_axes_hold_is_refused():
+    """Taken where it passes the held position, a moving stream would step the reference's velocity from 0 to
+    its own: it is refused, and said to be moving, all the way through the tolerance."""
+    rig = lost_stream()
+    controller = rig.controller
+    held = controller.fault.stops[0]
+    start, before = rig.t, rig.at(rig.t)
+    rig.run(start + 0.2, lambda t: [(held - 0.01 + 0.1 * (t - start), 0.0)])  # 0.1 m/s, at held after 0.1 s
+    assert controller.state is S.FAULT_HOLD and set(rig.offers[-200:]) == {Offer.REFUSE}
+    assert controller.refused == 200 and not controller.last_refusal.moving  # (10 mm past it now)
+    assert rig.at(rig.t)[0] == pytest.approx(before[0], abs=1e-12)  # it did not move the cart
+    controller.offer([held + 2e-4], rig.t)
+    assert controller.offer([held + 3e-4], rig.t) is Offer.REFUSE and controller.last_refusal.moving
+    assert controller.offer([held + 3e-4], rig.t) is Offer.START  # at rest there: a stream from rest
 
 
 def test_reset_clears_a_fault_and_waits_for_a_first_reference():
@@ -258,7 +279,8 @@ def test_both_axes_brake_and_hold_once_both_are_at_rest():
     held = fault.stops
     assert rig.controller.offer([held[0], held[1] + 2e-3], rig.t) is Offer.REFUSE
     assert rig.controller.last_refusal.offsets == pytest.approx((0.0, 2e-3), abs=1e-12)
-    assert rig.controller.offer([held[0] - 1e-4, held[1] + 1e-4], rig.t) is Offer.START
+    assert rig.controller.offer([held[0] - 1e-4, held[1] + 1e-4], rig.t) is Offer.REFUSE  # (moved: 2 mm)
+    assert rig.controller.offer([held[0] - 1e-4, held[1] + 1e-4], rig.t) is Offer.START  # at rest there
 
 
 def test_with_positions_only_the_playout_has_held_the_last_one_so_it_holds_there_at_once():
@@ -277,6 +299,7 @@ def test_with_positions_only_the_playout_has_held_the_last_one_so_it_holds_there
     last = positions(1.499)[0][0]
     assert rig.controller.fault.stops[0] == pytest.approx(last, abs=1e-9)
     assert rig.at(rig.t)[0] == pytest.approx(last, abs=1e-9)
+    assert rig.controller.offer([last], rig.t) is Offer.REFUSE  # the first: is it at rest there?
     assert rig.controller.offer([last], rig.t) is Offer.START
 
 

@@ -17,8 +17,11 @@ follows the reference accelerations it returns, as always. Its states
   acceleration then to rest along ``crane_msgs_py.braking.Braking`` at
   ``FaultConfig.deceleration`` and ``jerk``. Samples are refused meanwhile.
 - ``FAULT_HOLD``: braked to rest, holding. A sample whose position is within
-  ``resume_tolerance`` of every axis's held position resumes tracking (a
-  stream that starts where the axes stand); any other is refused and counted.
+  ``resume_tolerance`` of every axis's held position, at rest (within
+  ``STILL`` of the sample offered before it, as a streamer's hold is),
+  resumes tracking: a stream that starts where the axes stand. Any other is
+  refused and counted; a stream in motion that passes where the axes hold
+  too, since taking it would step the reference's velocity.
 
 ``TRANSITIONS`` lists the legal changes; any other raises
 ``IllegalTransition``. Every change is kept in ``changes`` (the node reports
@@ -162,14 +165,21 @@ class Status:
     message: str
 
 
+#: How far (m) a sample held at may be from the one before it, per axis, for the stream to be at rest there
+#: (a streamer holding sends the same position every tick; at 1 kHz this is 1 mm/s).
+STILL = 1e-6
+
+
 @dataclass(frozen=True)
 class Refusal:
     """A sample refused at ``time`` (s of plant time) in ``state``: how far (m) each axis's position is from
-    where that axis holds (or will, while stopping)."""
+    where that axis holds (or will, while stopping); ``moving``: within ``resume_tolerance`` of it, but not at
+    rest there."""
 
     time: float
     state: AxisState
     offsets: tuple[float, ...]
+    moving: bool = False
 
 
 class AxisController:
@@ -196,6 +206,7 @@ class AxisController:
         self.changes: deque[Change] = deque()  # the changes the caller has not taken yet
         self._previous: tuple | None = None  # the last sample played since the state changed (``played``)
         self._gap = ''  # why the stream counts as lost at the next step, if samples went missing mid-motion
+        self._offered: tuple | None = None  # the positions last offered during a fault reaction
 
     def _check(self, positions) -> tuple[float, ...]:
         positions = tuple(float(p) for p in positions)
@@ -208,6 +219,7 @@ class AxisController:
         self.changes.append(Change(float(t), self.state, new))
         self.state = new
         self._previous, self._gap = None, ''  # a new stream's samples, or none played
+        self._offered = None
 
     # -- what the loop calls ------------------------------------------------------------------
 
@@ -228,13 +240,20 @@ class AxisController:
         if self.state is S.IDLE:  # the first reference: a stream from rest, wherever it starts
             self._change(S.TRACKING, t)
             return Offer.START
-        offsets = tuple(float(p) - ref.stop for p, ref in zip(positions, self.references))
+        positions = tuple(float(p) for p in positions)
+        before, self._offered = self._offered, positions
+        offsets = tuple(p - ref.stop for p, ref in zip(positions, self.references))
+        moving = False
         if self.state is S.FAULT_HOLD and all(abs(d) <= self.config.resume_tolerance for d in offsets):
-            self._change(S.TRACKING, t)  # the references rest where they hold: the new stream starts there
-            self.fault = None
-            return Offer.START
+            if before is not None and all(abs(p - q) <= STILL for p, q in zip(positions, before)):
+                self._change(S.TRACKING, t)  # the references rest where they hold: the new stream starts there
+                self.fault = None
+                return Offer.START
+            if before is None:  # the first sample since the braking: whether it rests there, the next tells
+                return Offer.REFUSE
+            moving = True
         self.refused += 1
-        self.last_refusal = Refusal(float(t), self.state, offsets)
+        self.last_refusal = Refusal(float(t), self.state, offsets, moving)
         return Offer.REFUSE
 
     def played(self, sample: tuple, stamped: bool = True) -> None:

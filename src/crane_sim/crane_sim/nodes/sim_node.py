@@ -524,10 +524,12 @@ class SimNode(Node):
         new, self._refused_reported = refused - self._refused_reported, refused
         where = 'hold' if refusal.state is AxisState.FAULT_HOLD else 'will stop (still braking)'
         offsets = ', '.join(f'{name} {d * 1e3:+.3f} mm' for name, d in zip(controller.axes, refusal.offsets))
+        newest = (f'is where the axes hold ({offsets}) but moving' if refusal.moving else
+                  f'is off where the axes {where} by {offsets} '
+                  f'(resume_tolerance {controller.config.resume_tolerance * 1e3:g} mm)')
         self.get_logger().warn(
-            f'{new} reference(s) refused after the reference stream was lost: the newest is off where the axes '
-            f'{where} by {offsets} (resume_tolerance {controller.config.resume_tolerance * 1e3:g} mm); '
-            'a stream resumes only from where the axes stand (or after ~/reset)')
+            f'{new} reference(s) refused after the reference stream was lost: the newest {newest}; '
+            'a stream resumes only at rest where the axes stand (or after ~/reset)')
 
     def _report_made_up(self, made_up: int):
         """A warning (at most once a report) when references came after the steps that needed them had run:
