@@ -83,7 +83,7 @@ class Offer(enum.Enum):
 
     ACCEPT = 'accept'  # tracking: give it to the playouts
     START = 'start'    # a stream starts (first one, or the resume after a fault): reset the playouts, then give it
-    REFUSE = 'refuse'  # a fault reaction is on and it does not start where the axes stand: drop it
+    REFUSE = 'refuse'  # a fault reaction is on and it is not a stream at rest where the axes stand: drop it
 
 
 @dataclass(frozen=True)
@@ -352,4 +352,4 @@ class AxisController:
         axes = ', '.join(f'{name} at {s:.6g} m' for name, s in zip(self.axes, fault.stops))
         return Status(S.FAULT_HOLD, fault.stops,
                       f'{lost}: stopped at {clock(fault.stopped_at):.3f} s, holding {axes}; resumes from a '
-                      f'reference starting within {config.resume_tolerance:g} m of there')
+                      f'reference at rest within {config.resume_tolerance:g} m of there')

@@ -22,8 +22,8 @@ consecutive stamps (nothing to configure, and a lost sample only lengthens
 an interval); and ``missing`` samples, counted from the longer intervals
 (one of n periods misses n - 1).
 
-A single sample lost (``MAX_BRIDGED``; an Ethernet-like link drops single
-frames) is bridged, as a drive tolerates a missed cycle of its cyclic
+A single sample lost (``MAX_BRIDGED``; an Ethernet-like link drops frames
+independently, mostly one at a time) is bridged, as a drive tolerates a missed cycle of its cyclic
 setpoints: the interval is filled with a sample on the sender's grid,
 interpolated between the samples on either side (``bridge``), and counted
 ``bridged``. Held across the gap instead, the acceleration before it would
@@ -61,8 +61,9 @@ COUNTS = ('received', 'accepted', 'nonfinite', 'stale', 'out_of_order', 'malform
 
 #: The most samples lost in a row that the intake bridges. One lost sample bridged errs, in the reference's
 #: velocity, by at most |jump of the jerk| * period^2 / 2 (a corner of the acceleration at the lost sample;
-#: nothing where the jerk is constant): 4.9 mm/s at ZVD's sharpest corner (1e4 m/s^3) at 1 kHz, within what
-#: the controller tolerates across a gap held (``playout.MAX_VELOCITY_ERROR``). Two in a row can err twice
+#: nothing where the jerk is constant): 5.1 mm/s at the corners of ZVD's base motion at its lower time bound
+#: (1.03e4 m/s^3) at 1 kHz, about what the controller tolerates across a gap held
+#: (``playout.MAX_VELOCITY_ERROR``), and micrometres per second for smooth plans. Two in a row can err twice
 #: that, which no estimate from the samples at hand bounds: they are left to the controller's judgement.
 MAX_BRIDGED = 1
 
@@ -88,7 +89,6 @@ def bridge(before: tuple, after: tuple, n: int) -> list[tuple]:
                        (1.0 - s) * a0 + s * a1]
         samples.append((t0 + round(i * (t1 - t0) / (n + 1)), *values))
     return samples
-
 
 
 class ReferenceIntake:

@@ -16,7 +16,7 @@ controller (``axis_controller.AxisController``): it passes the playouts'
 reference on while it tracks, and when the stream is lost (the playouts'
 ``reference_timeout``) it brakes every axis's reference to rest along the
 fault reaction's ramp (``fault_deceleration``, ``fault_jerk``) and holds
-until a stream starts where the axes stand; its state goes to
+until a stream at rest where the axes stand; its state goes to
 ``axis_status`` (crane_interfaces/AxisStatus) and ``/diagnostics``. The loop
 alone touches the simulator and the controller, so parameter changes and
 resets are handed over too. The executor (an EventsExecutor) serves the
@@ -121,7 +121,7 @@ PARAMETERS = {
                            'while running (the next fault uses it)', float_range(1e-3, 100.0)),
     'fault_jerk': (5.0, 'fault reaction: the jerk limit (m/s^3) of its braking ramp; may change while running',
                    float_range(1e-3, 1e4)),
-    'resume_tolerance': (1e-3, 'after a fault the axes resume only from a reference that starts where they '
+    'resume_tolerance': (1e-3, 'after a fault the axes resume only from a reference at rest where they '
                          'stand: within this distance (m) of each held position; others are refused and counted '
                          '(refused_after_fault)', float_range(1e-9, 1.0)),
     'playout_delay': (0.2, 'the plant runs this far (s) behind the clock and applies each reference at its '
@@ -517,7 +517,7 @@ class SimNode(Node):
 
     def _report_refusals(self, controller: AxisController):
         """A warning (at most once a report) when references were refused since the last: how far the newest
-        starts from where the axes hold."""
+        is from where the axes hold, or that it moves there."""
         refused, refusal = controller.refused, controller.last_refusal
         if refused <= self._refused_reported or refusal is None:
             return
