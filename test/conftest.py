@@ -5,6 +5,15 @@ from pathlib import Path
 import pytest
 
 ROS_TESTS = Path(__file__).resolve().parent / 'ros'
+#: Modules of test/ros/ that start ROS processes but time nothing real-time: they check files, parameters,
+#: messages and exit statuses, with hang guards only. ``make test`` runs them beside the real-time ROS tests,
+#: at the pure tests' niceness, instead of after them (``pytest_xdist_make_scheduler``).
+UNTIMED_ROS_MODULES = ('test_workspace.py', 'test_params_files.py', 'test_interfaces.py', 'test_demo_failures.py')
+
+
+def untimed(path: str) -> bool:
+    """Whether a test's file path (a nodeid or an item's path) is one of ``UNTIMED_ROS_MODULES``."""
+    return Path(str(path).split('::', 1)[0]).name in UNTIMED_ROS_MODULES
 
 # The NLPs' derivatives are not compiled in the background (``planning.compiled``) in the tests or the nodes
 # they start: a solver that swaps them in mid-test would give plans that differ in the last bits from an
@@ -65,18 +74,19 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
-    """``make test`` runs ``pytest -n 2 --dist loadgroup``: every test under test/ros/ in one unit, in order on
-    one worker (one node set at a time: two on 2 cores starve each other's 1 kHz threads), the pure tests on
-    the other meanwhile, a module at a time (split between the workers, a module-scoped fixture would be
-    computed on both). (xdist's own ``xdist_group`` marks do nothing under pytest 9: the group it appends to
-    a test's nodeid no longer reaches the scheduler.)"""
+    """``make test`` runs ``pytest -n 2 --dist loadgroup``: every real-time test under test/ros/ in one unit, in
+    order on one worker (one node set at a time: two on 2 cores starve each other's 1 kHz threads), the pure
+    tests and the ``UNTIMED_ROS_MODULES`` on the other meanwhile, a module at a time (split between the workers,
+    a module-scoped fixture would be computed on both). (xdist's own ``xdist_group`` marks do nothing under
+    pytest 9: the group it appends to a test's nodeid no longer reaches the scheduler.)"""
     if config.getvalue('dist') != 'loadgroup':
         return None
     from xdist.scheduler import LoadScopeScheduling
 
     class RosTestsTogether(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
-            return 'ros' if nodeid.startswith('test/ros/') else nodeid.split('::', 1)[0]
+            module = nodeid.split('::', 1)[0]
+            return 'ros' if module.startswith('test/ros/') and not untimed(module) else module
 
     return RosTestsTogether(config, log)
 
@@ -88,10 +98,11 @@ PURE_NICENESS = 10
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
-    """Pure tests at ``PURE_NICENESS``, ROS tests at the usual priority (of this thread, which the node
-    subprocesses and solver processes a test starts inherit)."""
+    """Pure and untimed ROS tests at ``PURE_NICENESS``, real-time ROS tests at the usual priority (of this
+    thread, which the node subprocesses and solver processes a test starts inherit)."""
     import os
+    realtime = item.get_closest_marker('ros') and not untimed(item.nodeid)
     try:
-        os.setpriority(os.PRIO_PROCESS, 0, 0 if item.get_closest_marker('ros') else PURE_NICENESS)
+        os.setpriority(os.PRIO_PROCESS, 0, 0 if realtime else PURE_NICENESS)
     except OSError:  # lowering it again needs CAP_SYS_NICE: an unprivileged run keeps the pure tests' value
         pass

@@ -23,7 +23,7 @@ from crane_planner.planning.shapers import design
 NS = '/crane_it'
 D = 0.3              # m, the paper's displacement
 SETTLE = 2.0         # s observed after each motion: more than the slow mode's 1.73 s period
-LEAD = 1.0           # s between a request and the motion start (room for a busy machine)
+LEAD = 1.0           # s between the example client's request and its motion start
 NOMINAL = CraneParams()
 
 
@@ -147,16 +147,15 @@ class Crane:
         return pub
 
     def move(self, method: str, goal: float, duration: float):
-        """Execute hold -> goal through ~/execute_move starting LEAD s from now, watched for SETTLE s after
-        its end; the served plan (its knots) and the stamps the motion starts and ends.
+        """Execute hold -> goal through ~/execute_move starting the harness's ``lead()`` from now, watched for
+        SETTLE s after its end; the served plan (its knots) and the stamps the motion starts and ends.
 
         A trajectory reaching the streamer after its start stamp (a busy
         machine) is streamed whole from the next tick: the stamps follow that.
         The goal's result is ``self.driver.move_result(start)``.
         """
         from crane_msgs_py.conversions import joint_trajectory_to_arrays, stamp_ns
-        start_ns, _, traj = self.driver.move(method, self.hold, goal, duration, self.now() + round(LEAD * 1e9),
-                                             settle=SETTLE)
+        start_ns, _, traj = self.driver.move(method, self.hold, goal, duration, settle=SETTLE)
         t, p, v, a = joint_trajectory_to_arrays(traj)
         plan = SimpleNamespace(t=t, position=p, velocity=v, acceleration=a, start_ns=stamp_ns(traj.header.stamp),
                                trajectory=traj)
