@@ -22,7 +22,7 @@ from crane_planner.planning.shapers import design
 
 NS = '/crane_it'
 D = 0.3              # m, the paper's displacement
-SETTLE = 2.0         # s observed after each motion: more than the slow mode's 1.73 s period
+SETTLE = 1.0         # s observed after each motion: more than half the slow mode's 1.73 s period, so its peak shows
 LEAD = 1.0           # s between the example client's request and its motion start
 NOMINAL = CraneParams()
 
