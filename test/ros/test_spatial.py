@@ -5,6 +5,8 @@ The planner, streamer and sim run with the joints [cart, bridge] in one namespac
 theta2, phi1, phi2: the norm of the load's horizontal offset, independent of the planner's model) and the
 streamed reference from the 1 kHz ``reference`` topic.
 """
+import signal
+
 import numpy as np
 import pytest
 
@@ -33,7 +35,7 @@ def crane(bridge_nodes):
     driver = bridge_nodes
     driver.keep_references(False)
     driver.call_streamer('start')
-    driver.home(lambda: driver.move('zv', None, 0.0, 2.0, settle=0.05, bridge=(None, 0.0))[0],  # (no solver)
+    driver.home(lambda: driver.move('zv', None, 0.0, 1.5, settle=0.05, bridge=(None, 0.0))[0],  # (no solver)
                 lambda last: abs(last[3]) <= 1e-6 and abs(last[4]) <= 1e-6)
 
 
@@ -156,11 +158,13 @@ def test_a_recorded_diagonal_move_is_reported_with_the_spatial_swing_and_identif
     from crane_plan_cli import crane_plan
     driver = crane
     bag = tmp_path / 'bag'
-    recorder = driver.run_tool('crane-record', '--namespace', NS, '--out', str(bag), '--duration', '9')
+    recorder = driver.run_tool('crane-record', '--namespace', NS, '--out', str(bag), '--duration', '60')
     said, reader = recording(recorder)  # (a fixed wait was once too short: the recording began after the move)
     start_ns, _, _ = driver.move('zv', 0.0, 0.3, T, settle=SETTLE, bridge=(0.0, 0.2))
     end_ns = start_ns + round(T * 1e9)
     residual = swing_mm(record(driver, end_ns, end_ns + round(SETTLE * 1e9))).max()
+    driver.sleep(0.5)  # past the window (with a 50 Hz sample after it), then the recording is ended as Ctrl-C does
+    recorder.send_signal(signal.SIGINT)
     code = recorder.wait(timeout=30.0)
     reader.join(5.0)  # (its last lines, for the message)
     assert code == 0, ''.join(said)
