@@ -19,7 +19,7 @@ from ..planning import dispatch
 from ..planning.dispatch import PlanOptions, VariationalRequest, variational_solver
 from ..planning.plan import Plan, PlanError
 from .pool import SolverPool
-from .workers import Death, SolverProcess, WorkerDied, WorkerLate, solver_settings, start_fork_server
+from .workers import Death, SolverProcess, WorkerDied, solver_settings, start_fork_server
 
 #: The axis limits of the warm-ups that build the limited NLPs of a configuration without limits
 #: (``Planner.toggled_limits``): a rest-to-rest plan they leave unbounded, and a fastest plan.
@@ -307,7 +307,8 @@ class Planner:
             return self._solve(request, worker, due)
         except WorkerDied as again:
             raise self._refused(again.death, f'it was re-running a request after {death}') from None
-        except WorkerLate as exc:  # the time the dead one took was missing
+        except PlanError as exc:  # late (the time the dead one took was missing), or its own refusal: either way
+            # the caller is told the answer is a re-run's
             raise PlanError(f'{death} while solving; its re-run on solver process {worker.pid}: {exc}') from None
 
     def _refused(self, death: Death, reason: str) -> PlanError:
