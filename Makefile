@@ -38,7 +38,8 @@ UV_VERSION := 0.13.9
 $(DEPS): requirements.txt | $(PY)
 ifeq ($(INSTALLER),uv)
 	$(PY) -m pip install --quiet --disable-pip-version-check uv==$(UV_VERSION)
-	$(VENV)/bin/uv pip install --quiet --link-mode copy --compile-bytecode --python $(PY) -r requirements.txt
+	$(VENV)/bin/uv pip install --quiet --link-mode copy --compile-bytecode --python $(PY) \
+	    -r requirements.txt
 else
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt
 endif
@@ -85,10 +86,12 @@ $(IFACES): $(DEPS) devtools/patch_ros_cmake.py $(IFACE_FILES)
 	touch $@
 
 # The bytecode of this repository's packages (editable: imported from src/) and of the interface package, as
-# for the dependencies above; an edited module is compiled again where it is imported, its .pyc only unused.
+# for the dependencies above (and theirs again, for a venv made before they were compiled at install: up-to-date
+# files are skipped); an edited module is compiled again where it is imported, its .pyc only unused.
 PYC := $(VENV)/.pyc-compiled
 $(PYC): $(PKGS) $(IFACES) $(shell find src -name '*.py')
-	$(PY) -m compileall -q -j 2 src $(ROS_WS)/install > /dev/null
+	$(PY) -m compileall -q -j 2 src $(ROS_WS)/install \
+	    $$($(PY) -c 'import sysconfig; print(sysconfig.get_path("purelib"))')
 	touch $@
 
 install: $(PKGS) $(IFACES) $(PYC)
@@ -99,12 +102,13 @@ demo: install
 	$(VENV)/bin/crane-demo --out $(OUT)
 
 # The linter first: a finding fails the suite before any test runs (ruff.toml says which rules).
-# Two workers: one runs the ROS tests in order (one node set at a time, real time, mostly waiting),
-# the other the pure tests meanwhile, at a lower CPU priority (test/conftest.py).
+# Two workers: one runs the real-time ROS tests in order (one node set at a time, real time, mostly waiting),
+# the other the pure tests and the ROS tests that time nothing meanwhile, at a lower CPU priority
+# (test/conftest.py).
 test: lint
 	$(PY) -m pytest -q -n 2 --dist loadgroup test
 
-# Every test that starts no ROS node (pytest marker ros, see test/conftest.py): about 8 minutes on 2 cores.
+# Every test that starts no ROS node (pytest marker ros, see test/conftest.py): about 7 minutes on 2 cores.
 test-pure: install
 	$(PY) -m pytest -q -m "not ros" test
 

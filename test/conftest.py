@@ -70,7 +70,9 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if 'ros_domain' in item.fixturenames or ROS_TESTS in Path(item.fspath).parents:
             item.add_marker(pytest.mark.ros)
-    items.sort(key=lambda item: item.get_closest_marker('ros') is None)
+    # (the untimed ROS modules after the real-time ones: a process that has raised its niceness for them may not
+    # be allowed to lower it again)
+    items.sort(key=lambda item: (item.get_closest_marker('ros') is None, untimed(item.nodeid)))
 
 
 @pytest.hookimpl(optionalhook=True)

@@ -1,4 +1,5 @@
-"""crane-demo end to end over real nodes: its measurements agree with crane-plan, and it fails loudly."""
+"""crane-demo end to end over real nodes: its measurements agree with crane-plan (its failures:
+test_demo_failures.py)."""
 import json
 import subprocess
 import sys

@@ -18,10 +18,7 @@ def crane(operator_crane):
     yield operator_crane
     driver = operator_crane
     driver.call_streamer('start')
-    # a stick a failed test left moving the crane brings it to rest (cmd_timeout, braking, the shaper: 2.3 s)
-    for _ in range(20):
-        if np.ptp(record(driver, 0.5)[:, 3]) < 1e-6:
-            break
+    driver.wait_until_still()  # a stick a failed test left moving: cmd_timeout, braking and the shaper, 2.3 s
     driver.set_parameters('streamer', {'mode': 'operator', 'operator_shaper': 'zv'})
     driver.reset_sim()
 

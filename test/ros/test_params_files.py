@@ -75,7 +75,7 @@ def test_each_node_starts_from_its_file_and_reports_the_files_values(ros_domain,
         with NodeGroup(ros_domain, tmp_path / 'logs') as nodes:
             nodes.start(package, name, namespace='/files', params_file=path)
             client = AsyncParameterClient(probe, node)
-            deadline = time.monotonic() + 300.0
+            deadline = time.monotonic() + 180.0
             while not client.wait_for_services(0.2):
                 nodes.check_alive()
                 assert time.monotonic() < deadline, f'{node} parameter services never appeared'
@@ -115,12 +115,12 @@ def test_the_params_file_sets_the_planner_nodes_model(ros_domain, tmp_path):
             nodes.start(*PLANNER, namespace='/cell_7', params={'solver_processes': 1},
                         params_file=tmp_path / 'crane.yaml')
             client = AsyncParameterClient(node, 'crane_planner')
-            deadline = time.monotonic() + 300.0
+            deadline = time.monotonic() + 180.0
             while not client.wait_for_services(0.2):
                 nodes.check_alive()
                 assert time.monotonic() < deadline, 'planner parameter services never appeared'
             future = client.get_parameters(['L1', 'L2', 'm1', 'm2', 'c1', 'c2', 'tau'])
-            rclpy.spin_until_future_complete(node, future, timeout_sec=300.0)
+            rclpy.spin_until_future_complete(node, future, timeout_sec=180.0)
             values = {name: v.double_value for name, v in zip(['L1', 'L2', 'm1', 'm2', 'c1', 'c2', 'tau'],
                                                                future.result().values)}
     finally:

@@ -122,11 +122,7 @@ def test_a_diagonal_stick_released_leaves_no_swing(crane):
         residual = swing_mm(rec)[t > (released - begin) * 1e-9 + 2.5].max()
         assert swing_mm(rec).max() > 5.0 and residual < 2.0, residual
     finally:  # the stick played out, at rest (one a failed test left moving: braking and the shaper, 2.3 s)
-        for _ in range(20):
-            begin = driver.now_ns()
-            still = record(driver, begin, begin + 500_000_000)
-            if np.ptp(still['cart']) < 1e-6 and np.ptp(still['bridge']) < 1e-6:
-                break
+        driver.wait_until_still(('cart', 'bridge'))
         driver.set_parameters('streamer', {'mode': 'trajectory'})
 
 

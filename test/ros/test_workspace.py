@@ -66,7 +66,7 @@ def colcon_install(tmp_path_factory):
     r = subprocess.run([str(colcon), '--log-base', str(base / 'log'), 'build', '--base-paths', str(ROOT / 'src'),
                         '--packages-skip', *INTERFACE_PACKAGES,
                         '--build-base', str(base / 'build'), '--install-base', str(base / 'install')],
-                       cwd=base, env=env, capture_output=True, text=True, timeout=900)
+                       cwd=base, env=env, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr
     return base / 'install'
 
@@ -182,11 +182,11 @@ def test_colcon_installed_node_starts_and_answers(colcon_install, ros_domain, tm
     try:
         srv_type = PlanMove if exe == 'planner' else Trigger
         client = node.create_client(srv_type, ANSWERING_SERVICE[exe])
-        assert client.wait_for_service(timeout_sec=300.0), (tmp_path / f'{exe}.log').read_text()
+        assert client.wait_for_service(timeout_sec=180.0), (tmp_path / f'{exe}.log').read_text()
         if exe in ('sim', 'planner'):  # a real answer, not just an advertisement
             preview = PlanMove.Request(move=move_message([0.3], 3.0, [0.0], 'zv'))
             future = client.call_async(Trigger.Request() if exe == 'sim' else preview)
-            rclpy.spin_until_future_complete(node, future, timeout_sec=300.0)
+            rclpy.spin_until_future_complete(node, future, timeout_sec=180.0)
             assert future.done() and future.result().success
         assert proc.poll() is None
     finally:

@@ -102,8 +102,9 @@ def test_a_request_finding_every_worker_busy_waits_for_one_and_nothing_is_built_
 def test_a_request_whose_answer_is_due_before_a_worker_frees_up_is_refused_naming_solver_processes(planner):
     # both workers held by this test, not by requests that might end early: none frees up before
     # the answer is due, whatever the host does to this thread's timing
-    held = [planner._processes.take(10.0) for _ in range(2)]
+    held = []
     try:
+        held += [planner._processes.take(10.0) for _ in range(2)]
         with pytest.raises(PlanError, match='raise solver_processes') as refusal:
             planner.plan('nvf', 0.3, 3.0, MODEL, dataclasses.replace(OPTIONS, max_solve_time=0.1))
         assert not isinstance(refusal.value, WorkerLate)  # refused before any worker was given it

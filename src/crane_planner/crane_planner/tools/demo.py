@@ -598,31 +598,25 @@ def run_sweep(args) -> Path | None:
     return path
 
 
-def start_recorder(args, env: dict, log_dir: Path):
-    """``crane-record`` of the demo's topics into ``--record`` (default OUT/recording), as a process: started
-    with the nodes, it subscribes as their publishers appear (``wait_recording`` waits until it records)."""
+def start_recorder(args, env: dict, log_dir: Path, nodes: NodeGroup):
+    """``crane-record`` of the demo's topics into ``--record`` (default OUT/recording), as a process."""
     import shutil
     bag = Path(args.record or Path(args.out) / 'recording')
     if bag.exists() and args.record is None:
         shutil.rmtree(bag)  # the demo's own recording of an earlier run
     log = open(log_dir / 'crane-record.log', 'w')
     proc = subprocess.Popen([find_executable('crane_planner', 'crane-record'), '--namespace', args.namespace,
-                             '--out', str(bag), '--wait', str(args.startup_timeout)],
-                            env={**env, DIE_WITH_PARENT: '1'}, stdout=log, stderr=subprocess.STDOUT,
-                            start_new_session=True)
+                             '--out', str(bag)], env={**env, DIE_WITH_PARENT: '1'}, stdout=log,
+                            stderr=subprocess.STDOUT, start_new_session=True)
     proc.bag, proc.log_path = bag, log_dir / 'crane-record.log'
-    return proc
-
-
-def wait_recording(proc, nodes: NodeGroup, timeout: float) -> None:
-    """Wait until ``crane-record`` says it records; HarnessError if it ended or did not within ``timeout`` s."""
-    deadline = time.monotonic() + timeout
+    deadline = time.monotonic() + 30.0
     while 'recording' not in proc.log_path.read_text():
         nodes.check_alive()  # a node that dies meanwhile is the error to report, not the recorder
         if proc.poll() is not None or time.monotonic() > deadline:
             raise HarnessError(f'crane-record did not start: {proc.log_path.read_text().strip()[-300:]}')
         time.sleep(0.1)
-    progress(f'recording into {proc.bag}')
+    progress(f'recording into {bag}')
+    return proc
 
 
 def stop_recorder(proc) -> Path:
@@ -672,13 +666,10 @@ def _run(args, env: dict, t_start: float) -> int:
             with NodeGroup(env, log_dir / ('hoist' if hoisting else 'cart')) as nodes:
                 streamer = {} if hoisting else {'timing_log': str(timing_log)}  # the paper's stream's timing
                 start_crane_nodes(nodes, args.namespace, streamer_params=streamer, hoist=hoisting)
-                starting = recorder is None and not args.no_record  # one recording of every case
-                if starting:  # (its start-up beside the nodes' own, not after it)
-                    recorder = start_recorder(args, env, log_dir)
                 driver = CraneHarness(args.namespace, nodes, log=progress, node_name='crane_demo')
                 driver.wait_until_up(args.startup_timeout)
-                if starting:
-                    wait_recording(recorder, nodes, args.startup_timeout)
+                if recorder is None and not args.no_record:  # one recording of every case
+                    recorder = start_recorder(args, env, log_dir, nodes)
                 progress(f'nodes up{" with a hoist" if hoisting else ""} in {time.monotonic() - t_start:.1f} s')
                 for case in cases:
                     driver.set_parameters('sim', {name: getattr(case.plant, name) for name in PARAMETER_NAMES})

@@ -201,6 +201,21 @@ class CraneHarness:
             return state is not None and state[1] == HOLDING
         self.wait_until(holding, timeout, f'the streamer did not hold within {timeout:g} s')
 
+    def wait_until_still(self, joints=('cart',), window: float = 0.5, timeout: float = 15.0):
+        """Wait until ``joints`` stand still (within 1 um) over ``window`` s of joint_states (plant time), window
+        after window: after a test that may have left the crane moving (a stick, a brake), instead of a fixed
+        sleep as long as the longest such motion. HarnessError if they still move after ``timeout`` s."""
+        deadline = time.monotonic() + timeout
+        while True:
+            begin = self.now_ns()
+            self.sleep(window)
+            rows = state_columns(self.states_between(begin, begin + round(window * 1e9), timeout=30.0))
+            # (fewer rows than half the window's 50 Hz samples, a lagging plant: judged by the next window)
+            if len(rows['stamp']) >= 25 * window and all(np.ptp(rows[j]) < 1e-6 for j in joints):
+                return
+            if time.monotonic() > deadline:
+                raise HarnessError(f'{", ".join(joints)} still moving {timeout:g} s after the test')
+
     def home(self, move: Callable[[], int], at_home: Callable[[tuple], bool]):
         """Bring the crane home after a test, whatever it left, and reset the sim: once the newest trajectory
         sent has ended and the streamer holds (a motion a failed test left running or queued, or one its goal
