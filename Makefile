@@ -27,10 +27,7 @@ $(PY):
 
 # uv installs requirements.txt in seconds where pip takes over a minute (the same pins; here it resolved every
 # package under them as pip does). It copies from its cache rather than hard-linking, because
-# devtools/patch_ros_cmake.py rewrites files of the venv in place. Both write the packages' bytecode (.pyc)
-# at install time (pip does by default, uv with --compile-bytecode): where PYTHONDONTWRITEBYTECODE is set,
-# as on some CI hosts, no process would cache it, and each would compile rclpy, numpy, scipy and CasADi's
-# Python again (3 s of CPU per node start on 2 cores, where a cached import takes 1.8 s in all). make INSTALLER=pip uses pip alone (for an
+# devtools/patch_ros_cmake.py rewrites files of the venv in place. make INSTALLER=pip uses pip alone (for an
 # index set in pip's configuration, which uv does not read).
 INSTALLER ?= uv
 $(if $(filter uv pip,$(INSTALLER)),,$(error INSTALLER must be uv or pip, not '$(INSTALLER)'))
@@ -38,8 +35,7 @@ UV_VERSION := 0.13.9
 $(DEPS): requirements.txt | $(PY)
 ifeq ($(INSTALLER),uv)
 	$(PY) -m pip install --quiet --disable-pip-version-check uv==$(UV_VERSION)
-	$(VENV)/bin/uv pip install --quiet --link-mode copy --compile-bytecode --python $(PY) \
-	    -r requirements.txt
+	$(VENV)/bin/uv pip install --quiet --link-mode copy --python $(PY) -r requirements.txt
 else
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt
 endif
@@ -85,9 +81,11 @@ $(IFACES): $(DEPS) devtools/patch_ros_cmake.py $(IFACE_FILES)
 	    from crane_interfaces.action import ExecuteMove; serialize_message(ExecuteMove.Feedback())'
 	touch $@
 
-# The bytecode of this repository's packages (editable: imported from src/) and of the interface package, as
-# for the dependencies above (and theirs again, for a venv made before they were compiled at install: up-to-date
-# files are skipped); an edited module is compiled again where it is imported, its .pyc only unused.
+# The bytecode (.pyc) of every package, written once here: where PYTHONDONTWRITEBYTECODE is set, as on some CI
+# hosts, no process caches it, and each would compile rclpy, numpy, scipy and CasADi's Python again (an import
+# of the planner's stack 4.9 s instead of 1.8 s, at every node start). The dependencies (uv writes none; pip's
+# are skipped as up to date), this repository's packages (editable: imported from src/; an edited module is
+# compiled again where it is imported, its .pyc only unused) and the interface package.
 PYC := $(VENV)/.pyc-compiled
 $(PYC): $(PKGS) $(IFACES) $(shell find src -name '*.py')
 	$(PY) -m compileall -q -j 2 src $(ROS_WS)/install \

@@ -207,8 +207,7 @@ class CraneHarness:
         sleep as long as the longest such motion. HarnessError if they still move after ``timeout`` s."""
         deadline = time.monotonic() + timeout
         while True:
-            begin = self.now_ns()
-            self.sleep(window)
+            begin = self.now_ns()  # (states_between waits for the window's end, watching the nodes)
             rows = state_columns(self.states_between(begin, begin + round(window * 1e9), timeout=30.0))
             # (fewer rows than half the window's 50 Hz samples, a lagging plant: judged by the next window)
             if len(rows['stamp']) >= 25 * window and all(np.ptp(rows[j]) < 1e-6 for j in joints):
