@@ -295,11 +295,12 @@ def test_execute_move_is_served_by_the_planner_node_though_waited_for_on_a_threa
 
 
 def test_the_middleware_s_receive_threads_run_just_below_the_threads_they_feed(crane):
-    """A goal or a trajectory reaches the executor only through Fast DDS's receive threads: at SCHED_FIFO one
-    below the planner's goals' thread (handover_priority 40) and two below the streamer's loop (sched_priority
-    50), or at normal priority with a warning where the privilege is missing. Read from /proc, not the nodes."""
+    """A goal, a trajectory or a reference reaches the executor only through Fast DDS's receive threads: at
+    SCHED_FIFO one below the planner's goals' thread (handover_priority 40), two below the streamer's loop
+    (sched_priority 50) and two below the sim's (sched_priority 45), or at normal priority with a warning where
+    the privilege is missing. Read from /proc, not the nodes."""
     import os
-    expected = {'planner': 39, 'streamer': 48}
+    expected = {'planner': 39, 'streamer': 48, 'sim': 43}
     for proc in crane.driver.nodes.processes:
         if proc.name not in expected:
             continue

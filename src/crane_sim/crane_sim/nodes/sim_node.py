@@ -137,9 +137,11 @@ PARAMETERS = {
     'seed': (0, 'seed of the measurement noise; fixed at start-up', {**int_range(0, 2**31 - 1), 'read_only': True}),
     'push_swing': (0.03, '~/push displaces the load this far (m) horizontally, cables in line, and lets go: a '
                          'swing for tests and the demo (the planner\'s ~/settle damps it)', float_range(-1.0, 1.0)),
-    # 0: at SCHED_FIFO beside the streamer's the 1 kHz pair took most of a busy 2-core host from the planner's
-    # solver processes; a stall that holds the receive path back is caught up (_await_samples) instead
-    'sched_priority': (0, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
+    # 45: the sim stands for the axes' drives, whose control loop no other program delays. At normal
+    # scheduling a busy host (one CPU-bound process beside the suite) kept its executor from a core for
+    # hundreds of milliseconds: references came after their playout time, or the receive buffers overflowed
+    # and the stream counted as lost mid-motion. Below the streamer's loop (50), above the planner's goals (40)
+    'sched_priority': (45, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
                        'feeds it one below, the middleware\'s receive threads two below (without the privilege a '
                        'warning and normal scheduling); 0 = normal scheduling: the playout delay absorbs late '
                        'steps, a loop catching up waits for the samples still on their way, and '
