@@ -214,3 +214,30 @@ def test_a_cancel_during_a_handover_retry_sends_nothing_more():
     with pytest.raises(handover.NotSent, match='canceled'):
         policy.run(canceled=lambda: bool(canceled))
     assert send.calls == [(1.0, True)]
+
+
+def test_the_next_handover_of_a_kind_starts_from_a_lead_its_recent_planning_fits():
+    """A kind whose plan took 30 ms of a 10 ms lead: its next handover is planned once, 1.5 times that (and
+    the transport's margin) ahead, with no warning; another kind keeps the lead asked for; a lead asked for
+    that is longer already is kept."""
+    clock, warnings, times = FakeClock(T0), [], handover.PlanningTimes()
+    make, asked = planner(clock, [0.030, 0.030, 0.030, 0.002])
+    plan(clock, motion(), 0.010, make, warn=warnings.append, times=times, kind='spatial nvf')
+    assert len(asked) == 2 and len(warnings) == 1  # the first time: planned again further ahead
+    fitted = 1.5 * 0.030 + handover.TRANSPORT_MARGIN
+    done = plan(clock, motion(), 0.010, make, warn=warnings.append, times=times, kind='spatial nvf')
+    assert len(asked) == 3 and len(warnings) == 1
+    assert (asked[2][1] - asked[2][0]) * 1e-9 == pytest.approx(fitted) and done.lead == pytest.approx(fitted)
+    other = plan(clock, motion(), 0.010, make, times=times, kind='cart nvf')
+    assert (asked[3][1] - asked[3][0]) * 1e-9 == pytest.approx(0.010) and other.lead == pytest.approx(0.010)
+    assert times.lead('spatial nvf', 0.5) == 0.5
+
+
+def test_planning_times_keep_the_latest_few_of_each_kind():
+    times = handover.PlanningTimes(kept=2)
+    assert times.lead('a', 0.042) == 0.042  # nothing recorded
+    for took in (0.2, 0.05, 0.04):
+        times.record('a', took)
+    assert times.lead('a', 0.042) == pytest.approx(1.5 * 0.05 + handover.TRANSPORT_MARGIN)  # 0.2 forgotten
+    times.record('b', 0.001)
+    assert times.lead('b', 0.042) == 0.042  # fast plans never shorten the lead asked for

@@ -106,7 +106,9 @@ PARAMETERS = {
                                'time-optimal profile under the axis limits; needs max_velocity or max_acceleration)',
                     {'additional_constraints': f'one of {", ".join(BASES)}'}),
     'handover_lead': (0.042, 'a new NVF/RVF goal during a motion takes over this long (s) after it arrives, from '
-                            'the state the motion is in then (a plan taking longer is planned again further ahead)',
+                            'the state the motion is in then (a plan taking longer is planned again further ahead, '
+                            'and the next goal of its method and joints starts from a lead its recent planning '
+                            'times fit); a settle plans this far ahead too',
                       parameter_range(0.001, 1.0)),
     'shaper_handover_lead': (0.001, 'the same for a shaper; shorter than its planning and transport on purpose: '
                                     'a change reaching the streamer after its tick starts at the next one, '

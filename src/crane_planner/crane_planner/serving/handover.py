@@ -3,7 +3,8 @@
 A goal during a motion, a stop and a settle each plan from the state the
 running motion will be in at the handover, ``lead`` s from now. Planning
 that takes longer than the lead (less the transport's share) is planned
-again further ahead (``plan_handover``); a handover the streamer did not take
+again further ahead (``plan_handover``), and the next one of its kind starts
+from a lead its recent planning times fit (``PlanningTimes``); a handover the streamer did not take
 all the same (it came late on a busy host) is sent again, four times further
 ahead, or half as far again as its planning needed (``HandoverPolicy``). An
 executed goal is held until ``publish_lead`` before its start (``send_at``);
@@ -13,7 +14,9 @@ run on a fake clock in the tests. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
+import threading
 import time
+from collections import deque
 from dataclasses import dataclass
 from enum import Enum
 from typing import Any, Callable
@@ -37,6 +40,8 @@ HANDOVER_ATTEMPTS = 3
 #: lengthened if planning took longer (a retry shorter than what planning took then would be doomed).
 RETRY_LEAD_SCALE = 4.0
 RETRY_PLANNED_SCALE = 1.5
+#: How many of the latest planning times of each kind of handover ``PlanningTimes`` keeps.
+PLANNING_TIMES_KEPT = 5
 #: A handover counts as not taken once the streamer's clock is this far (ns) past it without taking it.
 NOT_TAKEN_AFTER_NS = 50_000_000
 
@@ -101,15 +106,50 @@ def arrival_lead(lead: float, arrived_ns: int | None, now_ns: int) -> float:
     return max(0.5 * lead, lead - (now_ns - arrived_ns) * 1e-9)
 
 
+class PlanningTimes:
+    """How long the latest handovers of each kind (any hashable: e.g. a stop of the cart and the bridge by
+    NVF) took to plan, so that the next one of that kind is planned far enough ahead at its first attempt.
+
+    A first lead shorter than planning takes only wastes a plan and the time it took: the spatial crane's
+    NVF plans take several times the default ``handover_lead``. The lead ``lead`` gives is the one a retry
+    would take after the slowest of the kind's ``kept`` latest plans (``plan_handover``). Thread-safe.
+    """
+
+    def __init__(self, kept: int = PLANNING_TIMES_KEPT):
+        self._kept = kept
+        self._times: dict = {}
+        self._lock = threading.Lock()
+
+    def record(self, kind, took: float) -> None:
+        """A handover of ``kind`` took ``took`` s to plan (its state and its plan)."""
+        with self._lock:
+            self._times.setdefault(kind, deque(maxlen=self._kept)).append(took)
+
+    def lead(self, kind, lead: float) -> float:
+        """``lead`` (s), or longer where a recent plan of ``kind`` took longer than it leaves time for."""
+        with self._lock:
+            times = self._times.get(kind)
+            return max(lead, _retry_lead(max(times))) if times else lead
+
+
+def _retry_lead(took: float) -> float:
+    """The lead (s) a plan that took ``took`` s needs next time: half as long again, and the transport."""
+    return 1.5 * took + TRANSPORT_MARGIN
+
+
 def plan_handover(clock: Callable[[], int], running: Running, lead: float,
                   make_plan: Callable[[int, MotionState], Plan], state_at: Callable[[int], MotionState],
                   rehearse: bool = False, timer: Callable[[], float] = time.perf_counter,
                   warn: Callable[[str], None] = lambda message: None,
-                  attempts: int = HANDOVER_ATTEMPTS) -> Handover | None:
+                  attempts: int = HANDOVER_ATTEMPTS, times: PlanningTimes | None = None,
+                  kind=None) -> Handover | None:
     """``make_plan(handover_ns, state)`` from the state ``running`` will be in ``lead`` s from now
     (``state_at(handover_ns)``), planned again further ahead if it took longer than that; None if the
     motion ends first. ``rehearse``: planned once, however long it took, for nothing to be sent.
-    MoveError after ``attempts`` plans too slow for their lead."""
+    ``times``: where each plan's time is recorded under ``kind``, and whose recent times of that kind may
+    lengthen the first lead. MoveError after ``attempts`` plans too slow for their lead."""
+    if times is not None:
+        lead = times.lead(kind, lead)
     tried = lead
     for _ in range(attempts):
         handover = max(clock() + round(lead * 1e9), running.origin_ns)
@@ -120,6 +160,8 @@ def plan_handover(clock: Callable[[], int], running: Running, lead: float,
         t1 = timer()
         plan = make_plan(handover, state)
         took = timer() - t0
+        if times is not None:
+            times.record(kind, took)
         # the transport's share of the lead: TRANSPORT_MARGIN, or with a short lead (a shaper's) 40 % of it.
         # A plan ending no earlier than the running motion (a new goal's) may even arrive late: the streamer
         # delays its change to its next tick, up to MAX_HANDOVER_SHIFT (half of it kept for the transport).
@@ -130,7 +172,7 @@ def plan_handover(clock: Callable[[], int], running: Running, lead: float,
             return Handover(plan, handover, state, lead)
         warn(f'handover: planning took {1e3 * took:.1f} ms (the state {1e3 * (t1 - t0):.1f} ms), beyond the '
              f'lead {1e3 * lead:.1f} ms: planning again further ahead')
-        tried, lead = lead, max(2.0 * lead, 1.5 * took + TRANSPORT_MARGIN)
+        tried, lead = lead, max(2.0 * lead, _retry_lead(took))
     raise MoveError('duration', f'planning took longer than the handover lead {attempts} times '
                                 f'(last lead {tried:.3f} s); raise handover_lead')
 

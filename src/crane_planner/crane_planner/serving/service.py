@@ -40,6 +40,7 @@ from .handover import (
     HandoverPolicy,
     HandoverResult,
     NotSent,
+    PlanningTimes,
     Sent,
     Verdict,
     arrival_lead,
@@ -170,6 +171,7 @@ class MoveService:
         self.goals = Goals(clock)
         self.view = CraneView(clock, self.goals, sleep=sleep, monotonic=timer)
         self.handing_over = threading.Lock()  # one handover (goal, stop, settle) planned at a time
+        self.planning_times = PlanningTimes()  # of NVF/RVF handovers, by kind: their first leads
 
     # -- inputs ------------------------------------------------------------------------
 
@@ -454,10 +456,12 @@ class MoveService:
 
     # -- motion from any state: a new goal, a stop, a settle ------------------------------------
 
-    def _handover(self, running: Running, lead: float, make_plan, swing: bool = True, rehearse: bool = False):
+    def _handover(self, running: Running, lead: float, make_plan, swing: bool = True, rehearse: bool = False,
+                  kind=None):
         """``handover.plan_handover`` of ``running`` once its origin is known, one at a time (``rehearse``:
         beside them); the swing there predicted from the newest joint_states (``swing``: not needed by a
-        shaper's change)."""
+        shaper's change). ``kind``: what ``planning_times`` keeps its planning time under, and may lengthen
+        its first lead by; None for a shaper's change, whose short lead is on purpose."""
         if not self.view.origin(running):
             raise MoveError('goal', 'the running motion has not started on the streamer yet (no stream_state '
                                     'of it): a goal during it is accepted once it streams')
@@ -468,7 +472,7 @@ class MoveService:
 
         with contextlib.nullcontext() if rehearse else self.handing_over:
             return plan_handover(self.clock, running, lead, make_plan, state_at, rehearse, self._timer,
-                                 self.log.warn)
+                                 self.log.warn, times=None if kind is None else self.planning_times, kind=kind)
 
     def _preempting(self, move: Move, running: Running, lead_scale: float = 1.0, arrived_ns: int | None = None,
                     rehearse: bool = False) -> HandoverResult:
@@ -507,7 +511,8 @@ class MoveService:
                 return plan
 
             try:
-                done = self._handover(running, lead, make, swing=not shaper, rehearse=rehearse)
+                done = self._handover(running, lead, make, swing=not shaper, rehearse=rehearse,
+                                      kind=None if shaper else ('goal', checked.method, running.joints))
             except MoveError:
                 raise
             except ValueError as exc:
@@ -539,7 +544,7 @@ class MoveService:
             return plan_stop(self.planner.variational, running, handover_ns, config.params, config.options,
                              state=state).plan
 
-        done = self._handover(running, STOP_LEAD, make)
+        done = self._handover(running, STOP_LEAD, make, kind=('stop', running.method, running.joints))
         if done is None:  # the motion ended meanwhile: it is at rest already
             return _where(interp.position[-1] for interp in running.interps)
         plan, handover, state = done.plan, done.handover_ns, done.state
@@ -578,7 +583,7 @@ class MoveService:
             return transitions.settle(self.planner.variational, state, config.params, config.options,
                                       config.settle_method)
 
-        done = self._handover(holding, config.handover_lead, make)
+        done = self._handover(holding, config.handover_lead, make, kind=('settle', config.settle_method, joints))
         trajectory = self._trajectory(done.plan, done.state, joints, done.handover_ns)
         self.goals.set_running(trajectory.running(done.handover_ns, done.plan))
         self._publish(trajectory)

@@ -15,7 +15,7 @@ from typing import Callable
 
 import numpy as np
 import rclpy
-from crane_interfaces.msg import StreamState
+from crane_interfaces.msg import AxisStatus, StreamState
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.experimental import EventsExecutor
@@ -37,6 +37,7 @@ from crane_msgs_py.conversions import (
 from crane_msgs_py.diagnostics import OK, level_of, status_values
 from crane_msgs_py.names import (
     ACTUATED_JOINTS,
+    AXIS_STATUS_TOPIC,
     BRIDGE_JOINT,
     CART_JOINT,
     HOIST_JOINT,
@@ -53,6 +54,7 @@ from crane_msgs_py.names import (
     service_of,
 )
 from crane_msgs_py.qos import (
+    AXIS_STATUS_QOS,
     JOINT_STATES_QOS,
     REFERENCE_EVERY_SAMPLE_QOS,
     STREAM_STATE_QOS,
@@ -153,6 +155,9 @@ class CraneHarness:
         self.node.create_subscription(JointTrajectory, TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS,
                                       callback_group=group)
         self._trajectory_pub = self.node.create_publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
+        self.axis_state = ''  # the sim's newest axis_status state ('idle' until a reference reaches it)
+        self.node.create_subscription(AxisStatus, AXIS_STATUS_TOPIC, self._on_axis_status, AXIS_STATUS_QOS,
+                                      callback_group=group)
         self._reference_sub = None  # (node, spinning, rows) while the 1 kHz reference is kept (keep_references)
         self._spinnings = []  # entered here, left in close()
         for node, executor in ((self._inputs, EventsExecutor()), (self.node, MultiThreadedExecutor(3))):
@@ -166,6 +171,9 @@ class CraneHarness:
         row = (msg.position[names.index(j)] if j in names else math.nan for j in STATE_COLUMNS[1:])
         with self._lock:
             self._states.append((stamp_ns(msg.header.stamp), *row))
+
+    def _on_axis_status(self, msg):
+        self.axis_state = msg.state
 
     def _on_stream_state(self, msg):
         self._stream_state = (self.now_ns(), read_stream_state(msg))
@@ -311,13 +319,17 @@ class CraneHarness:
             time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
 
     def wait_until_up(self, timeout: float):
-        """Wait until every service, parameter client and joint_states is up and the planner has warmed up."""
+        """Wait until every service, parameter client and joint_states is up, the sim tracks the streamer's
+        reference and the planner has warmed up."""
         deadline = time.monotonic() + timeout
         waits = [('planner plan_move and execute_move', lambda: self.planner.wait_for_service(0.1))]
         waits += [(f'{target} parameters', lambda c=client: c.wait_for_services(0.1))
                   for target, client in self._params.items()]
         waits += [('sim reset service', lambda: self._reset.wait_for_service(0.1)),
                   ('joint_states', lambda: bool(self._states)),
+                  # the sim subscribes once it has seen the reference's type: a motion sent before its first
+                  # reference arrives would start without it, and the sim's cart would miss that part
+                  ('the sim tracking the reference stream', lambda: self.axis_state == 'tracking'),
                   # The planner builds its solvers in the background at start-up;
                   # planning before that is done would be slow and late.
                   ('planner warm-up', lambda: self.planner.diagnostics.wait_for(
