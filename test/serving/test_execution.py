@@ -178,3 +178,29 @@ def test_a_streamer_holding_before_the_motions_end_has_dropped_it():
     done.on_stream_state(START + 2996 * 1_000_000, START, 3.0)
     done.on_stream_state(START + 2998 * 1_000_000, START, 3.0, streaming=False)  # its last tick: not dropped
     assert not done.failure
+
+
+def test_the_axes_fault_reaction_in_the_motion_fails_it_once_the_motion_has_streamed():
+    """The sim braked at a gap mid-motion (axis_status fault_stopping stamped then) while the streamer streamed
+    on to the motion's end, holding only after it: nothing was dropped, yet the crane stands elsewhere than the
+    goal. The goal keeps moving until the motion has streamed, then fails naming the fault reaction."""
+    ex = execution()
+    ex.on_stream_state(START + S, START, 3.0)
+    ex.on_axis_status(START + 2 * S, 'fault_stopping', 'reference stream lost at 102 s (samples missing for 1300 ms'
+                                                      ' mid-motion)')
+    assert ex.phase(START + 2 * S) == MOVING  # while it streams, the streamer's drop (or silence) says more
+    ex.on_stream_state(START + 3 * S, START, 3.0)  # streamed to its end: holding
+    assert ex.phase(START + 3 * S) == FAILED
+    assert 'fault reaction (reference stream lost' in ex.failure and 'samples missing for 1300 ms' in ex.failure
+
+
+@pytest.mark.parametrize('stamp', [START - S, START + 6 * S])
+def test_a_fault_reaction_before_the_motion_or_after_its_settle_window_is_not_its_own(stamp):
+    """axis_status is latched (transient local): a fault from before the motion, or after its window, is ignored."""
+    ex = execution()
+    ex.on_axis_status(stamp - S, 'fault_hold', 'an older fault')  # before the motion is known at all: ignored
+    ex.on_stream_state(START + S, START, 3.0)
+    ex.on_axis_status(stamp, 'fault_hold', 'an older fault')
+    ex.on_axis_status(START + S, 'tracking', 'tracking the reference stream')
+    ex.on_stream_state(START + 5 * S, START, 3.0)
+    assert ex.phase(START + 5 * S + S) == DONE and not ex.failure

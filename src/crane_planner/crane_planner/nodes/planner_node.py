@@ -14,7 +14,7 @@ import time
 
 import rclpy
 from crane_interfaces.action import ExecuteMove
-from crane_interfaces.msg import PlanInfo, StreamState
+from crane_interfaces.msg import AxisStatus, PlanInfo, StreamState
 from crane_interfaces.srv import PlanMove
 from rclpy.action import CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -27,11 +27,10 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from crane_msgs_py import conversions, names
+from crane_msgs_py import conversions, names, qos
 from crane_msgs_py.action_server import ActionServer
 from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
 from crane_msgs_py.node_parameters import Guard, declare
-from crane_msgs_py.qos import JOINT_STATES_QOS, MARKERS_QOS, PLAN_MOVE_QOS, STREAM_STATE_QOS, TRAJECTORY_QOS
 from crane_msgs_py.realtime import fix_mmap_threshold, set_threads_fifo
 from crane_msgs_py.runner import run, spinning
 from crane_planner.planning import METHODS, VARIATIONAL_METHODS
@@ -64,8 +63,8 @@ class PlannerNode(Node):
                                                                             **e.values()))
         self._planner.warmups = self._config.warmups()
         service.start_processes(self._planner, self._config, self.get_logger())  # before any request comes
-        self._trajectory = self.create_publisher(JointTrajectory, names.TRAJECTORY_TOPIC, TRAJECTORY_QOS)
-        markers = self.create_publisher(MarkerArray, names.MARKERS_TOPIC, MARKERS_QOS)  # keep-out boxes (1 Hz), route
+        self._trajectory = self.create_publisher(JointTrajectory, names.TRAJECTORY_TOPIC, qos.TRAJECTORY_QOS)
+        markers = self.create_publisher(MarkerArray, names.MARKERS_TOPIC, qos.MARKERS_QOS)  # keep-out boxes, route
         stamp = lambda: self.get_clock().now().nanoseconds  # noqa: E731
         self.create_timer(1.0, lambda: self._config.keep_out and markers.publish(conversions.keep_out_markers(
             [(b.lower, b.upper) for b in self._config.keep_out.boxes], self._config.keep_out.margin,
@@ -74,24 +73,25 @@ class PlannerNode(Node):
             self._planner, lambda: self._config, stamp,
             lambda t: self._trajectory.publish(self._message(t)), self._report, self.get_logger(), draw=lambda
             points, life: markers.publish(conversions.route_markers(points, self._config.frame_id, stamp(), life)))
-        # The two 50 Hz inputs on a node and executor thread of their own: the services' MultiThreadedExecutor costs
-        # far more CPU on them; the EventsExecutor fell behind on them after many requests (goals found no stream).
-        self._inputs, self._inputs_spinning = self._spun('inputs', lambda node: [node.create_subscription(
-            *topic) for topic in ((StreamState, names.STREAM_STATE_TOPIC, self._on_stream_state, STREAM_STATE_QOS),
-                                  (JointState, names.JOINT_STATES_TOPIC, self._on_joint_state, JOINT_STATES_QOS))])
+        # The inputs on a node and executor thread of their own: the services' MultiThreadedExecutor costs far more
+        # CPU on the two at 50 Hz; the EventsExecutor fell behind on them after many requests (goals found no stream).
+        self._inputs, self._inputs_spinning = self._spun('inputs', lambda node: [node.create_subscription(*t) for t in (
+            (StreamState, names.STREAM_STATE_TOPIC, self._on_stream_state, qos.STREAM_STATE_QOS),
+            (JointState, names.JOINT_STATES_TOPIC, self._on_joint_state, qos.JOINT_STATES_QOS),
+            (AxisStatus, names.AXIS_STATUS_TOPIC, lambda m: self._service.on_axis_status(
+                conversions.stamp_ns(m.header.stamp), m.state, m.message), qos.AXIS_STATUS_QOS))])
         group = ReentrantCallbackGroup()
-        self.create_service(PlanMove, names.PLAN_MOVE_SERVICE, self._on_plan_move, qos_profile=PLAN_MOVE_QOS,
+        self.create_service(PlanMove, names.PLAN_MOVE_SERVICE, self._on_plan_move, qos_profile=qos.PLAN_MOVE_QOS,
                             callback_group=group)
         self._action = ActionServer(self, ExecuteMove, names.EXECUTE_MOVE_ACTION, self._execute,
                                     goal_callback=self._on_goal, handle_accepted_callback=self._on_accepted,
                                     cancel_callback=self._on_cancel, callback_group=group)
         # The action's requests (goal, cancel, result) are waited for on a thread of their own: through the
-        # MultiThreadedExecutor a goal reached its callback only after its wait set was rebuilt for every
-        # entity, which can take a shaper's whole handover budget. The server stays this node's (`ros2 action info`
-        # names it): only its waiting moves; its callbacks return at once or within a shaper's handover
-        # (_on_goal), the goals execute on this node's executor. The same thread keeps a shaper's handover
-        # warm (_warm_handover), at handover_priority: at normal priority beside the 1 kHz nodes it may wait for
-        # a core as long as it works.
+        # MultiThreadedExecutor a goal reached its callback only after its wait set was rebuilt for every entity,
+        # which can take a shaper's whole handover budget. The server stays this node's (`ros2 action info` names
+        # it): only its waiting moves; its callbacks return at once or within a shaper's handover (_on_goal), the
+        # goals execute on this node's executor. The same thread keeps a shaper's handover warm (_warm_handover),
+        # at handover_priority: at normal priority beside the 1 kHz nodes it may wait for a core as long as it works.
         self.remove_waitable(self._action)
         self._goals_node, self._goals_spinning = self._spun('goals', self._add_goals, refused=self._priority_refused,
                                                             priority=lambda: self._config.handover_priority)

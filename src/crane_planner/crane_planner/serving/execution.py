@@ -11,7 +11,11 @@ peak load excursion from ``joint_states`` stamped in
 [end, end + settle]. Without ``joint_states`` the swing and the residual
 are NaN and the window is timed by the streamer's clock. A ``stream_state``
 silent for ``stream_timeout`` while the motion moves fails it: the stream
-is lost, and a goal must not wait for it. The silence counts only while the
+is lost, and a goal must not wait for it. The axes' fault reaction
+(``axis_status``) during the motion or its settle window fails it too once
+the motion has been streamed to its end: a streamer that ended the motion
+before the axes held (it streamed on through a gap they braked at) has
+nothing left to drop, and the crane stands elsewhere than the goal. The silence counts only while the
 planner itself looks: of the time between two checks at most ``LOOK_GAP_NS``
 counts (after a pause of the planner's own, the stream_state sent meanwhile
 may still wait in its queue), so a dead stream is still found however seldom
@@ -23,7 +27,11 @@ import math
 from dataclasses import dataclass
 
 from crane_msgs_py.names import STREAM_STATE_TOPIC
+from crane_sim.axis_controller import FAULT_STATES
 from crane_sim.spatial import load_swing
+
+#: ``axis_status`` states of the axes' fault reaction.
+FAULT_STATE_VALUES = frozenset(state.value for state in FAULT_STATES)
 
 #: A streamer holding this long (ns) before the motion's end has dropped it (its last ticks are sampled at or
 #: past the end: a stream_state just before it may say holding by a tick).
@@ -83,6 +91,7 @@ class Execution:
         self.cut_ns: int | None = None  # a next motion's start: the settle window ends there at the latest
         self._looked_ns: int | None = None  # the newest phase check's time since the newest stream_state
         self._silent_ns = 0  # the silence of stream_state looked at since then
+        self._axis_fault = ''  # the axes' fault reaction heard during the motion or its settle window
 
     # -- inputs -------------------------------------------------------------------
 
@@ -114,6 +123,14 @@ class Execution:
         if end is not None and end <= stamp_ns <= self.window_end_ns:
             magnitude = abs(self.swing)
             self._residual = magnitude if math.isnan(self._residual) else max(self._residual, magnitude)
+
+    def on_axis_status(self, stamp_ns: int, state: str, message: str) -> None:
+        """An ``axis_status`` (stamped with the plant's time, which lines up with the reference's stamps): a
+        fault reaction from the motion's start to its settle window's end is kept, to fail the goal once the
+        motion has been streamed (``phase``; while it streams, the streamer drops it on the axes' hold)."""
+        end = self.window_end_ns
+        if state in FAULT_STATE_VALUES and end is not None and self.motion_start_ns <= stamp_ns <= end:
+            self._axis_fault = self._axis_fault or message
 
     # -- what the goal reports -------------------------------------------------------
 
@@ -188,6 +205,9 @@ class Execution:
                                  'starts where they stand)')
                 return FAILED
             return MOVING
+        if self._axis_fault:
+            self._failure = f'the axes ran their fault reaction ({self._axis_fault}): they stand where they braked'
+            return FAILED
         window_end = self.window_end_ns
         if self._state_ns is not None and self._state_ns >= window_end:
             return DONE

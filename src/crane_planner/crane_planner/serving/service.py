@@ -181,6 +181,11 @@ class MoveService:
             execution.on_stream_state(sample.stamp_ns, sample.motion_start_ns, sample.motion_duration,
                                       sample.motion_origin_ns, sample.state != HOLDING)
 
+    def on_axis_status(self, stamp_ns: int, state: str, message: str) -> None:
+        """The sim's (the axes') ``axis_status``: a fault reaction fails the goal it happens in."""
+        for execution in self.goals.executions():
+            execution.on_axis_status(stamp_ns, state, message)
+
     def on_joint_state(self, measured: Measurement) -> None:
         self.view.on_joint_state(measured)
         rope = measured.joints.get(HOIST_JOINT)
