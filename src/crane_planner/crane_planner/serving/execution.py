@@ -11,15 +11,15 @@ peak load excursion from ``joint_states`` stamped in
 [end, end + settle]. Without ``joint_states`` the swing and the residual
 are NaN and the window is timed by the streamer's clock. A ``stream_state``
 silent for ``stream_timeout`` while the motion moves fails it: the stream
-is lost, and a goal must not wait for it. The axes' fault reaction
-(``axis_status``) during the motion or its settle window fails it too once
-the motion has been streamed to its end: a streamer that ended the motion
-before the axes held (it streamed on through a gap they braked at) has
-nothing left to drop, and the crane stands elsewhere than the goal. The silence counts only while the
+is lost, and a goal must not wait for it. The silence counts only while the
 planner itself looks: of the time between two checks at most ``LOOK_GAP_NS``
 counts (after a pause of the planner's own, the stream_state sent meanwhile
 may still wait in its queue), so a dead stream is still found however seldom
-the checks come. Pure Python, no ROS import.
+the checks come. The axes' fault reaction (``axis_status``) during the
+motion or its settle window fails it too once the motion has been streamed
+to its end: a streamer that ended the motion before the axes held (it
+streamed on through a gap they braked at) has nothing left to drop, and the
+crane stands elsewhere than the goal. Pure Python, no ROS import.
 """
 from __future__ import annotations
 

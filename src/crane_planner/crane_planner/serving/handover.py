@@ -4,13 +4,13 @@ A goal during a motion, a stop and a settle each plan from the state the
 running motion will be in at the handover, ``lead`` s from now. Planning
 that takes longer than the lead (less the transport's share) is planned
 again further ahead (``plan_handover``), and the next one of its kind starts
-from a lead its recent planning times fit (``PlanningTimes``); a handover the streamer did not take
-all the same (it came late on a busy host) is sent again, four times further
-ahead, or half as far again as its planning needed (``HandoverPolicy``). An
-executed goal is held until ``publish_lead`` before its start (``send_at``);
-one whose start passed meanwhile streams from the streamer's next tick
-(``streamed_origin``). Every time comes from the clocks given, so the rules
-run on a fake clock in the tests. Pure Python, no ROS import.
+from a lead its recent planning times fit (``PlanningTimes``); a handover
+the streamer did not take all the same (it came late on a busy host) is sent
+again, four times further ahead, or half as far again as its planning needed
+(``HandoverPolicy``). An executed goal is held until ``publish_lead``
+before its start (``send_at``); one whose start passed meanwhile streams
+from the streamer's next tick (``streamed_origin``). Every time comes from
+the clocks given, so the rules run on a fake clock in the tests. Pure Python, no ROS import.
 """
 from __future__ import annotations
 

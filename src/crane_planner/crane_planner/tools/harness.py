@@ -62,6 +62,7 @@ from crane_msgs_py.qos import (
     recording,
 )
 from crane_msgs_py.runner import spinning
+from crane_sim.axis_controller import AxisState
 
 from .processes import PLANNER, SIM, STREAMER, NodeGroup
 
@@ -329,7 +330,7 @@ class CraneHarness:
                   ('joint_states', lambda: bool(self._states)),
                   # the sim subscribes once it has seen the reference's type: a motion sent before its first
                   # reference arrives would start without it, and the sim's cart would miss that part
-                  ('the sim tracking the reference stream', lambda: self.axis_state == 'tracking'),
+                  ('the sim tracking the reference stream', lambda: self.axis_state == AxisState.TRACKING.value),
                   # The planner builds its solvers in the background at start-up;
                   # planning before that is done would be slow and late.
                   ('planner warm-up', lambda: self.planner.diagnostics.wait_for(
