@@ -4,7 +4,9 @@ Default model (Table 1, tau = 0.01 s), through ``dispatch.plan`` with one ``Solv
 process runs requests):
 - warm NVF and RVF (robust to L1) solves cycling over varied requests (D 0.28..0.32 m, T 2.9..3.1 s),
   of the cart alone and of the cart with the bridge (0.3 x 0.2 m scaled alike): medians, and the ratio
-  two axes / one axis (target <= 3);
+  two axes / one axis (target <= 3). The planner solves such a straight move on its vertical plane
+  (``planning.straight``); ``two_axes_coupled`` is the same requests solved on the coupled NLP, as
+  moves from a state, routes and moves under axis limits are (its ratio for information);
 - the first solve of each (the NLP built), then the wait until its derivatives are compiled
   (``planning.compiled``: 0 s from the machine's cache; ``compiled`` false when compiling is off);
 - a ZV handover planned as the planner serves a new goal mid-move (``transitions.handover_state``
@@ -102,9 +104,11 @@ def main() -> int:
     for method, options in (('nvf', PlanOptions()), ('rvf', PlanOptions(robust=('L1',)))):
         one = solves(method, options, params, None, args.repeats, cache)
         two = solves(method, options, params, DY, args.repeats, cache)
+        coupled = solves(method, options, params, DY, args.repeats, SolverCache(straight_moves_in_their_plane=False))
         ratio = two['warm_ms'] / one['warm_ms']
         result[method] = {'one_axis': one, 'two_axes': two, 'ratio_warm': round(ratio, 2),
-                          'meets_target': ratio <= 3.0}
+                          'meets_target': ratio <= 3.0, 'two_axes_coupled': coupled,
+                          'ratio_warm_coupled': round(coupled['warm_ms'] / one['warm_ms'], 2)}
     one = handovers(params, cache, ('cart',), args.repeats)
     two = handovers(params, cache, ('cart', 'bridge'), args.repeats)
     result['zv_handover'] = {'one_axis': one, 'two_axes': two, 'meets_target': two['median_ms'] <= 5.0}

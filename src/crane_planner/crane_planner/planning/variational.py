@@ -45,6 +45,10 @@ class VariationalSolver:
     default_hoist_intervals = 24
     #: ... and on the spatial crane (a bridge, with or without the hoist): twice the states of the planar crane.
     default_bridge_intervals = 24
+    #: Whether a straight rest-to-rest move of the travel axes is solved on its vertical plane, as the planar
+    #: crane along the line, where the spatial crane's symmetry makes that its exact optimum (``straight``);
+    #: False solves every move of the bridge on the coupled model.
+    straight_moves_in_their_plane = True
     weights = Weights()
     #: End intervals of the servo mesh, as a multiple of the boundary-layer width (see ``mesh``).
     layer_resolution = 0.25
