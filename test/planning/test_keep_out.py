@@ -17,8 +17,8 @@ from crane_planner.planning import PlanOptions
 from crane_planner.planning.dispatch import SolverCache, plan
 from crane_planner.planning.dynamics import mass_positions
 from crane_planner.planning.keep_out import Box, KeepOut, KeepOutError, boxes_from_flat
-from crane_planner.planning.mass_path import predict_mass_path, rest_positions, solved_mass_path
-from crane_planner.serving.moves import keep_out_clearance
+from crane_planner.planning.mass_path import MassPath, predict_mass_path, rest_positions, solved_mass_path
+from crane_planner.serving.moves import CHORD_ALLOWANCE, MoveError, keep_out_clearance
 from crane_planner.tools.evaluate import simulate_plan
 from crane_planner.tools.evaluate import simulated_masses as masses_of
 
@@ -129,24 +129,49 @@ def test_only_a_solvers_plan_carries_a_solved_path():
     assert solved_mass_path(plan('zv', 0.3, 3.0, NOMINAL, PlanOptions()), NOMINAL) is None
 
 
-def test_a_box_far_from_the_solved_path_gets_its_clearance_from_it_and_a_near_one_is_predicted_step_by_step():
-    """Far: the solved path's clearance, within one step of the step-by-step prediction's; near (the load
-    passes 49 mm above the wall, the margin 40 mm): exactly the prediction's, the solved points not trusted
-    so close."""
-    p = plan('nvf', 0.6, 4.0, NOMINAL.replace(L1=0.32), PlanOptions(), variational=SolverCache())
+def test_between_points_finds_the_nearest_point_of_every_straight_step():
+    """Against brute force: every step of a random path sampled at 2001 points, two boxes."""
+    rng = np.random.default_rng(7)
+    t = np.linspace(0.0, 2.0, 41)
+    m1 = np.cumsum(rng.normal(0.0, 0.03, (41, 3)), axis=0) + [0.3, 0.0, -0.5]
+    m2 = m1 + rng.normal(0.0, 0.05, (41, 3)) + [0.0, 0.0, -0.3]
+    path = MassPath(t, m1, m2, 1.5)
+    keep_out = KeepOut.from_values([0.25, 0.35, -0.1, 0.1, -2.0, -0.6, 0.5, 0.6, -1.0, 1.0, -2.0, -0.9], 0.02)
+    s = np.linspace(0.0, 1.0, 2001)[None, :, None]
+    brute = min(float(box.distance((m[:-1, None, :] + s * np.diff(m, axis=0)[:, None, :]).reshape(-1, 3)).min())
+                for box in keep_out.boxes for m in (m1, m2))
+    found = keep_out.between_points(path)
+    resolution = max(np.linalg.norm(np.diff(m, axis=0), axis=1).max() for m in (m1, m2)) / 2000
+    assert brute - resolution <= found.distance <= brute + 1e-12
+    assert found.distance <= keep_out.clearance(path).distance
+    assert found.box is not None and found.time == pytest.approx(found.time) and 0.0 <= found.time <= 2.0
+
+
+def test_the_solved_path_decides_where_its_steps_keep_out_and_the_prediction_elsewhere():
+    """The load passes 49 mm above the wall. Along the solved path's steps the clearance is within the
+    chord allowance of the step-by-step prediction's; with margins it clears (40 mm, and a box far away: its
+    points' clearance, no step reaching it) the clearance is the solved path's; with a margin it does not
+    clear (48.5 mm) the prediction decides; a margin the solved points break by far (60 mm) is refused from
+    them, naming the wall and the load."""
     lifted = NOMINAL.replace(L1=0.32)
+    p = plan('nvf', 0.6, 4.0, lifted, PlanOptions(), variational=SolverCache())
     solved = solved_mass_path(p, lifted)
-    for box, margin, far in ((WALL, 0.04, False), ((1.4, 1.5, -0.1, 0.1, -2.0, -0.1), 0.02, True)):
+    far_box = (1.4, 1.5, -0.1, 0.1, -2.0, -0.1)
+    for box, margin, trusted in ((WALL, 0.04, True), (far_box, 0.02, True), (WALL, 0.0485, False)):
         keep_out = KeepOut.from_values(box, margin)
         predicted = keep_out.clearance(predict_mass_path(p, lifted)).distance
+        along = keep_out.between_points(solved).distance
+        assert abs(along - predicted) <= CHORD_ALLOWANCE
+        assert (along - CHORD_ALLOWANCE >= margin) == trusted
+        at_points = keep_out.clearance(solved).distance
         distance = keep_out_clearance(p, {}, lifted, keep_out)
         assert p.info['min_clearance'] == distance
-        if far:
-            assert distance == keep_out.clearance(solved).distance
-            assert abs(distance - predicted) <= solved.largest_step()
+        if at_points - solved.largest_step() >= margin:  # (the far box: no step can reach it)
+            assert distance == at_points
         else:
-            assert keep_out.clearance(solved).distance - solved.largest_step() < margin  # too near to trust
-            assert distance == predicted
+            assert distance == (along if trusted else predicted)
+    with pytest.raises(MoveError, match='the load .m2. passes 49.0 mm from keep_out box 1'):
+        keep_out_clearance(p, {}, lifted, KeepOut.from_values(WALL, 0.06))
 
 
 def test_a_direct_move_past_the_wall_enters_it_and_is_refused_naming_the_wall():
@@ -165,3 +190,14 @@ def test_a_direct_move_past_the_wall_enters_it_and_is_refused_naming_the_wall():
     lifted = predict_mass_path(p, NOMINAL.replace(L1=0.32))
     assert keep_out.check(lifted).distance == pytest.approx(0.049, abs=1e-4)
     assert KeepOut().clearance(lifted).distance == math.inf
+
+
+def test_an_axis_held_beside_a_solved_plan_keeps_its_model_path_and_the_masses_where_they_were():
+    """A cart move with the hoist held (the planner's direct plan before it routes): the solver's model path
+    carries over, so its clearance needs no step-by-step prediction, and the masses are the cart plan's."""
+    from crane_planner.serving.moves import with_axes_held
+    p = plan('nvf', 0.6, 4.0, NOMINAL, PlanOptions(), variational=SolverCache())
+    held = with_axes_held(p, {'hoist': NOMINAL.L1})
+    assert held.model_path is p.model_path and held.joint_names == ('cart', 'hoist')
+    alone, beside = solved_mass_path(p, NOMINAL), solved_mass_path(held, NOMINAL)
+    assert beside.m1 == pytest.approx(alone.m1) and beside.m2 == pytest.approx(alone.m2)

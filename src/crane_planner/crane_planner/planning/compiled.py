@@ -168,14 +168,37 @@ _exiting = threading.Event()
 atexit.register(_exiting.set)  # a compile thread still running stops at its next step, not inside CasADi
 
 
+#: Background compiles not yet ended in this process (``in_background``), under its condition.
+_running = 0
+_ended = threading.Condition()
+
+
+def wait_until_compiled(timeout: float) -> bool:
+    """Wait until every background compile of this process has ended (swapped in, or failed: the functions
+    stay interpreted); whether they all did within ``timeout`` s. For benchmarks that measure the steady
+    state a planner reaches once its warm-ups' derivatives are compiled."""
+    with _ended:
+        return _ended.wait_for(lambda: _running == 0, timeout)
+
+
 def in_background(functions: dict[str, ca.Function], ready: Callable[[dict[str, ca.Function]], None]) -> None:
     """Compile every one of ``functions`` in a daemon thread, one compile at a time in the process, then call
     ``ready`` with them compiled (by the same keys), if every one compiled; returns at once. Nothing is
     called when compiling is off or fails (said once in the log)."""
+    global _running
     if cache_dir() is None:
         return
 
     def run():
+        global _running
+        try:
+            _run()
+        finally:
+            with _ended:
+                _running -= 1
+                _ended.notify_all()
+
+    def _run():
         try:
             done = {}
             for name, fn in functions.items():
@@ -191,4 +214,6 @@ def in_background(functions: dict[str, ca.Function], ready: Callable[[dict[str, 
             _warn_once(f'using the compiled derivatives failed ({type(exc).__name__}: {exc}): they stay '
                        'interpreted')
 
+    with _ended:
+        _running += 1
     threading.Thread(target=run, name='compile-derivatives', daemon=True).start()

@@ -258,6 +258,14 @@ def check_rests_keep_out(move: CheckedMove, params: CraneParams, keep_out: KeepO
             raise MoveError(label, reason)
 
 
+#: How far (m) a solved path's point may come within the margin before the plan is refused from it alone: far
+#: more than the collocation's own error (~1e-6 m); nearer, the step-by-step prediction decides.
+SOLVED_TOLERANCE = 1e-4
+#: What a solved path's straight steps may miss of the curved path between them (m): a step's sagitta, under
+#: 0.3 mm for the longest steps (15 mm) on the tightest bends of a mass's path (0.1 m radius).
+CHORD_ALLOWANCE = 1e-3
+
+
 def keep_out_clearance(plan: Plan, origin: dict, params: CraneParams, keep_out: KeepOut,
                        start: dict | None = None) -> float:
     """The smallest distance (m) of a mass to a ``keep_out`` box along ``plan`` and its settle window, predicted
@@ -266,25 +274,37 @@ def keep_out_clearance(plan: Plan, origin: dict, params: CraneParams, keep_out: 
     ``info`` as ``min_clearance`` (``summarize``). MoveError (``keep_out``) naming the box, the mass and when
     if it is below the margin.
 
-    An NVF/RVF plan from rest whose solved path (``mass_path.solved_mass_path``) keeps out by the margin plus
-    the most a mass moves between two of its points cannot come within the margin anywhere: its clearance is
-    taken from there, and the request costs next to nothing more than one without boxes. Any other is
-    predicted step by step."""
+    An NVF/RVF plan from rest carries the model's own prediction at its collocation points
+    (``mass_path.solved_mass_path``): if a point is within the margin (by more than ``SOLVED_TOLERANCE``)
+    the plan is refused from there; if the points keep out by the margin and the longest step its clearance
+    is theirs, else if the straight steps between the points keep out by the margin and ``CHORD_ALLOWANCE``
+    (``KeepOut.between_points``) theirs; either way the request costs next to nothing more than one without
+    boxes. Any other is predicted step by step."""
     if not keep_out:
         return math.inf
     solved = solved_mass_path(plan, params, origin) if start is None else None
     if solved is not None:
-        distance = keep_out.clearance(solved).distance
-        if distance - solved.largest_step() >= keep_out.margin:
-            plan.info['min_clearance'] = distance
-            return distance
-    path = predict_mass_path(plan, params, origin, start=start)
-    try:
-        distance = keep_out.check(path, f'the {plan.method} plan').distance
-    except KeepOutError as exc:
-        raise MoveError('keep_out', str(exc)) from None
+        at_points = keep_out.clearance(solved).distance
+        if at_points < keep_out.margin - SOLVED_TOLERANCE:
+            _checked(keep_out, solved, plan)  # (raises)
+        if at_points - solved.largest_step() >= keep_out.margin:  # no step reaches the margin: done
+            plan.info['min_clearance'] = at_points
+            return at_points
+        along = keep_out.between_points(solved).distance
+        if along - CHORD_ALLOWANCE >= keep_out.margin:
+            plan.info['min_clearance'] = along
+            return along
+    distance = _checked(keep_out, predict_mass_path(plan, params, origin, start=start), plan)
     plan.info['min_clearance'] = distance
     return distance
+
+
+def _checked(keep_out: KeepOut, path, plan: Plan) -> float:
+    """``keep_out.check`` of ``plan``'s mass ``path``: its clearance, or MoveError (``keep_out``)."""
+    try:
+        return keep_out.check(path, f'the {plan.method} plan').distance
+    except KeepOutError as exc:
+        raise MoveError('keep_out', str(exc)) from None
 
 
 def origin_of(move: CheckedMove) -> dict:
@@ -394,7 +414,7 @@ def with_hoist_held(plan: Plan, length: float | None) -> Plan:
 def with_axes_held(plan: Plan, held: dict) -> Plan:
     """``plan`` (of the cart, or an ``AxesPlan``) with each axis of ``held`` held beside it, at its start there
     (``AxesPlan.starts``: the hoist's rope length in m, a travel axis's 0, its plan relative like the cart's);
-    ``plan`` itself if none."""
+    ``plan`` itself if none. The solver's model path is kept: an axis held adds no motion to it."""
     if not held:
         return plan
     axes = dict(plan.axes) if isinstance(plan, AxesPlan) else {CART_JOINT: plan}
@@ -403,7 +423,8 @@ def with_axes_held(plan: Plan, held: dict) -> Plan:
     starts.update(held)
     order = [name for name in ACTUATED_JOINTS if name in axes]
     return AxesPlan(method=plan.method, displacement=plan.displacement, duration=plan.duration, info=plan.info,
-                    axes={name: axes[name] for name in order}, starts={name: starts.get(name, 0.0) for name in order})
+                    axes={name: axes[name] for name in order}, starts={name: starts.get(name, 0.0) for name in order},
+                    model_path=plan.model_path)
 
 
 def axis_samples(plan: Plan, times) -> list:
