@@ -4,9 +4,6 @@ References: the planar crane's mass positions (Fig. 1: x1 = x - L1 sin theta1, z
 about z, finite differences, the coupled NLP solved on the same request (``straight_moves_in_their_plane``
 off), and crane_sim's independent spatial model replaying the plan.
 """
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -18,9 +15,7 @@ from crane_planner.planning.dynamics import mass_positions
 from crane_planner.planning.mass_path import solved_mass_path
 from crane_planner.planning.problem import Weights
 from crane_planner.planning.straight import Line, spatial_angles
-
-sys.path.insert(0, str(Path(__file__).parent))
-from test_spatial_nvf import residual_mm  # noqa: E402
+from planning.test_spatial_nvf import residual_mm
 
 P = CraneParams()
 IN_PLANE, COUPLED = SolverCache(), SolverCache(straight_moves_in_their_plane=False)
