@@ -31,27 +31,14 @@ def varied(k: int) -> tuple[float, float]:
     return 0.93 + 0.14 * (k % 5) / 4, 0.97 + 0.06 * (k % 7) / 6
 
 
-def wait_compiled(cache, limit: float = 300.0) -> bool:
-    """Wait until every NLP built so far has its derivatives compiled (``planning.compiled``, in the
-    background); whether they all were within ``limit`` s (not, when compiling is off or fails)."""
-    from crane_planner.planning.compiled import cache_dir, compiler
-    if cache_dir() is None or compiler() is None:
-        return False
-    deadline = time.monotonic() + limit
-    while time.monotonic() < deadline:
-        if all(tr.generation for solver in cache._solvers.values() for tr in solver._transcriptions.values()):
-            return True
-        time.sleep(0.1)
-    return False
-
-
 def solves(method: str, options, params, bridge: float | None, repeats: int, cache) -> dict:
+    from crane_planner.planning.compiled import wait_until_compiled
     from crane_planner.planning.dispatch import plan
     t0 = time.perf_counter()
     plan(method, D, T, params, options, variational=cache, bridge=bridge)
     first = time.perf_counter() - t0
     t0 = time.perf_counter()
-    compiled = wait_compiled(cache)
+    compiled = wait_until_compiled(300.0)
     compile_s = time.perf_counter() - t0
     times = []
     for k in range(repeats):

@@ -168,17 +168,21 @@ _exiting = threading.Event()
 atexit.register(_exiting.set)  # a compile thread still running stops at its next step, not inside CasADi
 
 
-#: Background compiles not yet ended in this process (``in_background``), under its condition.
+#: Background compiles not yet ended in this process (``in_background``), and those that ended without their
+#: functions swapped in (compiling failed), under its condition.
 _running = 0
+_unswapped = 0
 _ended = threading.Condition()
 
 
 def wait_until_compiled(timeout: float) -> bool:
-    """Wait until every background compile of this process has ended (swapped in, or failed: the functions
-    stay interpreted); whether they all did within ``timeout`` s. For benchmarks that measure the steady
-    state a planner reaches once its warm-ups' derivatives are compiled."""
+    """Wait until every background compile of this process has ended; whether compiling is on and every one
+    ended within ``timeout`` s with its functions swapped in. For benchmarks that measure the steady state a
+    planner reaches once its warm-ups' derivatives are compiled."""
+    if cache_dir() is None or compiler() is None:
+        return False
     with _ended:
-        return _ended.wait_for(lambda: _running == 0, timeout)
+        return _ended.wait_for(lambda: _running == 0, timeout) and _unswapped == 0
 
 
 def in_background(functions: dict[str, ca.Function], ready: Callable[[dict[str, ca.Function]], None]) -> None:
@@ -190,29 +194,33 @@ def in_background(functions: dict[str, ca.Function], ready: Callable[[dict[str, 
         return
 
     def run():
-        global _running
+        global _running, _unswapped
+        swapped = False
         try:
-            _run()
+            swapped = compile_and_swap()
         finally:
             with _ended:
                 _running -= 1
+                _unswapped += not swapped
                 _ended.notify_all()
 
-    def _run():
+    def compile_and_swap() -> bool:
         try:
             done = {}
             for name, fn in functions.items():
                 with _ONE_AT_A_TIME:
                     if _exiting.is_set():
-                        return
+                        return False
                     done[name] = compile_function(fn)
                 if done[name] is None:
-                    return
+                    return False
             if not _exiting.is_set():
                 ready(done)
+                return True
         except Exception as exc:  # (a failure here only leaves the functions interpreted)
             _warn_once(f'using the compiled derivatives failed ({type(exc).__name__}: {exc}): they stay '
                        'interpreted')
+        return False
 
     with _ended:
         _running += 1
