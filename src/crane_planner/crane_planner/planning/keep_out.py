@@ -149,6 +149,8 @@ class KeepOut:
         found by ternary search on all steps at once. The steps are chords of the path: between two points a
         mass may bulge toward a box by the chord's sagitta (the caller allows for it).
         """
+        if len(path.t) < 2:
+            return self.clearance(path)
         best = Clearance(math.inf)
         for box in self.boxes:
             for mass in MASSES:
@@ -160,13 +162,12 @@ class KeepOut:
                     nearer_a = box.distance(start + a[:, None] * step) < box.distance(start + b[:, None] * step)
                     hi, lo = np.where(nearer_a, b, hi), np.where(nearer_a, lo, a)
                 s = (lo + hi) / 2.0
-                d = box.distance(start + s[:, None] * step) if len(step) else box.distance(points)
+                nearest = start + s[:, None] * step
+                d = box.distance(nearest)
                 k = int(np.argmin(d))
                 if d[k] < best.distance:
-                    t = path.t[k] + (s[k] * (path.t[k + 1] - path.t[k]) if len(step) else 0.0)
-                    best = Clearance(float(d[k]), box, mass, float(t), tuple(float(v) for v in
-                                                                        (start[k] + s[k] * step[k] if len(step)
-                                                                         else points[k])))
+                    t = path.t[k] + s[k] * (path.t[k + 1] - path.t[k])
+                    best = Clearance(float(d[k]), box, mass, float(t), tuple(float(v) for v in nearest[k]))
         return best
 
     def rest_violation(self, points: dict) -> str | None:

@@ -27,6 +27,7 @@ from crane_msgs_py.params import CraneParams
 
 from .collocation import CollocationPlan
 from .dynamics import BRIDGE_STATES, CART_STATES, HOIST_STATES
+from .mass_path import plan_axes
 from .plan import AxesPlan, ModelPath, Plan
 
 
@@ -65,14 +66,14 @@ def on_line(planar: Plan, line: Line) -> AxesPlan:
     the hoist, solved for the line's length) along ``line``: the cart's and the bridge's references its
     travel reference times ``line.cos`` and ``line.sin``, the hoist's its own; the model path turned into
     the spatial crane's states (``spatial_angles``; the planar sensitivities are not carried over)."""
-    axes = planar.axes if isinstance(planar, AxesPlan) else {CART_JOINT: planar}
+    axes = plan_axes(planar)
     travel = axes[CART_JOINT]
     info = dict(planar.info, solved_in_plane=True)
     plans = {CART_JOINT: _scaled(travel, line.cos, info), BRIDGE_JOINT: _scaled(travel, line.sin, info)}
     if HOIST_JOINT in axes:
         plans[HOIST_JOINT] = axes[HOIST_JOINT]
     starts = {name: (planar.starts.get(HOIST_JOINT) if name == HOIST_JOINT else 0.0) for name in plans}
-    path = planar.model_path or travel.model_path
+    path = planar.model_path
     return AxesPlan(method=planar.method, displacement=plans[CART_JOINT].displacement, duration=planar.duration,
                     info=info, axes=plans, starts=starts,
                     model_path=None if path is None else ModelPath(path.t, spatial_states(path.states, line)))
