@@ -23,7 +23,7 @@ from crane_msgs_py.params import CraneParams
 from ..planning.dispatch import PlanOptions, VariationalRequest, check_request, checked, hoisting_options, shaper_design
 from ..planning.hoisting import QuinticPlan
 from ..planning.keep_out import KeepOut, KeepOutError
-from ..planning.mass_path import predict_mass_path, rest_positions, solved_mass_path
+from ..planning.mass_path import plan_axes, predict_mass_path, rest_positions, solved_mass_path
 from ..planning.methods import METHODS, VARIATIONAL_METHODS
 from ..planning.plan import AxesPlan, Plan, PlanError
 from ..planning.routing import route_candidates
@@ -236,7 +236,7 @@ def plan_move(planner, move: CheckedMove, bounds: MoveBounds, params: CraneParam
         raise MoveError('duration', f'the fastest {move.method} plan lasts {plan.duration:g} s, beyond '
                                     f'max_duration {bounds.max_duration:g} s')
     # the axes the plan does not move, held where they are: the hoist at its rope length, the bridge at 0 (relative)
-    planned = plan.axes if isinstance(plan, AxesPlan) else {CART_JOINT: plan}
+    planned = plan_axes(plan)
     return with_axes_held(plan, {name: m.start if name == HOIST_JOINT else 0.0 for name, m in move.axes.items()
                                  if name not in planned})
 
@@ -391,7 +391,7 @@ def check_shaper_vias(plan: Plan, move: CheckedMove, tolerance: float) -> None:
     """MoveError (``move.via``) naming the first via point a shaper's straight path does not pass within
     ``tolerance`` (m) of, in order: each is looked for after the previous one was passed."""
     t = np.linspace(0.0, plan.duration, max(2, int(plan.duration / 1e-3) + 1))
-    axes = plan.axes if isinstance(plan, AxesPlan) else {CART_JOINT: plan}
+    axes = plan_axes(plan)
     path = np.stack([axes[name].evaluate(t).position + m.start for name, m in move.axes.items()], axis=1)
     after = 0
     for k, via in enumerate(move.vias, 1):
@@ -418,7 +418,7 @@ def with_axes_held(plan: Plan, held: dict) -> Plan:
     ``plan`` itself if none. The solver's model path is kept: an axis held adds no motion to it."""
     if not held:
         return plan
-    axes = dict(plan.axes) if isinstance(plan, AxesPlan) else {CART_JOINT: plan}
+    axes = plan_axes(plan)
     starts = dict(plan.starts) if isinstance(plan, AxesPlan) else {CART_JOINT: 0.0}
     axes.update({name: QuinticPlan(method='hold', displacement=0.0, duration=plan.duration) for name in held})
     starts.update(held)
@@ -458,7 +458,7 @@ def summarize(plan: Plan, joint_names=(CART_JOINT,), solve_time: float | None = 
 
     Peaks per joint of ``joint_names`` (an ``AxesPlan``'s axes by name).
     """
-    axes = plan.axes if isinstance(plan, AxesPlan) else {CART_JOINT: plan}
+    axes = plan_axes(plan)
     peaks = [axes[name].peaks() for name in joint_names]
     info = plan.info
     return PlanSummary(plan.method, float(plan.duration),
