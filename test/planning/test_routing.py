@@ -9,11 +9,13 @@ taken around it. Replayed in crane_sim (1 ms), both masses stay the margin out, 
 """
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning import PlanOptions
+from crane_planner.planning.collocation import keep_out_values, smooth_max
 from crane_planner.planning.dispatch import VariationalRequest, hoisting_options, variational_solver
 from crane_planner.planning.keep_out import KeepOut
 from crane_planner.planning.mass_path import predict_mass_path
@@ -51,6 +53,32 @@ def test_the_plateau_rests_at_both_ends_and_its_derivatives_are_its_slopes():
     smooth = (np.abs(s - 0.3) > 1e-3) & (np.abs(s - 0.8) > 1e-3) & (s > 1e-3) & (s < 1 - 1e-3)  # the jerk jumps there
     for lower, higher in zip([value, *rates[:2]], rates):
         assert np.abs(np.gradient(lower, s) - higher)[smooth].max() < 1e-3 * np.abs(higher).max()
+
+
+@pytest.mark.parametrize('margin', [0.0, 0.02, 0.05])
+def test_the_keep_out_rows_smooth_maximum_keeps_a_mass_out_by_nearly_the_clearance_they_ask_for(margin):
+    """The NLP's row for a mass and a box asks the smooth maximum of its six face distances to be at least the
+    clearance c (the margin and ``NLP_EXTRA``). Judged by the box's Euclidean distance (``Box.distance``) at
+    points all around a corner of the box, where the faces tie: a point the row accepts is at least 0.96 c
+    out, and less than 1.2 mm nearer than c; where one face is nearer than the others by far the row is that
+    face's distance."""
+    box = KeepOut.from_values([0.0, 0.3, -0.2, 0.2, -2.0, -0.5], margin)
+    _, _, clearance, delta, *sides = keep_out_values(box, {}, 0.005)
+    v, d = ca.SX.sym('v', 6), ca.SX.sym('d')
+    smax = ca.Function('smax', [v, d], [smooth_max(v, d)])
+    rng = np.random.default_rng(7)
+    corner = np.array([0.3, 0.2, -0.5])  # the box's upper x, y and z: all three faces tie there
+    points = corner + rng.uniform(-3 * clearance, 3 * clearance, (20000, 3))
+    lo, hi = np.array(sides[0::2]), np.array(sides[1::2])
+    faces = np.hstack([lo - points, points - hi])
+    rows = np.array(smax.map(len(points))(faces.T, delta)).ravel()
+    distance = box.boxes[0].distance(points)
+    accepted = rows >= clearance
+    assert accepted.sum() > 5000 and (~accepted).sum() > 5000
+    assert distance[accepted].min() >= max(0.96 * clearance, clearance - 1.2e-3)
+    assert np.all(rows >= faces.max(axis=1) - 1e-12)
+    alone = np.sort(faces, axis=1)[:, -2] < faces.max(axis=1) - 6 * delta  # one face nearer by 6 delta
+    assert np.abs(rows - faces.max(axis=1))[alone].max() < 5 * delta * np.exp(-6)
 
 
 def routed(method, moves, keep_out, route_kind, options=PlanOptions()):

@@ -127,7 +127,8 @@ class DirectSolver(VariationalSolver):
             callback = self.iteration_callback(tr.nw, tr.ng, tr.nlp['p'].shape[0])
             options = dict(self.ipopt_options(), iteration_callback=callback)
             if boxes or vias:  # started from a guess without multipliers: the adaptive barrier
-                # parameter takes a third of the iterations of the monotone one from it (a wall: 40, not 117)
+                # parameter takes fewer iterations than the monotone one from it (around a column 11-14, not
+                # 17-21; over a wall 10-15, not 14-18)
                 options.update({'ipopt.warm_start_init_point': 'no', 'ipopt.mu_strategy': 'adaptive'})
             inst = self._instances[key] = Instance.new(tr, options, callback,
                                                        source.warm if source is not None else None)
@@ -182,7 +183,7 @@ class DirectSolver(VariationalSolver):
             sx, su = (np.array(v, dtype=float).ravel() for v in pb.scales(problem_p))
             args = dict(p=pvec, **self.bounds(tr, displacement, duration, sx, self.axis_limits(form)))
             kept, same = getattr(inst, 'warm', None), (route, tuple(nodes), self.sign(displacement))
-            guess = (route_guess(tr, displacement, frac, route, pvec, sx, origin, keep_out) if boxes
+            guess = (route_guess(tr, displacement, frac, route, pvec) if boxes
                      else tr.guess(displacement, frac))
             starts = ([kept[1]] if kept is not None and kept[0] == same else []) + [dict(x0=guess)]
             t0 = time.perf_counter()
@@ -264,8 +265,7 @@ class DirectSolver(VariationalSolver):
                 bounds.append(np.repeat([vmax, amax, jmax], tr.intervals * np.array([d + 2, d + 1, d])) * (1 - 2e-8))
             bound = np.concatenate(bounds)
             lbg[end:end + tr.limit_rows], ubg[end:end + tr.limit_rows] = -bound, bound
-        if tr.boxes:  # the face weights in [0, 1], the keep-out rows last
-            lbx[tr.nw - tr.nweights:], ubx[tr.nw - tr.nweights:] = 0.0, 1.0
+        if tr.boxes:  # the keep-out rows after the limits'
             lo, hi = tr.keep_out_bounds()
             rows = slice(end + tr.limit_rows, end + tr.limit_rows + len(lo))
             lbg[rows], ubg[rows] = lo, hi  # (the via points' rows after them: = 0)

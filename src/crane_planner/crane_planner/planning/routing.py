@@ -9,8 +9,7 @@ back). ``route_candidates`` lists the ways the served axes allow, each a
 motion (fractions of T) the straight path spends over the box's footprint.
 ``route_guess`` turns a route into the NLP's start point: the problem's
 rest-to-rest guess with the detour added as a plateau with smooth ramps on
-the route's axis, and the keep-out face weights on the face each point is
-farthest out of. NVF/RVF then solve the problem with the keep-out path
+the route's axis. NVF/RVF then solve the problem with the keep-out path
 constraints (``collocation.Transcription`` with boxes), so the optimizer,
 not the guess, decides the route's shape; ``direct.DirectSolver.solve_constrained``
 runs it. Via points (``via_nodes``) are equality constraints on the reference
@@ -118,13 +117,11 @@ def plateau(s, enter: float, leave: float) -> list[np.ndarray]:
     return out
 
 
-def route_guess(tr, displacement, frac: np.ndarray, route: Route, pvec: np.ndarray, sx: np.ndarray,
-                origin: dict, keep_out: KeepOut) -> np.ndarray:
+def route_guess(tr, displacement, frac: np.ndarray, route: Route, pvec: np.ndarray) -> np.ndarray:
     """The NLP start point of ``route`` (``tr``: a ``collocation.Transcription`` with boxes; ``pvec`` its
-    problem parameters, ``sx`` its state scales): ``Problem.initial_guess`` with the detour added on the
-    route's axis (position, velocity, acceleration, reference acceleration and input, in scaled units; with
-    the bridge the out-of-plane swing quasi-static), and each point's face weights on the face of each box
-    the load is farthest out of there."""
+    parameters): ``Problem.initial_guess`` with the detour added on the route's axis (position, velocity,
+    acceleration, reference acceleration and input, in scaled units; with the bridge the out-of-plane swing
+    quasi-static)."""
     pb = tr.problem
     s = tr.node_times(frac)
     X, U = pb.initial_guess(displacement, s)
@@ -138,20 +135,7 @@ def route_guess(tr, displacement, frac: np.ndarray, route: Route, pvec: np.ndarr
     if route.axis == 'bridge':  # the load lags the bridge's acceleration: phi1 ~ -ab/g (scaled: -ab)
         X[pb.states.index('phi1')] = -X[pb.states.index('ab')]
         X[pb.states.index('dphi1')] = -U[k]
-    body = np.vstack([X[:, 1:], U[:, 1:]])
-    n = body.shape[1]
-    problem_p = pvec[:len(PROBLEM_PARAMETERS)]
-    _, p2 = pb.masses.map(n)(X[:, 1:], np.repeat(problem_p[:, None], n, axis=1),
-                             np.repeat([[origin.get('cart', 0.0)], [origin.get('bridge', 0.0)]], n, axis=1))
-    p2 = np.asarray(p2)
-    weights = np.full((6, len(keep_out.boxes), n), 0.02)
-    for b, box in enumerate(keep_out.boxes):
-        lo, hi = np.asarray(box.lower)[:, None], np.asarray(box.upper)[:, None]
-        faces = np.stack([lo[0] - p2[0], p2[0] - hi[0], lo[1] - p2[1], p2[1] - hi[1], lo[2] - p2[2],
-                          p2[2] - hi[2]])
-        weights[np.argmax(faces, axis=0), b, np.arange(n)] = 0.9
-    weights = weights.transpose(2, 1, 0).ravel()  # per point, per box, the six faces
-    return np.concatenate([X[:, 0], body.T.ravel(), weights])
+    return np.concatenate([X[:, 0], np.vstack([X[:, 1:], U[:, 1:]]).T.ravel()])
 
 
 def via_nodes(tr, frac: np.ndarray, displacement, vias) -> list[int]:

@@ -239,7 +239,7 @@ class Config:
                                             stop_options(options) if free_end else options, start, free_end)
                          for method in VARIATIONAL_METHODS]
         # with keep-out boxes, NVF's NLPs of the routes past them the served axes allow (``moves.plan_keeping_out``);
-        # RVF's builds on first use: on the spatial crane its build (~8 s) and solve (~40 iterations of 0.2 s)
+        # RVF's builds on first use: on the spatial crane its build (~8 s) and first solve
         # exceed any budget a caller waits for, and a single solver process would be busy with it meanwhile
         routes = ([Route('over', HOIST_JOINT, -0.2 * self.params.L1, 0.3, 0.7)] if hoisting else []) + (
             [Route('around', BRIDGE_JOINT, 0.2, 0.3, 0.7)] if spatial else [])
