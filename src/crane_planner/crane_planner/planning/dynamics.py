@@ -20,6 +20,7 @@ import functools
 from dataclasses import dataclass
 
 import casadi as ca
+import numpy as np
 
 from crane_msgs_py.params import PARAMETER_NAMES
 
@@ -128,32 +129,40 @@ def hoisting_swing() -> ca.Function:
                                     'm2', 'g', 'c1', 'c2'], ['ddtheta1', 'ddtheta2'])
 
 
-def cable_direction(a, b):
+def cable_direction(a, b, lib=ca):
     """u(a, b) = (-sin a cos b, sin b, -cos a cos b): a cable's unit vector (contract "The spatial crane").
 
     ``a`` the in-plane angle of Eqs. 18-19 (positive when the load lags a
     positive cart acceleration: x1 = x - L1 sin theta1), ``b`` the angle out of
-    the x-z plane, positive towards +y.
+    the x-z plane, positive towards +y. ``lib``: ``casadi`` for symbols (a
+    column), ``numpy`` for arrays of angles (its rows).
     """
-    return ca.vertcat(-ca.sin(a) * ca.cos(b), ca.sin(b), -ca.cos(a) * ca.cos(b))
+    return _column(lib, -lib.sin(a) * lib.cos(b), lib.sin(b), -lib.cos(a) * lib.cos(b))
 
 
-@functools.lru_cache(maxsize=1)
-def mass_positions() -> ca.Function:
+def _column(lib, *rows):
+    return ca.vertcat(*rows) if lib is ca else np.stack(np.broadcast_arrays(*rows))
+
+
+def masses_at(x, y, L1, L2, theta1, theta2, phi1, phi2, lib=ca):
     """(p1, p2): both masses' positions (m) in ``crane_base`` (contract "The spatial crane").
 
     p1 = s + L1 u(theta1, phi1), p2 = p1 + L2 u(theta1 + theta2, phi1 + phi2)
     (``cable_direction``), s = (x, y, 0) the suspension point; the planar
     crane is phi1 = phi2 = 0 (Fig. 1: x1 = x - L1 sin theta1, z1 = -L1 cos
-    theta1). Inputs x, y, L1, L2, theta1, theta2, phi1, phi2; evaluated on
-    numbers (a predicted path, ``mass_path``) and on the NLP's symbols alike.
+    theta1). ``lib``: ``casadi`` for symbols (the NLP's, the Lagrangian's),
+    ``numpy`` for arrays (a path: each (3, n)).
     """
-    x, y, L1, L2, th1, th2, ph1, ph2 = (ca.SX.sym(n) for n in ('x', 'y', 'L1', 'L2', 'theta1', 'theta2',
-                                                                 'phi1', 'phi2'))
-    p1 = ca.vertcat(x, y, 0) + L1 * cable_direction(th1, ph1)
-    p2 = p1 + L2 * cable_direction(th1 + th2, ph1 + ph2)
-    return ca.Function('mass_positions', [x, y, L1, L2, th1, th2, ph1, ph2], [p1, p2],
-                       ['x', 'y', 'L1', 'L2', 'theta1', 'theta2', 'phi1', 'phi2'], ['p1', 'p2'])
+    p1 = _column(lib, x, y, 0 * x) + L1 * cable_direction(theta1, phi1, lib)
+    return p1, p1 + L2 * cable_direction(theta1 + theta2, phi1 + phi2, lib)
+
+
+@functools.lru_cache(maxsize=1)
+def mass_positions() -> ca.Function:
+    """``masses_at`` as a CasADi function: inputs x, y, L1, L2, theta1, theta2, phi1, phi2; outputs p1, p2."""
+    names = ('x', 'y', 'L1', 'L2', 'theta1', 'theta2', 'phi1', 'phi2')
+    inputs = [ca.SX.sym(n) for n in names]
+    return ca.Function('mass_positions', inputs, list(masses_at(*inputs)), list(names), ['p1', 'p2'])
 
 
 def _inverse2(X):
@@ -190,8 +199,7 @@ def spatial_swing() -> ca.Function:
     L2, m1, m2, g, c1, c2 = (ca.SX.sym(n) for n in ('L2', 'm1', 'm2', 'g', 'c1', 'c2'))
     th1, th2, ph1, ph2 = ca.vertsplit(q)
     x, y, L1 = ca.vertsplit(r)
-    p1 = ca.vertcat(x, y, 0) + L1 * cable_direction(th1, ph1)
-    p2 = p1 + L2 * cable_direction(th1 + th2, ph1 + ph2)
+    p1, p2 = masses_at(x, y, L1, L2, th1, th2, ph1, ph2)
     M, bias = _lagrange_terms(((m1, p1), (m2, p2)), q, dq, r, dr, ddr, ca.vertcat(0, 0, g))
     rhs = ca.vertcat(-c1 * dq[0], -c2 * dq[1], -c1 * dq[2], -c2 * dq[3]) - bias
     A, B, C = M[:2, :2], M[:2, 2:], M[2:, 2:]

@@ -6,24 +6,22 @@ Eqs. 18-19 with the servo of Eq. 6, the hoist's Lagrangian with one, the
 spatial crane with a bridge) from rest with the plan's reference jerk per
 axis, by the same RK4 steps ``continuation.predict`` carries a measured
 state with, over the motion and a settle window after it, and places both
-masses in ``crane_base`` (``dynamics.mass_positions``). What the planner
+masses in ``crane_base`` (``dynamics.masses_at``). What the planner
 checks keep-out boxes against (``keep_out.KeepOut``); the simulator's
 independent model is what the tests check this prediction against. Pure
 Python, no ROS import.
 """
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 
 from crane_msgs_py.params import CraneParams
 
 from .continuation import CHUNK, _rk4_steps
-from .dynamics import PARAMETERS, mass_positions
+from .dynamics import PARAMETERS, masses_at
 from .plan import AxesPlan, Plan
 from .problem import AXIS_STATES, Form
 
@@ -34,7 +32,7 @@ PREDICTION_STEP = 5e-3
 DEFAULT_SETTLE = 2.0
 #: The states that place an axis (each relative to its start); every other state, a sensitivity aside, is 0 at rest.
 POSITIONS = tuple(states[0] for states in AXIS_STATES.values())
-#: The swing angles that place the masses below the suspension point (``dynamics.mass_positions``).
+#: The swing angles that place the masses below the suspension point (``dynamics.masses_at``).
 ANGLES = ('theta1', 'theta2', 'phi1', 'phi2')
 #: The states that place both masses.
 PLACING = POSITIONS + ANGLES
@@ -126,18 +124,8 @@ def _placed(t: np.ndarray, s: dict, params: CraneParams, origin: dict, duration:
     x_cart = s[AXIS_STATES['cart'][0]] + origin.get('cart', 0.0)
     y_bridge = s.get(AXIS_STATES['bridge'][0], zero) + origin.get('bridge', 0.0)
     L1 = params.L1 + s.get(AXIS_STATES['hoist'][0], zero)
-    angles = [s.get(k, zero) for k in ANGLES]
-    p = np.asarray(_masses_at(len(t))(np.vstack([x_cart, y_bridge, L1, zero + params.L2, *angles])))
-    return MassPath(t, p[:3].T, p[3:].T, duration)
-
-
-@functools.lru_cache(maxsize=16)
-def _masses_at(n: int) -> ca.Function:
-    """``dynamics.mass_positions`` at ``n`` points in one call: its inputs the rows of one (8, n) matrix
-    (converted once, not eight times), p1 and p2 the rows of its (6, n) result."""
-    inputs = ca.SX.sym('inputs', 8)
-    p1, p2 = mass_positions()(*ca.vertsplit(inputs))
-    return ca.Function('masses', [inputs], [ca.vertcat(p1, p2)]).map(n)
+    p1, p2 = masses_at(x_cart, y_bridge, L1, params.L2, *(s.get(k, zero) for k in ANGLES), lib=np)
+    return MassPath(t, p1.T, p2.T, duration)
 
 
 def _time_grid(plan: Plan, settle: float, step: float) -> np.ndarray:
@@ -154,5 +142,5 @@ def _time_grid(plan: Plan, settle: float, step: float) -> np.ndarray:
 
 def rest_positions(x: float, y: float, L1: float, L2: float) -> dict:
     """Both masses hanging at rest below the suspension point (x, y, 0): {mass: (3,)} (m); the cables
-    straight down (``dynamics.mass_positions`` with every angle 0)."""
+    straight down (``dynamics.masses_at`` with every angle 0)."""
     return {'m1': np.array([x, y, -L1]), 'm2': np.array([x, y, -L1 - L2])}
