@@ -167,12 +167,13 @@ class Transcription:
         Fc, Gc = problem.F.map(N * d)(Xc, Uc, Pm), problem.G.map(N * d)(Xc, Uc, Pm)
         # the collocation residuals xp - h F: their linear part here, the dynamics h F apart (``nlpsol``)
         res, dyn, J, xs = [], [], 0, [w[:nx]]
+        C_float = C.tolist()  # (a numpy scalar times an SX goes through numpy's slow dispatch)
         for k in range(N):
             xs = [xs[-1]] + [Xc[:, k * d + j] for j in range(d)]
             for j in range(1, d + 1):
-                res.append(sum(C[r, j] * xs[r] for r in range(d + 1)))
+                res.append(sum(C_float[r][j] * xs[r] for r in range(d + 1)))
                 dyn.append(frac[k] * Fc[:, k * d + j - 1])
-                J += frac[k] * self.B[j] * Gc[k * d + j - 1]
+                J += frac[k] * float(self.B[j]) * Gc[k * d + j - 1]
         g = [ca.vertcat(*res), xs[-1]]
         if limits:
             # Bound the plan's reference velocity, acceleration and jerk polynomials
@@ -241,15 +242,14 @@ class Transcription:
         n = Xc.shape[1]
         origin, clearance, delta, sides = Pk[:2], Pk[2], Pk[3], ca.reshape(Pk[4:], 6, boxes)
         p1, p2 = self.problem.masses.map(n)(Xc, ca.repmat(Pp, 1, n), ca.repmat(origin, 1, n))
-        rows = []
-        for k in range(n):
-            for b in range(boxes):
-                lo, hi = sides[0::2, b], sides[1::2, b]
-                for p in (p1[:, k], p2[:, k]):
-                    faces = ca.vertcat(lo[0] - p[0], p[0] - hi[0], lo[1] - p[1], p[1] - hi[1], lo[2] - p[2],
-                                       p[2] - hi[2])
-                    rows.append((smooth_max(faces, delta) - clearance) / KEEP_OUT_SCALE)
-        return ca.vertcat(*rows)
+        p, side, c, d = ca.SX.sym('p', 3), ca.SX.sym('side', 6), ca.SX.sym('c'), ca.SX.sym('delta')
+        faces = ca.vertcat(side[0] - p[0], p[0] - side[1], side[2] - p[1], p[1] - side[3], side[4] - p[2],
+                           p[2] - side[5])
+        row = ca.Function('keep_out_row', [p, side, c, d], [(smooth_max(faces, d) - c) / KEEP_OUT_SCALE])
+        # one column per point, box and mass (in that order): m1 and m2 of each point, once per box
+        masses = ca.reshape(ca.repmat(ca.vertcat(p1, p2), boxes, 1), 3, 2 * boxes * n)
+        box_sides = ca.repmat(ca.kron(sides, ca.DM.ones(1, 2)), 1, n)
+        return row.map(2 * boxes * n)(masses, box_sides, clearance, delta).T
 
     def via_values(self, targets, nodes: list[int]) -> np.ndarray:
         """The values of ``via_parameters``: ``targets`` (per via, each axis's scaled position) passed at the
