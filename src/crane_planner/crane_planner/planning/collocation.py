@@ -196,20 +196,27 @@ class Transcription:
                 g += [ca.vertcat(*bv), ca.vertcat(*ba), ca.vertcat(*bj)]
         objective = sigma + self.free_time_cost_weight * J if free_time else J
         self.limit_rows = sum(x.shape[0] for x in g) - nx * N * d - nx  # the axis limits' rows, after the ends
+        #: where the keep-out rows start among the constraints (after the limits'), and their number per point
+        self.keep_out_start, self.keep_out_per_point = sum(x.shape[0] for x in g), 2 * boxes
+        keep_out = None
         if boxes:
-            g.append(self._keep_out_rows(Xc, Pp, P[npar + N:npar + N + nkeep], boxes))
+            self._keep_out_point = self._keep_out_point_rows(boxes)
+            Pk = ca.repmat(P[npar + N:npar + N + nkeep], 1, N * d)
+            keep_out = ca.vec(self._keep_out_point.map(N * d)(Xc, Pm, Pk))  # point by point
+            g.append(keep_out)
         if vias:  # each via point: sum_k sel_k y_ref(s_k) = target, per axis (scaled), sel one-hot on a point
             positions = problem.reference_position.map(N * d)(Xc, ca.repmat(Pp, 1, N * d))  # (nu, N d)
             block = ca.reshape(P[npar + N + nkeep:], nu + N * d, vias)
             for v in range(vias):
                 g.append(ca.mtimes(positions, block[nu:, v]) - block[:nu, v])
+        #: the constraints without the dynamics' part (linear in the collocation residuals' rows) nor the
+        #: keep-out rows: both differentiated by point (``_derivatives_by_point``)
+        self._g_rest = ca.vertcat(*(ca.SX(x.shape[0], 1) if x is keep_out else x for x in g))
         g = ca.vertcat(*g)
         self.nres = nx * N * d
         self.ng = g.shape[0]
         self.nlp = {'x': w, 'p': P, 'f': objective,
                     'g': g - ca.vertcat(*dyn, ca.SX(self.ng - self.nres, 1))}
-        #: the constraints without the dynamics' part (linear in the collocation residuals' rows)
-        self._g_rest = g
         self._rest = None  # the derivatives of all but the dynamics (``_derivatives_by_point``)
         self.nu = nu
         self.nw = w.shape[0]
@@ -220,8 +227,9 @@ class Transcription:
         self._lock = threading.Lock()
         self.build_time = time.perf_counter() - t0
 
-    def _keep_out_rows(self, Xc, Pp, Pk, boxes: int):
-        """The keep-out path constraints at every collocation point (``keep_out_parameters``: Pk).
+    def _keep_out_point_rows(self, boxes: int) -> ca.Function:
+        """The keep-out path constraints at one collocation point: a function of its scaled states X, the
+        problem parameters P and ``keep_out_parameters`` Pk.
 
         A mass p is outside a box by the clearance c if the largest of its six
         signed face distances s_f (x0 - px, px - x1, y0 - py, ...) is at least c.
@@ -236,20 +244,19 @@ class Transcription:
         than 1.2 mm nearer than c (``smooth_max``).
         Unlike the maximum, or face weights that pick a face (a variable and a
         bilinear row per face), the rows are smooth and add no variable: IPOPT
-        takes about half the iterations. Rows per point and box: m1's and m2's
-        (smax - c) / KEEP_OUT_SCALE >= 0.
+        takes about half the iterations. Rows per box: m1's and m2's
+        (smax - c) / KEEP_OUT_SCALE >= 0; the NLP has them at every point in turn.
         """
-        n = Xc.shape[1]
+        pb = self.problem
+        Pk = ca.SX.sym('Pk', keep_out_parameters(boxes))
         origin, clearance, delta, sides = Pk[:2], Pk[2], Pk[3], ca.reshape(Pk[4:], 6, boxes)
-        p1, p2 = self.problem.masses.map(n)(Xc, ca.repmat(Pp, 1, n), ca.repmat(origin, 1, n))
-        p, side, c, d = ca.SX.sym('p', 3), ca.SX.sym('side', 6), ca.SX.sym('c'), ca.SX.sym('delta')
-        faces = ca.vertcat(side[0] - p[0], p[0] - side[1], side[2] - p[1], p[1] - side[3], side[4] - p[2],
-                           p[2] - side[5])
-        row = ca.Function('keep_out_row', [p, side, c, d], [(smooth_max(faces, d) - c) / KEEP_OUT_SCALE])
-        # one column per point, box and mass (in that order): m1 and m2 of each point, once per box
-        masses = ca.reshape(ca.repmat(ca.vertcat(p1, p2), boxes, 1), 3, 2 * boxes * n)
-        box_sides = ca.repmat(ca.kron(sides, ca.DM.ones(1, 2)), 1, n)
-        return row.map(2 * boxes * n)(masses, box_sides, clearance, delta).T
+        rows = []
+        for b in range(boxes):
+            lo, hi = sides[0::2, b], sides[1::2, b]
+            for p in pb.masses(pb.X, pb.P, origin):
+                faces = ca.vertcat(lo[0] - p[0], p[0] - hi[0], lo[1] - p[1], p[1] - hi[1], lo[2] - p[2], p[2] - hi[2])
+                rows.append((smooth_max(faces, delta) - clearance) / KEEP_OUT_SCALE)
+        return ca.Function('keep_out', [pb.X, pb.P, Pk], [ca.vertcat(*rows)])
 
     def via_values(self, targets, nodes: list[int]) -> np.ndarray:
         """The values of ``via_parameters``: ``targets`` (per via, each axis's scaled position) passed at the
@@ -304,6 +311,12 @@ class Transcription:
                   'hess': ca.Function('hess_F', [pb.X, pb.U, pb.P, mu], [ca.hessian(ca.dot(mu, f), XU)[0]])}
         if self.free_time:
             points['vjp'] = ca.Function('vjp_F', [pb.X, pb.U, pb.P, mu], [ca.jtimes(f, XU, mu, True)])
+        if self.boxes:  # the keep-out rows: d/dX, and d2(lam^T rows)/dX2 (they do not depend on U)
+            Pk, lam = ca.SX.sym('Pk', keep_out_parameters(self.boxes)), ca.SX.sym('lam', self.keep_out_per_point)
+            rows = self._keep_out_point(pb.X, pb.P, Pk)
+            points['keep_jac'] = ca.Function('jac_keep_out', [pb.X, pb.P, Pk], [ca.jacobian(rows, pb.X)])
+            points['keep_hess'] = ca.Function('hess_keep_out', [pb.X, pb.P, Pk, lam],
+                                              [ca.hessian(ca.dot(lam, rows), pb.X)[0]])
         return points
 
     def _derivatives_by_point(self, points: dict) -> dict:
@@ -316,11 +329,12 @@ class Transcription:
         Lagrangian, of blocks -h d2(mu_i^T F)/d(X, U)2 with mu_i the point's multipliers; with the free time
         sigma also has the column -frac_k F of the Jacobian and the cross terms -frac_k dF/d(X, U)^T mu_i of
         the Hessian. ``Problem.F`` is differentiated once, symbolically, and evaluated at every point
-        (``map``). The rest of the NLP (the residuals' linear part, the ends, the limits, the keep-out and
-        via rows, the cost) is differentiated as a whole; it is small. Both are the exact derivatives: IPOPT
-        takes the same steps as with CasADi's own of the whole NLP, which cost many times more to build,
-        the Hessian most (a third derivative of the crane's dynamics, for RVF). ``points``: the per-point
-        functions (``_point_functions``), interpreted or compiled.
+        (``map``). So are the keep-out rows, each point's a function of its own states (blocks
+        d rows/dX of the Jacobian, d2(lam^T rows)/dX2 of the Hessian). The rest of the NLP (the residuals'
+        linear part, the ends, the limits, the via rows, the cost) is differentiated as a whole; it is small.
+        Both are the exact derivatives: IPOPT takes the same steps as with CasADi's own of the whole NLP,
+        which cost many times more to build, the Hessian most (a third derivative of the crane's dynamics,
+        for RVF). ``points``: the per-point functions (``_point_functions``), interpreted or compiled.
         """
         pb, nx, nu, N, d = self.problem, self.problem.nx, self.nu, self.intervals, self.degree
         n, npar, width = N * d, len(PROBLEM_PARAMETERS), nx + nu
@@ -344,6 +358,18 @@ class Transcription:
         jblocks = ca.horzsplit(jac.map(n)(Xc, Uc, Pp, -h), width)
         hblocks = ca.horzsplit(hess.map(n)(Xc, Uc, Pp, mu_c * ca.repmat(-h, nx, 1)), width)
         after = self.nw - nx - n * width  # the free time's sigma
+        keep_jac = ca.MX(self.ng, self.nw)
+        if self.boxes:  # each point's keep-out rows depend on its states only: blocks as the dynamics'
+            k0, rows, nkeep = self.keep_out_start, self.keep_out_per_point, keep_out_parameters(self.boxes)
+            Pk = ca.repmat(Pm[npar + N:npar + N + nkeep], 1, n)
+            lam_k = ca.reshape(lgm[k0:k0 + rows * n], rows, n)
+            kj = ca.horzsplit(points['keep_jac'].map(n)(Xc, Pp, Pk), nx)
+            kh = ca.horzsplit(points['keep_hess'].map(n)(Xc, Pp, Pk, lam_k), nx)
+            blocks = ca.diagcat(*(ca.horzcat(b, ca.MX(rows, nu)) for b in kj))
+            keep_jac = ca.vertcat(ca.MX(k0, self.nw),
+                                  ca.horzcat(ca.MX(rows * n, nx), blocks, ca.MX(rows * n, after)),
+                                  ca.MX(self.ng - k0 - rows * n, self.nw))
+            hblocks = [hb + ca.diagcat(kb, ca.MX(nu, nu)) for hb, kb in zip(hblocks, kh)]
         jac_dyn = ca.vertcat(ca.horzcat(ca.MX(self.nres, nx), ca.diagcat(*jblocks), ca.MX(self.nres, after)),
                              ca.MX(self.ng - self.nres, self.nw))
         hess_dyn = ca.diagcat(ca.MX(nx, nx), *hblocks, ca.MX(after, after))
@@ -356,8 +382,8 @@ class Transcription:
                                    ca.horzcat(ca.MX(n * width, self.nw - 1), ca.vec(cross)),
                                    ca.MX(1, self.nw))
         return {'grad_f': grad_f,
-                'jac_g': ca.Function('nlp_jac_g', [wm, Pm], [g_of(wm, Pm), jac_rest(wm, Pm) + jac_dyn], ['x', 'p'],
-                                     ['g', 'jac_g_x']),
+                'jac_g': ca.Function('nlp_jac_g', [wm, Pm], [g_of(wm, Pm), jac_rest(wm, Pm) + jac_dyn + keep_jac],
+                                     ['x', 'p'], ['g', 'jac_g_x']),
                 'hess_lag': ca.Function('nlp_hess_l', [wm, Pm, lfm, lgm],
                                         [ca.triu(hess_rest(wm, Pm, lfm, lgm) + hess_dyn)],
                                         ['x', 'p', 'lam_f', 'lam_g'], ['triu_hess_gamma_x_x'])}
