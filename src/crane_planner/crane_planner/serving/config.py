@@ -239,8 +239,8 @@ class Config:
                                             stop_options(options) if free_end else options, start, free_end)
                          for method in VARIATIONAL_METHODS]
         # with keep-out boxes, NVF's NLPs of the routes past them the served axes allow (``moves.plan_keeping_out``);
-        # RVF's builds on first use: on the spatial crane its build (~8 s) and first solve
-        # exceed any budget a caller waits for, and a single solver process would be busy with it meanwhile
+        # RVF's builds on first use: warming it up too would keep a solver process busy at start-up
+        # (its NLP, then its derivatives compiled) for a route few callers ask for
         routes = ([Route('over', HOIST_JOINT, -0.2 * self.params.L1, 0.3, 0.7)] if hoisting else []) + (
             [Route('around', BRIDGE_JOINT, 0.2, 0.3, 0.7)] if spatial else [])
         for route in routes if self.keep_out else ():
