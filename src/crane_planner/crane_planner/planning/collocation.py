@@ -85,7 +85,7 @@ class CollocationPlan(Plan):
 
 #: Keep-out boxes' sides beyond this (m) from the origin count as unbounded (an inf side of a box is this).
 KEEP_OUT_FAR = 100.0
-#: The keep-out rows' smooth maximum (``Transcription._keep_out_rows``) rounds over a length delta (m) of at most
+#: The keep-out rows' smooth maximum (``Transcription._keep_out_point_rows``) rounds over a length delta (m) of at most
 #: this, and at most ``KEEP_OUT_SHARPNESS`` times less than the clearance the rows ask for.
 KEEP_OUT_SOFTNESS = 0.01
 KEEP_OUT_SHARPNESS = 3.0
@@ -112,7 +112,7 @@ def keep_out_values(keep_out, origin: dict, extra: float = 0.0) -> np.ndarray:
     sides = [np.clip(v, -KEEP_OUT_FAR, KEEP_OUT_FAR) for box in keep_out.boxes
              for pair in zip(box.lower, box.upper) for v in pair]
     clearance = keep_out.margin + extra
-    delta = min(KEEP_OUT_SOFTNESS, clearance / KEEP_OUT_SHARPNESS)
+    delta = max(min(KEEP_OUT_SOFTNESS, clearance / KEEP_OUT_SHARPNESS), 1e-6)  # (a clearance of 0: sharp)
     return np.array([origin.get('cart', 0.0), origin.get('bridge', 0.0), clearance, delta, *sides])
 
 
@@ -269,7 +269,7 @@ class Transcription:
         return np.concatenate(values) if values else np.zeros(0)
 
     def keep_out_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """(lbg, ubg) of the keep-out rows (``_keep_out_rows``)."""
+        """(lbg, ubg) of the keep-out rows (``_keep_out_point_rows`` at every point): >= 0."""
         count = 2 * self.boxes * self.intervals * self.degree
         return np.zeros(count), np.full(count, np.inf)
 
