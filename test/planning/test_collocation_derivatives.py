@@ -20,6 +20,7 @@ CASES = {  # robust, hoist, bridge, limits, keep-out boxes, via points, free fin
     'rvf-hoist': (('L1',), True, False, False, 0, 0, False),
     'spatial-nvf-box': ((), False, True, False, 1, 0, False),
     'spatial-rvf-via': (('L1',), False, True, True, 0, 1, False),
+    'hoist-limits-boxes-via': ((), True, False, True, 2, 1, False),  # keep-out rows between limits and via
 }
 
 

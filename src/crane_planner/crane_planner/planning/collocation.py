@@ -85,9 +85,10 @@ class CollocationPlan(Plan):
 
 #: Keep-out boxes' sides beyond this (m) from the origin count as unbounded (an inf side of a box is this).
 KEEP_OUT_FAR = 100.0
-#: The keep-out rows' smooth maximum (``Transcription._keep_out_point_rows``) rounds over a length delta (m) of at most
-#: this, and at most ``KEEP_OUT_SHARPNESS`` times less than the clearance the rows ask for.
+#: The longest length delta (m) the keep-out rows' smooth maximum (``Transcription._keep_out_point_rows``)
+#: rounds over.
 KEEP_OUT_SOFTNESS = 0.01
+#: delta is also at most the clearance the rows ask for divided by this.
 KEEP_OUT_SHARPNESS = 3.0
 #: The length (m) the keep-out rows are divided by: O(1) for clearances of centimetres to decimetres.
 KEEP_OUT_SCALE = 0.1
@@ -240,8 +241,10 @@ class Transcription:
         Where faces tie, beside an edge or a corner of the box, smax exceeds the
         maximum, but the distance to the box, Euclidean there, exceeds it too:
         with delta at most c / ``KEEP_OUT_SHARPNESS`` and ``KEEP_OUT_SOFTNESS``,
-        smax >= c keeps the mass at least 0.96 c from the box, and never more
-        than 1.2 mm nearer than c (``smooth_max``).
+        smax >= c keeps the mass at least 0.95 c from a box at least 3 delta
+        thick each way, and never more than 1.3 mm nearer than c; from a box
+        of no thickness (a plane, a post: both faces of an axis tie too) at
+        least 0.92 c, 2.3 mm nearer at most (``smooth_max``).
         Unlike the maximum, or face weights that pick a face (a variable and a
         bilinear row per face), the rows are smooth and add no variable: IPOPT
         takes about half the iterations. Rows per box: m1's and m2's

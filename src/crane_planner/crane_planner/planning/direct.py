@@ -127,8 +127,8 @@ class DirectSolver(VariationalSolver):
             callback = self.iteration_callback(tr.nw, tr.ng, tr.nlp['p'].shape[0])
             options = dict(self.ipopt_options(), iteration_callback=callback)
             if boxes or vias:  # started from a guess without multipliers: the adaptive barrier
-                # parameter takes fewer iterations than the monotone one from it (around a column 11-14, not
-                # 17-21; over a wall 10-15, not 14-18)
+                # parameter takes fewer iterations than the monotone one from it (bench/route.py's requests:
+                # around the column 10-14, not 17-21; over the wall 10-15, not 14-18)
                 options.update({'ipopt.warm_start_init_point': 'no', 'ipopt.mu_strategy': 'adaptive'})
             inst = self._instances[key] = Instance.new(tr, options, callback,
                                                        source.warm if source is not None else None)
@@ -267,7 +267,7 @@ class DirectSolver(VariationalSolver):
             lbg[end:end + tr.limit_rows], ubg[end:end + tr.limit_rows] = -bound, bound
         if tr.boxes:  # the keep-out rows after the limits'
             lo, hi = tr.keep_out_bounds()
-            rows = slice(end + tr.limit_rows, end + tr.limit_rows + len(lo))
+            rows = slice(tr.keep_out_start, tr.keep_out_start + len(lo))
             lbg[rows], ubg[rows] = lo, hi  # (the via points' rows after them: = 0)
         return dict(lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
 

@@ -141,6 +141,7 @@ def cable_direction(a, b, lib=ca):
 
 
 def _column(lib, *rows):
+    """``rows`` stacked: a CasADi column, or a NumPy array of one row each (numbers broadcast to the arrays)."""
     return ca.vertcat(*rows) if lib is ca else np.stack(np.broadcast_arrays(*rows))
 
 
@@ -151,7 +152,7 @@ def masses_at(x, y, L1, L2, theta1, theta2, phi1, phi2, lib=ca):
     (``cable_direction``), s = (x, y, 0) the suspension point; the planar
     crane is phi1 = phi2 = 0 (Fig. 1: x1 = x - L1 sin theta1, z1 = -L1 cos
     theta1). ``lib``: ``casadi`` for symbols (the NLP's, the Lagrangian's),
-    ``numpy`` for arrays (a path: each (3, n)).
+    ``numpy`` for arrays (a path: each (3, n); every input a number or an array of the same n).
     """
     p1 = _column(lib, x, y, 0 * x) + L1 * cable_direction(theta1, phi1, lib)
     return p1, p1 + L2 * cable_direction(theta1 + theta2, phi1 + phi2, lib)
