@@ -196,9 +196,9 @@ class Transcription:
                     bj.append(ca.mtimes(to_bj, coef[1:] * np.arange(1, d + 1)) / frac[k])
                 g += [ca.vertcat(*bv), ca.vertcat(*ba), ca.vertcat(*bj)]
         objective = sigma + self.free_time_cost_weight * J if free_time else J
-        self.limit_rows = sum(x.shape[0] for x in g) - nx * N * d - nx  # the axis limits' rows, after the ends
         #: where the keep-out rows start among the constraints (after the limits'), and their number per point
         self.keep_out_start, self.keep_out_per_point = sum(x.shape[0] for x in g), 2 * boxes
+        self.limit_rows = self.keep_out_start - nx * N * d - nx  # the axis limits' rows, after the ends
         keep_out = None
         if boxes:
             self._keep_out_point = self._keep_out_point_rows(boxes)
@@ -273,7 +273,7 @@ class Transcription:
 
     def keep_out_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(lbg, ubg) of the keep-out rows (``_keep_out_point_rows`` at every point): >= 0."""
-        count = 2 * self.boxes * self.intervals * self.degree
+        count = self.keep_out_per_point * self.intervals * self.degree
         return np.zeros(count), np.full(count, np.inf)
 
     def nlpsol(self, options: dict) -> ca.Function:
