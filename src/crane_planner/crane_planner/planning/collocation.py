@@ -447,7 +447,11 @@ class Transcription:
     def guess(self, displacement, frac: np.ndarray, x0: np.ndarray | None = None,
               xT: np.ndarray | None = None) -> np.ndarray:
         """The NLP variables of ``Problem.initial_guess`` (rest to rest, or from the scaled start ``x0``)."""
-        s = self.node_times(frac)
-        X, U = self.problem.initial_guess(displacement, s, x0, xT)
-        body = np.vstack([X[:, 1:], U[:, 1:]])
-        return np.concatenate([X[:, 0], body.T.ravel()])
+        X, U = self.problem.initial_guess(displacement, self.node_times(frac), x0, xT)
+        return self.pack(X, U)
+
+    @staticmethod
+    def pack(X: np.ndarray, U: np.ndarray) -> np.ndarray:
+        """The NLP variables of scaled states ``X`` and inputs ``U`` at the node times (``node_times``): the
+        start's states, then each collocation point's states and inputs."""
+        return np.concatenate([X[:, 0], np.vstack([X[:, 1:], U[:, 1:]]).T.ravel()])

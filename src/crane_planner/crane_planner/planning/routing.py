@@ -135,7 +135,7 @@ def route_guess(tr, displacement, frac: np.ndarray, route: Route, pvec: np.ndarr
     if route.axis == 'bridge':  # the load lags the bridge's acceleration: phi1 ~ -ab/g (scaled: -ab)
         X[pb.states.index('phi1')] = -X[pb.states.index('ab')]
         X[pb.states.index('dphi1')] = -U[k]
-    return np.concatenate([X[:, 0], np.vstack([X[:, 1:], U[:, 1:]]).T.ravel()])
+    return tr.pack(X, U)
 
 
 def via_nodes(tr, frac: np.ndarray, displacement, vias) -> list[int]:
