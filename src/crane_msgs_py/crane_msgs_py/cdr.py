@@ -1,7 +1,7 @@
 """The streamer's one-sample references read straight from their serialized bytes (CDR), and written so.
 
 At 1 kHz the simulator cannot afford rclpy's typed messages: taking one JointTrajectory as a
-Python object costs about ten times what taking its bytes does (``bench/reference_take.py``).
+Python object costs several times what taking its bytes does (``bench/reference_take.py`` measures both).
 So it subscribes raw and reads the few fields it needs here: the header stamp, the joint
 names and the first point's positions, velocities and accelerations of a
 ``trajectory_msgs/JointTrajectory``, or the data of a ``std_msgs/Float64MultiArray``.

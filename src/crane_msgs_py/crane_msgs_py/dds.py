@@ -7,15 +7,15 @@ its request before the server has found the client's reader. rmw_fastrtps
 then waits ``max_blocking_time`` of the service's response writer (100 ms by
 default) and drops the answer ("failed to send response (timeout): client
 will not receive response"); the client waits for ever. On a busy machine
-discovery takes longer than 100 ms. The nodes' profile gives their service
-answers 2 s (``fastdds_profiles.xml``: the profile rmw_fastrtps reads for
-service response writers only; no topic is affected).
+discovery takes longer than that. The nodes' profile gives their service
+answers far longer than discovery takes (``fastdds_profiles.xml``: the profile
+rmw_fastrtps reads for service response writers only; no topic is affected).
 
 For a graph confined to one host (the tests, ``crane-demo``, a bench crane),
 ``use_loopback_udp`` runs Fast DDS over loopback UDP only. Its shared-memory
 transport, which rmw_fastrtps adds itself under
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` whatever ``FASTDDS_BUILTIN_TRANSPORTS``
-says, stalls a sender for a third of a second whenever a participant joins
+says, stalls a sender for hundreds of 1 kHz ticks whenever a participant joins
 (eProsima/Fast-DDS#6535), and a participant killed while it opens a port leaves
 a segment that makes the next one to open it spin for ever in
 ``SharedMemGlobal::open_port_internal``.

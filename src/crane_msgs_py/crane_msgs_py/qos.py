@@ -20,7 +20,7 @@ TRAJECTORY_QOS = QoSProfile(
 #: discarded anyway, while reliable delivery would add acknowledgement traffic
 #: and head-of-line blocking behind a lost sample (latency spikes where the
 #: receiver needs freshness). Volatile: a late joiner must not get old
-#: setpoints. Depth 10 (10 ms): with best effort only the reader's queue
+#: setpoints. A queue of 10 ms: with best effort only the reader's queue
 #: matters; a receiver that wants the newest setpoint (a forward command
 #: controller) has a short backlog at most. A best-effort publisher only
 #: matches best-effort subscribers: subscribe with a best-effort profile.
@@ -43,7 +43,7 @@ STREAM_STATE_QOS = QoSProfile(
     reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE)
 
 #: ``joint_states``: measurements in the sensor data style (REP 2003: best
-#: effort, volatile) with a queue of 25 (0.5 s at 50 Hz) instead of 5, so a
+#: effort, volatile) with a queue of 0.5 s at 50 Hz instead of the sensor data profile's 5, so a
 #: reader that stalls briefly still gets every sample of a 50 Hz stream.
 JOINT_STATES_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=25,
@@ -68,8 +68,8 @@ MARKERS_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=5,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 
-#: ``~/plan_move`` (the service and its clients): the services' default policies with a queue of
-#: 100 instead of 10. Requests run side by side, but each waits in the service's queue until the
+#: ``~/plan_move`` (the service and its clients): the services' default policies with a deeper queue than
+#: their default 10. Requests run side by side, but each waits in the service's queue until the
 #: executor takes it: a burst of concurrent requests overflows the default queue, and a dropped
 #: request is never answered.
 PLAN_MOVE_QOS = QoSProfile(

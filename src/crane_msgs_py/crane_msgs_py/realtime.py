@@ -50,7 +50,8 @@ def tune_thread(priority: int = 0) -> list[str]:
     Linux pads every sleep by the thread's timer slack (50 us by default);
     1 ns removes that padding. SCHED_FIFO needs CAP_SYS_NICE or an rtprio
     limit. Also shortens the interpreter's switch interval so a loop thread
-    woken while another thread runs Python waits ~100 us for the GIL, not 5 ms.
+    woken while another thread runs Python waits one short interval for the GIL,
+    not the interpreter's default 5 ms.
     Returns warnings for what could not be done.
     """
     warnings = []

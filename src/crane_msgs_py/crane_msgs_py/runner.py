@@ -3,7 +3,7 @@
 ``run`` is the body of every node's ``main()``: init, build, spin, clean shutdown.
 
 SIGINT and SIGTERM only set a flag here, and the spin loop checks it between
-short ``spin_once`` calls (so the node stops within 0.1 s). rclpy's own
+short ``spin_once`` calls (so the node stops within one of them). rclpy's own
 handlers would instead shut the context down from a signal thread, under a
 node still being built or an executor in the middle of a wait, which can
 end in an rcl error, a hang or a crash depending on timing. Either way the
