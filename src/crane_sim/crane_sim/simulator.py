@@ -305,7 +305,7 @@ class _Stepper:
         self._cart = layout.axes.index(CART_JOINT)  # the swing's driving acceleration is the cart's
         self._angles, self._rates = layout.angles, layout.rates
         self.model = plants.swing_model()
-        # 0-d arrays: numpy multiplies by them about twice as fast as by Python floats,
+        # 0-d arrays: numpy multiplies by them faster than by Python floats,
         # which matters at a few dozen plants where every numpy call is pure overhead
         self._h, self._h2, self._h6 = np.array(h), np.array(0.5 * h), np.array(h / 6.0)
         self._hoist = None
@@ -640,7 +640,7 @@ class _PointStepper:
     cart's and the bridge's exact accelerations and the hoist's exact length at the stage times 0, h/2, h.
 
     The same scheme as ``_Stepper`` (whose planar model it reduces to with no bridge: the two
-    cross-check to rounding), at a tenth of its cost for one plant."""
+    cross-check to rounding), at a fraction of its cost for one plant."""
 
     def __init__(self, plants: PlantBatch, h: float, axes: tuple):
         self.h = h
@@ -814,7 +814,7 @@ class CraneSimulator:
         (held at ``begin`` if None): one value per axis of ``axes`` in its order (a number alone: the cart's).
 
         Returns nothing: building :attr:`state` costs more than a step's arithmetic, and
-        the real-time loop reads it only every 20th step."""
+        the real-time loop reads it only at its publish rate, a small share of its steps."""
         r0 = [float(v) for v in np.atleast_1d(begin)]
         r1 = r0 if end is None else [float(v) for v in np.atleast_1d(end)]
         if len(r0) != len(self.axes) or len(r1) != len(self.axes):

@@ -38,7 +38,7 @@ a 2x2 system (a Schur complement of the mass matrix, positive definite for
 positive masses and cables off the horizontal), solved by Cramer's rule.
 
 The accelerations in plain ``math`` on floats: one plant stepped in real time costs the number of
-operations, and numpy's per-call overhead on arrays of one would cost ten
+operations, and numpy's per-call overhead on arrays of one would cost many
 times more (the batch simulator, ``crane_sim.simulator.simulate``, keeps
 numpy for many plants).
 """

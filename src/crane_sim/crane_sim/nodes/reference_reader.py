@@ -2,10 +2,11 @@
 
 An axis controller reads its setpoint once a cycle from what the fieldbus received; so does the
 simulator's loop: each step it takes every reference the middleware has received since the last
-one. Handing 1 kHz messages through an executor's callbacks cost the simulator about a quarter of a
+one. Handing 1 kHz messages through an executor's callbacks cost the simulator a large part of a
 core on its own; taking their bytes (``raw``) and reading the few fields the loop needs
-(``crane_msgs_py.cdr``) costs a tenth of that, and the middleware's own threads keep receiving
-while the Python process stalls. Each message's receive time is the middleware's.
+(``crane_msgs_py.cdr``) costs a small fraction of that (``bench/reference_take.py``), and the
+middleware's own threads keep receiving while the Python process stalls. Each message's receive
+time is the middleware's.
 
 The subscription belongs to a hidden node of its own (``_<sim node>_reference``, hidden as
 tf2's listener nodes are), which no executor spins: an executor would take the messages first.

@@ -110,8 +110,8 @@ PARAMETERS = {
                        f"'{OUTPUT_FLOAT64_ARRAY}'; fixed at start-up",
                        {'additional_constraints': f'auto, {OUTPUT_JOINT_TRAJECTORY} or {OUTPUT_FLOAT64_ARRAY}',
                         'read_only': True}),
-    # 1 s: a drive's watchdog is tighter, but a busy 2-core host stalls this process for up to about a second,
-    # and a stall taken for a lost stream stops the motion
+    # Looser than a drive's watchdog: a busy 2-core host stalls this process for up to about this long, and a stall
+    # taken for a lost stream stops the motion
     'reference_timeout': (1.0, 'a reference older than this (s) on arrival is stale and ignored; without a '
                           'fresh one for this long the stream is lost: the fault reaction brakes every axis to '
                           'rest (fault_deceleration) and holds', float_range(1e-3, 10.0)),
@@ -137,10 +137,11 @@ PARAMETERS = {
     'seed': (0, 'seed of the measurement noise; fixed at start-up', {**int_range(0, 2**31 - 1), 'read_only': True}),
     'push_swing': (0.03, '~/push displaces the load this far (m) horizontally, cables in line, and lets go: a '
                          'swing for tests and the demo (the planner\'s ~/settle damps it)', float_range(-1.0, 1.0)),
-    # 45: the sim stands for the axes' drives, whose control loop no other program delays. At normal
+    # Real-time: the sim stands for the axes' drives, whose control loop no other program delays. At normal
     # scheduling a busy host (one CPU-bound process beside the suite) kept its executor from a core for
-    # hundreds of milliseconds: references came after their playout time, or the receive buffers overflowed
-    # and the stream counted as lost mid-motion. Below the streamer's loop (50), above the planner's goals (40)
+    # longer than the playout delay: references came after their playout time, or the receive buffers
+    # overflowed and the stream counted as lost mid-motion. Below the streamer's loop, above the planner's
+    # goals (their sched_priority and handover_priority)
     'sched_priority': (45, 'SCHED_FIFO priority of the stepping thread, 1..99, the executor thread that '
                        'feeds it one below, the middleware\'s receive threads two below (without the privilege a '
                        'warning and normal scheduling); 0 = normal scheduling: the playout delay absorbs late '
