@@ -247,7 +247,7 @@ class Transcription:
         least 0.92 c, 2.3 mm nearer at most (``smooth_max``).
         Unlike the maximum, or face weights that pick a face (a variable and a
         bilinear row per face), the rows are smooth and add no variable: IPOPT
-        takes about half the iterations. Rows per box: m1's and m2's
+        takes fewer iterations (docs/benchmarks.md). Rows per box: m1's and m2's
         (smax - c) / KEEP_OUT_SCALE >= 0; the NLP has them at every point in turn.
         """
         pb = self.problem

@@ -1,10 +1,10 @@
 """CasADi functions compiled to machine code with the host's C compiler, in the background, cached on disk.
 
 CasADi evaluates a symbolic function in its virtual machine, one instruction at a time; the same function
-generated as C and compiled runs several times faster (the spatial crane's per-point Hessian: 29 ms over
-96 points in the virtual machine, 3.6 ms compiled). Compiling takes seconds to tens of seconds, so it
-never holds a caller: ``in_background`` returns at once, compiles in a thread (the compiler is a niced
-subprocess; generating its C source holds the interpreter lock, up to 0.4 s), and hands the compiled
+generated as C and compiled runs several times faster (the spatial crane's per-point Hessian most).
+Compiling takes seconds to tens of seconds, so it never holds a caller: ``in_background`` returns at
+once, compiles in a thread (the compiler is a niced subprocess; generating its C source holds the
+interpreter lock, for a fraction of a second), and hands the compiled
 functions to a callback, which swaps them in. Until then, or if no compiler is found or compiling
 fails, the caller keeps the functions it has: only slower.
 
@@ -34,7 +34,7 @@ from typing import Callable
 
 import casadi as ca
 
-#: The C compiler's optimization: -O1 runs within a few per cent of -O2 on these straight-line functions
+#: The C compiler's optimization: -O1 runs nearly as fast as -O2 on these straight-line functions
 #: and compiles in a fraction of its time.
 FLAGS = ('-O1', '-fPIC', '-shared')
 #: Niceness of the compiler: it yields the cores to solves and to the real-time nodes.

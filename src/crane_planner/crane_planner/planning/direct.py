@@ -127,8 +127,8 @@ class DirectSolver(VariationalSolver):
             callback = self.iteration_callback(tr.nw, tr.ng, tr.nlp['p'].shape[0])
             options = dict(self.ipopt_options(), iteration_callback=callback)
             if boxes or vias:  # started from a guess without multipliers: the adaptive barrier
-                # parameter takes fewer iterations than the monotone one from it (bench/route.py's requests:
-                # around the column 10-14, not 17-21; over the wall 10-15, not 14-18)
+                # parameter takes fewer iterations than the monotone one from it (on bench/route.py's requests,
+                # around the column and over the wall alike)
                 options.update({'ipopt.warm_start_init_point': 'no', 'ipopt.mu_strategy': 'adaptive'})
             inst = self._instances[key] = Instance.new(tr, options, callback,
                                                        source.warm if source is not None else None)

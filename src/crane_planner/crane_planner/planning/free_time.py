@@ -39,7 +39,7 @@ class FreeTimeSearch:
         by axis name, ``problem.axis_displacements``) within the solver's axis limits (each axis's own).
 
         It starts from its own last solution; the first time (or if that
-        fails) from the quintic guess at T_0 = 1.3 times the shortest quintic
+        fails) from the quintic guess at T_0 = ``quintic_margin`` times the shortest quintic
         within the limits, and failing that from a fixed-duration solution
         (durations 1.5 times apart until one solves). With a
         ``max_solve_time`` the attempts together (the build of the NLP aside)
@@ -149,8 +149,8 @@ class FreeTimeSearch:
             tr = solver.transcription(form, free_time=True)
             callback = solver.iteration_callback(tr.nw, tr.ng, tr.nlp['p'].shape[0])
             # a warm start sits at its optimum: a small barrier parameter keeps IPOPT there, and the
-            # adaptive barrier update leaves it in fewer iterations than the monotone one (the same
-            # request 15 -> 8 NVF, 9 -> 4 RVF; a new D of 0.5 m after 0.3 m 197 -> 88)
+            # adaptive barrier update leaves it in fewer iterations than the monotone one (for the same
+            # request again and for a new displacement alike, NVF and RVF)
             options = dict(solver.ipopt_options(), iteration_callback=callback,
                            **{'ipopt.mu_init': 1e-6, 'ipopt.mu_strategy': 'adaptive'})
             inst = self._instances[form] = Instance.new(tr, options, callback)

@@ -91,7 +91,7 @@ class Plan(ABC):
     def evaluate(self, t) -> Samples:
         """Exact reference at arbitrary times; at rest at 0 before 0 and at D after T."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        tc = np.minimum(np.maximum(t, 0.0), self.duration)  # (np.clip: twice the cost)
+        tc = np.minimum(np.maximum(t, 0.0), self.duration)  # (np.clip costs more)
         p, v, a, j = (np.asarray(x, dtype=float) for x in self._evaluate(tc))
         outside = (t < 0.0) | (t > self.duration)
         if outside.any():

@@ -278,7 +278,7 @@ def _first_feasible(beyond, lo: float, hi: float, steps) -> float:
     if not previous < x:
         return x
     # in log-log coordinates a peak of order k is about linear (c D / Tb^k), so Brent's first
-    # secant steps land close: 2-3 evaluations instead of 4-5
+    # secant steps land close, in fewer evaluations than bisection would take
     u = brentq(lambda u: beyond(math.exp(u)), math.log(previous), math.log(x), xtol=1e-6)
     return math.exp(u)
 

@@ -23,7 +23,7 @@ from scipy.optimize import root
 
 from crane_msgs_py.params import ParameterError, check_nonnegative, check_positive
 
-#: Default EI tolerance: 5 % residual vibration allowed at the design frequency.
+#: Default EI tolerance: the residual vibration V allowed at the design frequency.
 EI_TOLERANCE = 0.05
 
 

@@ -8,7 +8,7 @@ is made robust to. So a rest-to-rest move of the suspension point along a straig
 one of the planar crane's (Eqs. 18-19) in the vertical plane through that line: the load swings in that
 plane only, by the planar angles psi1, psi2, and the optimum of the coupled problem is the planar optimum
 of the line's length, its reference shared by the cart (cos alpha) and the bridge (sin alpha). The planar
-NLP has half the states and solves in a half to a third of the time.
+NLP has half the states and solves in a fraction of the time (``bench/spatial.py`` times both).
 
 Where the symmetry breaks, the coupled problem is solved as it is (``applies``): joint damping (its
 dissipation function, ``dynamics.spatial_swing``, is written in theta and phi, not in the cable's angular

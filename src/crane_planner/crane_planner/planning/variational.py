@@ -40,8 +40,8 @@ class VariationalSolver:
     handles_bridge = False
     #: Collocation intervals when PlanOptions.intervals is None.
     default_intervals = 30
-    #: ... and with a hoist: its NLP costs several times as much per interval, and 24 intervals leave the
-    #: same residual swing on the nominal hoisting move as 30, in less time.
+    #: ... and with a hoist: its NLP costs several times as much per interval, and fewer intervals leave the
+    #: same residual swing on the nominal hoisting move, in less time (docs/benchmarks.md).
     default_hoist_intervals = 24
     #: ... and on the spatial crane (a bridge, with or without the hoist): twice the states of the planar crane.
     default_bridge_intervals = 24

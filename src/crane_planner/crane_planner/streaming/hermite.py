@@ -66,7 +66,7 @@ class QuinticHermite:
         if self.t.size == 1:
             return (np.full(t.shape, self.position[0]), np.full(t.shape, self.velocity[0]),
                     np.full(t.shape, self.acceleration[0]), np.zeros(t.shape))
-        # (minimum/maximum: np.clip costs twice as much, a handover's planning evaluates a few times)
+        # (minimum/maximum: np.clip costs more, and a handover's planning evaluates this a few times)
         tc = np.minimum(np.maximum(t, self.t[0]), self.t[-1])
         k = np.minimum(np.maximum(np.searchsorted(self.t, tc, side='right') - 1, 0), self._h.size - 1)
         h = self._h[k]
