@@ -168,7 +168,8 @@ class CraneView:
 
     def in_motion(self) -> Running | None:
         """The motion the streamer is streaming (or about to), if any: the last one sent, unless it has
-        ended, or the streamer says it holds though the motion should have started 0.1 s ago (refused)."""
+        ended, or the streamer says it holds though the motion should have started ``REFUSED_AFTER_NS`` ago
+        (refused)."""
         with self._goals.lock:
             running = self._goals.running
         if running is None:

@@ -6,7 +6,7 @@ that takes longer than the lead (less the transport's share) is planned
 again further ahead (``plan_handover``), and the next one of its kind starts
 from a lead its recent planning times fit (``PlanningTimes``); a handover
 the streamer did not take all the same (it came late on a busy host) is sent
-again, four times further ahead, or half as far again as its planning needed
+again, further ahead: a multiple of the lead asked for or of the one its planning needed
 (``HandoverPolicy``). An executed goal is held until ``publish_lead``
 before its start (``send_at``); one whose start passed meanwhile streams
 from the streamer's next tick (``streamed_origin``). Every time comes from
@@ -162,7 +162,7 @@ def plan_handover(clock: Callable[[], int], running: Running, lead: float,
         took = timer() - t0
         if times is not None:
             times.record(kind, took)
-        # the transport's share of the lead: TRANSPORT_MARGIN, or with a short lead (a shaper's) 40 % of it.
+        # the transport's share of the lead: TRANSPORT_MARGIN, or with a short lead (a shaper's) part of it.
         # A plan ending no earlier than the running motion (a new goal's) may even arrive late: the streamer
         # delays its change to its next tick, up to MAX_HANDOVER_SHIFT (half of it kept for the transport).
         # A handover arriving too late all the same is refused and planned again.

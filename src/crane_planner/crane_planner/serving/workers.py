@@ -67,8 +67,8 @@ def _context():
 def _start_forkserver() -> None:
     """Start the fork server with SIGINT ignored, if called from the main thread (see ``start_fork_server``).
 
-    The fork server protects itself from Ctrl-C only once it has imported ``_PRELOAD`` (a second or
-    more): a node stopped by SIGINT to its process group (Ctrl-C in a terminal, a launcher) meanwhile
+    The fork server protects itself from Ctrl-C only once it has imported ``_PRELOAD`` (which takes a
+    while): a node stopped by SIGINT to its process group (Ctrl-C in a terminal, a launcher) meanwhile
     would have it die with a KeyboardInterrupt traceback. An ignored signal stays ignored across the
     server's exec (and Python keeps it so), and the workers it forks inherit that.
     """

@@ -58,7 +58,7 @@ RETARGET_EXTRA, RETARGET_AT, STOP_AT = 0.2, 0.4, 0.5
 SETTLE_AFTER_PUSH, SETTLE_WITHIN = 1.0, 3.0
 
 #: The hoisting cases: the upper cable from 0.47 to 0.27 m (m) while the cart travels, in this long (s),
-#: and the move back: the hoisting NLP does not converge at 1.25 s (see the README), at 1.5 s in 5 iterations.
+#: and the move back: long enough for the hoisting NLP to converge readily (a shorter one does not: see the README).
 HOIST, HOIST_DURATION, HOIST_RETURN = (0.47, 0.27), 3.0, 1.5
 
 #: The commissioning case's crane: unknown to the planner (L1 +12 %, L2 -10 %, m2 +15 %: the mass
@@ -123,7 +123,7 @@ CASES = {
 }
 #: What runs without --cases: every case but perturbed+net (nothing perturbed and nominal+net do not show
 #: between them), so that make demo, hoisting, motion from any state and the spatial case included, stays
-#: under 6 minutes;
+#: short (docs/benchmarks.md has its time);
 #: --cases all runs every one, with every method.
 DEFAULT_CASES = tuple(name for name in CASES if name != 'perturbed+net')
 #: Table columns of the commission case: before and after identification.
@@ -165,7 +165,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='seconds of swing observed after each motion (default 2.0, more than the slow '
                         "mode's 1.73 s period)")
     # not 1.0: from the warm start of a 3 s move, NVF's 0.3 m in 1 s takes an order of magnitude more IPOPT
-    # iterations than in 1.5 s, enough to run past max_solve_time (1 s) on a loaded machine and fail the demo
+    # iterations than in 1.5 s, enough to run past the planner's max_solve_time on a loaded machine and fail
+    # the demo
     p.add_argument('--return-duration', type=float, default=1.5, metavar='T',
                    help='time (s) of the unmeasured move back between runs, starting as the observation '
                         'ends (default 1.5)')
@@ -229,7 +230,7 @@ def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: s
     # window untouched.
     request_back(driver, start_ns + round(T * 1e9), back_start_ns)
     back_duration = args.return_duration if case.hoist is None else max(args.return_duration, HOIST_RETURN)
-    # (its result after 50 ms of watching: nothing is measured of it, and none is left pending at the end)
+    # (its result after a brief watch: nothing is measured of it, and none is left pending at the end)
     back_ns, _, _ = driver.move('nvf', D, 0.0, back_duration, start_ns=back_start_ns, hoist=back_hoist, settle=0.05)
     t, load, rope, residual = _window_residual(driver, case, start_ns, start_ns, start_ns + round(T * 1e9), end_ns)
     action_residual = driver.move_result(start_ns).residual_swing  # what the caller of the action is told
@@ -291,7 +292,7 @@ def _home(driver: CraneHarness, args, hoist: float | None = None, duration: floa
     sim reset (no damping to wait for)."""
     duration = duration or (max(args.return_duration, HOIST_RETURN) if hoist is not None else args.return_duration)
     back, _, _ = driver.move('nvf', None, 0.0, duration, settle=0.05, hoist=None if hoist is None else (None, hoist))
-    driver.move_result(back)  # (its result after 50 ms of watching, not the default 2 s: nothing is measured)
+    driver.move_result(back)  # (its result after a brief watch, not the default settle: nothing is measured)
     driver.reset_sim()
 
 
@@ -342,7 +343,7 @@ def run_any_state(driver: CraneHarness, case: Case, method: str, args) -> Run:
             raise HarnessError(f'crane-teleop failed: {tool.stderr.read().strip()}')
         released = driver.now_ns()
         plan_time = 0.0
-        after = released + round(2.5e9)  # braking (0.5 s) and the shaper (1.2 s) played out
+        after = released + round(2.5e9)  # the stick's braking and the shaper played out, with time to spare
         end = after + round(settle * 1e9)
         driver.sleep(max(0.0, (end - driver.now_ns()) * 1e-9 + 0.3))
         t, load, rope, residual = _window_residual(driver, case, begin, begin, after, end)
@@ -350,7 +351,7 @@ def run_any_state(driver: CraneHarness, case: Case, method: str, args) -> Run:
         peak, action = float('nan'), float('nan')
         driver.set_parameters('streamer', {'mode': 'trajectory'})
         driver.sleep(0.2)
-        _home(driver, args, hoist=HOIST[0], duration=3.0)  # 0.6 m back with the rope: 1.5 s is too short
+        _home(driver, args, hoist=HOIST[0], duration=3.0)  # 0.6 m back with the rope: the default return is too short
     return Run(case.name, method, plan_time, peak, residual, 1e3 * action, t, load, plan_t, plan_v, plan_a, rope=rope)
 
 

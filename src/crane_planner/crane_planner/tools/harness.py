@@ -146,8 +146,8 @@ class CraneHarness:
         self._goals: dict = {}  # start stamp ns -> ExecuteMove goal handle, until its result is read
         # The two 50 Hz inputs on a node of their own, spun by an EventsExecutor (subscriptions only, all made
         # before it spins): through the harness node's executor, which rebuilds its wait set for every client
-        # of it, their 100 messages a second cost a quarter of a core, here a tenth.
-        # Every sample counts (the residuals are computed from them): 10 s of queue for this process's stalls.
+        # of it, their messages cost a large share of a core, here a small one.
+        # Every sample counts (the residuals are computed from them): a queue of seconds for this process's stalls.
         self._inputs = rclpy.create_node(f'{node_name}_inputs', namespace=namespace, start_parameter_services=False)
         self._inputs.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state,
                                          recording(JOINT_STATES_QOS, 10.0, 50.0))
@@ -369,7 +369,7 @@ class CraneHarness:
 
     def lead(self) -> float:
         """Seconds between a request and its motion start: three times the slowest round trip
-        seen so far, at least 0.3 s (the planner's publish_lead: it sends the trajectory at once
+        seen so far, at least the planner's default publish_lead (it sends the trajectory at once
         then). A request after a parameter change, on a machine also recording at 1 kHz, can
         take longer than that: such a motion reaches the streamer late and is streamed whole from its
         next tick, and every window follows the start it really got (``streamed_start``). At most 2 s: a route

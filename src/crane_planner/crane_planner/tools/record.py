@@ -102,7 +102,7 @@ class Recorder:
         subscriptions to match their publishers; the topics without a publisher after ``timeout`` s.
 
         Why wait for the graph to settle: while this process still discovers
-        the graph (the first second or so), Fast DDS may deliver nothing to its
+        the graph (its first moments), Fast DDS may deliver nothing to its
         readers for a while, then the queued samples all at once, stamped with
         receive times that late. The topic list is also incomplete then (a topic
         seen through its subscribers only: no publisher to match yet).
