@@ -25,7 +25,7 @@ all: install
 $(PY):
 	$(PYTHON) -m venv $(VENV)
 
-# uv installs requirements.txt in seconds where pip takes over a minute (the same pins; here it resolved every
+# uv installs requirements.txt far faster than pip (the same pins; here it resolved every
 # package under them as pip does). It copies from its cache rather than hard-linking, because
 # devtools/patch_ros_cmake.py rewrites files of the venv in place. make INSTALLER=pip uses pip alone (for an
 # index set in pip's configuration, which uv does not read).
@@ -83,9 +83,10 @@ $(IFACES): $(DEPS) devtools/patch_ros_cmake.py $(IFACE_FILES)
 
 # The bytecode (.pyc) of every package, written once here: where PYTHONDONTWRITEBYTECODE is set, as on some CI
 # hosts, no process caches it, and each would compile rclpy, numpy, scipy and CasADi's Python again (an import
-# of the planner's stack 4.9 s instead of 1.8 s, at every node start). The dependencies (uv writes none; pip's
-# are skipped as up to date), this repository's packages (editable: imported from src/; an edited module is
-# compiled again where it is imported, its .pyc only unused) and the interface package.
+# of the planner's stack takes several times as long, at every node start: docs/benchmarks.md). The
+# dependencies (uv writes none; pip's are skipped as up to date), this repository's packages (editable:
+# imported from src/; an edited module is compiled again where it is imported, its .pyc only unused) and the
+# interface package.
 PYC := $(VENV)/.pyc-compiled
 $(PYC): $(PKGS) $(IFACES) $(shell find src -name '*.py')
 	$(PY) -m compileall -q -j 2 src $(ROS_WS)/install \
@@ -106,7 +107,7 @@ demo: install
 test: lint
 	$(PY) -m pytest -q -n 2 --dist loadgroup test
 
-# Every test that starts no ROS node (pytest marker ros, see test/conftest.py): about 7 minutes on 2 cores.
+# Every test that starts no ROS node (pytest marker ros, see test/conftest.py); docs/testing.md has its time.
 test-pure: install
 	$(PY) -m pytest -q -m "not ros" test
 

@@ -7,7 +7,7 @@ Starts the planner, streamer and sim executables in a private ROS graph and meas
   rclpy's ``send_goal_async``) to the handover tick (the tick the streamer takes it over at: a change
   arriving after its stamp is delayed to the tick after the one the streamer had sampled when it
   arrived), ``--repeats`` times per method (nvf, rvf, zv). Targets: median <= 50 ms for NVF/RVF, <= 5 ms for a shaper.
-  A shaper's handovers alternate with the planner's ``handover_warmup`` on (its default, 0.02 s) and off,
+  A shaper's handovers alternate with the planner's ``handover_warmup`` on (its default) and off,
   so what the warm-up gains and costs (the CPU share of the planner and its solver processes over each
   move, retarget and return) is a ratio measured in the same run.
 - **handover warm-up**: over a 3 s ZV move, the rehearsals the planner's goals' thread made per

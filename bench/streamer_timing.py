@@ -2,7 +2,7 @@
 
 Starts the real streamer (no impairment, default parameters, a timing log)
 and sim executables in a private ROS graph, lets them settle, then measures
-over ``--duration`` seconds (default 30):
+over ``--duration`` seconds:
 
 - the streamer's achieved tick rate and tick lateness p50/p99/max (its own
   log of every tick), skipped ticks (its diagnostics), and its CPU share
@@ -159,8 +159,8 @@ def measure(args, env: dict) -> int:
 
 
 def bare_loop(duration: float):
-    """Print the tick lateness (us) of a bare 1 kHz loop with the streamer's default settings (SCHED_FIFO 50, its
-    busy_wait)."""
+    """Print the tick lateness (us) of a bare 1 kHz loop with the streamer's default settings (its SCHED_FIFO
+    priority and busy_wait)."""
     from crane_msgs_py.realtime import sleep_until, tune_thread
     from crane_planner.streaming.config import PARAMETERS
     spin_ns = round(PARAMETERS['busy_wait'][0] * 1e9)
