@@ -28,6 +28,7 @@ from ..planning.hoisting import HOIST_SHAPER_DESIGNS
 from ..planning.keep_out import KeepOut
 from ..planning.profiles import BASES
 from ..planning.routing import Route
+from ..planning.signals import Swing
 from .execution import STREAM_TIMEOUT
 from .moves import MoveBounds
 from .transitions import stop_options
@@ -229,7 +230,8 @@ class Config:
         state = MotionState({CART_JOINT: AxisState(0.0, 0.1, 0.05),
                              **({BRIDGE_JOINT: AxisState(0.0, 0.05, 0.03)} if spatial else {}),
                              **({HOIST_JOINT: AxisState(self.params.L1)} if hoisting else {})},
-                            (0.02, 0.0, 0.01, 0.0, -0.05, 0.0, -0.02, 0.0) if spatial else (0.02, 0.0, -0.05, 0.0))
+                            Swing.of((0.02, 0.0, 0.01, 0.0, -0.05, 0.0, -0.02, 0.0) if spatial
+                                     else (0.02, 0.0, -0.05, 0.0), spatial))
         start, model = problem_start(state, self.params)
         options = hoisting_options(self.options) if hoisting else self.options
         displacement = {CART_JOINT: D, **({BRIDGE_JOINT: 0.0} if spatial else {}),
