@@ -102,3 +102,18 @@ def test_a_former_name_set_is_set_as_the_new_one_with_a_warning_and_checked_as_i
         # and the new name itself, without a warning
         node.set_parameters([Parameter('limits.cart.max_velocity', value=0.2)])
         assert node.get_parameter('limits.cart.max_velocity').value == 0.2 and len(log.warnings) == 2
+
+
+def test_the_streamers_former_operator_limits_given_at_start_up_are_its_per_joint_ones(ros_domain):
+    from crane_msgs_py.node_parameters import declare
+    from crane_planner.streaming import config as streamer
+    log = Log()
+    with node_with({'operator.hoist_range': [0.2, 2.0], 'operator.max_bridge_velocity': 0.1}, log) as node:
+        values = declare(node, streamer.PARAMETERS)
+    config = streamer.StreamerConfig.of(values)
+    assert config.operator.hoist_range == (0.2, 2.0) and config.operator.limits[1].max_velocity == 0.1
+    assert config.operator.limits[0].max_velocity == 0.3  # the cart's at its default
+    assert len(log.warnings) == 2
+    assert any('operator.hoist_range is deprecated' in w and 'set operator.limits.hoist.range' in w
+               for w in log.warnings)
+    assert any('set operator.limits.bridge.max_velocity' in w for w in log.warnings)
