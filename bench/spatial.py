@@ -55,6 +55,7 @@ def handovers(params, cache, joints: tuple, repeats: int) -> dict:
     from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
     from crane_planner.planning import PlanOptions
     from crane_planner.planning.dispatch import plan
+    from crane_planner.planning.signals import Swing
     from crane_planner.serving import transitions
     from crane_planner.serving.transitions import JointReading, Measurement, Running
     from crane_planner.streaming.knots import knot_columns, knot_times
@@ -69,7 +70,8 @@ def handovers(params, cache, joints: tuple, repeats: int) -> dict:
         handover = origin + 1_200_000_000 + 1_000_000 * k  # a different tick each time
         measured_ns = handover - 60_000_000
         refs = running.at(measured_ns)
-        swing = (0.01, -0.002, 0.004, 0.0, 0.02, 0.0, 0.01, 0.0) if spatial else (0.01, -0.002, 0.02, 0.0)
+        swing = Swing.of((0.01, -0.002, 0.004, 0.0, 0.02, 0.0, 0.01, 0.0) if spatial else (0.01, -0.002, 0.02, 0.0),
+                         spatial)
         measured = Measurement(measured_ns, {name: JointReading(refs[j][0][0], refs[j][1][0])
                                              for j, name in enumerate(joints)}, swing)
         t0 = time.perf_counter()

@@ -49,24 +49,35 @@ def render(node: str, executable: str, table: dict) -> str:
              f'$(ros2 pkg prefix {executable.split()[0]})/share/{executable.split()[0]}/config/{node_file(node)}.yaml',
              '# (outside a ROS install: .venv/bin/<executable> --ros-args --params-file src/<package>/config/...)',
              f'/**/{node}:', '  ros__parameters:']
-    groups: dict = {}
+    tree: dict = {}  # a dotted name's parts nested, in the order the table first names each
     for name, (default, description, _) in table.items():
-        head, _, tail = name.rpartition('.')
-        groups.setdefault(head, []).append((tail, default, description))
-    for group, entries in groups.items():
-        indent = '    '
-        if group:
-            lines.append(f'    {group}:')
-            indent = '      '
-        for name, default, description in entries:
-            for line in textwrap.wrap(description, 96 - len(indent)):
-                lines.append(f'{indent}# {line}')
-            if isinstance(default, list) and not default:
-                # an empty list has no element type for the parameters file: left at the node's default
-                lines.append(f'{indent}# {name}: []   (empty: the default; give values to set it)')
-            else:
-                lines.append(f'{indent}{name}: {value_text(default)}')
+        *heads, tail = name.split('.')
+        level = tree
+        for head in heads:
+            level = level.setdefault(head, {})
+        level[tail] = (default, description)
+    lines += _render_level(tree, '    ')
     return '\n'.join(lines) + '\n'
+
+
+def _render_level(level: dict, indent: str) -> list:
+    """One level's parameters, then its groups (each a key with its level below)."""
+    lines = []
+    for name, entry in level.items():
+        if isinstance(entry, dict):
+            continue
+        default, description = entry
+        for line in textwrap.wrap(description, 96 - len(indent)):
+            lines.append(f'{indent}# {line}')
+        if isinstance(default, list) and not default:
+            # an empty list has no element type for the parameters file: left at the node's default
+            lines.append(f'{indent}# {name}: []   (empty: the default; give values to set it)')
+        else:
+            lines.append(f'{indent}{name}: {value_text(default)}')
+    for name, entry in level.items():
+        if isinstance(entry, dict):
+            lines += [f'{indent}{name}:', *_render_level(entry, indent + '  ')]
+    return lines
 
 
 def node_file(node: str) -> str:

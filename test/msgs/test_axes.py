@@ -15,6 +15,10 @@ def test_the_names_of_the_contract_come_from_the_registry():
     assert (CART.cmd_vel, HOIST.cmd_vel, HOIST.cmd_vel_sign) == ('linear.x', 'linear.z', -1.0)
     assert axis('bridge') is BRIDGE and BRIDGE.direction == (0.0, 1.0, 0.0) and BRIDGE.cmd_vel == 'linear.y'
     assert BRIDGE.limit_names == ('max_bridge_velocity', 'max_bridge_acceleration', 'max_bridge_jerk')
+    # the nodes' parameters: a map over the joints, as ros2_controllers' constraints.<joint>.
+    assert CART.limit_parameters() == ('limits.cart.max_velocity', 'limits.cart.max_acceleration',
+                                       'limits.cart.max_jerk')
+    assert HOIST.limit_parameters('operator')[2] == 'operator.limits.hoist.max_jerk'
     with pytest.raises(ParameterError, match="no axis 'trolley'"):
         axis('trolley')
 

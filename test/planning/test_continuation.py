@@ -20,6 +20,7 @@ from crane_planner.planning.continuation import (
 )
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, VariationalRequest, hoisting_options, plan
 from crane_planner.planning.plan import PlanError
+from crane_planner.planning.signals import Swing
 from crane_sim.simulator import simulate
 
 PARAMS = CraneParams()  # the paper's crane, tau = 10 ms
@@ -44,14 +45,15 @@ def measured_at(old, t_h, params=PARAMS, hoist=None):
         s = old.evaluate(t)
         r = simulate(t, s.acceleration, params)
         cart = AxisState(s.position[-1], s.velocity[-1], s.acceleration[-1], r.y[0, -1] - s.position[-1])
-        return MotionState({CART_JOINT: cart}, (r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]))
+        return MotionState({CART_JOINT: cart},
+                           Swing(r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]))
     c, h = old.axes['cart'].evaluate(t), old.axes['hoist'].evaluate(t)
     r = simulate(t, {'cart': c.acceleration, 'hoist': h.acceleration}, params)
     L = hoist + h.position[-1]
     return MotionState({CART_JOINT: AxisState(c.position[-1], c.velocity[-1], c.acceleration[-1],
                                               r.y[0, -1] - c.position[-1]),
                         HOIST_JOINT: AxisState(L, h.velocity[-1], h.acceleration[-1], r.L1[0, -1] - L)},
-                       (r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]))
+                       Swing(r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]))
 
 
 def handed_over(old, new, t_h, params=PARAMS, settle=4.0):
@@ -97,7 +99,7 @@ def test_retarget_from_the_measured_state_ends_at_the_new_goal_without_swing(sol
 
 def test_stop_rests_anywhere_without_swing_and_plans_from_a_swinging_state(solvers, running):
     state = measured_at(running, 1.5)
-    assert max(abs(x) for x in state.swing) > 0.01  # mid-move the load swings
+    assert max(abs(x) for x in state.swing.values()) > 0.01  # mid-move the load swings
     start, model = problem_start(state, PARAMS)
     T = first_period(PARAMS)
     cart = state.axis(CART_JOINT)
@@ -116,7 +118,7 @@ def test_settle_damps_a_swing_and_ends_where_it_started(solvers):
     """A load swinging 30 mm at rest: the NVF plan from that state to the same place damps it below 1 mm."""
     # the swing of a free first-mode oscillation with 30 mm at the load
     theta = 0.03 / (PARAMS.L1 + PARAMS.L2)
-    state = MotionState({CART_JOINT: AxisState()}, (theta, 0.0, 0.0, 0.0))
+    state = MotionState({CART_JOINT: AxisState()}, Swing(theta1=theta))
     start, model = problem_start(state, PARAMS)
     T = first_period(PARAMS)
     settle = solvers(VariationalRequest('plan', 'nvf', 0.0, T, model, PlanOptions(), start))
@@ -167,10 +169,10 @@ def test_predict_carries_a_measurement_to_the_handover_like_the_independent_simu
     assert (p.position, p.velocity, p.acceleration) == pytest.approx((q.position, q.velocity, q.acceleration),
                                                                      abs=1e-12)
     # the simulator takes the reference sampled every ms (linear between): agreement to its error
-    assert predicted.swing == pytest.approx(truth.swing, abs=5e-5)
+    assert predicted.swing.values() == pytest.approx(truth.swing.values(), abs=5e-5)
     assert p.lag == pytest.approx(q.lag, abs=1e-6)
     # without prediction the swing 60 ms earlier is far off: the prediction is doing the work
-    assert max(abs(a - b) for a, b in zip(measured.swing, truth.swing)) > 1e-3
+    assert max(abs(a - b) for a, b in zip(measured.swing.values(), truth.swing.values())) > 1e-3
 
 
 def test_servo_start_is_steady_tracking_by_default():

@@ -15,6 +15,7 @@ from crane_planner.planning.continuation import AxisState, MotionState, first_pe
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, VariationalRequest, plan
 from crane_planner.planning.plan import AxesPlan, PlanError
 from crane_planner.planning.problem import Form
+from crane_planner.planning.signals import Swing
 from crane_sim.simulator import CraneSimulator, SpatialSwing
 
 #: The paper's rig (servo tau = 10 ms) and the same with ideal servos.
@@ -54,7 +55,7 @@ class Replay:
             position = self.starts[name] + ref.position[0]
             axes[name] = AxisState(position, ref.velocity[0], ref.acceleration[0],
                                    self.sim.axis_state(name)[0] - position)
-        return MotionState(axes, dataclasses.astuple(self.sim.swing))
+        return MotionState(axes, Swing(**dataclasses.asdict(self.sim.swing)))
 
     def settle(self, seconds: float = 4.0) -> float:
         """The largest load excursion (m, the norm) over ``seconds`` with every reference at rest."""
@@ -103,7 +104,7 @@ def test_a_new_goal_that_turns_the_direction_ends_there_without_swing(solvers, p
 
     new, state, replay = handover(solvers, params, running, HANDOVER, request)
     assert new.info['from_state'] and isinstance(new, AxesPlan)
-    assert abs(state.swing[0]) > 0.01  # the load lags the cart's acceleration: the swing the plan starts from
+    assert abs(state.swing.theta1) > 0.01  # the load lags the cart's acceleration: the swing the plan starts from
     assert_continuous(running, new, HANDOVER)
     assert_at_rest(new)
     for name in AXES:
@@ -142,7 +143,7 @@ def test_a_load_pushed_in_both_directions_is_settled_where_it_started(solvers):
     back to the same place over a first period leaves <= 5 % of the free swing (measured: far less)."""
     length = NOMINAL.L1 + NOMINAL.L2
     pushed = SpatialSwing(theta1=0.02 / length, phi1=0.015 / length)
-    state = MotionState({name: AxisState() for name in AXES}, dataclasses.astuple(pushed))
+    state = MotionState({name: AxisState() for name in AXES}, Swing(**dataclasses.asdict(pushed)))
     start, model = problem_start(state, NOMINAL)
     period = first_period(NOMINAL)
     settle = solvers(VariationalRequest('plan', 'nvf', {CART_JOINT: 0.0, BRIDGE_JOINT: 0.0}, period, model,
@@ -183,23 +184,24 @@ def test_predict_carries_a_spatial_measurement_to_the_handover_like_the_simulato
                                                                           'jerk')) for a in AXES]
 
     predicted = predict(measured, reference, t_m, HANDOVER, NOMINAL)
-    assert len(predicted.swing) == 8
-    assert predicted.swing == pytest.approx(truth.swing, abs=5e-5)
+    assert predicted.swing.spatial
+    assert predicted.swing.values() == pytest.approx(truth.swing.values(), abs=5e-5)
     for name in AXES:
         assert predicted.axis(name).lag == pytest.approx(truth.axis(name).lag, abs=1e-6)
-    assert max(abs(a - b) for a, b in zip(measured.swing, truth.swing)) > 1e-3
+    assert max(abs(a - b) for a, b in zip(measured.swing.values(), truth.swing.values())) > 1e-3
 
 
 def test_the_swing_has_the_length_of_the_axes_present():
-    """Four swing states without a bridge, eight with one (``dynamics.crane_ode``'s order); none given: at rest."""
-    assert MotionState({CART_JOINT: AxisState(), BRIDGE_JOINT: AxisState()}).swing == (0.0,) * 8
+    """The planar swing without a bridge, the spatial one (phi too) with one (``dynamics.crane_ode``'s order);
+    none given: at rest."""
+    assert MotionState({CART_JOINT: AxisState(), BRIDGE_JOINT: AxisState()}).swing.values() == (0.0,) * 8
     with pytest.raises(PlanError, match='phi1'):
-        MotionState({CART_JOINT: AxisState(), BRIDGE_JOINT: AxisState()}, (0.0,) * 4)
+        MotionState({CART_JOINT: AxisState(), BRIDGE_JOINT: AxisState()}, Swing.rest(spatial=False))
     with pytest.raises(PlanError, match='swing'):
-        MotionState({CART_JOINT: AxisState()}, (0.0,) * 8)
+        MotionState({CART_JOINT: AxisState()}, Swing.rest(spatial=True))
     swing = (0.01, 0.002, -0.02, 0.003, 0.1, 0.2, -0.3, 0.4)
-    start, _ = problem_start(MotionState({CART_JOINT: AxisState(), BRIDGE_JOINT: AxisState(0.0, 0.1)}, swing),
-                             NOMINAL)
+    start, _ = problem_start(MotionState({CART_JOINT: AxisState(), BRIDGE_JOINT: AxisState(0.0, 0.1)},
+                                         Swing.of(swing, spatial=True)), NOMINAL)
     assert [start[k] for k in ('theta1', 'theta2', 'phi1', 'phi2', 'dtheta1', 'dtheta2', 'dphi1',
                                'dphi2')] == list(swing)
     assert start['vb'] + NOMINAL.tau * start['ab'] == pytest.approx(0.1)  # the bridge's servo tracks steadily

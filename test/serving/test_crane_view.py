@@ -4,6 +4,7 @@ import math
 
 import pytest
 
+from crane_planner.planning.signals import Swing
 from crane_planner.serving.crane_view import CraneView, StreamSample, joint_sample
 from crane_planner.serving.execution import Execution
 from crane_planner.serving.goals import Goals
@@ -45,7 +46,7 @@ def test_the_streamer_counts_as_heard_while_its_state_is_fresh(crane):
 
 def test_joint_states_become_a_measurement_with_the_hoist_if_there_is_one():
     m = joint_sample(T0, [0.1, 0.01, -0.02], [0.2, math.nan, 0.3])
-    assert (m.stamp_ns, m.joints, m.swing) == (T0, {'cart': JointReading(0.1, 0.2)}, (0.01, -0.02, 0.0, 0.3))
+    assert (m.stamp_ns, m.joints, m.swing) == (T0, {'cart': JointReading(0.1, 0.2)}, Swing(0.01, -0.02, 0.0, 0.3))
     m = joint_sample(T0, [0.1, 0.01, -0.02], [0.2, 0.0, 0.3], ['cart', 'hoist', 'theta1', 'theta2'],
                      [0.1, 0.55, 0.01, -0.02], [0.2])
     assert m.joints == {'cart': JointReading(0.1, 0.2), 'hoist': JointReading(0.55, 0.0)}

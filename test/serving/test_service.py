@@ -8,6 +8,7 @@ import pytest
 
 from crane_planner.planning.dispatch import plan
 from crane_planner.planning.plan import PlanError
+from crane_planner.planning.signals import Swing
 from crane_planner.serving.config import PARAMETERS, Config
 from crane_planner.serving.crane_view import StreamSample
 from crane_planner.serving.goals import GoalState
@@ -226,7 +227,7 @@ def test_a_settle_is_refused_during_a_motion_and_without_a_measured_swing():
     crane = Crane()
     with pytest.raises(MoveError, match='no joint_states within 0.5 s'):
         crane.service.settle()
-    crane.service.on_joint_state(Measurement(crane.clock(), {'cart': JointReading(0.0)}, (0.01, 0.0, 0.0, 0.0)))
+    crane.service.on_joint_state(Measurement(crane.clock(), {'cart': JointReading(0.0)}, Swing(theta1=0.01)))
     run_old_goal_until(crane, T0 + 1_200_000_000)
     with pytest.raises(MoveError, match='a motion is streaming'):
         crane.service.settle()

@@ -12,6 +12,7 @@ from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, plan
 from crane_planner.planning.plan import PlanError
+from crane_planner.planning.signals import Swing
 from crane_planner.serving import transitions
 from crane_planner.serving.stops import StopRequest, StopWarmup, plan_stop, warmups
 from crane_planner.serving.transitions import JointReading, Measurement, Running
@@ -57,10 +58,10 @@ class Stream:
             self.sim.step(accelerations[k], accelerations[k + 1])
 
     def measurement(self, stamp_ns: int) -> Measurement:
-        """joint_states now: each axis's position and velocity, the spatial swing (8 values)."""
+        """joint_states now: each axis's position and velocity, the spatial swing."""
         joints = {name: JointReading(self.starts[name] + self.sim.axis_state(name)[0], self.sim.axis_state(name)[1])
                   for name in JOINTS}
-        return Measurement(stamp_ns, joints, dataclasses.astuple(self.sim.swing))
+        return Measurement(stamp_ns, joints, Swing(**dataclasses.asdict(self.sim.swing)))
 
     def settle(self, seconds: float = 4.0) -> float:
         """The largest load excursion (m, the norm) over ``seconds`` with every reference at rest."""
@@ -82,11 +83,11 @@ def test_a_diagonal_stopped_from_the_measured_spatial_swing_rests_without_swing(
     stream = Stream()
     stream.play(motion_accelerations(running, ORIGIN, MEASURED))
     measured = stream.measurement(MEASURED)
-    assert abs(measured.swing[2]) > 0.005  # the load swings out of the x-z plane too
+    assert abs(measured.swing.phi1) > 0.005  # the load swings out of the x-z plane too
     stream.play(motion_accelerations(running, MEASURED, HANDOVER))
     stop = plan_stop(solvers, running, HANDOVER, PARAMS, measured=measured)
     # the prediction (the servos taken as tracking steadily, a = a_ref, which misses tau j_ref: ~1e-4 rad/s)
-    assert stop.state.swing == pytest.approx(dataclasses.astuple(stream.sim.swing), abs=3e-4)
+    assert stop.state.swing.values() == pytest.approx(dataclasses.astuple(stream.sim.swing), abs=3e-4)
     trajectory = stop.trajectory()
     assert trajectory.method == 'nvf' and trajectory.position.shape[1] == 2
     refs = running.at(HANDOVER)
@@ -135,14 +136,14 @@ def test_the_stops_warm_up_with_a_bridge_builds_every_solver_a_stop_uses(running
 
 
 def test_a_measurement_carries_the_swing_of_its_joints():
-    """Four swing values without a bridge, eight with one (``continuation.swing_names``)."""
-    Measurement(0, {CART_JOINT: JointReading(0.0)}, (0.0,) * 4)
-    Measurement(0, {CART_JOINT: JointReading(0.0), BRIDGE_JOINT: JointReading(0.0)}, (0.0,) * 8)
+    """The planar swing without a bridge, the spatial one (phi too) with one (``signals.swing_names``)."""
+    Measurement(0, {CART_JOINT: JointReading(0.0)}, Swing.rest(spatial=False))
+    Measurement(0, {CART_JOINT: JointReading(0.0), BRIDGE_JOINT: JointReading(0.0)}, Swing.rest(spatial=True))
     with pytest.raises(PlanError, match='phi1'):
-        Measurement(0, {CART_JOINT: JointReading(0.0), BRIDGE_JOINT: JointReading(0.0)}, (0.0,) * 4)
+        Measurement(0, {CART_JOINT: JointReading(0.0), BRIDGE_JOINT: JointReading(0.0)}, Swing.rest(spatial=False))
     with pytest.raises(PlanError, match='swing'):
-        Measurement(0, {CART_JOINT: JointReading(0.0)}, (0.0,) * 8)
-    assert Measurement.at_rest(7, {CART_JOINT: 0.1, BRIDGE_JOINT: 0.2}).swing == (0.0,) * 8
+        Measurement(0, {CART_JOINT: JointReading(0.0)}, Swing.rest(spatial=True))
+    assert Measurement.at_rest(7, {CART_JOINT: 0.1, BRIDGE_JOINT: 0.2}).swing.values() == (0.0,) * 8
 
 
 def test_a_settle_of_a_load_pushed_in_both_directions_moves_both_axes_back_to_where_they_were(solvers):
@@ -151,7 +152,7 @@ def test_a_settle_of_a_load_pushed_in_both_directions_moves_both_axes_back_to_wh
     length = PARAMS.L1 + PARAMS.L2
     pushed = SpatialSwing(theta1=-0.02 / length, phi1=0.015 / length, dphi1=0.02)
     state = transitions.MotionState({name: transitions.AxisState(s) for name, s in zip(JOINTS, STARTS)},
-                                    dataclasses.astuple(pushed))
+                                    Swing(**dataclasses.asdict(pushed)))
     assert transitions.swing_of(state, PARAMS) > 0.02
     settle = transitions.settle(solvers, state, PARAMS, PlanOptions())
     free, damped = Stream(pushed), Stream(pushed)

@@ -7,6 +7,7 @@ from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, plan
 from crane_planner.planning.plan import AxesPlan, PlanError
+from crane_planner.planning.signals import Swing
 from crane_planner.serving.moves import axis_samples
 from crane_planner.serving.transitions import (
     JointReading,
@@ -62,7 +63,7 @@ def measure(running, stamp_ns):
     a = running.at(ORIGIN + np.round(t * 1e9).astype(np.int64))[0][2]
     r = simulate(t, a, PARAMS)
     return Measurement(stamp_ns, {CART_JOINT: JointReading(START + r.y[0, -1], r.v[0, -1])},
-                       (r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]))
+                       Swing(r.theta1[0, -1], r.theta2[0, -1], r.dtheta1[0, -1], r.dtheta2[0, -1]))
 
 
 def handover_is_continuous(running, new, handover_ns, start):
@@ -116,14 +117,14 @@ def test_the_swing_is_predicted_from_the_measurement_or_else_the_model(variation
     measured = handover_state(old, handover, measure(old, handover - 40_000_000), PARAMS)
     modelled = handover_state(old, handover, None, PARAMS)
     for state in (measured, modelled):
-        assert state.swing == pytest.approx(truth.swing, abs=1e-4)
+        assert state.swing.values() == pytest.approx(truth.swing.values(), abs=1e-4)
         assert state.axis(CART_JOINT).position == pytest.approx(old.at(handover)[0][0][0])
     # one measured 1 s before (a handover planned again further ahead) is predicted as far
     earlier = handover_state(old, handover, measure(old, handover - 1_000_000_000), PARAMS)
-    assert earlier.swing == pytest.approx(truth.swing, abs=1e-4)
+    assert earlier.swing.values() == pytest.approx(truth.swing.values(), abs=1e-4)
     # one after the handover is not used: the model's swing then
     late = handover_state(old, handover, measure(old, handover + 100_000_000), PARAMS)
-    assert late.swing == pytest.approx(modelled.swing, abs=1e-12)
+    assert late.swing.values() == pytest.approx(modelled.swing.values(), abs=1e-12)
 
 
 def test_cancel_at_half_way_stops_without_swing_ten_times_better_than_a_hard_stop(variational):
@@ -162,13 +163,13 @@ def test_settle_damps_30_mm_below_1_mm_within_3_s(variational):
     theta = 0.03 / (PARAMS.L1 + PARAMS.L2)
     x0 = np.array([0.0, 0.0, 0.0, theta, 0.0, 0.0, 0.0])
     free = simulate(np.arange(0.0, 0.5, DT), np.zeros(500), PARAMS, initial_state=x0)
-    swing = (free.theta1[0, -1], free.theta2[0, -1], free.dtheta1[0, -1], free.dtheta2[0, -1])
+    swing = Swing(free.theta1[0, -1], free.theta2[0, -1], free.dtheta1[0, -1], free.dtheta2[0, -1])
     from crane_planner.planning.continuation import AxisState, MotionState
     state = MotionState({CART_JOINT: AxisState(START, lag=0.0)}, swing)
     new = settle(variational, state, PARAMS, PlanOptions())
     assert new.duration < 2.5 and new.displacement == pytest.approx(0.0, abs=1e-9)
     t = np.arange(0.0, new.duration + 3.0, DT)
-    x1 = np.array([0.0, 0.0, 0.0, *swing])
+    x1 = np.array([0.0, 0.0, 0.0, *swing.values()])
     r = simulate(t, new.evaluate(t).acceleration, PARAMS, initial_state=x1)
     assert np.abs(r.load_excursion[0, t > new.duration]).max() < 1e-3 * 0.1
     with pytest.raises(PlanError, match='cannot damp a swing it did not cause'):

@@ -28,7 +28,7 @@ def test_a_bad_via_point_is_refused_naming_it(via, words):
 
 
 def test_a_fastest_move_or_a_rope_of_no_length_through_a_via_point_is_refused():
-    cfg = config(max_velocity=0.5)
+    cfg = config(**{'limits.cart.max_velocity': 0.5})
     with pytest.raises(MoveError, match='move.via: a move through via points needs a duration'):
         check_move(Move('nvf', goal=(0.6, 0.4), duration=0.0, via=((0.5, 0.0),)), cfg.bounds, None)
     hoisted = config(joints=['cart', 'hoist'])

@@ -23,6 +23,9 @@ KINDS = ('travel', 'hoist')
 DIRECTIONS = {'x': (1.0, 0.0, 0.0), 'y': (0.0, 1.0, 0.0), 'z': (0.0, 0.0, 1.0)}
 #: The quantities an axis's reference is limited in, and their units over the axis's position unit.
 LIMIT_QUANTITIES = (('velocity', '/s'), ('acceleration', '/s^2'), ('jerk', '/s^3'))
+#: The nodes' map of per-joint limits, as ros2_controllers declares its ``constraints.<joint>.``:
+#: ``limits.<joint>.max_velocity``, ... (``Axis.limit_parameters``).
+LIMITS_MAP = 'limits'
 
 
 @dataclass(frozen=True)
@@ -40,7 +43,8 @@ class Axis:
         cmd_vel: the ``geometry_msgs/Twist`` field of ``cmd_vel`` that drives it in operator mode.
         cmd_vel_sign: the axis's velocity per unit of that field (the hoist: + up shortens the rope).
         limit_prefix: what its limits' names carry after ``max_`` (``max_velocity`` is the cart's, the
-            first axis's, since before there were others; ``max_hoist_velocity`` the hoist's).
+            first axis's, since before there were others; ``max_hoist_velocity`` the hoist's): the names of the
+            planning options and the CLI, and the nodes' parameters' former names (``limit_parameters``).
     """
 
     name: str
@@ -73,6 +77,12 @@ class Axis:
     def limit_names(self) -> tuple[str, str, str]:
         """How its velocity, acceleration and jerk limits are named (options, parameters, messages)."""
         return tuple(f'max_{self.limit_prefix}{quantity}' for quantity, _ in LIMIT_QUANTITIES)
+
+    def limit_parameters(self, within: str = '') -> tuple[str, str, str]:
+        """Its velocity, acceleration and jerk limits' node parameters: ``<within>.limits.<joint>.max_velocity``,
+        ... (``LIMITS_MAP``; ``within`` a parameter namespace, e.g. ``operator``, or none)."""
+        return tuple(f'{within}{"." if within else ""}{LIMITS_MAP}.{self.name}.max_{quantity}'
+                     for quantity, _ in LIMIT_QUANTITIES)
 
     @property
     def limit_units(self) -> tuple[str, str, str]:

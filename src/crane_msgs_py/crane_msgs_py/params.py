@@ -40,6 +40,21 @@ def parameter_range(lo, hi) -> dict:
     return {'floating_point_range': (float(lo), float(hi))}
 
 
+#: The descriptor field of a parameter table's entry naming the parameter's former name (``renamed_from``).
+RENAMED_FROM = 'renamed_from'
+
+
+def renamed_from(old: str) -> dict:
+    """Table fields saying a parameter was called ``old`` until now: for one release a node still takes ``old``
+    (from a parameters file or a set), applies it to the new name and logs a deprecation warning naming it."""
+    return {RENAMED_FROM: old}
+
+
+def renamed(table: dict) -> dict:
+    """Former name -> name of each renamed parameter of a parameter table (``renamed_from``)."""
+    return {extra[RENAMED_FROM]: name for name, (_, _, extra) in table.items() if RENAMED_FROM in extra}
+
+
 def check_finite(name: str, value, error: type = None) -> float:
     """Return ``value`` as float, or raise ``error`` (default ParameterError) naming ``name``."""
     error = error or ParameterError

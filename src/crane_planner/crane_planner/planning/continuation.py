@@ -13,7 +13,7 @@ Every axis the crane has is planned from its state together: with a bridge
 on the spatial crane (``dynamics.spatial_swing``), the state's swing then
 the eight states (theta1, theta2, phi1, phi2 and their rates) in
 ``dynamics.crane_ode``'s order, the planar crane's four otherwise
-(``swing_names``). The cart's swing is theta's, the bridge's phi's
+(``signals.Swing``). The cart's swing is theta's, the bridge's phi's
 (``Problem.parameters`` scales them so).
 
 Shapers cannot start from a swing they did not cause. What they can do is
@@ -39,12 +39,13 @@ import numpy as np
 from crane_msgs_py.axes import AXIS_NAMES, BRIDGE, CART, HOIST, axis
 from crane_msgs_py.params import CraneParams
 
-from .dynamics import PARAMETERS, SPATIAL_SWING_STATES, SWING_STATES, crane_ode
+from .dynamics import PARAMETERS, crane_ode
 from .model import modal_frequencies
 from .plan import Plan, PlanError
 from .problem import AXIS_STATES, Form
 from .profiles import BaseProfile, ruckig_pieces
 from .shaped import ShapedPlan
+from .signals import Swing, check_swing
 
 
 @dataclass(frozen=True)
@@ -80,13 +81,12 @@ class MotionState:
     Attributes:
         axes: each axis's ``AxisState`` by its name (``crane_msgs_py.axes``), kept in
             ``AXES`` order; the cart's always, the others' if the crane has them.
-        swing: the swing states in the order of ``dynamics.crane_ode``'s (``swing_names``), rad and rad/s:
-            (theta1, theta2, dtheta1, dtheta2) on the planar crane, with a bridge the spatial crane's
-            (theta1, theta2, phi1, phi2, dtheta1, dtheta2, dphi1, dphi2); None = no swing.
+        swing: the load's ``Swing``: the planar crane's, with a bridge the spatial crane's (phi too);
+            None = the load hanging still.
     """
 
     axes: dict[str, AxisState] = field(default_factory=lambda: {CART.name: AxisState()})
-    swing: tuple | None = None
+    swing: Swing | None = None
 
     def __post_init__(self):
         axes = dict(self.axes)
@@ -94,13 +94,8 @@ class MotionState:
                 or not all(isinstance(s, AxisState) for s in axes.values()):
             raise PlanError(f'a motion state needs the {CART.name}\'s AxisState, optionally those of '
                             f'{", ".join(AXIS_NAMES[1:])}')
-        names = swing_names(BRIDGE.name in axes)
-        swing = (0.0,) * len(names) if self.swing is None else tuple(float(x) for x in self.swing)
-        if len(swing) != len(names):
-            raise PlanError(f'a motion state {"with" if BRIDGE.name in axes else "without"} a {BRIDGE.name} needs '
-                            f'the swing ({", ".join(names)}), got {len(swing)} values')
-        if not all(math.isfinite(x) for x in swing):
-            raise PlanError('a motion state must be finite')
+        spatial = BRIDGE.name in axes
+        swing = check_swing(self.swing, spatial, f'a motion state {"with" if spatial else "without"} a {BRIDGE.name}')
         object.__setattr__(self, 'axes', {n: axes[n] for n in AXIS_NAMES if n in axes})
         object.__setattr__(self, 'swing', swing)
 
@@ -118,13 +113,8 @@ class MotionState:
     @property
     def at_rest(self) -> bool:
         """Whether every axis and the swing are still (to 1e-9)."""
-        moving = [*self.swing, *(x for s in self.axes.values() for x in (s.velocity, s.acceleration))]
+        moving = [*self.swing.values(), *(x for s in self.axes.values() for x in (s.velocity, s.acceleration))]
         return max(abs(x) for x in moving) < 1e-9
-
-
-def swing_names(bridge: bool) -> tuple:
-    """The swing's states (``dynamics.crane_ode``'s order): the planar crane's, with a bridge the spatial one's."""
-    return SPATIAL_SWING_STATES if bridge else SWING_STATES
 
 
 #: Each axis's servo time constant (Eq. 6) among ``CraneParams``' fields (the bridge's servo is the cart's:
@@ -167,7 +157,7 @@ def problem_start(state: MotionState, params: CraneParams) -> tuple[dict, CraneP
             if not s.position + lag > 0.0:
                 raise PlanError(f'the rope length must be > 0 m, got {s.position + lag:g} m')
             params = params.replace(L1=s.position + lag)
-    start.update(zip(swing_names(state.has(BRIDGE.name)), state.swing))
+    start.update(state.swing.states())
     return start, params
 
 
@@ -227,7 +217,7 @@ def predict(measured: MotionState, reference, t_measured: float, t_handover: flo
             x = np.asarray(rk4(x, u[:, k:k + CHUNK], p, h))[:, -1]  # (the state after every step: the last)
     s = dict(zip(names, x))
     refs = reference(np.array([t_handover])) if n else None
-    swing = tuple(float(s[k]) for k in swing_names(bridge))
+    swing = Swing.of(s, bridge)
     axes = {}
     for k, (name, was) in enumerate(measured.axes.items()):
         ref = tuple(float(r[0]) for r in refs[k][:3]) if n else (was.position, was.velocity, was.acceleration)

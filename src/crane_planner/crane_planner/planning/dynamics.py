@@ -24,11 +24,10 @@ import numpy as np
 
 from crane_msgs_py.params import PARAMETER_NAMES
 
+from .signals import SPATIAL_SWING_STATES, SWING_STATES, swing_rates
+
 #: Order of the model parameter vector ``p`` of every model here (CraneParams' fields).
 PARAMETERS = PARAMETER_NAMES
-SWING_STATES = ('theta1', 'theta2', 'dtheta1', 'dtheta2')
-#: The spatial crane's swing (contract "The spatial crane"): in-plane and out-of-plane angles, then their rates.
-SPATIAL_SWING_STATES = ('theta1', 'theta2', 'phi1', 'phi2', 'dtheta1', 'dtheta2', 'dphi1', 'dphi2')
 #: Each axis's states: position, velocity, acceleration and (with its servo) reference acceleration;
 #: the hoist's position is its displacement from the start length L1.
 CART_STATES = ('y', 'v', 'a', 'a_ref')
@@ -304,7 +303,7 @@ def crane_ode(servo: bool, hoist: bool = False, hoist_servo: bool = False, bridg
     for k, ((y, v, a, a_ref), has_servo, tau) in enumerate(axes):
         # Eq. 6 with the servo: tau a' = a_ref - a, the input the reference's jerk; else the axis's jerk
         rows += [s[v], s[a], (s[a_ref] - s[a]) / tau, u[k]] if has_servo else [s[v], s[a], u[k]]
-    rates = [s[n] for n in swing[len(swing) // 2:]]
+    rates = [s[n] for n in swing_rates(bridge)]
     f = ca.vertcat(*rows, *rates, *dd)
     return CraneOde(names, x, u, p, f, servo, hoist=hoist, hoist_servo=hoist_servo, bridge=bridge)
 

@@ -19,6 +19,7 @@ from crane_msgs_py.params import (
     check_nonnegative,
     check_positive,
     parameter_range,
+    renamed_from,
 )
 
 from ..planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOptions
@@ -28,6 +29,7 @@ from ..planning.hoisting import HOIST_SHAPER_DESIGNS
 from ..planning.keep_out import KeepOut
 from ..planning.profiles import BASES
 from ..planning.routing import Route
+from ..planning.signals import Swing
 from .execution import STREAM_TIMEOUT
 from .moves import MoveBounds
 from .transitions import stop_options
@@ -35,12 +37,15 @@ from .transitions import stop_options
 #: The crane model's parameters' upper bounds (each from 0) for rclpy's range check.
 MODEL_BOUNDS = {'L1': 100.0, 'L2': 100.0, 'm1': 1e5, 'm2': 1e5, 'g': 100.0, 'tau': 10.0, 'c1': 1e3, 'c2': 1e3,
                 'tau_hoist': 10.0}
-#: The limits of every axis after the first (the cart's predate them and are named without a prefix), from the
-#: registry: ``max_hoist_velocity``, ``max_bridge_acceleration``, ...; 0 = no limit.
+#: Every axis's limits of the reference, a map over the joints of the registry (``Axis.limit_parameters``):
+#: ``limits.cart.max_velocity``, ``limits.hoist.max_jerk``, ...; 0 = no limit. Each was named as the planning
+#: options name it (``max_velocity``, ``max_hoist_jerk``, ...): that name is still taken for one release.
 AXIS_LIMIT_PARAMETERS = {
-    name: (0.0, f'{a.name} axis limit {what} of its reference ({unit}); 0 = no limit', parameter_range(0.0, hi))
-    for a in AXES[1:]
-    for name, unit, what, hi in zip(a.limit_names, a.limit_units, ('|v|', '|a|', 'on the jerk'), (1e3, 1e4, 1e6))}
+    name: (0.0, f'the {a.name}\'s axis limit {what} of its reference ({unit}); 0 = no limit',
+           {**parameter_range(0.0, hi), **renamed_from(former)})
+    for a in AXES
+    for name, former, unit, what, hi in zip(a.limit_parameters(), a.limit_names, a.limit_units,
+                                            ('|v|', '|a|', 'on the jerk'), (1e3, 1e4, 1e6))}
 #: name -> (default, description, descriptor fields; a range as (lo, hi)). Ranges are the
 #: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by
 #: ``Config.from_values``, whose reason the node reports on /diagnostics.
@@ -89,12 +94,6 @@ PARAMETERS = {
     'max_duration': (60.0, 'longest motion served (s), > 0', parameter_range(0.0, 3600.0)),
     'max_displacement': (10.0, 'largest |goal - start| served (m), > 0',
                          parameter_range(0.0, 1e4)),
-    'max_velocity': (0.0, 'axis limit |v| of the reference (m/s); 0 = no limit',
-                     parameter_range(0.0, 1e3)),
-    'max_acceleration': (0.0, 'axis limit |a| of the reference (m/s^2); 0 = no limit',
-                         parameter_range(0.0, 1e4)),
-    'max_jerk': (0.0, 'axis limit on the jerk of the reference (m/s^3); 0 = no limit',
-                 parameter_range(0.0, 1e6)),
     **AXIS_LIMIT_PARAMETERS,
     'hoist_robust_parameters': (['L2'], 'parameters RVF is made insensitive to in a move that hoists (the '
                                         f'payload\'s cable by default), among {", ".join(ROBUST_PARAMETERS)}',
@@ -103,7 +102,8 @@ PARAMETERS = {
                                  'to the hoisting crane) or designed at the start, middle or end length',
                      {'additional_constraints': f'one of {", ".join(HOIST_SHAPER_DESIGNS)}'}),
     'shaper_base': ('quintic', "the motion shapers shape: 'quintic' (the paper's) or 'limits' (the jerk-limited "
-                               'time-optimal profile under the axis limits; needs max_velocity or max_acceleration)',
+                               'time-optimal profile under the axis limits; needs limits.cart.max_velocity or '
+                               'limits.cart.max_acceleration)',
                     {'additional_constraints': f'one of {", ".join(BASES)}'}),
     'handover_lead': (0.042, 'a new NVF/RVF goal during a motion takes over this long (s) after it arrives, from '
                             'the state the motion is in then (a plan taking longer is planned again further ahead, '
@@ -180,7 +180,7 @@ class Config:
             robust=tuple(v['robust_parameters']), intervals=intervals or None,
             base=v['shaper_base'],
             max_solve_time=check_positive('max_solve_time', v['max_solve_time']),
-            limits={a.name: a.limits(*(v[n] or None for n in a.limit_names)) for a in AXES},
+            limits={a.name: a.limits(*(v[n] or None for n in a.limit_parameters())) for a in AXES},
             hoist_robust=tuple(v['hoist_robust_parameters']),
             hoist_shaper=v['hoist_shaper'])
         if not v['frame_id']:
@@ -229,7 +229,8 @@ class Config:
         state = MotionState({CART_JOINT: AxisState(0.0, 0.1, 0.05),
                              **({BRIDGE_JOINT: AxisState(0.0, 0.05, 0.03)} if spatial else {}),
                              **({HOIST_JOINT: AxisState(self.params.L1)} if hoisting else {})},
-                            (0.02, 0.0, 0.01, 0.0, -0.05, 0.0, -0.02, 0.0) if spatial else (0.02, 0.0, -0.05, 0.0))
+                            Swing.of((0.02, 0.0, 0.01, 0.0, -0.05, 0.0, -0.02, 0.0) if spatial
+                                     else (0.02, 0.0, -0.05, 0.0), spatial))
         start, model = problem_start(state, self.params)
         options = hoisting_options(self.options) if hoisting else self.options
         displacement = {CART_JOINT: D, **({BRIDGE_JOINT: 0.0} if spatial else {}),

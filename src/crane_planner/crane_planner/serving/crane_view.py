@@ -12,6 +12,7 @@ values.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 import time
@@ -20,6 +21,7 @@ from typing import Callable
 
 from crane_msgs_py.axes import AXES, CART
 
+from ..planning.signals import Swing
 from .goals import Goals
 from .transitions import JointReading, Measurement, Running
 
@@ -55,7 +57,7 @@ def joint_sample(stamp_ns: int, position, velocity, names=(), joint_positions=()
     """A ``joint_states`` message as a ``Measurement``: the sim's joints' ``position`` and ``velocity`` (cart,
     theta1, theta2; a NaN velocity as 0), and each other axis among ``names`` (its ``sim_joint``) from
     ``joint_positions`` and ``joint_velocities`` (the hoist's: its rope length and rate); with ``phi1`` and
-    ``phi2`` among them (a crane with a bridge), the spatial swing (theta1, theta2, phi1, phi2 and rates)."""
+    ``phi2`` among them (a crane with a bridge), the spatial ``Swing`` (phi too)."""
     velocity = [0.0 if math.isnan(v) else float(v) for v in velocity]
     joints = {CART.name: JointReading(float(position[0]), velocity[0])}
     names = list(names)
@@ -67,11 +69,11 @@ def joint_sample(stamp_ns: int, position, velocity, names=(), joint_positions=()
     for other in AXES[1:]:
         if other.sim_joint in names:
             joints[other.name] = JointReading(*reading(names.index(other.sim_joint)))
-    angles, rates = [float(position[1]), float(position[2])], velocity[1:3]
+    swing = Swing(float(position[1]), float(position[2]), velocity[1], velocity[2])
     if 'phi1' in names and 'phi2' in names:
         (phi1, dphi1), (phi2, dphi2) = (reading(names.index(n)) for n in ('phi1', 'phi2'))
-        angles, rates = angles + [phi1, phi2], rates + [dphi1, dphi2]
-    return Measurement(stamp_ns, joints, (*angles, *rates))
+        swing = dataclasses.replace(swing, phi1=phi1, phi2=phi2, dphi1=dphi1, dphi2=dphi2)
+    return Measurement(stamp_ns, joints, swing)
 
 
 class CraneView:

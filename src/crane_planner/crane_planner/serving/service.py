@@ -25,10 +25,11 @@ from typing import Any, Callable
 
 from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT, STREAM_STATE_TOPIC
 
-from ..planning.continuation import problem_start, swing_names
+from ..planning.continuation import problem_start
 from ..planning.mass_path import predict_mass_path
 from ..planning.methods import METHODS, SHAPER_METHODS, VARIATIONAL_METHODS
 from ..planning.plan import Plan, time_grid
+from ..planning.signals import Swing
 from ..streaming.knots import knot_times
 from ..streaming.reference_stream import position_text
 from . import transitions
@@ -190,10 +191,9 @@ class MoveService:
         self.view.on_joint_state(measured)
         rope = measured.joints.get(HOIST_JOINT)
         length = rope.position if rope is not None else None
-        swing = measured.swing  # (theta1, theta2[, phi1, phi2], rates)
-        phi = swing[2:4] if len(swing) == 8 else None
+        swing = measured.swing
         for execution in self.goals.executions():
-            execution.on_joint_state(measured.stamp_ns, swing[0], swing[1], length, phi)
+            execution.on_joint_state(measured.stamp_ns, swing.theta1, swing.theta2, length, swing.phi)
 
     # -- planning (a preview, and each goal) ---------------------------------------------
 
@@ -682,7 +682,7 @@ def build_solvers(planner, config: Config, log) -> Built:
     rest = [config.params.L1 if name == HOIST_JOINT else 0.0 for name in config.joints]
     holding = Running.holding(config.joints, rest, 0)
     measured = Measurement(0, {name: JointReading(p) for name, p in zip(config.joints, rest)},
-                           (0.0,) * len(swing_names(BRIDGE_JOINT in config.joints)))
+                           Swing.rest(BRIDGE_JOINT in config.joints))
     transitions.handover_state(holding, 10_000_000, measured, config.params)
     return Built(times, failed, f'{len(times)} of {len(METHODS)} methods ready in {time.perf_counter() - t_all:.2f} s')
 

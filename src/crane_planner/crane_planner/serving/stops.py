@@ -127,10 +127,11 @@ def moving_state(params: CraneParams, joints):
     travel axes moving (0.1 m/s, 0.05 m/s^2), the hoist still at the model's L1, the load swinging in the
     direction of travel (theta, and with a bridge phi)."""
     from ..planning.continuation import AxisState, MotionState
+    from ..planning.signals import Swing
     axes = {name: AxisState(params.L1) if name == HOIST_JOINT else AxisState(0.0, 0.1, 0.05) for name in joints}
     # the load lags the acceleration: theta > 0, phi < 0 (``Problem.initial_guess``)
-    swing = (0.02, 0.0, -0.02, 0.0, -0.05, 0.0, 0.05, 0.0) if BRIDGE_JOINT in axes else (0.02, 0.0, -0.05, 0.0)
-    return MotionState(axes, swing)
+    out_of_plane = dict(phi1=-0.02, phi2=0.0, dphi1=0.05, dphi2=0.0) if BRIDGE_JOINT in axes else {}
+    return MotionState(axes, Swing(theta1=0.02, dtheta1=-0.05, **out_of_plane))
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ with no measurement, from the motion's start at rest.
 
 Every axis the motion streams is planned from the handover together (NVF/RVF):
 with a bridge on the spatial crane, from the swing measured in both
-directions (``Measurement.swing``: eight values then).
+directions (``Measurement.swing``: a spatial ``Swing`` then).
 
 Each function takes ``variational``, what runs a ``dispatch.VariationalRequest``
 (``Planner.variational``, or a ``dispatch.SolverCache``). What each method
@@ -63,13 +63,13 @@ from ..planning.continuation import (
     problem_start,
     shaped_change,
     shaped_stop,
-    swing_names,
 )
 from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options, plan
 from ..planning.methods import SHAPER_METHODS
 from ..planning.model import modal_frequencies
 from ..planning.plan import AxesPlan, Plan, PlanError
 from ..planning.shaped import ShapedPlan
+from ..planning.signals import Swing, check_swing
 from ..streaming.hermite import QuinticHermite, extends, splice
 from .moves import with_axes_held
 
@@ -108,25 +108,22 @@ class JointReading:
 @dataclass(frozen=True)
 class Measurement:
     """``joint_states`` at ``stamp_ns``: each actuated joint's ``JointReading`` by its name (the cart's, and
-    those of the other axes the crane has) and the swing in ``dynamics.crane_ode``'s order (rad and rad/s):
-    (theta1, theta2, dtheta1, dtheta2), with a bridge (theta1, theta2, phi1, phi2, dtheta1, dtheta2, dphi1,
-    dphi2) (``continuation.swing_names``)."""
+    those of the other axes the crane has) and the load's ``Swing``: the planar crane's, with a bridge the
+    spatial crane's (phi too)."""
 
     stamp_ns: int
     joints: dict[str, JointReading]
-    swing: tuple
+    swing: Swing
 
     def __post_init__(self):
-        names = swing_names(BRIDGE_JOINT in self.joints)
-        if len(self.swing) != len(names):
-            raise PlanError(f'a measurement of the joints {", ".join(self.joints)} needs the swing '
-                            f'({", ".join(names)}), got {len(self.swing)} values')
+        object.__setattr__(self, 'swing', check_swing(self.swing, BRIDGE_JOINT in self.joints,
+                                                      f'a measurement of the joints {", ".join(self.joints)}'))
 
     @classmethod
     def at_rest(cls, stamp_ns: int, positions: dict) -> 'Measurement':
         """The joints at rest at ``positions`` (m, by name), the load hanging still."""
         joints = {name: JointReading(float(p)) for name, p in positions.items()}
-        return cls(stamp_ns, joints, (0.0,) * len(swing_names(BRIDGE_JOINT in joints)))
+        return cls(stamp_ns, joints, Swing.rest(BRIDGE_JOINT in joints))
 
 
 class KnotPlan(Plan):
@@ -264,7 +261,7 @@ def handover_state(running: Running, handover_ns: int, measured: Measurement | N
         # the measured swing; the axes as their servos track the reference (their lag is tau times the
         # velocity: derived from a measured position it would carry the position's error over tau^2)
         t_m = measured.stamp_ns
-        state = MotionState(_references(running, t_m), tuple(measured.swing))
+        state = MotionState(_references(running, t_m), measured.swing)
     else:  # the model's swing: the motion from its start, where it was at rest
         t_m = min(running.origin_ns, handover_ns)
         state = MotionState(_references(running, t_m))
@@ -318,9 +315,7 @@ def swing_of(state: MotionState, params: CraneParams) -> float:
     the spatial one with phi = 0. x' = (dx/dq) q' by a complex step along q' (exact to rounding, the
     kinematics written once)."""
     model = _model(params, state)
-    n = len(state.swing) // 2
-    pad = (0.0,) * (4 - n)  # (theta1, theta2) alone: phi1 = phi2 = 0
-    q, dq = np.array([*state.swing[:n], *pad]), np.array([*state.swing[n:], *pad])
+    q, dq = np.array(state.swing.angles()), np.array(state.swing.rates())
     step = 1e-20
     offset = np.array(load_offset(*(q + 1j * step * dq), model.L1, model.L2))
     rate = offset.imag / step / modal_frequencies(model)[0]

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from crane_msgs_py.axes import AXES, AXIS_NAMES, LIMIT_QUANTITIES
+from crane_msgs_py.axes import AXES, AXIS_NAMES, HOIST, LIMIT_QUANTITIES, LIMITS_MAP
 from crane_msgs_py.names import OUTPUT_JOINT_TRAJECTORY, OUTPUTS
 from crane_msgs_py.params import (
     PARAMETER_DESCRIPTIONS,
@@ -18,6 +18,7 @@ from crane_msgs_py.params import (
     ParameterError,
     check_choice,
     parameter_range,
+    renamed_from,
 )
 
 from .impairment import DISTRIBUTIONS, Impairment
@@ -34,12 +35,18 @@ _HOLD_WHAT = {'cart': 'hold position (m) of the cart', 'bridge': 'with a bridge:
 #: Operator mode's limit of each kind of axis, by quantity (velocity m/s, acceleration m/s^2, jerk m/s^3).
 OPERATOR_LIMITS = {'travel': (0.3, 0.5, 5.0), 'hoist': (0.2, 0.5, 5.0)}
 _LIMIT_RANGES = ((1e-6, 100.0), (1e-6, 1000.0), (1e-6, 1e6))
-#: ``operator.<limit>`` of every axis of the registry, as the axis names its limits.
+#: Operator mode's limits of every axis of the registry, a map over the joints (``Axis.limit_parameters``):
+#: ``operator.limits.cart.max_velocity``, ...; each was ``operator.`` and the name the axis gives its limit
+#: (``operator.max_velocity``, ``operator.max_hoist_jerk``, ...), still taken for one release.
 OPERATOR_LIMIT_PARAMETERS = {
-    f'operator.{name}': (default, f'operator mode: the {a.name}\'s {quantity} limit ({unit})', parameter_range(*rng))
+    name: (default, f'operator mode: the {a.name}\'s {quantity} limit ({unit})',
+           {**parameter_range(*rng), **renamed_from(f'operator.{former}')})
     for a in AXES
-    for name, unit, default, rng, (quantity, _) in zip(a.limit_names, a.limit_units, OPERATOR_LIMITS[a.kind],
-                                                        _LIMIT_RANGES, LIMIT_QUANTITIES)}
+    for name, former, unit, default, rng, (quantity, _) in zip(a.limit_parameters('operator'), a.limit_names,
+                                                                a.limit_units, OPERATOR_LIMITS[a.kind],
+                                                                _LIMIT_RANGES, LIMIT_QUANTITIES)}
+#: The hoist's range in operator mode, among its limits (formerly ``operator.hoist_range``).
+HOIST_RANGE = f'operator.{LIMITS_MAP}.{HOIST.name}.range'
 
 
 #: name -> (default, description, descriptor fields; a range as (lo, hi)).
@@ -102,8 +109,9 @@ PARAMETERS = {
     'cmd_timeout': (0.5, 'operator mode: a command older than this (s) counts as zero, so a lost joystick stops '
                          'the crane (without swing)', parameter_range(0.001, 10.0)),
     **OPERATOR_LIMIT_PARAMETERS,
-    'operator.hoist_range': ([0.1, 3.0], 'operator mode: the shortest and longest rope (m) the hoist may reach',
-                             {'additional_constraints': '[shortest, longest], 0 < shortest < longest'}),
+    HOIST_RANGE: ([0.1, 3.0], 'operator mode: the shortest and longest rope (m) the hoist may reach',
+                  {'additional_constraints': '[shortest, longest], 0 < shortest < longest',
+                   **renamed_from('operator.hoist_range')}),
     **{name: (getattr(CraneParams, name), f'crane model of the operator shaper and of a ~/stop: '
                                           f'{PARAMETER_DESCRIPTIONS[name]}', parameter_range(0.0, 1e4))
        for name in PARAMETER_NAMES},
@@ -154,10 +162,10 @@ class StreamerConfig:
         check_choice('hold_source', values['hold_source'], HOLD_SOURCES)
         check_choice('mode', values['mode'], MODES)
         check_choice('operator_shaper', values['operator_shaper'], OPERATOR_SHAPERS)
-        shortest, longest = (list(values['operator.hoist_range']) + [0.0, 0.0])[:2]
-        if len(values['operator.hoist_range']) != 2 or not 0.0 < shortest < longest:
-            raise ParameterError('operator.hoist_range must be [shortest, longest] with 0 < shortest < longest (m)')
-        limits = tuple(a.limits(*(values[f'operator.{name}'] for name in a.limit_names)) for a in AXES)
+        shortest, longest = (list(values[HOIST_RANGE]) + [0.0, 0.0])[:2]
+        if len(values[HOIST_RANGE]) != 2 or not 0.0 < shortest < longest:
+            raise ParameterError(f'{HOIST_RANGE} must be [shortest, longest] with 0 < shortest < longest (m)')
+        limits = tuple(a.limits(*(values[name] for name in a.limit_parameters('operator'))) for a in AXES)
         operator = OperatorConfig(values['operator_shaper'], values['cmd_timeout'], limits, (shortest, longest), model)
         config = cls(impairment, model, values['mode'], operator, values['fault_deceleration'], values['fault_jerk'])
         if current is not None and config.changes_mode(current) and not at_rest:
