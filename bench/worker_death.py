@@ -67,7 +67,7 @@ def case(move, budget: float, kill: str, repeats: int) -> dict:
     from crane_planner.serving import Planner
     model, options = CraneParams(), PlanOptions(max_solve_time=budget)
     planner = Planner(processes=2, on_event=lambda e: None)
-    planner.toggled_limits = False
+    planner.processes.toggled_limits = False
     planner.warmups = [VariationalRequest('plan', 'nvf', 0.3, 3.0, model, PlanOptions(max_solve_time=1.0))]
     runs = []
     try:

@@ -68,7 +68,7 @@ class Request:
 
 def started_planner(processes: int, events: list) -> Planner:
     planner = Planner(processes=processes, on_event=events.append)
-    planner.toggled_limits = False  # only what the tests need built
+    planner.processes.toggled_limits = False  # only what the tests need built
     planner.warmups = WARMUPS
     assert planner.start_processes(ready_within=GUARD, all_of_them=True) and planner.wait_built(GUARD)
     return planner

@@ -64,7 +64,7 @@ def test_a_worker_returns_the_plan_an_in_process_solve_gives(planner, method, D,
 def test_a_refusal_in_a_worker_is_raised_in_the_caller_with_its_reason(planner, monkeypatch):
     # the worker's own refusal, however slow a busy host makes its last iteration, not the caller's deadline
     # (beside a CPU-bound process, 0.4 s past its 1 s budget came without an answer)
-    monkeypatch.setattr(planner, 'answer_margin', 10.0)
+    monkeypatch.setattr(planner.dispatch, 'answer_margin', 10.0)
     with pytest.raises(PlanError, match=r'rvf: no plan for D=10 m, T=0.5 s within max_solve_time 1 s'):
         planner.plan(*HOPELESS)
 
@@ -122,7 +122,7 @@ def test_a_shaper_plan_is_answered_while_the_workers_build_a_new_configuration()
     process: a ZV plan asked meanwhile is answered before that build ends, and before an NVF request of
     the new configuration sent ahead of it."""
     planner = Planner(processes=1)
-    planner.toggled_limits = False  # only what the test needs built
+    planner.processes.toggled_limits = False  # only what the test needs built
     planner.warmups = WARMUPS
     try:
         assert planner.start_processes(ready_within=60.0) and planner.wait_built(60.0)

@@ -211,7 +211,7 @@ class Config:
         """
         D, duration = min(0.3, self.max_displacement), min(3.0, self.max_duration)
         hoisting = HOIST_JOINT in self.joints
-        # the cart's alone as a number: the planner's limit twins (``planner.toggled_limits``) are of those
+        # the cart's alone as a number: the planner's limit twins (``worker_processes.toggled_limits``) are of those
         travel = [D] + ([{CART_JOINT: D, BRIDGE_JOINT: 2.0 * D / 3.0}] if BRIDGE_JOINT in self.joints else [])
         requests = []
         for displacement in travel:

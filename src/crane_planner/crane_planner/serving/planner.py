@@ -27,10 +27,11 @@ class Planner:
 
     Variational solvers are expensive to build, so they are kept per
     (route, method, intervals, robust set, limits, time budget) in a
-    ``pool.SolverPool`` of up to ``pool_size`` instances (``thread_solvers.ThreadSolvers``): a request takes an
-    idle one, so requests (for the same method too) never queue behind each
-    other. Instances beyond the first are spawned from one already built for
-    the same NLP structure (``VariationalSolver.spawn``), which costs
+    ``pool.SolverPool`` of up to ``pool_size`` instances (``threads``, a
+    ``thread_solvers.ThreadSolvers``): a request takes an idle one, so
+    requests (for the same method too) never queue behind each other.
+    Instances beyond the first are spawned from one already built for the
+    same NLP structure (``VariationalSolver.spawn``), which costs
     milliseconds. The options' ``solver`` picks the route.
 
     With ``processes`` > 0, every NVF/RVF request runs instead in one of that
@@ -45,21 +46,24 @@ class Planner:
     workers run at a lower CPU priority (``workers.WORKER_NICE``), so on a
     shared core those threads come first. A request that finds every worker
     busy waits for one until its answer is due (``max_solve_time`` +
-    ``answer_margin``), then is refused naming ``solver_processes``. Setting
-    ``warmups`` (a parameter change) has the workers build the new
+    ``dispatch.answer_margin``), then is refused naming ``solver_processes``.
+    Setting ``warmups`` (a parameter change) has the workers build the new
     configuration's solvers in the background, one worker at a time, taken
-    only when all are idle, at a lower priority still (``worker_processes.WorkerProcesses``). The
-    worker processes start from a fork server, so a script using them needs
-    the usual ``if __name__ == '__main__':`` guard (``multiprocessing``).
+    only when all are idle, at a lower priority still (``processes``, a
+    ``worker_processes.WorkerProcesses``, whose ``toggled_limits`` says
+    whether one worker builds the limits' twins too). The worker processes
+    start from a fork server, so a script using them needs the usual
+    ``if __name__ == '__main__':`` guard (``multiprocessing``).
 
     A worker process that dies is replaced (the pool is kept full): found
     dead under a request, at the next request or by a watch on the idle ones
-    (``WorkerProcesses``). A request whose worker died while solving it is run
+    (``processes``). A request whose worker died while solving it is run
     again once on another worker (a fresh one if one is ready in time) when
-    at least ``rerun_within`` s of its time are left and a worker frees up
-    before its answer is due; else it is refused naming the dead process and
-    how it ended (``worker_dispatch.WorkerDispatch``). Each such event goes to ``on_event`` (a ``WorkerEvent``),
-    for the operator: a node's /diagnostics.
+    at least ``dispatch.rerun_within`` s of its time are left and a worker
+    frees up before its answer is due; else it is refused naming the dead
+    process and how it ended (``dispatch``, a ``worker_dispatch.WorkerDispatch``).
+    Each such event goes to ``on_event`` (a ``WorkerEvent``), for the
+    operator: a node's /diagnostics.
 
     Args:
         pool_size: most solver instances per key, >= 1 (settable); in this
@@ -100,41 +104,7 @@ class Planner:
 
     @pool_size.setter
     def pool_size(self, size: int):
-        self.threads.pool_size = size
-
-    @property
-    def pool_wait(self) -> float:
-        return self.threads.pool_wait
-
-    @pool_wait.setter
-    def pool_wait(self, wait: float):
-        self.threads.pool_wait = wait
-
-    @property
-    def toggled_limits(self) -> bool:
-        """With worker processes, one of them also builds the NVF solvers of the warm-ups' rest-to-rest
-        plans with the axis limits toggled (set, as ``SPARE_LIMITS`` and a fastest plan, where the
-        configuration has none; unset where it has some) before it is ready: the limits decide the NLP's
-        structure, so setting or clearing ``max_velocity`` would otherwise make the next NVF request build
-        one in its budget, which a build alone can exhaust. RVF's are left out: its NLP is several times
-        as costly to build, and every start-up would pay for it. Set before ``start_processes``."""
-        return WorkerProcesses.toggled_limits if self.processes is None else self.processes.toggled_limits
-
-    @toggled_limits.setter
-    def toggled_limits(self, on: bool):
-        if self.processes is not None:
-            self.processes.toggled_limits = on
-
-    @property
-    def answer_margin(self) -> float:
-        """With worker processes, a request is answered within ``max_solve_time`` + this (s), even if its
-        worker is still building a solver (its late answer is dropped)."""
-        return WorkerDispatch.answer_margin if self.dispatch is None else self.dispatch.answer_margin
-
-    @answer_margin.setter
-    def answer_margin(self, margin: float):
-        if self.dispatch is not None:
-            self.dispatch.answer_margin = margin
+        self.threads.resize(size)
 
     def plan(self, method: str, displacement: float, duration: float,
              params: CraneParams | None = None, options: PlanOptions | None = None, hoist=None,

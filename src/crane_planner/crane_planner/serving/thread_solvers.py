@@ -23,7 +23,7 @@ class ThreadSolvers:
     (``VariationalSolver.spawn``), which costs milliseconds.
 
     Args:
-        pool_size: most solver instances per key, >= 1 (settable).
+        pool_size: most solver instances per key, >= 1 (``resize``).
         pool_wait: longest wait (s) for an instance when all are busy, after which the request is refused
             naming ``solver_pool_size``.
     """
@@ -33,19 +33,15 @@ class ThreadSolvers:
         self.pools: dict = {}  # VariationalSolver.key -> SolverPool
         self._seeds: dict = {}  # VariationalSolver.structure_of -> the first solver built for it
         self._lock = threading.Lock()
-        self.pool_size = pool_size
+        self.pool_size = check_count('solver_pool_size', pool_size)
 
-    @property
-    def pool_size(self) -> int:
-        return self._pool_size
-
-    @pool_size.setter
-    def pool_size(self, size: int):
+    def resize(self, size: int) -> None:
+        """Pools of up to ``size`` instances from now on, those made already too."""
         size = check_count('solver_pool_size', size)
         with self._lock:
-            self._pool_size = size
+            self.pool_size = size
             for pool in self.pools.values():
-                pool.size = self._pool_size
+                pool.size = size
 
     def __call__(self, request: VariationalRequest) -> Plan:
         """The request run on a pooled solver of its key."""
@@ -59,7 +55,7 @@ class ThreadSolvers:
             pool = self.pools.get(key)
             if pool is None:
                 pool = self.pools[key] = SolverPool(lambda: self._new_solver(method, options),
-                                                    self._pool_size, method)
+                                                    self.pool_size, method)
         return pool
 
     def _new_solver(self, method: str, options: PlanOptions):
