@@ -15,14 +15,14 @@ from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 
 from .limits import axis_limit_error
-from .methods import REGISTRY, Family, family_of
+from .methods import Family, family_of, find_method
 from .plan import Plan, PlanError
 from .problem import Form, Problem, Weights, axis_displacements, graded_mesh, servo_layer, uniform_mesh
 
 
 def robust_set(method: str, options) -> tuple:
     """The parameters ``method``'s plan is made insensitive to: the options' for a robust method (RVF), else none."""
-    spec = REGISTRY.get(method)
+    spec = find_method(method)
     return tuple(options.robust) if spec is not None and spec.robust else ()
 
 

@@ -22,7 +22,7 @@ from .worker_events import Deaths
 from .workers import SolverProcess, WorkerDied, start_fork_server
 
 #: The axis limits of the warm-ups that build the limited NLPs of a configuration without limits
-#: (``Planner.toggled_limits``): a rest-to-rest plan they leave unbounded, and a fastest plan.
+#: (``WorkerProcesses.toggled_limits``): a rest-to-rest plan they leave unbounded, and a fastest plan.
 SPARE_LIMITS = {'max_velocity': 0.25, 'max_acceleration': 0.5}
 
 
@@ -35,7 +35,11 @@ class WorkerProcesses:
     """
 
     #: One of them also builds the NVF solvers of the warm-ups' rest-to-rest plans with the axis limits
-    #: toggled (``Planner.toggled_limits``).
+    #: toggled (set, as ``SPARE_LIMITS`` and a fastest plan, where the configuration has none; unset where it
+    #: has some) before it is ready: the limits decide the NLP's structure, so setting or clearing
+    #: ``max_velocity`` would otherwise make the next NVF request build one in its budget, which a build alone
+    #: can exhaust. RVF's are left out: its NLP is several times as costly to build, and every start-up would
+    #: pay for it. Set before the workers start.
     toggled_limits = True
     #: How often (s) the idle ones are looked at for one that died.
     watch_period = 0.5
