@@ -85,7 +85,7 @@ def in_process() -> dict:
     options = PlanOptions(intervals=22, max_solve_time=30.0)
     out = {'build_in_a_thread': zv_while(planner, lambda: planner.plan('nvf', 0.3, 3.0, CraneParams(), options))}
     workers = Planner(processes=1)
-    workers.toggled_limits = False
+    workers.processes.toggled_limits = False
     try:
         workers.start_processes(60.0)
         request = VariationalRequest('plan', 'nvf', 0.3, 3.0, CraneParams(), PlanOptions(intervals=23,

@@ -1,6 +1,7 @@
 """Run every benchmark in bench/ and write one JSON summary.
 
-Each benchmark is a script that prints one JSON object on stdout. Usage:
+Each benchmark is a script that prints one JSON object on stdout (on one line or indented; a
+script that logs lines before it prints it on the last line). Usage:
     .venv/bin/python bench/run_all.py [--out out/bench.json] [--only NAME ...]
 """
 import argparse
@@ -11,6 +12,20 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+
+
+def read_result(stdout: str) -> dict | None:
+    """The JSON object a benchmark printed: its whole stdout (indented JSON spans lines), else its last
+    line (lines logged before it); None if neither is one."""
+    text = stdout.strip()
+    for candidate in (text, text.splitlines()[-1] if text else ''):
+        try:
+            result = json.loads(candidate)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(result, dict):
+            return result
+    return None
 
 
 def main() -> int:
@@ -26,9 +41,8 @@ def main() -> int:
         print(f'[bench] {script.stem} ...', file=sys.stderr, flush=True)
         t0 = time.monotonic()
         r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True)
-        try:
-            result = json.loads(r.stdout.strip().splitlines()[-1])
-        except (IndexError, json.JSONDecodeError):
+        result = read_result(r.stdout)
+        if result is None:
             result = {'error': (r.stderr.strip().splitlines() or ['no output'])[-1]}
         if r.returncode != 0:
             failed.append(script.stem)

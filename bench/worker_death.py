@@ -67,7 +67,7 @@ def case(move, budget: float, kill: str, repeats: int) -> dict:
     from crane_planner.serving import Planner
     model, options = CraneParams(), PlanOptions(max_solve_time=budget)
     planner = Planner(processes=2, on_event=lambda e: None)
-    planner.toggled_limits = False
+    planner.processes.toggled_limits = False
     planner.warmups = [VariationalRequest('plan', 'nvf', 0.3, 3.0, model, PlanOptions(max_solve_time=1.0))]
     runs = []
     try:
@@ -103,19 +103,20 @@ def one_kill(planner, move, model, options, kill: str) -> dict:
 
     thread = threading.Thread(target=ask)
     thread.start()
-    wait_until(lambda: len(planner._processes._idle) < 2)  # a worker is lent to it
-    busy = [w for w in planner._workers if not w.closed and all(w is not i for i in planner._processes._idle)][0]
+    wait_until(lambda: len(planner.processes.pool._idle) < 2)  # a worker is lent to it
+    idle = planner.processes.pool._idle
+    busy = [w for w in planner.processes.workers if not w.closed and all(w is not i for i in idle)][0]
     before = cpu_ticks(busy.pid)
     wait_until(lambda: cpu_ticks(busy.pid) >= before + 3)  # it solves
-    victims = [busy.pid] if kill == 'one' else [w.pid for w in planner._workers if not w.closed]
+    victims = [busy.pid] if kill == 'one' else [w.pid for w in planner.processes.workers if not w.closed]
     if kill == 'server':
         victims.append(forkserver._forkserver._forkserver_pid)
     killed = time.monotonic()
     for pid in victims:
         os.kill(pid, signal.SIGKILL)
     thread.join()
-    wait_until(lambda: len([w for w in planner._processes._idle if not w.gone()]) == 2
-               and not {w.pid for w in planner._processes._idle} & set(victims))
+    wait_until(lambda: len([w for w in planner.processes.pool._idle if not w.gone()]) == 2
+               and not {w.pid for w in planner.processes.pool._idle} & set(victims))
     refill = time.monotonic() - killed
     try:
         planner.plan('nvf', 0.3, 3.0, model, PlanOptions(max_solve_time=1.0))  # the warm-ups' configuration

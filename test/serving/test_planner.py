@@ -108,3 +108,12 @@ def test_the_twins_of_a_configuration_toggle_its_limits_and_so_its_nlp_structure
     limited = PlanOptions(max_velocity=0.2, max_hoist_velocity=0.1, base='limits')
     (cleared,) = toggled_limits([VariationalRequest('plan', 'nvf', 0.3, 3.0, MODEL, limited)])
     assert not any(limits.any for limits in cleared.options.limits) and cleared.options.base == 'quintic'
+
+
+def test_the_pool_size_changes_the_pools_made_already_and_those_to_come():
+    planner = Planner(pool_size=2)
+    planner.plan('nvf', 0.3, 3.0, MODEL)
+    planner.pool_size = 3
+    assert planner.pool_size == 3 and [p.size for p in planner.threads.pools.values()] == [3]
+    with pytest.raises(ParameterError, match='solver_pool_size'):
+        planner.pool_size = 0

@@ -68,7 +68,7 @@ class Request:
 
 def started_planner(processes: int, events: list) -> Planner:
     planner = Planner(processes=processes, on_event=events.append)
-    planner.toggled_limits = False  # only what the tests need built
+    planner.processes.toggled_limits = False  # only what the tests need built
     planner.warmups = WARMUPS
     assert planner.start_processes(ready_within=GUARD, all_of_them=True) and planner.wait_built(GUARD)
     return planner
@@ -76,14 +76,14 @@ def started_planner(processes: int, events: list) -> Planner:
 
 def live(planner) -> list:
     """The pids of the idle workers that are alive."""
-    return [w.pid for w in planner._processes._idle if not w.gone()]
+    return [w.pid for w in planner.processes.pool._idle if not w.gone()]
 
 
 def solving_worker(planner):
     """The worker a request was lent, once it has spent CPU on it: the request is in its hands."""
     def lent():
-        idle = planner._processes._idle
-        return [w for w in planner._workers if not w.closed and all(w is not i for i in idle)]
+        idle = planner.processes.pool._idle
+        return [w for w in planner.processes.workers if not w.closed and all(w is not i for i in idle)]
     wait_until(lambda: len(lent()) == 1)
     worker = lent()[0]
     before = cpu_ticks(worker.pid)
@@ -94,7 +94,7 @@ def solving_worker(planner):
 def refilled(planner, size: int, dead) -> list:
     """Wait until the pool holds ``size`` live idle workers, none of ``dead``; their pids."""
     wait_until(lambda: len(live(planner)) == size and not set(live(planner)) & set(dead))
-    assert planner._processes.instances == size
+    assert planner.processes.pool.instances == size
     return live(planner)
 
 
@@ -159,7 +159,7 @@ def test_every_worker_killed_at_once_answers_the_request_and_the_pool_comes_back
     try:
         request = Request(planner, HOPELESS)  # a re-run only if a new worker is up within its 1.4 s
         worker = solving_worker(planner)
-        victims = [w.pid for w in planner._workers if not w.closed]
+        victims = [w.pid for w in planner.processes.workers if not w.closed]
         assert len(victims) == 2 and worker.pid in victims
         if with_server:
             victims.append(forkserver._forkserver._forkserver_pid)

@@ -64,7 +64,7 @@ def test_a_worker_returns_the_plan_an_in_process_solve_gives(planner, method, D,
 def test_a_refusal_in_a_worker_is_raised_in_the_caller_with_its_reason(planner, monkeypatch):
     # the worker's own refusal, however slow a busy host makes its last iteration, not the caller's deadline
     # (beside a CPU-bound process, 0.4 s past its 1 s budget came without an answer)
-    monkeypatch.setattr(planner, 'answer_margin', 10.0)
+    monkeypatch.setattr(planner.dispatch, 'answer_margin', 10.0)
     with pytest.raises(PlanError, match=r'rvf: no plan for D=10 m, T=0.5 s within max_solve_time 1 s'):
         planner.plan(*HOPELESS)
 
@@ -84,7 +84,7 @@ def run_in_thread(target, done, name):
 def test_a_request_finding_every_worker_busy_waits_for_one_and_nothing_is_built_in_this_process(planner):
     done = []
     threads = [run_in_thread(lambda: planner.plan(*HOPELESS), done, 'hopeless') for _ in range(2)]
-    wait_until(lambda: planner._processes.instances == 2 and not planner._processes._idle)
+    wait_until(lambda: planner.processes.pool.instances == 2 and not planner.processes.pool._idle)
     # due long after a hopeless request's budget of 1 s ends: it waits for that worker, then is solved there
     # (how long the wait and the solve take is the host's: a budget of its own keeps them apart; when a
     # hopeless request gives up is IPOPT's, at its budget or earlier)
@@ -93,10 +93,10 @@ def test_a_request_finding_every_worker_busy_waits_for_one_and_nothing_is_built_
         th.join()
     # solved by one of the two workers (no third was started for it), which it had only once a hopeless
     # request had given up
-    assert planner._processes.instances == 2
+    assert planner.processes.pool.instances == 2
     assert len(done) == 2 and all(isinstance(result, PlanError) for _, result in done)
     assert plan.evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-9)
-    assert planner._pools == {}  # no solver of this process's own, built or used
+    assert planner.threads.pools == {}  # no solver of this process's own, built or used
 
 
 def test_a_request_whose_answer_is_due_before_a_worker_frees_up_is_refused_naming_solver_processes(planner):
@@ -104,14 +104,14 @@ def test_a_request_whose_answer_is_due_before_a_worker_frees_up_is_refused_namin
     # the answer is due, whatever the host does to this thread's timing
     held = []
     try:
-        held += [planner._processes.take(10.0) for _ in range(2)]
+        held += [planner.processes.pool.take(10.0) for _ in range(2)]
         with pytest.raises(PlanError, match='raise solver_processes') as refusal:
             planner.plan('nvf', 0.3, 3.0, MODEL, dataclasses.replace(OPTIONS, max_solve_time=0.1))
         assert not isinstance(refusal.value, WorkerLate)  # refused before any worker was given it
         assert all(worker.alive and not worker.late for worker in held)
     finally:
         for worker in held:
-            planner._processes.give_back(worker)
+            planner.processes.pool.give_back(worker)
     # and the workers serve the next request as before
     plan = planner.plan('nvf', 0.3, 3.0, MODEL, dataclasses.replace(OPTIONS, max_solve_time=30.0))
     assert plan.evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-9)
@@ -122,7 +122,7 @@ def test_a_shaper_plan_is_answered_while_the_workers_build_a_new_configuration()
     process: a ZV plan asked meanwhile is answered before that build ends, and before an NVF request of
     the new configuration sent ahead of it."""
     planner = Planner(processes=1)
-    planner.toggled_limits = False  # only what the test needs built
+    planner.processes.toggled_limits = False  # only what the test needs built
     planner.warmups = WARMUPS
     try:
         assert planner.start_processes(ready_within=60.0) and planner.wait_built(60.0)
@@ -131,7 +131,7 @@ def test_a_shaper_plan_is_answered_while_the_workers_build_a_new_configuration()
         planner.warmups = [VariationalRequest('plan', m, 0.3, 3.0, MODEL, rebuilt) for m in ('nvf', 'rvf')]
         building = run_in_thread(lambda: planner.wait_built(120.0), events, 'rebuilt')
         expensive = run_in_thread(lambda: planner.plan('nvf', 0.3, 3.0, MODEL, rebuilt), events, 'nvf')
-        wait_until(lambda: not planner._processes._idle)  # the worker builds (for the upkeep or the NVF request)
+        wait_until(lambda: not planner.processes.pool._idle)  # the worker builds (for the upkeep or the NVF request)
         shaped = planner.plan('zv', 0.3, 3.0, MODEL, rebuilt)
         events.append(('zv', shaped))
         building.join()
@@ -142,8 +142,8 @@ def test_a_shaper_plan_is_answered_while_the_workers_build_a_new_configuration()
         assert results['rebuilt'] is True
         assert results['nvf'].evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-9)
         assert shaped.evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-12)
-        assert planner._pools == {}
-        worker = planner._processes._idle[0]
+        assert planner.threads.pools == {}
+        worker = planner.processes.pool._idle[0]
         assert worker.has(VariationalRequest('plan', 'rvf', 0.3, 3.0, MODEL, rebuilt))
     finally:
         planner.close()
@@ -161,10 +161,10 @@ def test_one_worker_starts_with_the_limits_twins_and_a_request_under_a_new_limit
     request = VariationalRequest('plan', 'nvf', 0.3, 3.0, MODEL, limited)
     try:
         assert planner.start_processes(ready_within=60.0, all_of_them=True) and planner.wait_built(60.0)
-        holders = [w for w in planner._processes._idle if w.has(request)]
+        holders = [w for w in planner.processes.pool._idle if w.has(request)]
         assert len(holders) == 1
         plan = planner.variational(request)
-        assert planner._processes._idle[-1] is holders[0]  # the one that solved it came back last
+        assert planner.processes.pool._idle[-1] is holders[0]  # the one that solved it came back last
         speed = np.diff(plan.evaluate(np.linspace(0.0, 3.0, 601)).position) / 0.005
         assert 0.1 < np.max(np.abs(speed)) <= 0.16 * (1 + 1e-6)
     finally:
@@ -178,7 +178,7 @@ def test_a_worker_that_dies_mid_solve_costs_one_refusal_naming_it_and_is_replace
     planner.warmups = WARMUPS
     try:
         assert planner.start_processes(ready_within=60.0)
-        worker = planner._processes._idle[0]
+        worker = planner.processes.pool._idle[0]
         errors = []
 
         def hopeless():
@@ -189,12 +189,12 @@ def test_a_worker_that_dies_mid_solve_costs_one_refusal_naming_it_and_is_replace
 
         th = threading.Thread(target=hopeless)
         th.start()
-        wait_until(lambda: not planner._processes._idle)
+        wait_until(lambda: not planner.processes.pool._idle)
         os.kill(worker.pid, signal.SIGKILL)
         th.join()
         assert errors and errors[0].startswith(f'the solver process {worker.pid} died (signal 9) while solving; ')
-        wait_until(lambda: planner._processes._idle)  # the replacement is up
-        assert planner._processes._idle[0] is not worker and planner._processes.instances == 1
+        wait_until(lambda: planner.processes.pool._idle)  # the replacement is up
+        assert planner.processes.pool._idle[0] is not worker and planner.processes.pool.instances == 1
         plan = planner.plan('nvf', 0.3, 3.0, MODEL, OPTIONS)
         assert plan.evaluate(3.0).position[0] == pytest.approx(0.3, abs=1e-9)
     finally:
@@ -245,7 +245,7 @@ def test_a_parameter_change_is_reported_once_every_worker_has_built_it(planner):
     try:
         planner.warmups = wanted
         report_when_built(planner, lambda message: reported.append(
-            (message, [worker.needs(wanted) for worker in planner._workers])))  # what they lacked when told
+            (message, [worker.needs(wanted) for worker in planner.processes.workers])))  # what they lacked when told
         wait_until(lambda: reported, timeout=120.0)
         message, lacking = reported[0]
         assert message.startswith('solvers rebuilt for the new parameters in') and not any(lacking), reported

@@ -1,5 +1,6 @@
 """crane-plan: errors, JSON shape, files written; in this process through ``cli.main`` (``crane_plan_cli``),
 and as the installed console script where the executable itself is what is checked."""
+import argparse
 import json
 import subprocess
 import sys
@@ -90,11 +91,38 @@ def test_plan_json_csv_plot(tmp_path):
     assert png_path.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 
+def test_every_option_is_spelled_with_dashes_and_the_former_tau_hoist_still_works():
+    """--tau-hoist as every other option (--plant-tau, --max-hoist-velocity); --tau_hoist, the former
+    spelling, gives the same plan, says it is deprecated and is not shown by --help."""
+    from crane_planner.tools.cli import build_parser
+    parser = build_parser()
+    options = [o for action in _actions(parser) if action.help != argparse.SUPPRESS for o in action.option_strings]
+    assert options and not [o for o in options if '_' in o]
+    assert '--tau-hoist' in options
+    args = ('plan', '--method', 'zv', *TASK, '--hoist', '0.47', '0.27', '--json')
+    new, old = run(*args, '--tau-hoist', '0.05'), run(*args, '--tau_hoist', '0.05')
+    assert new.returncode == old.returncode == 0, old.stderr
+    def residual(r):  # (the report's plan_time_s differs between runs)
+        return json.loads(r.stdout)['residual']
+    assert residual(old) == residual(new) != residual(run(*args))  # the plant follows tau_hoist
+    assert '--tau_hoist is deprecated, use --tau-hoist' in old.stderr and 'deprecated' not in new.stderr
+    assert '--tau_hoist' not in run('plan', '--help').stdout
+
+
+def _actions(parser):
+    """Every action of ``parser`` and of its subcommands' parsers."""
+    for action in parser._actions:
+        yield action
+        for sub in getattr(action, 'choices', None) or {}:
+            if isinstance(action.choices, dict):
+                yield from _actions(action.choices[sub])
+
+
 def test_plan_with_a_hoist_writes_the_hoists_columns_and_figures(tmp_path):
     """--hoist 0.47 0.27: the CSV's hoist columns go from 0.47 to 0.27 m at rest at both ends, the JSON
     names the hoist's peaks, and the adaptive ZV leaves no swing on its own plant (tau 0)."""
     csv_path = tmp_path / 'h.csv'
-    r = run('plan', '--method', 'zv', *TASK, '--hoist', '0.47', '0.27', '--tau', '0', '--tau_hoist', '0',
+    r = run('plan', '--method', 'zv', *TASK, '--hoist', '0.47', '0.27', '--tau', '0', '--tau-hoist', '0',
             '--json', '--csv', str(csv_path))
     assert r.returncode == 0, r.stderr
     report = json.loads(r.stdout)

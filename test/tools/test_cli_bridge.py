@@ -104,7 +104,7 @@ def test_fastest_and_choose_keep_the_bridge_within_its_limits(capsys):
 
 def test_a_hoisting_move_with_a_bridge_has_every_axis_in_the_csv(capsys, tmp_path):
     csv_path = tmp_path / 'h.csv'
-    status, out, err = run(capsys, 'plan', '--method', 'zv', *TASK, *IDEAL, '--tau_hoist', '0', '--hoist', '0.47',
+    status, out, err = run(capsys, 'plan', '--method', 'zv', *TASK, *IDEAL, '--tau-hoist', '0', '--hoist', '0.47',
                            '0.27', '--json', '--csv', str(csv_path))
     assert status == 0, err
     report = json.loads(out)

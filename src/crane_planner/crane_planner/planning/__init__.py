@@ -12,7 +12,16 @@ import os
 # setting is kept.
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
-from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS, VARIATIONAL_METHODS  # noqa: E402
+from .methods import (  # noqa: E402
+    METHODS,
+    ROBUST_PARAMETERS,
+    SHAPER_METHODS,
+    VARIATIONAL_METHODS,
+    Family,
+    MethodSpec,
+    Supports,
+    method_spec,
+)
 from .plan import Plan, PlanError, Samples  # noqa: E402
 
 
@@ -25,5 +34,6 @@ def __getattr__(name: str):
     raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
 
 
-__all__ = ['METHODS', 'ROBUST_PARAMETERS', 'SHAPER_METHODS', 'VARIATIONAL_METHODS', 'Plan', 'PlanError',
+__all__ = ['METHODS', 'ROBUST_PARAMETERS', 'SHAPER_METHODS', 'VARIATIONAL_METHODS', 'Family', 'MethodSpec', 'Supports',
+           'method_spec', 'Plan', 'PlanError',
            'Samples', 'PlanOptions', 'check_request']

@@ -32,7 +32,7 @@ from crane_msgs_py.params import (
 
 from .hoisting import HOIST_SHAPER_DESIGNS, check_hoist, shaped_hoisting_plan, travel_displacements
 from .limits import axis_limit_error, check_fastest_request
-from .methods import METHODS, ROBUST_PARAMETERS, SHAPER_METHODS
+from .methods import ROBUST_PARAMETERS, Family, MethodSpec, method_spec
 from .model import modal_properties
 from .plan import AxesPlan, Plan, PlanError
 from .profiles import BASES
@@ -162,8 +162,7 @@ class PlanOptions:
 
 def check_request(method: str, displacement, duration) -> tuple[float, float]:
     """Validate the method name and a (D, T) pair; return them as floats."""
-    if method not in METHODS:
-        raise PlanError(f'unknown method {method!r}; choose from {", ".join(METHODS)}')
+    method_spec(method)  # PlanError naming the methods for an unknown one
     try:
         displacement = float(displacement)
         duration = float(duration)
@@ -259,9 +258,10 @@ def plan(method: str, displacement: float, duration: float, params: CraneParams 
     options = options or PlanOptions()
     displacement, duration = check_request(method, displacement, duration)
     bridge = bridge_request(bridge)
+    spec = supported(method, hoist, bridge)
     if hoist is not None:
         params, hoist_displacement = hoisting_request(params, options, hoist)
-        if method in SHAPER_METHODS:
+        if spec.family is Family.SHAPER:
             if options.base != 'quintic':
                 raise PlanError('while hoisting the shapers shape the quintic base only (base quintic)')
             err = axis_limit_error(hoist_displacement, duration, options.limits_of(HOIST_JOINT))
@@ -271,7 +271,7 @@ def plan(method: str, displacement: float, duration: float, params: CraneParams 
             return checked(shaped_hoisting_plan(method, displacement, hoist_displacement, duration, params, zeta,
                                                 options.hoist_shaper, bridge), options)
         displacement, options = (displacement, hoist_displacement), hoisting_options(options)
-    elif method in SHAPER_METHODS:
+    elif spec.family is Family.SHAPER:
         omegas, zetas = shaper_design(params, options)
         if bridge is not None:
             travel = travel_displacements(displacement, bridge)
@@ -301,27 +301,38 @@ def fastest(method: str, displacement: float, params: CraneParams | None = None,
     options = options or PlanOptions()
     check_request(method, displacement, 1.0)
     bridge = bridge_request(bridge)
+    spec = supported(method, hoist, bridge, fastest=True)
     if hoist is not None:
         params, hoist_displacement = hoisting_request(params, options, hoist)
-        if method in SHAPER_METHODS:
+        if not spec.supports.fastest_hoisting:
             raise PlanError('the fastest shaped plan with a hoist is not offered: give a duration, or use nvf/rvf')
         displacement, options = (float(displacement), hoist_displacement), hoisting_options(options)
     elif bridge is not None:
         displacement = float(displacement)
-        if method in SHAPER_METHODS:
+        if spec.family is Family.SHAPER:
             travel = travel_displacements(displacement, bridge)
             return travel_plan(fastest_shaped_axes(method, travel, *shaper_design(params, options),
                                                    {name: options.limits_of(name) for name in travel}, options.base))
     else:
         limits = options.limits_of(CART_JOINT)
         displacement = check_fastest_request(displacement, limits)  # before a solver is asked
-        if method in SHAPER_METHODS:
+        if spec.family is Family.SHAPER:
             return fastest_shaped(method, displacement, *shaper_design(params, options), limits, options.base)
     if options.solver != 'direct':
         raise PlanError('the fastest NVF/RVF plan needs the direct solver (free final time)')
     if bridge is not None:
         displacement = with_bridge(displacement, bridge)
     return (variational or _new_solver)(VariationalRequest('fastest', method, displacement, None, params, options))
+
+
+def supported(method: str, hoist, bridge, fastest: bool = False) -> MethodSpec:
+    """The entry of ``method``, or PlanError if it plans no hoist, bridge or fastest plan a request asks for."""
+    spec = method_spec(method)
+    asked = {'hoisting': hoist is not None, 'bridge': bridge is not None, 'fastest': fastest}
+    missing = [what for what, wanted in asked.items() if wanted and not getattr(spec.supports, what)]
+    if missing:
+        raise PlanError(f'{method} does not plan {" or ".join(missing)}')
+    return spec
 
 
 def bridge_request(bridge) -> float | None:

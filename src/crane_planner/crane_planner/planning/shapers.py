@@ -279,7 +279,7 @@ def cascade(*shapers: Shaper) -> Shaper:
     return Shaper(np.bincount(groups, weights=A), t[new])
 
 
-#: Shaper design functions by method name (``planning.SHAPER_METHODS``).
+#: Shaper design functions by name; a method's entry in ``methods.REGISTRY`` serves one (its ``design``).
 SHAPERS = {'zv': zv, 'nzv': nzv, 'zvd': zvd, 'ei': ei, 'mzv': mzv, 'zvdd': zvdd}
 
 

@@ -15,9 +15,15 @@ from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
 from crane_msgs_py.params import CraneParams
 
 from .limits import axis_limit_error
-from .methods import VARIATIONAL_METHODS
+from .methods import Family, family_of, find_method
 from .plan import Plan, PlanError
 from .problem import Form, Problem, Weights, axis_displacements, graded_mesh, servo_layer, uniform_mesh
+
+
+def robust_set(method: str, options) -> tuple:
+    """The parameters ``method``'s plan is made insensitive to: the options' for a robust method (RVF), else none."""
+    spec = find_method(method)
+    return tuple(options.robust) if spec is not None and spec.robust else ()
 
 
 class VariationalSolver:
@@ -54,7 +60,7 @@ class VariationalSolver:
     layer_resolution = 0.25
 
     def __init__(self, method: str, options, **overrides):
-        if method not in VARIATIONAL_METHODS:
+        if family_of(method) is not Family.VARIATIONAL:
             raise PlanError(f'no variational method {method!r}; choose nvf or rvf')
         for name, value in overrides.items():
             if name.startswith('_') or not hasattr(type(self), name):
@@ -64,7 +70,7 @@ class VariationalSolver:
         self.intervals = options.intervals or self.default_intervals
         self.hoist_intervals = options.intervals or self.default_hoist_intervals
         self.bridge_intervals = options.intervals or self.default_bridge_intervals
-        self.robust = tuple(options.robust) if method == 'rvf' else ()
+        self.robust = robust_set(method, options)
         #: the cart's limits, the hoist's and the bridge's (``AxisLimits``)
         self.limits, self.hoist_limits = options.limits_of(CART_JOINT), options.limits_of(HOIST_JOINT)
         self.bridge_limits = options.limits_of('bridge')
@@ -82,7 +88,7 @@ class VariationalSolver:
     def structure_of(method: str, options) -> tuple:
         """What a solver builds depends on: the route, the method, intervals, robust set, whether limits are set."""
         return (options.solver, method, options.intervals or VariationalSolver.default_intervals,
-                tuple(options.robust) if method == 'rvf' else (),
+                robust_set(method, options),
                 any(limits.any for limits in options.limits))
 
     @property

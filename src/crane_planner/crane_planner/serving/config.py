@@ -22,11 +22,12 @@ from crane_msgs_py.params import (
     renamed_from,
 )
 
-from ..planning import METHODS, ROBUST_PARAMETERS, VARIATIONAL_METHODS, PlanOptions
+from ..planning import METHODS, ROBUST_PARAMETERS, PlanOptions
 from ..planning.continuation import AxisState, MotionState, problem_start
 from ..planning.dispatch import VariationalRequest, hoisting_options
 from ..planning.hoisting import HOIST_SHAPER_DESIGNS
 from ..planning.keep_out import KeepOut
+from ..planning.methods import Family, methods_of, methods_supporting
 from ..planning.profiles import BASES
 from ..planning.routing import Route
 from ..planning.signals import Swing
@@ -186,7 +187,7 @@ class Config:
         if not v['frame_id']:
             raise ParameterError('frame_id must not be empty')
         joints = check_joints(v['joints'])
-        check_choice('settle_method', v['settle_method'], VARIATIONAL_METHODS)
+        check_choice('settle_method', v['settle_method'], methods_supporting('settle'))
         return cls(params, options, v['method'], check_nonnegative('sample_period', v['sample_period']),
                    v['frame_id'], check_positive('max_duration', v['max_duration']),
                    check_positive('max_displacement', v['max_displacement']), int(v['solver_pool_size']),
@@ -210,20 +211,20 @@ class Config:
         """
         D, duration = min(0.3, self.max_displacement), min(3.0, self.max_duration)
         hoisting = HOIST_JOINT in self.joints
-        # the cart's alone as a number: the planner's limit twins (``planner.toggled_limits``) are of those
+        # the cart's alone as a number: the planner's limit twins (``worker_processes.toggled_limits``) are of those
         travel = [D] + ([{CART_JOINT: D, BRIDGE_JOINT: 2.0 * D / 3.0}] if BRIDGE_JOINT in self.joints else [])
         requests = []
         for displacement in travel:
             requests += [VariationalRequest('plan', method, displacement, duration, self.params, self.options)
-                         for method in VARIATIONAL_METHODS]
+                         for method in methods_of(Family.VARIATIONAL)]
             if self.options.max_velocity is not None or self.options.max_acceleration is not None:
                 requests += [VariationalRequest('fastest', method, displacement, None, self.params, self.options)
-                             for method in VARIATIONAL_METHODS]
+                             for method in methods_of(Family.VARIATIONAL)]
             if hoisting:  # and a move that hoists by a tenth of the rope (another NLP)
                 moving = displacement if isinstance(displacement, dict) else {CART_JOINT: displacement}
                 requests += [VariationalRequest('plan', method, {**moving, HOIST_JOINT: -0.1 * self.params.L1},
                                                 duration, self.params, hoisting_options(self.options))
-                             for method in VARIATIONAL_METHODS]
+                             for method in methods_of(Family.VARIATIONAL)]
         # a plan from a moving, swinging state and a stop (their own warm starts), over every served axis
         spatial = BRIDGE_JOINT in self.joints
         state = MotionState({CART_JOINT: AxisState(0.0, 0.1, 0.05),
@@ -238,7 +239,7 @@ class Config:
         for free_end in (False, True):  # (a stop's tries are solved within STOP_SOLVE_TIME each)
             requests += [VariationalRequest('plan', method, displacement, duration, model,
                                             stop_options(options) if free_end else options, start, free_end)
-                         for method in VARIATIONAL_METHODS]
+                         for method in methods_of(Family.VARIATIONAL)]
         # with keep-out boxes, NVF's NLPs of the routes past them the served axes allow (``moves.plan_keeping_out``);
         # RVF's builds on first use: warming it up too would keep a solver process busy at start-up
         # (its NLP, then its derivatives compiled) for a route few callers ask for

@@ -24,7 +24,7 @@ from ..planning.dispatch import PlanOptions, VariationalRequest, check_request, 
 from ..planning.hoisting import QuinticPlan
 from ..planning.keep_out import KeepOut, KeepOutError
 from ..planning.mass_path import plan_axes, predict_mass_path, rest_positions, solved_mass_path
-from ..planning.methods import METHODS, VARIATIONAL_METHODS
+from ..planning.methods import Family, method_spec
 from ..planning.plan import AxesPlan, Plan, PlanError
 from ..planning.routing import route_candidates
 from ..planning.shaped_route import shaped_route
@@ -147,8 +147,10 @@ def check_move(move: Move, bounds: MoveBounds, hold: dict | None, L1: float = Cr
     of the planner the move leaves out stays where it starts.
     """
     method = move.method or bounds.method
-    if method not in METHODS:
-        raise MoveError('method', f'unknown method {method!r}; choose from {", ".join(METHODS)}')
+    try:
+        method_spec(method)
+    except PlanError as exc:
+        raise MoveError('method', str(exc)) from None
     names = tuple(move.joint_names) or tuple(bounds.joints)
     unknown = [n for n in names if n not in bounds.joints]
     if unknown:
@@ -327,12 +329,13 @@ def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: Cra
     first that keeps out (``info['route']`` says which). A fastest move, a shaper's with via points, or one
     no route gets past is refused naming the box (``move.keep_out``), with each route's reason.
     """
-    variational, vias = move.method in VARIATIONAL_METHODS, move.relative_vias
-    if vias and variational:
+    spec, vias = method_spec(move.method), move.relative_vias
+    variational = spec.family is Family.VARIATIONAL
+    if vias and spec.supports.exact_vias:
         plan = _constrained(planner, move, params, options, vias=vias)
     else:
         plan = plan_move(planner, move, bounds, params, options)
-    if vias and not variational:
+    if vias and not spec.supports.exact_vias:
         check_shaper_vias(plan, move, bounds.via_tolerance)
     origin = origin_of(move)
     try:
@@ -342,9 +345,11 @@ def plan_keeping_out(planner, move: CheckedMove, bounds: MoveBounds, params: Cra
         if move.duration is None:
             raise MoveError('keep_out', f'{exc.reason}; the fastest move is planned direct only: give a duration '
                                         'and nvf or rvf route past the boxes') from None
-        if vias and not variational:
+        if vias and not spec.supports.routes_with_vias:
             raise MoveError('keep_out', f'{exc.reason}; a shaper routes past boxes without via points: nvf and rvf '
                                         'route through them') from None
+        if not spec.supports.routes:
+            raise MoveError('keep_out', f'{exc.reason}; {move.method} does not route past boxes') from None
         direct = exc
     model = model_at_rope(move, params)
     moves = {name: m.displacement for name, m in move.axes.items()}

@@ -27,7 +27,7 @@ from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT, STREAM_ST
 
 from ..planning.continuation import problem_start
 from ..planning.mass_path import predict_mass_path
-from ..planning.methods import METHODS, SHAPER_METHODS, VARIATIONAL_METHODS
+from ..planning.methods import METHODS, Family, family_of, method_spec, methods_of
 from ..planning.plan import Plan, time_grid
 from ..planning.signals import Swing
 from ..streaming.knots import knot_times
@@ -247,7 +247,7 @@ class MoveService:
             if running is not None and math.isfinite(settle) and settle >= 0.0:  # (else execute refuses it)
                 goal.take_over = TakeOver(running, goal.arrived_ns, arrived_t)
                 config = self.config()
-                shaper = (move.method or config.method) not in VARIATIONAL_METHODS
+                shaper = family_of(move.method or config.method) is not Family.VARIATIONAL
                 # not when planning would wait: for the running motion's start on the streamer (origin) or
                 # behind a stop or settle being planned (handing_over)
                 if shaper and running.origin_ns and not self.handing_over.locked():
@@ -270,7 +270,8 @@ class MoveService:
         if running is None or not running.origin_ns or running.hoist_moves:  # (a shaper cannot retarget then)
             return
         config = self.config()
-        method = next((m for m in (running.method, config.method) if m in SHAPER_METHODS), SHAPER_METHODS[0])
+        method = next((m for m in (running.method, config.method) if family_of(m) is Family.SHAPER),
+                      methods_of(Family.SHAPER)[0])
         move = Move(method, goal=(float(running.interps[0].position[0]),), duration=running.duration)
         try:
             rehearse(self._preempting(move, running, rehearse=True).trajectory)
@@ -502,7 +503,7 @@ class MoveService:
                                             'planned from rest only')
             check_rests_keep_out(checked, config.params, config.keep_out)
             goal = checked.goals
-            shaper = checked.method not in VARIATIONAL_METHODS
+            shaper = method_spec(checked.method).family is Family.SHAPER
             asked = (config.shaper_handover_lead if shaper else config.handover_lead) * lead_scale
             lead = arrival_lead(asked, arrived_ns, self.clock())
 
@@ -667,7 +668,7 @@ def build_solvers(planner, config: Config, log) -> Built:
             log.warn(f'building the NVF/RVF solvers failed: {exc}')
     for method in METHODS:
         # long enough for every shaper; the variational solvers at a typical request
-        duration = min(3.0 if method in VARIATIONAL_METHODS else 10.0, config.max_duration)
+        duration = min(3.0 if method_spec(method).family is Family.VARIATIONAL else 10.0, config.max_duration)
         t0 = time.perf_counter()
         try:
             plan = planner.plan(method, min(0.3, config.max_displacement), duration, config.params, config.options)

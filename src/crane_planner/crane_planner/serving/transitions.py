@@ -65,7 +65,7 @@ from ..planning.continuation import (
     shaped_stop,
 )
 from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options, plan
-from ..planning.methods import SHAPER_METHODS
+from ..planning.methods import Family, family_of, lacks
 from ..planning.model import modal_frequencies
 from ..planning.plan import AxesPlan, Plan, PlanError
 from ..planning.shaped import ShapedPlan
@@ -353,10 +353,13 @@ def retarget(variational, running: Running, handover_ns: int, state: MotionState
     if not duration > 0.0:
         raise PlanError('a goal during a motion needs a duration (> 0 s): the fastest plan is planned from rest '
                         'only')
-    if method not in SHAPER_METHODS:
+    if lacks(method, 'start_in_motion'):
+        raise PlanError(f'{method} plans from rest only: send the goal once the crane is at rest')
+    if family_of(method) is not Family.SHAPER:
         return _variational(variational, method, state, goal, duration, params, options)
     rope = _rope(state)
-    if running.hoist_moves or (rope is not None and abs(goal.get(HOIST_JOINT, rope) - rope) > 1e-9):
+    hoisting = running.hoist_moves or (rope is not None and abs(goal.get(HOIST_JOINT, rope) - rope) > 1e-9)
+    if hoisting and lacks(method, 'retarget_while_hoisting'):
         raise PlanError(f'{method}: a shaper cannot retarget a motion while the rope length changes (its '
                         'delays follow the rope); use nvf or rvf')
     model = _model(params, state)
@@ -381,7 +384,7 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
     crane). A travel axis without an acceleration limit brakes at most ``STOP_BRAKING`` times the running
     motion's hardest (its peak on any travel axis, or an axis's acceleration now): one bound for the
     horizontal axes, so that an axis the motion held (peak 0) may still move to damp its swing."""
-    shaped = _shaped_travel(running.plan) if method in SHAPER_METHODS else None
+    shaped = _shaped_travel(running.plan) if family_of(method) is Family.SHAPER else None
     if shaped is not None:
         t0 = float(running.time_of(handover_ns))
         new = {}
@@ -431,7 +434,7 @@ def stop_options(options: PlanOptions) -> PlanOptions:
 
 def settle(variational, state: MotionState, params: CraneParams, options: PlanOptions, method: str = 'nvf') -> Plan:
     """A short motion from the measured swing at rest (``state``) back to where it started, damping it."""
-    if method in SHAPER_METHODS:
+    if lacks(method, 'settle'):
         raise PlanError(f'{method}: a shaper cannot damp a swing it did not cause; settle with nvf or rvf')
     goal = {name: s.position for name, s in state.axes.items()}
     return _lengthened(lambda T: _variational(variational, method, state, goal, T, params, options),

@@ -88,11 +88,29 @@ def _robust_list(text: str) -> tuple[str, ...]:
     return names
 
 
+class _Deprecated(argparse.Action):
+    """An option's former spelling: still accepted, hidden from --help, and said to be deprecated."""
+
+    def __init__(self, option_strings, dest, spelling: str, **kwargs):
+        self.spelling = spelling
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f'{parser.prog}: {option_string} is deprecated, use {self.spelling}', file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
 def _add_crane_options(g):
+    """An option per model parameter, spelled with dashes as every option is (--tau-hoist); a name's former
+    underscore spelling (--tau_hoist) still accepted."""
     defaults = CraneParams()
     for name in PARAMETER_NAMES:
-        g.add_argument(f'--{name}', type=_finite, default=getattr(defaults, name),
+        option = '--' + name.replace('_', '-')
+        g.add_argument(option, dest=name, type=_finite, default=getattr(defaults, name),
                        metavar='X', help=f'{PARAMETER_DESCRIPTIONS[name]} (default {getattr(defaults, name)})')
+        if option != f'--{name}':
+            g.add_argument(f'--{name}', dest=name, type=_finite, default=argparse.SUPPRESS, help=argparse.SUPPRESS,
+                           action=_Deprecated, spelling=option)
 
 
 def _add_model_options(p: argparse.ArgumentParser):
@@ -116,7 +134,7 @@ def _add_model_options(p: argparse.ArgumentParser):
     h = p.add_argument_group('hoisting (with --hoist: the rope length moves during the move)')
     h.add_argument('--hoist', type=_finite, nargs=2, metavar=('L1_START', 'L1_GOAL'),
                    help='the upper cable goes from L1_START to L1_GOAL (m) during the move (it sets the model\'s '
-                        'L1 to L1_START); the hoist follows its own servo --tau_hoist')
+                        'L1 to L1_START); the hoist follows its own servo --tau-hoist')
     h.add_argument('--hoist-shaper', choices=HOIST_SHAPER_DESIGNS, default='adaptive',
                    help='how a shaper follows the rope length: adaptive (fitted to the hoisting crane, the '
                         'default) or designed at the start, middle or end length')
