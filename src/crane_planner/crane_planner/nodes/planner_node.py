@@ -236,7 +236,7 @@ class PlannerNode(Node):
                                             .publish_feedback(ExecuteMove.Feedback(**feedback)),
                                             lambda: goal_handle.is_cancel_requested)
         except Exception as exc:  # a bug must not leave the caller waiting forever
-            if isinstance(exc, InvalidHandle) or not self.context.ok():  # shut down (a signal): no one to tell
+            if isinstance(exc, (InvalidHandle, service.RunnerStopped)) or not self.context.ok():  # shut down
                 return result
             self.get_logger().error(f'execute_move: unexpected {type(exc).__name__}: {exc}')
             if not goal_handle.is_active:  # it already ended: the caller has its status

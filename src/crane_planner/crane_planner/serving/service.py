@@ -37,13 +37,13 @@ from .following import Outcome
 from .goals import Goal
 from .moves import Move
 from .preview import Planned, plan_move, plan_status
-from .runner import GoalRunner
+from .runner import GoalRunner, RunnerStopped
 from .settling import Settled
 from .transitions import JointReading, Measurement, Running, Trajectory
 
 #: What the node uses: the service, its records and the solvers' start-up (each part is a module of its own).
-__all__ = ['Built', 'MoveService', 'Outcome', 'Planned', 'Settled', 'build_solvers', 'plan_status',
-           'report_when_built', 'start_processes']
+__all__ = ['Built', 'MoveService', 'Outcome', 'Planned', 'RunnerStopped', 'Settled', 'build_solvers',
+           'plan_status', 'report_when_built', 'start_processes']
 
 
 @dataclass(frozen=True)
