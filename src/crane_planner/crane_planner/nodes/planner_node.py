@@ -137,7 +137,7 @@ class PlannerNode(Node):
 
     def executor_threads(self) -> int:
         """Enough executor threads for every solver busy at once, the shapers' and parameter requests and the
-        goals being executed (each holds a thread until its result: one moving, one settling)."""
+        goals being executed (each waits on one for its result: one moving, one settling)."""
         return self._config.solver_processes + self._config.solver_pool_size * len(VARIATIONAL_METHODS) + 7
 
     def _build_solvers(self):

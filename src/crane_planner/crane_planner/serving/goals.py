@@ -167,7 +167,7 @@ class Goals:
 
     def cancel(self, handle) -> Goal | None:
         """A cancel of the goal with ``handle``: one not sent is ``CANCELED`` (it will never stream); one
-        sent stays as it is (its thread stops the motion)."""
+        sent stays as it is (its steps stop the motion)."""
         with self.lock:
             goal = next((g for g in self._goals if g.handle is handle), None)
             if goal is not None and goal.state in (S.ARRIVED, S.HELD):
