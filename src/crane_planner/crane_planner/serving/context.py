@@ -36,9 +36,9 @@ class Serving:
     sleep: Callable[[float], None] = time.sleep
     timer: Callable[[], float] = time.perf_counter
     draw: Callable[[Any, float], Any] | None = None
-    goals: Goals = None
+    goals: Goals | None = None  # (None: a book of its own on ``clock``)
     timeline: Timeline = field(default_factory=Timeline)
-    view: CraneView = None
+    view: CraneView | None = None  # (None: a view of its own over the goals and the timeline)
     handing_over: threading.Lock = field(default_factory=threading.Lock)  # one handover (goal, stop, settle) at a time
     planning_times: PlanningTimes = field(default_factory=PlanningTimes)  # of NVF/RVF handovers, by kind
 

@@ -11,8 +11,13 @@ once the streamer takes the new one's handover; one settling is observed
 until the new motion starts): the runner decides who runs, never how a goal
 ends. A step that plans runs to its end before the next step of any other
 goal (as in nav2, whose execute callback plans between its preemption
-checks); a wait never holds the worker. Pure Python, no ROS import; the
-clock (``timer``, ``sleep``) is given, so it runs on a fake one in tests.
+checks); a wait never holds the worker. The planner node's execute callback
+submits a goal and waits for its outcome on the run's Event (``run``):
+rclpy's action server takes what that callback returns as the goal's
+result and ends the goal then, so the callback, its executor thread and
+the result's timing stay as they were; only the steps moved to the worker.
+Pure Python, no ROS import; the clock (``timer``, ``sleep``) is given, so
+it runs on a fake one in tests.
 """
 from __future__ import annotations
 
