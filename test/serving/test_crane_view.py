@@ -9,7 +9,8 @@ from crane_planner.serving.crane_view import CraneView, StreamSample, joint_samp
 from crane_planner.serving.execution import Execution
 from crane_planner.serving.goals import Goals
 from crane_planner.serving.moves import MoveError
-from crane_planner.serving.service import check_executable
+from crane_planner.serving.preview import check_executable
+from crane_planner.serving.timeline import Timeline
 from crane_planner.serving.transitions import JointReading, Running
 from serving.fake_clock import FakeClock
 
@@ -28,12 +29,13 @@ def sample(stamp_ns, state='holding', hold=0.0, start=0, duration=0.0, origin=0)
 @pytest.fixture
 def crane():
     clock = FakeClock(T0)
-    goals = Goals(clock)
-    return clock, goals, CraneView(clock, goals, fresh=1.0, sleep=clock.sleep, monotonic=clock.timer)
+    goals, timeline = Goals(clock), Timeline()
+    view = CraneView(clock, goals, timeline, fresh=1.0, sleep=clock.sleep, monotonic=clock.timer)
+    return clock, goals, timeline, view
 
 
 def test_the_streamer_counts_as_heard_while_its_state_is_fresh(crane):
-    clock, _, view = crane
+    clock, _, _, view = crane
     assert view.heard() is None and view.hold() is None and view.age() is None
     view.on_stream_state(sample(T0, hold=0.25))
     clock.ns += 900 * MS
@@ -53,18 +55,18 @@ def test_joint_states_become_a_measurement_with_the_hoist_if_there_is_one():
 
 
 def test_a_motion_with_a_stamp_is_in_motion_until_its_end(crane):
-    clock, goals, view = crane
+    clock, _, timeline, view = crane
     running = motion(T0 + 100 * MS)
-    goals.set_running(running)
+    timeline.send(running)
     assert view.in_motion() is running
     clock.ns = running.end_ns
     assert view.in_motion() is None
 
 
 def test_a_motion_the_streamer_holds_instead_of_streaming_counts_as_refused(crane):
-    clock, goals, view = crane
+    clock, _, timeline, view = crane
     running = motion(T0)
-    goals.set_running(running)
+    timeline.send(running)
     view.on_stream_state(sample(T0 + 50 * MS))
     assert view.in_motion() is running  # not yet: it may start at the next tick
     clock.ns += 150 * MS
@@ -73,11 +75,11 @@ def test_a_motion_the_streamer_holds_instead_of_streaming_counts_as_refused(cran
 
 
 def test_a_motion_sent_as_soon_as_possible_learns_its_origin_from_its_goals_stream_state(crane):
-    clock, goals, view = crane
+    clock, goals, timeline, view = crane
     goal, _ = goals.arrive('a')
     running = motion(0)
     execution = Execution(1.0, 1.0, T0, 0.6, 0.2)
-    goals.send(goal, execution, running)
+    timeline.send(running, lambda: goals.send(goal, execution, running))
     assert view.in_motion() is running and not view.origin(running, wait=0.0)
     assert not view.origin(running, wait=0.1) and clock() - T0 >= 100 * MS  # it waited for it
     tick = clock() + 1 * MS
@@ -88,10 +90,10 @@ def test_a_motion_sent_as_soon_as_possible_learns_its_origin_from_its_goals_stre
 
 
 def test_a_motion_sent_as_soon_as_possible_whose_goal_ended_before_it_started_is_not_in_motion(crane):
-    _, goals, view = crane
+    _, goals, timeline, view = crane
     goal, _ = goals.arrive('a')
     running = motion(0)
-    goals.send(goal, Execution(1.0, 1.0, T0, 0.6, 0.2), running)
+    timeline.send(running, lambda: goals.send(goal, Execution(1.0, 1.0, T0, 0.6, 0.2), running))
     goals.remove(goal)
     assert view.in_motion() is None
 
@@ -99,8 +101,8 @@ def test_a_motion_sent_as_soon_as_possible_whose_goal_ended_before_it_started_is
 def test_a_motion_streaming_before_this_planner_sent_any_is_foreign_until_it_ends():
     S = 1_000_000_000
     now = [10 * S]
-    goals = Goals(lambda: now[0])
-    view = CraneView(lambda: now[0], goals)
+    goals, timeline = Goals(lambda: now[0]), Timeline()
+    view = CraneView(lambda: now[0], goals, timeline)
     view.on_stream_state(StreamSample(now[0], 'streaming', {'cart': 0.2}, 9 * S, 4.0, 9 * S))
     assert view.foreign_motion() == pytest.approx(3.0)
     with pytest.raises(MoveError, match='did not send.*ends in 3 s'):
@@ -108,8 +110,8 @@ def test_a_motion_streaming_before_this_planner_sent_any_is_foreign_until_it_end
     now[0] = 13 * S + 1
     view.on_stream_state(StreamSample(now[0], 'streaming', {'cart': 0.6}, 9 * S, 4.0, 9 * S))
     assert view.foreign_motion() is None  # (its last ticks: over by the clock)
-    goals.running = object()  # once this planner has sent a motion, the streamer's is its own
-    goals.running = None
+    timeline.send(object())  # once this planner has sent a motion, the streamer's is its own
+    timeline.send(None)
     now[0] = 10 * S
     view.on_stream_state(StreamSample(now[0], 'streaming', {'cart': 0.2}, 9 * S, 4.0, 9 * S))
     assert view.foreign_motion() is None

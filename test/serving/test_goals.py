@@ -4,6 +4,7 @@ import pytest
 
 from crane_planner.serving.execution import Execution
 from crane_planner.serving.goals import TRANSITIONS, Goal, Goals, GoalState, IllegalTransition
+from crane_planner.serving.timeline import Timeline
 from crane_planner.serving.transitions import Running
 from serving.fake_clock import FakeClock
 
@@ -45,17 +46,19 @@ def test_an_illegal_transition_raises_naming_both_states(path, illegal):
 
 
 def test_a_new_goal_preempts_the_unsent_ones_only():
-    goals = Goals(FakeClock(T0))
+    goals, timeline = Goals(FakeClock(T0)), Timeline()
     held, _ = goals.arrive('a')
     goals.accept('a', 'handle a')
     assert goals.hold(held)
     moving, _ = goals.arrive('b')
     goals.accept('b', 'handle b')
-    assert goals.send(moving, execution(), motion())
+    sent = motion()
+    assert timeline.send(sent, lambda: goals.send(moving, execution(), sent))
     newest, _ = goals.arrive('c')
     assert held.state is S.PREEMPTED and moving.state is S.SENT and newest.state is S.ARRIVED
-    assert not goals.send(held, execution(), motion())  # it never streams
-    assert goals.running is moving.running
+    never = motion()
+    assert not timeline.send(never, lambda: goals.send(held, execution(), never))  # it never streams
+    assert timeline.running is moving.running
 
 
 def test_a_cancel_before_sending_means_nothing_may_be_sent_and_after_it_changes_nothing():
@@ -86,17 +89,18 @@ def test_a_goal_sent_ends_the_settle_windows_of_the_others_at_its_start():
 
 
 def test_a_handover_taken_takes_the_moving_goal_over_and_makes_the_motion_the_new_ones():
-    goals = Goals(FakeClock(T0))
+    goals, timeline = Goals(FakeClock(T0)), Timeline()
     old, _ = goals.arrive('a')
-    goals.send(old, execution(), motion())
+    first = motion()
+    timeline.send(first, lambda: goals.send(old, execution(), first))
     goals.follow(old)
     new, _ = goals.arrive('b')
     assert goals.send(new, execution(T0 + 500_000_000))  # a handover: not the streamer's motion yet
-    assert goals.running is old.running
+    assert timeline.running is old.running
     spliced = motion(x=1.0)
-    goals.take_over(new, T0 + 500_000_000, spliced)
+    timeline.send(spliced, lambda: goals.take_over(new, T0 + 500_000_000, spliced) or True)
     assert old.state is S.TAKEN_OVER and new.state is S.FOLLOWING
-    assert goals.running is spliced and new.running is spliced and goals.owner(spliced) is new
+    assert timeline.running is spliced and new.running is spliced and goals.owner(spliced) is new
     assert old.execution.cut_ns == T0 + 500_000_000
     assert not goals.send(old, execution())  # taken over: nothing more of it is sent
 

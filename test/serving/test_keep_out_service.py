@@ -71,7 +71,7 @@ def test_a_goal_sent_with_boxes_set_draws_the_load_s_predicted_path_for_its_moti
     load 0.861 m below the trolley), shown for the motion, its settle window and a second; without boxes none."""
     drawn = []
     crane = crane_with(keep_out=[1.0, 1.1, -math.inf, math.inf, -2.0, -0.76], tau=0.0)
-    crane.service._draw = lambda points, lifetime: drawn.append((points, lifetime))
+    crane.service.serving.draw = lambda points, lifetime: drawn.append((points, lifetime))
     goal = crane.goal('a', move(goal=0.3, duration=3.0), settle=0.5)
     outcome, _ = crane.execute(goal, move(goal=0.3, duration=3.0), settle=0.5)
     assert outcome.how == 'succeed', outcome.message
@@ -81,7 +81,7 @@ def test_a_goal_sent_with_boxes_set_draws_the_load_s_predicted_path_for_its_moti
     assert points[-1] == pytest.approx([0.3, 0.0, -0.861], abs=1e-4)
     assert np.abs(points[:, 0] - np.linspace(0, 0.3, 71)).max() > 0.01  # the load's, not the trolley's
     crane = crane_with(tau=0.0)
-    crane.service._draw = lambda points, lifetime: drawn.append((points, lifetime))
+    crane.service.serving.draw = lambda points, lifetime: drawn.append((points, lifetime))
     crane.execute(crane.goal('b', move(goal=0.3, duration=3.0)), move(goal=0.3, duration=3.0))
     assert len(drawn) == 1
 

@@ -154,7 +154,7 @@ def test_a_goal_whose_start_passed_streams_from_the_next_tick_its_origin_from_st
     outcome, _ = crane.execute(goal, late)
     sent_at, trajectory = crane.published[0]
     assert trajectory.stamp_ns == T0 - 5 * MS  # as asked; the streamer starts it at its next tick
-    running = crane.service.goals.running
+    running = crane.service.timeline.running
     assert running.confirmed and running.origin_ns == (sent_at // MS + 1) * MS  # the streamer's, not the stamp
     assert outcome.success
     assert any(level == 'warn' and 'start_time had passed 0.005 s' in line for level, line in crane.log.lines)
@@ -167,7 +167,7 @@ def run_old_goal_until(crane, ns):
     running = []
 
     def stop_following():
-        running.append(crane.service.goals.running)
+        running.append(crane.service.timeline.running)
         raise StopFollowing()
 
     crane.at(ns, stop_following)
@@ -208,7 +208,7 @@ def test_a_cancel_while_a_handover_the_streamer_refused_is_sent_again_streams_no
     outcome, _ = crane.execute(goal, new_move, canceled=lambda: bool(canceled))
     assert (outcome.how, outcome.message) == ('cancel', 'canceled before its motion started: nothing was streamed')
     assert len(crane.published) == 2  # the old motion's and the refused handover: none sent again
-    assert old.state is not S.TAKEN_OVER and crane.service.goals.running is running
+    assert old.state is not S.TAKEN_OVER and crane.service.timeline.running is running
     assert crane.clock() > handover + 50 * MS  # it waited to see the handover not taken
 
 

@@ -2,10 +2,9 @@
 nodes, planner; interfaces in ``crane_interfaces``).
 
 The ROS side only: entities, threads, messages <-> records. What is served is ``serving.service`` (a
-preview: the plan's knots and ``PlanInfo``; a goal: planned, held until ``publish_lead`` before its start,
-sent on ``trajectory``, followed to its result, feedback at 20 Hz; a goal during a motion takes it over, a
-cancel stops it), the goals' states ``serving.goals``, the handover's timing ``serving.handover``, the
-parameters ``serving.config``. Every request gets one status on /diagnostics.
+preview; a goal planned, held until ``publish_lead`` before its start, sent on ``trajectory``, followed to
+its result on the goal runner, feedback at 20 Hz; a goal during a motion takes it over, a cancel stops it),
+the goals' states ``serving.goals``, the parameters ``serving.config``. One status per request on /diagnostics.
 """
 from __future__ import annotations
 
@@ -69,10 +68,10 @@ class PlannerNode(Node):
         self.create_timer(1.0, lambda: self._config.keep_out and markers.publish(conversions.keep_out_markers(
             [(b.lower, b.upper) for b in self._config.keep_out.boxes], self._config.keep_out.margin,
             self._config.frame_id, stamp())))
-        self._service = service.MoveService(
-            self._planner, lambda: self._config, stamp,
-            lambda t: self._trajectory.publish(self._message(t)), self._report, self.get_logger(), draw=lambda
-            points, life: markers.publish(conversions.route_markers(points, self._config.frame_id, stamp(), life)))
+        self._service = service.MoveService(  # the goals' steps on its worker thread (worker=True)
+            self._planner, lambda: self._config, stamp, lambda t: self._trajectory.publish(self._message(t)),
+            self._report, self.get_logger(), worker=True, draw=lambda points, life: markers.publish(
+                conversions.route_markers(points, self._config.frame_id, stamp(), life)))
         # The inputs on a node and executor thread of their own: the services' MultiThreadedExecutor costs far more
         # CPU on the two at 50 Hz; the EventsExecutor fell behind on them after many requests (goals found no stream).
         self._inputs, self._inputs_spinning = self._spun('inputs', lambda node: [node.create_subscription(*t) for t in (
@@ -138,7 +137,7 @@ class PlannerNode(Node):
 
     def executor_threads(self) -> int:
         """Enough executor threads for every solver busy at once, the shapers' and parameter requests and the
-        goals being executed (each holds a thread until its result: one moving, one settling)."""
+        goals being executed (each waits on one for its result: one moving, one settling)."""
         return self._config.solver_processes + self._config.solver_pool_size * len(VARIATIONAL_METHODS) + 7
 
     def _build_solvers(self):
@@ -232,12 +231,12 @@ class PlannerNode(Node):
     def _execute(self, goal_handle):
         request, result = goal_handle.request, ExecuteMove.Result(residual_swing=float('nan'))
         goal = self._service.goals.of(goal_handle)
-        try:
+        try:  # the goal runner's outcome, waited for on an Event: rclpy's result is what this callback returns
             outcome = self._service.execute(goal, _move(request.move), request.settle, lambda **feedback: goal_handle
                                             .publish_feedback(ExecuteMove.Feedback(**feedback)),
                                             lambda: goal_handle.is_cancel_requested)
         except Exception as exc:  # a bug must not leave the caller waiting forever
-            if isinstance(exc, InvalidHandle) or not self.context.ok():  # shut down (a signal): no one to tell
+            if isinstance(exc, (InvalidHandle, service.RunnerStopped)) or not self.context.ok():  # shut down
                 return result
             self.get_logger().error(f'execute_move: unexpected {type(exc).__name__}: {exc}')
             if not goal_handle.is_active:  # it already ended: the caller has its status
@@ -292,6 +291,7 @@ class PlannerNode(Node):
         if self._warmup.is_alive():
             self.get_logger().info('waiting for the solver warm-up to finish')
             self._warmup.join()
+        self._service.close()
         self._planner.close()
         super().destroy_node()
 

@@ -23,6 +23,7 @@ from crane_msgs_py.axes import AXES, CART
 
 from ..planning.signals import Swing
 from .goals import Goals
+from .timeline import Timeline
 from .transitions import JointReading, Measurement, Running
 
 #: How fresh (s) the last ``stream_state`` must be for the streamer to count as heard.
@@ -77,18 +78,19 @@ def joint_sample(stamp_ns: int, position, velocity, names=(), joint_positions=()
 
 
 class CraneView:
-    """The newest ``stream_state`` and ``joint_states`` and the motion last sent (kept by ``goals``).
+    """The newest ``stream_state`` and ``joint_states`` and the motion last sent (kept by ``timeline``).
 
     Args:
         clock: ROS time now (ns).
-        goals: the book of goals (the last motion sent, and whose execution learns its origin).
+        goals: the book of goals (whose execution learns a motion's origin).
+        timeline: the axes' timeline (the motion last sent).
         fresh: how recent (s) a ``stream_state`` must be to count as heard.
         sleep, monotonic: how ``origin`` waits.
     """
 
-    def __init__(self, clock: Callable[[], int], goals: Goals, fresh: float = STREAM_FRESH,
+    def __init__(self, clock: Callable[[], int], goals: Goals, timeline: Timeline, fresh: float = STREAM_FRESH,
                  sleep: Callable[[float], None] = time.sleep, monotonic: Callable[[], float] = time.monotonic):
-        self._clock, self._goals, self._fresh = clock, goals, fresh
+        self._clock, self._goals, self._timeline, self._fresh = clock, goals, timeline, fresh
         self._sleep, self._monotonic = sleep, monotonic
         self._lock = threading.Lock()
         self._stream: tuple[int, StreamSample] | None = None  # (received ns, sample)
@@ -161,9 +163,7 @@ class CraneView:
         it, e.g. restarted mid-move), else None. The streamer has its knots, this planner does not: it cannot
         hand it over, so it lets it finish and takes the crane's state from stream_state after it."""
         heard = self.heard()
-        with self._goals.lock:
-            sent_any = self._goals.running is not None or self._goals.ever_sent
-        if heard is None or heard.state != STREAMING or sent_any:
+        if heard is None or heard.state != STREAMING or self._timeline.sent_any():
             return None
         left = (heard.motion_start_ns + round(heard.motion_duration * 1e9) - self._clock()) * 1e-9
         return left if left > 0.0 else None
@@ -172,8 +172,7 @@ class CraneView:
         """The motion the streamer is streaming (or about to), if any: the last one sent, unless it has
         ended, or the streamer says it holds though the motion should have started ``REFUSED_AFTER_NS`` ago
         (refused)."""
-        with self._goals.lock:
-            running = self._goals.running
+        running = self._timeline.running
         if running is None:
             return None
         # one sent to start as soon as possible (or late) has started once its goal's stream_state says so

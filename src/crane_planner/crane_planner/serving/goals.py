@@ -113,8 +113,9 @@ class Goal:
 
 
 class Goals:
-    """The book of goals: registered on arrival, accepted, sent, followed, ended, forgotten; and the last
-    motion sent to the streamer (``running``: a goal's or a settle's). One lock for all of it.
+    """The book of goals: registered on arrival, accepted, sent, followed, ended, forgotten; one lock for all
+    of it. What the streamer streams is the axes' timeline (``timeline.Timeline``), apart from it: each goal
+    keeps only its own motion as sent (``Goal.running``).
 
     Args:
         clock: ROS time now (ns).
@@ -126,19 +127,6 @@ class Goals:
         self.lock = threading.Lock()
         self._goals: list[Goal] = []
         self._arriving: dict = {}  # key of the request -> its goal, until accepted
-        #: whether this planner has sent a motion since it started (a motion streaming before is not its own)
-        self.ever_sent = False
-        self._running: Running | None = None
-
-    @property
-    def running(self) -> Running | None:
-        """The motion last sent to the streamer (None: none, or it was not taken)."""
-        return self._running
-
-    @running.setter
-    def running(self, running: Running | None) -> None:
-        self._running = running
-        self.ever_sent |= running is not None
 
     def __len__(self) -> int:
         with self.lock:
@@ -179,7 +167,7 @@ class Goals:
 
     def cancel(self, handle) -> Goal | None:
         """A cancel of the goal with ``handle``: one not sent is ``CANCELED`` (it will never stream); one
-        sent stays as it is (its thread stops the motion)."""
+        sent stays as it is (its steps stop the motion)."""
         with self.lock:
             goal = next((g for g in self._goals if g.handle is handle), None)
             if goal is not None and goal.state in (S.ARRIVED, S.HELD):
@@ -201,8 +189,8 @@ class Goals:
         """Mark ``goal`` sent with the ``execution`` that follows it, unless it gave way, was canceled
         (``canceled()``: the server's own flag, read under the lock) or was taken over meanwhile: then
         nothing may be sent (False).
-        ``running``: its motion as sent, now the streamer's (a goal's own motion, not a handover: the
-        settling goals observe until it starts at the latest)."""
+        ``running``: its motion as sent, the streamer's once the caller's timeline has it (a goal's own
+        motion, not a handover: the settling goals observe until it starts at the latest)."""
         with self.lock:
             if goal.state is S.TAKEN_OVER:  # (while its handover was to be sent again)
                 return False
@@ -216,7 +204,7 @@ class Goals:
                 for other in self._goals:
                     if other is not goal and other.execution is not None:
                         other.execution.cut(execution.start_ns)
-                goal.running = self.running = running
+                goal.running = running
             return True
 
     def follow(self, goal: Goal) -> None:
@@ -225,8 +213,8 @@ class Goals:
                 goal.change(S.FOLLOWING)
 
     def take_over(self, goal: Goal, handover_ns: int, running: Running) -> None:
-        """The streamer took ``goal``'s handover at ``handover_ns``: the motion is its own (``running``);
-        every other goal's settle window ends there, and one still in motion was taken over."""
+        """The streamer took ``goal``'s handover at ``handover_ns``: the motion is its own (``running``, the
+        timeline's too); every other goal's settle window ends there, and one still in motion was taken over."""
         with self.lock:
             for other in self._goals:
                 if other is not goal and other.execution is not None:
@@ -235,32 +223,19 @@ class Goals:
                         other.change(S.TAKEN_OVER)
             if goal.state is not S.TAKEN_OVER:  # (a newer goal took it over while the streamer took it)
                 goal.change(S.FOLLOWING)
-            goal.running = self.running = running
+            goal.running = running
 
     def stopping(self, goal: Goal, stop: Running, execution: Execution) -> None:
         """A stop of ``goal``'s motion sent (together: the stop's origin is learned from its execution)."""
         with self.lock:
             goal.change(S.STOPPING)
-            goal.running = self.running = stop
+            goal.running = stop
             goal.execution = execution
 
-    def replace(self, goal: Goal | None, old: Running, new: Running) -> bool:
-        """``new`` instead of ``old`` as the streamer's motion (``goal``'s too), if ``old`` still is."""
+    def own(self, goal: Goal, running: Running) -> None:
+        """``running`` is ``goal``'s motion now (a stop of it, as the streamer streams it)."""
         with self.lock:
-            if self.running is not old:
-                return False
-            self.running = new
-            if goal is not None:
-                goal.running = new
-            return True
-
-    def set_running(self, running: Running | None) -> None:
-        with self.lock:
-            self.running = running
-
-    def clear(self, running: Running) -> None:
-        """``running`` was not taken by the streamer: nothing is in motion (unless a newer one was sent)."""
-        self.replace(None, running, None)
+            goal.running = running
 
     def end(self, goal: Goal) -> None:
         with self.lock:
