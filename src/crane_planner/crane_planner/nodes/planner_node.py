@@ -1,10 +1,10 @@
-"""Planner node: ``~/plan_move`` (a preview), ``~/execute_move`` (an action) and ``~/settle`` (contract: ROS 2
-nodes, planner; interfaces in ``crane_interfaces``).
+"""Planner node: ``~/plan_move`` (a preview), ``~/execute_move`` (an action), ``~/settle`` (contract: planner).
 
 The ROS side only: entities, threads, messages <-> records. What is served is ``serving.service`` (a
 preview; a goal planned, held until ``publish_lead`` before its start, sent on ``trajectory``, followed to
-its result on the goal runner, feedback at 20 Hz; a goal during a motion takes it over, a cancel stops it),
-the goals' states ``serving.goals``, the parameters ``serving.config``. One status per request on /diagnostics.
+its result on the goal runner, feedback every ``following.FEEDBACK_PERIOD``; a goal during a motion takes
+it over, a cancel stops it), the goals' states ``serving.goals``, the parameters ``serving.config``; one
+status per request on /diagnostics.
 """
 from __future__ import annotations
 

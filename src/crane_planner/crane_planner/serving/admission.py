@@ -24,8 +24,8 @@ from .takeover import send_handover, take_over
 def arrive(serving: Serving, key, move: Move, settle: float) -> Goal:
     """A goal arrived (registered under ``key`` until accepted); a shaper's during a motion is handed
     over at once (``takeover.send_handover``): before the server accepts it, and before its steps run.
-    A variational one (its lead is 42 ms) plans in its steps: the goals' thread never waits on a solver
-    process, so a cancel or another goal is not held up behind it."""
+    A variational one (its lead, ``handover_lead``, is tens of milliseconds) plans in its steps: the goals'
+    thread never waits on a solver process, so a cancel or another goal is not held up behind it."""
     goal, forgotten = serving.goals.arrive(key)
     for other in forgotten:
         serving.log.error(f'execute_move: a goal was never accepted by the action server (it was '

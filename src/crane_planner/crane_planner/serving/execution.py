@@ -38,11 +38,11 @@ FAULT_STATE_VALUES = frozenset(state.value for state in FAULT_STATES)
 DROPPED_BEFORE_END_NS = 5_000_000
 
 #: How long (s) stream_state may be silent while a motion moves before the stream counts as lost (the planner's
-#: ``stream_timeout`` default): longer than the 1 s of ticks a stalled streamer catches up on
+#: ``stream_timeout`` default): longer than the ticks a stalled streamer catches up on
 #: (``streaming.reference_stream.CATCH_UP``), so a stall it makes up for is not a loss.
 STREAM_TIMEOUT = 2.0
-#: The most (ns) of the time between two checks of the phase (they come every 50 ms) that counts as silence: a
-#: longer gap is a pause of the planner's own.
+#: The most (ns) of the time between two checks of the phase (they come every ``following.FEEDBACK_PERIOD``)
+#: that counts as silence: a longer gap is a pause of the planner's own.
 LOOK_GAP_NS = 250_000_000
 #: ``Execution.phase`` values.
 WAITING, MOVING, SETTLING, DONE, FAILED = 'waiting', 'moving', 'settling', 'done', 'failed'
@@ -67,7 +67,7 @@ class Execution:
             motion moves before the stream counts as lost: the streamer died or
             stopped, the axes run their fault reaction, and the goal fails
             saying so instead of waiting for a motion that no longer streams.
-            Longer than the streamer's catch-up (``streaming.reference_stream.CATCH_UP``, 1 s) by default:
+            Longer than the streamer's catch-up (``streaming.reference_stream.CATCH_UP``) by default:
             a stall it makes up for is not a loss.
     """
 

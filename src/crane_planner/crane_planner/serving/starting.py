@@ -46,7 +46,7 @@ def from_rest(serving: Serving, goal: Goal, move: Move, settle: float, feedback,
     if not serving.timeline.send(running, together=lambda: serving.goals.send(goal, execution, running, canceled)):
         return unsent(serving, goal, planned)
     serving.publish(planned.trajectory)
-    if config.keep_out and serving.draw is not None:  # the route: the load's path as planned, every 50 ms
+    if config.keep_out and serving.draw is not None:  # the load's path as planned, every tenth prediction step
         path = predict_mass_path(plan, model_at_rope(checked, config.params), origin_of(checked), settle)
         serving.draw(path.m2[::10], plan.duration + settle + 1.0)
     if checked.start_ns and not origin:

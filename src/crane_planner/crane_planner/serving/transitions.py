@@ -28,8 +28,8 @@ does (contract "Motion from any state"):
   for a motion a shaper made from rest, that shaper's base braked by ruckig
   and reshaped (``continuation.shaped_stop``). The NVF stop is the shortest
   of a few durations (from half the first swing mode's period, or the
-  braking time, 15 % apart) whose peak acceleration stays within each axis's
-  acceleration limit, or (a travel axis without one) within twice the running
+  braking time, ``STOP_STEPS`` apart) whose peak acceleration stays within each axis's
+  acceleration limit, or (a travel axis without one) within ``STOP_BRAKING`` times the running
   motion's hardest on any travel axis: as near as the limits allow, never
   braking harder than that.
 - a settle: NVF from the measured swing at rest back to the same place, over
