@@ -106,7 +106,7 @@ class StreamerNode(Node):
         at_rest = hasattr(self, '_streamer') and self._streamer.source.at_rest
         return StreamerConfig.of(values, getattr(self, '_config', None), at_rest)
 
-    def _source(self, config: StreamerConfig, hold):  # a fresh operator stream: a stick held before stays still
+    def _source(self, config: StreamerConfig, hold):  # operator mode's fresh: a stick held before does not move it
         operating = Mode(config.mode) is Mode.OPERATOR
         return config.operator.stream(self._period_ns * 1e-9, hold, self._joints) if operating else self._stream
 

@@ -66,16 +66,16 @@ class Streamer:
     """What the streamer's loop streams (see the module docstring).
 
     Args:
-        stream: the trajectory source; it also keeps the hold between sources and at a stop.
-        mode: the mode at start-up (its source: ``stream`` until ``use`` says otherwise).
+        stream: the trajectory mode's source, the one at start-up; it also keeps the hold between sources
+            and at a stop.
         corrections: applied after the source every tick, in order.
     """
 
-    def __init__(self, stream: ReferenceStream, mode: Mode = Mode.TRAJECTORY, corrections: tuple = ()):
+    def __init__(self, stream: ReferenceStream, corrections: tuple = ()):
         self.stream = stream
         self.corrections: tuple[Correction, ...] = tuple(corrections)
         self._state = StreamerState()
-        self._inbox = Inbox(Request(mode, stream))
+        self._inbox = Inbox(Request(Mode.TRAJECTORY, stream))
         self._active: Source = stream  # the loop's
 
     # -- the executor's view -------------------------------------------------------------------
