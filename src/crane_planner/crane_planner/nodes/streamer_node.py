@@ -1,23 +1,22 @@
 """Streamer node: the plan on ``trajectory`` as a 1 kHz ``reference`` (contract: ROS 2 nodes, streamer).
 
-The motion rules are the pure core's (``reference_stream.ReferenceStream``),
-the parameters ``streaming.config``'s; this node translates messages, keeps
-time and reports. It streams nothing before it knows where the axes stand
+The rules are the pure cores': what streams each tick, its corrections, the
+state and mode (``streaming.streamer``: the active source is a
+``reference_stream.ReferenceStream`` or an ``operator.OperatorStream``), the
+parameters ``streaming.config``'s; this node translates messages, keeps time
+and reports. It streams nothing before it knows where the axes stand
 (``start_position``: ``joint_states`` at rest, at start-up and every
 ``~/start``). The loop runs on its own thread at absolute deadlines of the monotonic clock,
 never waits on the executor, fills one pre-allocated message per tick (with
 network impairment on, through an ``impairment.Link``) and every ``rate /
 state_rate`` ticks publishes ``stream_state``. Modes (switched only at rest):
 ``trajectory`` streams what the planner sends, ``operator`` follows
-``cmd_vel`` (``streaming.operator``). ``~/stop`` stops without swing: in
-operator mode by a zero command, during a motion by a stop from its state
-(``serving.stops``) planned in a worker process (this process never loads
-CasADi) while the loop streams on, spliced in ``STOP_LEAD`` ahead, or if
-none comes in time every axis's braking ramp (``braking_stop``).
+``cmd_vel`` (``streaming.operator``). ``~/stop`` stops without swing
+(``streaming.stop_request``), a motion's stop planned by ``serving.stops``
+in a worker process (this process never loads CasADi).
 """
 from __future__ import annotations
 
-import threading
 import time
 
 from crane_interfaces.msg import AxisStatus, StreamState
@@ -34,13 +33,16 @@ from crane_msgs_py.node_parameters import Guard, declare
 from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runner import LoopThread, run
 from crane_planner.serving.stops import StopWorker
-from crane_planner.streaming.braking_stop import brake
 from crane_planner.streaming.config import INITIAL_POSITIONS, PARAMETERS, StreamerConfig
 from crane_planner.streaming.impairment import Link
-from crane_planner.streaming.operator import OperatorStream, twist_velocities
+from crane_planner.streaming.operator import twist_velocities
 from crane_planner.streaming.reference_stream import CATCH_UP, ReferenceStream, position_text
+from crane_planner.streaming.source import Setpoint
 from crane_planner.streaming.start_position import Hold, StartPosition
 from crane_planner.streaming.status import stream_status
+from crane_planner.streaming.stop_request import request_stop
+from crane_planner.streaming.streamer import Streamer
+from crane_planner.streaming.streamer_state import Mode, State
 from crane_planner.streaming.trajectory_intake import trajectory_refusal
 
 STREAM_TASK = 'stream'
@@ -56,8 +58,6 @@ class StreamerNode(Node):
         self._joints = names.check_joints(p['joints'])  # ValueError: see main()
         self._msg = conversions.reference_message(p['output'], joint=list(self._joints))  # (ParameterError)
         self._write = conversions.reference_writer(self._msg).write  # its bytes, what is published
-        self._operator: OperatorStream | None = None  # the operator mode's stream while in that mode
-        self._stop_at_rest = False  # a ~/stop waits for the crane to come to rest
         self._config = config = self._config_of(p)  # ParameterError on a bad override
         self._impairment = config.impairment
         self._ticker = Ticker(round(1e9 / p['rate']), max_backlog=round(CATCH_UP * p['rate']))
@@ -71,14 +71,15 @@ class StreamerNode(Node):
         self._state_pub = self.create_publisher(StreamState, names.STREAM_STATE_TOPIC, qos.STREAM_STATE_QOS)
         self._state_every = max(1, round(p['rate'] / p['state_rate']))
 
-        # Shared with the loop thread (the core is thread-safe); the loop owns the ticker.
-        # _running wakes the loop; the core's state decides what trajectories it takes. Nothing streams
-        # before the hold is known (start_position: the axes measured at rest, by default).
+        # Shared with the loop thread (the cores are thread-safe); the loop owns the ticker. The streamer's
+        # state wakes the loop; the stream's decides what trajectories it takes. Nothing streams before the
+        # hold is known (start_position: the axes measured at rest, by default). Operator mode's stream is
+        # made at a start, from the hold then.
         initial = tuple(p[INITIAL_POSITIONS[joint]] for joint in self._joints)
         self._start = StartPosition(self._joints, p['hold_source'], initial, p['initial_fallback_after'])
         self._stream = ReferenceStream(self._period_ns, initial if len(initial) > 1 else initial[0],
                                        p['start_tolerance'], stopped=True)
-        self._running = threading.Event()
+        self._streamer = Streamer(self._stream)
         self._created_ns = self._synced_ns = self.get_clock().now().nanoseconds
         self._lateness = Lateness(keep_all=bool(self._timing_log))
         self._first_tick_ns = None
@@ -102,12 +103,12 @@ class StreamerNode(Node):
 
     def _config_of(self, values: dict) -> StreamerConfig:
         """The parameters checked together; a mode or operator setting changes only at rest."""
-        return StreamerConfig.of(values, getattr(self, '_config', None), hasattr(self, '_stream') and self._at_rest())
+        at_rest = hasattr(self, '_streamer') and self._streamer.source.at_rest
+        return StreamerConfig.of(values, getattr(self, '_config', None), at_rest)
 
-    def _at_rest(self) -> bool:
-        if self._operator is not None:
-            return self._operator.at_rest
-        return not self._stream.streaming and not self._stream.queued
+    def _source(self, config: StreamerConfig, hold):  # operator mode's fresh: a stick held before does not move it
+        operating = Mode(config.mode) is Mode.OPERATOR
+        return config.operator.stream(self._period_ns * 1e-9, hold, self._joints) if operating else self._stream
 
     def _apply(self, config: StreamerConfig, values, changes):
         self._stream.start_tolerance = values['start_tolerance']
@@ -115,24 +116,18 @@ class StreamerNode(Node):
         if config.impairment != self._impairment:
             self._impairment = config.impairment  # the loop picks it up at its next tick
             self.get_logger().info(f'network impairment: {config.impairment}')
-        if config.changes_mode(self._config):
-            if self._operator is not None:  # (at rest: the stream holds where the operator left the axes)
-                position = self._operator.position
-                self._stream.hold_at(position if len(position) > 1 else position[0])
-            self._operator = (config.operator.stream(self._period_ns * 1e-9, self._stream.hold, self._joints)
-                              if config.mode == 'operator' else None)
+        if config.changes_mode(self._config):  # (at rest: the new source starts where the old left the axes)
+            self._streamer.use(Mode(config.mode), self._source(config, self._streamer.settle()))
             following = f': following {self.resolve_topic_name(names.CMD_VEL_TOPIC)}, shaper {config.operator.shaper}'
-            self.get_logger().info(f'mode {config.mode}' + (following if self._operator else ''))
+            self.get_logger().info(f'mode {config.mode}' + (following if config.mode == 'operator' else ''))
         self._config = config
 
     # -- operator mode (executor thread) ------------------------------------------
 
     def _on_cmd_vel(self, msg: Twist):
-        operator = self._operator
         self.commands += 1
-        # stopping or stopped: commands wait for ~/start
-        if operator is not None and not self._stop_at_rest and self._running.is_set():
-            operator.command(*twist_velocities(msg, self._joints))
+        if self._streamer.commanded:  # stopping or stopped: commands wait for ~/start
+            self._streamer.source.command(*twist_velocities(msg, self._joints))
 
     # -- trajectories (executor thread) -------------------------------------
 
@@ -142,7 +137,7 @@ class StreamerNode(Node):
         start_ns = conversions.stamp_ns(msg.header.stamp)
         try:
             refusal = trajectory_refusal(info.get('source_timestamp', now_ns), self._created_ns,
-                                         self._operator is not None, self._stop_at_rest)
+                                         self._streamer.mode is Mode.OPERATOR, self._streamer.state is State.STOPPING)
             if refusal:
                 raise ValueError(refusal)
             holds = (None, *self._stream.hold[1:]) if len(self._joints) > 1 else None  # a hoist left out: held
@@ -152,16 +147,13 @@ class StreamerNode(Node):
             self.refused += 1
             self.get_logger().error(f'trajectory refused: {exc}')
             return self._diagnostics.report(TRAJECTORY_TASK, ERROR, f'trajectory refused: {exc}', error=str(exc),
-                                            hold_position=self._hold_text(), points=len(msg.points),
+                                            hold_position=position_text(self._stream.hold), points=len(msg.points),
                                             start_stamp=start_ns)
         self.accepted += 1
         self.get_logger().info(f'trajectory accepted: {motion.summary}')
         self._diagnostics.report(TRAJECTORY_TASK, OK, f'trajectory accepted: {motion.summary}',
-                                 hold_position=self._hold_text(), points=len(msg.points),
+                                 hold_position=position_text(self._stream.hold), points=len(msg.points),
                                  start_stamp=start_ns, late_start=motion.late, error='')
-
-    def _hold_text(self) -> str:
-        return position_text(self._stream.hold)
 
     def _on_joint_state(self, msg: JointState):
         hold = self._start.on_joint_state(msg.name, msg.position, msg.velocity)
@@ -171,133 +163,91 @@ class StreamerNode(Node):
     def _begin(self) -> str:
         """A start: streaming from the hold once known (at once with hold_source initial_position)."""
         hold = self._start.request(self.get_clock().now().nanoseconds)
-        return self._go(hold) if hold is not None else f'waiting for {self._start.waiting_for} (hold_source)'
+        if hold is not None:
+            return self._go(hold)
+        self._streamer.wait()
+        return f'waiting for {self._start.waiting_for} (hold_source)'
 
     def _on_axis_status(self, msg: AxisStatus):
         """Axes braked to rest by their fault reaction refuse this stream: it starts again where they stand."""
         since = conversions.stamp_ns(msg.header.stamp) > self._synced_ns  # (not a fault from before it began)
-        if msg.state == 'fault_hold' and self._running.is_set() and since:
-            self._halt()
+        if msg.state == 'fault_hold' and self._streamer.running.is_set() and since:
+            self._streamer.halt()
             self.get_logger().warn(f'the axes ran their fault reaction ({msg.message}): {self._begin()}')
 
     def _go(self, hold: Hold) -> str:
         self._synced_ns = self.get_clock().now().nanoseconds
-        self._stream.hold_at(hold.position if len(hold.position) > 1 else hold.position[0])
-        if self._config.mode == 'operator':  # a fresh operator stream there: a stick held before does not move it
-            self._operator = self._config.operator.stream(self._period_ns * 1e-9, self._stream.hold, self._joints)
-        self._stream.resume()
-        self._running.set()
-        self.get_logger().info(message := f'streaming, hold {self._hold_text()} m ({hold.source}: {hold.reason})')
+        self._stream.hold_at(hold.position)
+        self._streamer.go(Mode(self._config.mode), self._source(self._config, self._stream.hold))
+        message = f'streaming, hold {position_text(self._stream.hold)} m ({hold.source}: {hold.reason})'
+        self.get_logger().info(message)
         return message
 
     # -- services ------------------------------------------------------------
 
     def _on_start(self, request, response):
-        response.success = not self._stop_at_rest  # a start measures again: the axes may have moved meanwhile
-        response.message = ('stopping (~/stop): start again once stopped' if self._stop_at_rest else
-                            'already streaming' if self._running.is_set() else self._begin())
+        stopping = self._streamer.state is State.STOPPING
+        response.success = not stopping  # a start measures again: the axes may have moved meanwhile
+        response.message = ('stopping (~/stop): start again once stopped' if stopping else
+                            'already streaming' if self._streamer.running.is_set() else self._begin())
         self.get_logger().info(response.message)
         return response
 
     def _on_stop(self, request, response):
-        """Stop without swing: at rest at once; in operator mode the command zeroed; during a motion a stop
-        from its state. The stream stops (refusing trajectories until ~/start) once at rest."""
-        response.success = True
-        if not self._running.is_set():
-            self._start.cancel()
-            response.message = 'already stopped'
-        elif self._stop_at_rest:
-            response.message = 'already stopping'
-        elif self._operator is not None and not self._operator.at_rest:
-            self._operator.stop()
-            self._stop_at_rest = True
-            response.message = (f'stopping: the command set to zero, braked and shaped (at rest within '
-                                f'{self._operator.delay():.3g} s of the braking), then stopped')
-        elif self._operator is None and self._stream.streaming:
-            response.message = self._stop_motion()
-        else:
-            self._halt()
-            response.message = 'stopped'
+        """Stop without swing (``streaming.stop_request``); the stream stops (refusing trajectories until
+        ~/start) once at rest."""
+        now, config = (lambda: self.get_clock().now().nanoseconds), self._config
+        answer = request_stop(self._streamer, lambda: self._stops.take_over(self._stream, now, config.model), now,
+                              config.fault_deceleration, config.fault_jerk, self._start.cancel)
+        if answer.warning:
+            self.get_logger().warn(answer.warning)
+        response.success, response.message = True, answer.message
         self.get_logger().info(response.message)
         return response
-
-    def _stop_motion(self) -> str:
-        """A stop without swing planned in the stop worker while the loop streams on; if none can be had in
-        time, every axis's jerk-limited braking ramp: never an abrupt hold."""
-        now, config = (lambda: self.get_clock().now().nanoseconds), self._config
-        try:
-            stop, how = self._stops.take_over(self._stream, now, config.model), 'without swing'
-        except ValueError as exc:
-            try:
-                stop = brake(self._stream, now, config.fault_deceleration, config.fault_jerk)
-            except ValueError as again:  # (the motion ended meanwhile: nothing to brake)
-                return self._halt() or f'stopped ({again})'
-            how = f'along the axes\' braking ramp (no stop without swing in time: {exc})'
-            self.get_logger().warn(f'~/stop {how}')
-        self._stop_at_rest = True
-        return 'stopping: the motion ends before a stop could take over (at rest), then stopped' if stop is None \
-            else f'stopping {how} at {position_text(stop.end)} m in {stop.duration:.3g} s ({stop.method}), then stopped'
-
-    def _halt(self):
-        """Stop streaming now (the loop holds nothing: it waits for ~/start)."""
-        self._stop_at_rest = False
-        self._running.clear()
-        self._stream.stop()
 
     # -- the loop (its own thread) -----------------------------------------
 
     def _loop(self):
         while not self._loop_thread.stopping.is_set():
-            if self._running.wait(0.1):
+            if self._streamer.running.wait(0.1):
                 self._run()
 
     def _run(self):
         """Stream until stopped; ticks count from a fresh epoch."""
-        ticker, stream = self._ticker, self._stream
+        ticker, stream, streamer = self._ticker, self._stream, self._streamer
         ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
         epoch_ros = ros_now + (epoch - time.monotonic_ns())  # ROS time of tick 0
-        if not stream.start(epoch_ros, lambda: ticker.tick):
+        if not streamer.start(epoch_ros, lambda: ticker.tick):
             return  # stopped meanwhile
         if self._first_tick_ns is None:  # where the timing log starts
             self._first_tick_ns = epoch_ros
-        write, publisher, lateness, sample = self._write, self._publisher, self._lateness, stream.sample
+        write, publisher, lateness, setpoint_at = self._write, self._publisher, self._lateness, streamer.tick
         link = self._link
-        # stream.running, not _running: a ~/stop and ~/start between two ticks still restart the epoch
+        # stream.running, not the state: a ~/stop and ~/start between two ticks still restart the epoch
         while stream.running and not self._loop_thread.stopping.is_set():
             self._deliver(link.use(self._impairment))  # a new impairment: what was in flight on the old link
             k, deadline = ticker.tick, ticker.deadline
             now = link.wait(deadline, lambda ns: sleep_until(ns, self._busy_wait_ns), self._deliver)
             lateness.add(now - deadline)
             self.ticks += 1
-            operator = self._operator
-            if operator is None:
-                position, velocity, acceleration = sample(k)
-            else:
-                position, velocity, acceleration = operator.sample()
-            if self._stop_at_rest and self._at_rest():  # a ~/stop's motion has ended: stop here
-                self._stop_at_rest = False
-                self._running.clear()
-                if operator is not None:
-                    stream.hold_at(operator.position if len(operator.position) > 1 else operator.position[0])
-                stream.stop()
             stamp = epoch_ros + k * ticker.period
+            setpoint = setpoint_at(k, stamp)  # (a ~/stop come to rest stops the stream after this tick)
             if k % self._state_every == 0:
-                self._publish_state(stamp, position, velocity, acceleration)
+                self._publish_state(stamp, setpoint)
             if link.line is None:
-                if not self._publish(write(stamp, position, velocity, acceleration), publisher):
+                if not self._publish(write(stamp, *setpoint), publisher):
                     return
             else:
-                link.line.send(now * 1e-9, (stamp, position, velocity, acceleration))
+                link.line.send(now * 1e-9, (stamp, *setpoint))
                 self._deliver(link.line.deliver(now * 1e-9))
             self.skipped += ticker.advance(now)
         self._deliver(link.use(None))  # what is still in flight; the next run starts a fresh line
 
-    def _publish_state(self, stamp: int, position: float, velocity: float, acceleration: float):
-        motion, operator = self._stream.last_motion, self._operator
-        streaming = self._stream.streaming if operator is None else not operator.at_rest
-        conversions.fill_stream_state(self._state_msg, stamp, streaming, position, velocity, acceleration,
-                          motion.start_ns if motion else 0, motion.duration if motion else 0.0, operator is not None,
-                          motion.origin_ns if motion else 0)
+    def _publish_state(self, stamp: int, setpoint: Setpoint):
+        motion, streamer = self._stream.last_motion, self._streamer
+        conversions.fill_stream_state(self._state_msg, stamp, streamer.moving, *setpoint,
+                                      motion.start_ns if motion else 0, motion.duration if motion else 0.0,
+                                      streamer.mode is Mode.OPERATOR, motion.origin_ns if motion else 0)
         try:
             self._state_pub.publish(self._state_msg)
         except Exception:  # the context is shut down (SIGINT): the reference's publish ends the loop
@@ -325,16 +275,16 @@ class StreamerNode(Node):
         now = time.monotonic()
         rate = (self.ticks - self._ticks_window) / max(now - self._window_start, 1e-9)
         self._ticks_window, self._window_start = self.ticks, now
-        moving = self._stream.streaming if self._operator is None else not self._operator.at_rest
-        status = stream_status(self._running.is_set(), moving, self._operator is not None, self._start,
-                               self._loop_thread.error, self._stops.status, self.skipped, rate)
+        streamer = self._streamer
+        status = stream_status(streamer.running.is_set(), streamer.moving, streamer.mode is Mode.OPERATOR,
+                               self._start, self._loop_thread.error, self._stops.status, self.skipped, rate)
         network = {f'network_{k}': getattr(self._impairment, k) for k in ('delay', 'jitter', 'distribution', 'loss',
                                                                             'reorder')}
         self._diagnostics.report(
             STREAM_TASK, status.level, status.message, state=status.state, rate_hz=rate,
             target_rate_hz=1e9 / self._period_ns, **lateness_summary_us(self._lateness.take()),
             ticks=self.ticks, sent=self.sent, dropped=self._link.lost, reordered=self._link.reordered,
-            skipped=self.skipped, hold_position=self._hold_text(), trajectories_accepted=self.accepted,
+            skipped=self.skipped, hold_position=position_text(self._stream.hold), trajectories_accepted=self.accepted,
             trajectories_refused=self.refused, mode=self._config.mode, commands=self.commands,
             stop_planner=self._stops.status, **network)
 

@@ -16,8 +16,9 @@ rest, hoisting does not excite the swing of the linear model). A shaper
 whose first impulse is at 0 changes the reference on the tick after the
 command arrives.
 
-``OperatorStream.sample`` is called by the streamer's loop; ``command``
-from its executor (a tuple assignment: no lock). Pure Python, no ROS import.
+``OperatorStream`` is the operator mode's ``source.Source``: ``sample`` is
+called by the streamer's loop; ``command`` and ``stop`` from its executor
+(a tuple assignment: no lock). Pure Python, no ROS import.
 """
 from __future__ import annotations
 
@@ -34,6 +35,7 @@ from ..planning.model import modal_properties
 from ..planning.plan import PlanError
 from ..planning.shapers import SHAPERS, design
 from .hermite import segment, segment_values
+from .source import Setpoint
 
 #: ``operator_shaper`` values: a shaper of ``planning.shapers``, or ``none`` (rate limits only).
 OPERATOR_SHAPERS = ('none', *SHAPERS)
@@ -144,9 +146,10 @@ class OperatorStream:
                 self._blocked = 0
         return target
 
-    def sample(self, now: float | None = None) -> tuple:
+    def sample(self, tick: int | None = None, now: float | None = None) -> Setpoint:
         """The next tick's reference: (position, velocity, acceleration), floats with one axis, else tuples in
-        ``joints`` order."""
+        ``joints`` order. Every call is the tick after the last (``tick``, the loop's, is not needed);
+        ``now``: the time (s) of the commands' clock (default: now)."""
         inp, out = self._input, self._output
         inp.target_velocity = self.target(self.clock() if now is None else now)
         self._otg.update(inp, out)
@@ -166,8 +169,8 @@ class OperatorStream:
             out[j] = shaped[i]
         self.position = tuple(o[0] for o in out)
         if self.axes == 1:
-            return out[0]
-        return tuple(zip(*out))
+            return Setpoint(*out[0])
+        return Setpoint(*zip(*out))
 
     @property
     def at_rest(self) -> bool:
@@ -177,6 +180,11 @@ class OperatorStream:
         if any(abs(x) > 1e-12 for x in (*inp.current_velocity, *inp.current_acceleration)):
             return False
         return self._k - self._moved > self._impulses[1][-1] + 2
+
+    @property
+    def moving(self) -> bool:
+        """Whether the reference moves (not at rest)."""
+        return not self.at_rest
 
     def delay(self) -> float:
         """The shaper's length now (s): how long after the base the reference comes to rest."""

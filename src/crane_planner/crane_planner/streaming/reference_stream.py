@@ -37,9 +37,10 @@ it from the middle, which would be a jump.
 A motion is sampled once, on acceptance, at every tick it will occupy
 (quintic Hermite through the knots, ``hermite.QuinticHermite``), so the loop
 calling ``sample`` a thousand times a second only looks samples up: it
-allocates nothing beyond the returned tuple and takes the lock only to take
-a motion over and to end one. The last sample is the first tick at or past
-the motion's end (the end state); after it the stream holds the end position.
+allocates nothing beyond the returned ``source.Setpoint`` (at rest not even
+that) and takes the lock only to take a motion over and to end one. The
+last sample is the first tick at or past the motion's end (the end state);
+after it the stream holds the end position.
 
 Several joints (the cart and the hoist) stream in one motion: with a hold
 of n positions every position, velocity and acceleration is a tuple of n,
@@ -47,7 +48,8 @@ in the hold's order; with one joint, a float.
 
 Threads: ``accept``, ``stop`` and ``resume`` may run on one thread (the
 node's executor) while ``start`` and ``sample`` run on another (the loop).
-Pure Python, no ROS import.
+The stream is the trajectory mode's ``source.Source`` (the hold between
+motions). Pure Python, no ROS import.
 """
 from __future__ import annotations
 
@@ -58,6 +60,7 @@ from typing import Callable
 import numpy as np
 
 from .hermite import QuinticHermite, extends, splice
+from .source import Setpoint
 
 # The stream's states: stopped (~/stop; waits for resume), starting (resumed or
 # never stopped, waits for the loop's start), running (ticks have an epoch).
@@ -154,6 +157,7 @@ class ReferenceStream:
         # through _incoming. The lock guards the hand-over and the state.
         self._lock = threading.Lock()
         self._hold = hold
+        self._held = Setpoint(hold, self._rest, self._rest)  # the hold's setpoint, made again once it moves
         self._motion: Motion | None = None
         self._incoming: Motion | None = None
         self._last: Motion | None = None  # the streaming or the last streamed motion (the loop's)
@@ -180,13 +184,28 @@ class ReferenceStream:
         """Whether a motion (or a handover) is accepted and waits for its first tick."""
         return self._incoming is not None
 
+    # -- as a ``source.Source`` ------------------------------------------------------
+
+    @property
+    def at_rest(self) -> bool:
+        """No motion streaming nor queued: the stream holds."""
+        return self._motion is None and self._incoming is None
+
+    moving = streaming
+
+    @property
+    def position(self):
+        """Where the stream has left the axes: the hold."""
+        return self._hold
+
     def hold_at(self, position) -> None:
-        """Hold ``position`` (m; a tuple with several joints) from now on: the axes were moved by something
-        else (the operator mode); ValueError during a motion."""
+        """Hold ``position`` (m; a tuple with several joints, a float or a tuple of one with one) from now on:
+        the axes were moved by something else (the operator mode); ValueError during a motion."""
         with self._lock:
             if self._motion is not None or self._incoming is not None:
                 raise ValueError('a motion is streaming: the hold follows it')
-            self._hold = tuple(float(x) for x in position) if self.joints > 1 else float(position)
+            self._hold = (tuple(float(x) for x in position) if self.joints > 1 else
+                          float(position[0] if isinstance(position, tuple) else position))
 
     @property
     def last_tick(self) -> int:
@@ -393,7 +412,7 @@ class ReferenceStream:
 
     # -- the loop -------------------------------------------------------------------
 
-    def sample(self, tick: int) -> tuple:
+    def sample(self, tick: int) -> Setpoint:
         """Position (m), velocity (m/s), acceleration (m/s^2) due at ``tick`` (tuples per joint with several).
 
         Takes the queued motion over at its first tick, ends a motion after
@@ -408,16 +427,18 @@ class ReferenceStream:
                     self._motion, self._incoming, self._last = incoming, None, incoming
                 motion = self._motion
         if motion is None:
-            return self._hold, self._rest, self._rest
+            if self._held.position is not self._hold:
+                self._held = Setpoint(self._hold, self._rest, self._rest)
+            return self._held
         i = tick - motion.first_tick
         if i < motion.ticks:
             if i >= len(motion.acceleration):  # not sampled yet (accept is filling it in): evaluated here
-                sample = tuple(x[0] for x in motion.samples(i, i + 1, self.period_ns))
-                self._hold = sample[0]
+                sample = Setpoint(*(x[0] for x in motion.samples(i, i + 1, self.period_ns)))
+                self._hold = sample.position
                 return sample
             self._hold = motion.position[i]
-            return motion.position[i], motion.velocity[i], motion.acceleration[i]
+            return Setpoint(motion.position[i], motion.velocity[i], motion.acceleration[i])
         with self._lock:
             self._hold = motion.end_position
             self._motion = None
-        return self._hold, self._rest, self._rest
+        return Setpoint(self._hold, self._rest, self._rest)
