@@ -78,8 +78,8 @@ PARAMETERS = {
                            'planner dead, or late every time): every axis brakes along its fastest ramp within this '
                            'deceleration (m/s^2) and fault_jerk, never an abrupt hold', parameter_range(1e-3, 100.0)),
     'fault_jerk': (5.0, 'the jerk limit (m/s^3) of that braking ramp', parameter_range(1e-3, 1e4)),
-    # 0 by default: a spun tenth of each tick is a tenth of a core on every machine, while the sim plays the
-    # samples out by their stamps, so a wake-up some tens of microseconds late changes nothing downstream.
+    # Off by default: whatever share of each tick is spun is that share of a core on every machine, while the
+    # sim plays the samples out by their stamps, so a wake-up a little late changes nothing downstream.
     'busy_wait': (0.0, 'the last part (s) of each tick period spent spinning instead of sleeping, for '
                   'wake-up precision at the cost of CPU (1e-4 on a core of its own: a few us late instead of '
                   'some tens)', parameter_range(0.0, 1e-3)),

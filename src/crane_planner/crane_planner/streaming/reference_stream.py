@@ -73,8 +73,8 @@ HANDOVER_ACCELERATION = 1e-5
 #: How far behind (s) the 1 kHz loop still sends every tick it missed, back to back, as it catches up after a
 #: stall (the host paused it): a receiver that integrates the reference's acceleration (the sim, an axis
 #: controller's feedforward) would otherwise end off the goal by what the missing samples carried, and keep the
-#: velocity they changed. Further behind than a receiver's reference timeout (the sim's default 1 s), the
-#: stream was judged lost and the axes braked: the loop skips ahead.
+#: velocity they changed. Further behind than a receiver's reference timeout (the sim's ``reference_timeout``),
+#: the stream was judged lost and the axes braked: the loop skips ahead.
 CATCH_UP = 1.0
 #: Samples a new motion is queued with; the rest are taken right after, while its first ticks wait.
 FIRST_SAMPLES = 50
