@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from crane_msgs_py.axes import AXIS_NAMES, BRIDGE, CART, HOIST, axis
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.axes import AXIS_NAMES, BRIDGE, CART, HOIST, axis
+from crane_msgs_py.crane.params import CraneParams
 
 from .dynamics import PARAMETERS, SPATIAL_SWING_STATES, SWING_STATES, crane_ode
 from .model import modal_frequencies
@@ -78,7 +78,7 @@ class MotionState:
     """The crane at one instant, SI units.
 
     Attributes:
-        axes: each axis's ``AxisState`` by its name (``crane_msgs_py.axes``), kept in
+        axes: each axis's ``AxisState`` by its name (``crane_msgs_py.crane.axes``), kept in
             ``AXES`` order; the cart's always, the others' if the crane has them.
         swing: the swing states in the order of ``dynamics.crane_ode``'s (``swing_names``), rad and rad/s:
             (theta1, theta2, dtheta1, dtheta2) on the planar crane, with a bridge the spatial crane's

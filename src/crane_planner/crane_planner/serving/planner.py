@@ -13,7 +13,7 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
-from crane_msgs_py.params import CraneParams, check_count
+from crane_msgs_py.crane.params import CraneParams, check_count
 
 from ..planning import dispatch
 from ..planning.dispatch import PlanOptions, VariationalRequest, variational_solver

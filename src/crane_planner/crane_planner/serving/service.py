@@ -23,7 +23,7 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT, STREAM_STATE_TOPIC
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT, STREAM_STATE_TOPIC
 
 from ..planning.continuation import problem_start, swing_names
 from ..planning.mass_path import predict_mass_path

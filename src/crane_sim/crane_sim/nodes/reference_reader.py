@@ -4,7 +4,7 @@ An axis controller reads its setpoint once a cycle from what the fieldbus receiv
 simulator's loop: each step it takes every reference the middleware has received since the last
 one. Handing 1 kHz messages through an executor's callbacks cost the simulator about a quarter of a
 core on its own; taking their bytes (``raw``) and reading the few fields the loop needs
-(``crane_msgs_py.cdr``) costs a tenth of that, and the middleware's own threads keep receiving
+(``crane_msgs_py.messages.cdr``) costs a tenth of that, and the middleware's own threads keep receiving
 while the Python process stalls. Each message's receive time is the middleware's.
 
 The subscription belongs to a hidden node of its own (``_<sim node>_reference``, hidden as
@@ -18,9 +18,9 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from crane_msgs_py.cdr import ReferenceSample, read_float64_array, read_joint_trajectory
-from crane_msgs_py.names import OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, REFERENCE_TOPIC
-from crane_msgs_py.taking import take_all
+from crane_msgs_py.messages.cdr import ReferenceSample, read_float64_array, read_joint_trajectory
+from crane_msgs_py.messages.names import OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, REFERENCE_TOPIC
+from crane_msgs_py.runtime.taking import take_all
 
 #: ``reference_type`` values: the streamer's two outputs, their message types and readers.
 REFERENCE_TYPES = {OUTPUT_JOINT_TRAJECTORY: JointTrajectory, OUTPUT_FLOAT64_ARRAY: Float64MultiArray}

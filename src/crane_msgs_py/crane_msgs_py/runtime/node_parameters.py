@@ -12,7 +12,7 @@ from __future__ import annotations
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.parameter import Parameter
 
-from .diagnostics import ERROR
+from crane_msgs_py.runtime.diagnostics import ERROR
 
 #: The diagnostic task of refused parameter changes (status ``<node>: parameters``).
 PARAMETERS_TASK = 'parameters'
