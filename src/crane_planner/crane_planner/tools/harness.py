@@ -26,6 +26,7 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.client import PlannerClient
+from crane_msgs_py.crane.drive import AxisState
 from crane_msgs_py.messages.conversions import (
     HOLDING,
     move_message,
@@ -62,7 +63,6 @@ from crane_msgs_py.runtime.qos import (
     recording,
 )
 from crane_msgs_py.runtime.runner import spinning
-from crane_sim.axis_controller import AxisState
 
 from .processes import PLANNER, SIM, STREAMER, NodeGroup
 
