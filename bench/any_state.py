@@ -51,7 +51,7 @@ def main() -> int:
 
 def _at_rest(driver) -> bool:
     """Whether the streamer reports holding (its newest stream status)."""
-    from crane_msgs_py.diagnostics import status_values
+    from crane_msgs_py.runtime.diagnostics import status_values
     statuses = driver.planner.diagnostics.statuses('crane_streamer: stream')
     return bool(statuses) and 'holding' in status_values(statuses[-1]).get('state', '')
 
@@ -63,8 +63,8 @@ def measure(args, env) -> int:
     import rclpy
     from geometry_msgs.msg import Twist
 
-    from crane_msgs_py.diagnostics import status_values
-    from crane_msgs_py.names import CMD_VEL_TOPIC
+    from crane_msgs_py.messages.names import CMD_VEL_TOPIC
+    from crane_msgs_py.runtime.diagnostics import status_values
     from crane_planner.tools.harness import CraneHarness, start_crane_nodes
     from crane_planner.tools.processes import NodeGroup
 
@@ -126,7 +126,7 @@ def measure(args, env) -> int:
                                                   for m, v in cold.items()}
 
             # -- the handover warm-up: how often the goals' thread rehearsed during a motion, how long each took
-            from crane_msgs_py.diagnostics import status_float
+            from crane_msgs_py.runtime.diagnostics import status_float
             rehearsals = []
             for _ in range(args.settles):
                 mark = driver.planner.diagnostics.mark()

@@ -60,7 +60,7 @@ def stats_ms(seconds) -> dict:
 
 def zv_while(planner, busy) -> dict:
     """ZV plans through ``planner`` (perf_counter s each) while ``busy()`` runs in a thread."""
-    from crane_msgs_py.params import CraneParams
+    from crane_msgs_py.crane.params import CraneParams
     done, times = threading.Event(), []
     th = threading.Thread(target=lambda: (busy(), done.set()))
     t0 = time.perf_counter()
@@ -76,7 +76,7 @@ def zv_while(planner, busy) -> dict:
 
 def in_process() -> dict:
     """ZV plans beside an NVF NLP built (and solved once) in a thread of this process, and in a worker."""
-    from crane_msgs_py.params import CraneParams
+    from crane_msgs_py.crane.params import CraneParams
     from crane_planner.planning import PlanOptions
     from crane_planner.planning.dispatch import VariationalRequest
     from crane_planner.serving import Planner
@@ -104,8 +104,8 @@ def over_ros(args, env: dict) -> dict:
     from service_load import cpu_s, family  # (bench/)
 
     from crane_msgs_py.client import PlannerClient
-    from crane_msgs_py.names import PLANNER_NODE
-    from crane_msgs_py.runner import spinning
+    from crane_msgs_py.messages.names import PLANNER_NODE
+    from crane_msgs_py.runtime.runner import spinning
     from crane_planner.tools.processes import PLANNER, NodeGroup
 
     rclpy.init()

@@ -20,7 +20,7 @@ import statistics
 import sys
 import time
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, fastest, plan
 
 D, T, HOIST = 0.3, 3.0, (0.47, 0.27)

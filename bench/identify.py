@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.identification import Recording, identify
 from crane_planner.planning.profiles import quintic
 from crane_sim.measurement import measured_angles

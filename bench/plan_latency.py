@@ -20,7 +20,7 @@ import statistics
 import sys
 import time
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanOptions
 from crane_planner.planning.dispatch import variational_solver
 

@@ -1,5 +1,5 @@
 """What taking one reference costs the simulator: typed (rclpy builds the message) against raw bytes read by
-``crane_msgs_py.cdr``, in one run.
+``crane_msgs_py.messages.cdr``, in one run.
 
 A publisher sends bursts of one-point JointTrajectory references (as the streamer does, joints cart and
 hoist) to two subscriptions in the same private graph, one typed, one raw, neither spun by an executor;
@@ -28,10 +28,10 @@ def measure(bursts: int) -> int:
     import rclpy
     from trajectory_msgs.msg import JointTrajectory
 
-    from crane_msgs_py.cdr import read_joint_trajectory
-    from crane_msgs_py.conversions import fill_reference, read_reference, reference_message
-    from crane_msgs_py.qos import REFERENCE_EVERY_SAMPLE_QOS
-    from crane_msgs_py.taking import take_all
+    from crane_msgs_py.messages.cdr import read_joint_trajectory
+    from crane_msgs_py.messages.conversions import fill_reference, read_reference, reference_message
+    from crane_msgs_py.runtime.qos import REFERENCE_EVERY_SAMPLE_QOS
+    from crane_msgs_py.runtime.taking import take_all
 
     rclpy.init()
     node = rclpy.create_node('reference_take_bench')

@@ -42,7 +42,7 @@ def measure(args, env: dict) -> int:
     from rclpy.executors import SingleThreadedExecutor
 
     from crane_msgs_py.client import PlannerClient
-    from crane_msgs_py.runner import spinning
+    from crane_msgs_py.runtime.runner import spinning
     from crane_planner.planning import METHODS
     from crane_planner.tools.processes import PLANNER, NodeGroup
 
@@ -112,7 +112,7 @@ def measure(args, env: dict) -> int:
 
 def shaper_duration(method: str) -> float:
     """The shaper's own length at the default model (s): ZVDD is longer than the paper's 3 s."""
-    from crane_msgs_py.params import CraneParams
+    from crane_msgs_py.crane.params import CraneParams
     from crane_planner.planning.model import modal_frequencies
     from crane_planner.planning.shapers import design
     return design(method, modal_frequencies(CraneParams()), 0.0).duration

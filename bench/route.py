@@ -37,7 +37,7 @@ TARGETS = {'around_cold_s': 1.0, 'warm_ms': 200.0, 'no_box_ratio': 1.1}
 def served(joints, start, goal, box, duration=DURATION):
     """A function planning ``Move('nvf', joints, start, goal[, cart])`` as the node serves it, on a new
     ``Planner`` (cache empty) with the keep-out ``box`` (None: none)."""
-    from crane_msgs_py.params import CraneParams
+    from crane_msgs_py.crane.params import CraneParams
     from crane_planner.serving import Planner
     from crane_planner.serving.config import PARAMETERS, Config
     from crane_planner.serving.moves import Move, check_move, check_rests_keep_out, plan_keeping_out, plan_move

@@ -38,7 +38,7 @@ TARGETS = {'typical_p50_ms': 30.0, 'typical_p99_ms': 150.0, 'answer_slack_s': 0.
 
 def requests(n: int, seed: int, weights=(0.7, 0.15, 0.15)):
     """(kind, method or None, start, goal, duration) of the seeded mix."""
-    from crane_msgs_py.params import CraneParams
+    from crane_msgs_py.crane.params import CraneParams
     from crane_planner.planning import METHODS, SHAPER_METHODS
     from crane_planner.planning.model import modal_frequencies
     from crane_planner.planning.shapers import design
@@ -151,10 +151,10 @@ def measure(args, env: dict) -> int:
     from sensor_msgs.msg import JointState
 
     from crane_msgs_py.client import PlannerClient
-    from crane_msgs_py.conversions import stamp_ns
-    from crane_msgs_py.names import JOINT_STATES_TOPIC
-    from crane_msgs_py.qos import JOINT_STATES_QOS, recording
-    from crane_msgs_py.runner import spinning
+    from crane_msgs_py.messages.conversions import stamp_ns
+    from crane_msgs_py.messages.names import JOINT_STATES_TOPIC
+    from crane_msgs_py.runtime.qos import JOINT_STATES_QOS, recording
+    from crane_msgs_py.runtime.runner import spinning
     from crane_planner.tools.harness import start_crane_nodes
     from crane_planner.tools.processes import NodeGroup
 
@@ -280,7 +280,7 @@ def measure(args, env: dict) -> int:
 
 
 def judge(mix, answers) -> dict:
-    from crane_msgs_py.conversions import joint_trajectory_to_arrays, stamp_ns
+    from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays, stamp_ns
     typical, by_kind, by_method, wrong, late, unanswered, refused = [], {}, {}, [], 0, 0, {}
     for (kind, method, start, goal, T), answer in zip(mix, answers):
         elapsed, response, start_ns = answer

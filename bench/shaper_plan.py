@@ -9,7 +9,7 @@ import statistics
 import sys
 import time
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import SHAPER_METHODS
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.shaped import shaped_plan

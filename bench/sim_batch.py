@@ -15,9 +15,10 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.geometry import load_excursion
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning.profiles import quintic
-from crane_sim.dynamics import load_excursion, swing_accelerations
+from crane_sim.dynamics import swing_accelerations
 from crane_sim.simulator import CraneSimulator, simulate
 
 D, T, T_END, DT = 0.3, 3.0, 13.0, 1e-3

@@ -52,7 +52,7 @@ def solves(method: str, options, params, bridge: float | None, repeats: int, cac
 
 def handovers(params, cache, joints: tuple, repeats: int) -> dict:
     """ZV handovers of a running ZV motion to (0.6, 0) at 40 %, to (0.3, 0.4) (or 0.3 m along x alone)."""
-    from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
+    from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT
     from crane_planner.planning import PlanOptions
     from crane_planner.planning.dispatch import plan
     from crane_planner.planning.signals import Swing
@@ -85,7 +85,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--repeats', type=int, default=REPEATS, help=f'solves per case (default {REPEATS})')
     args = ap.parse_args()
-    from crane_msgs_py.params import CraneParams
+    from crane_msgs_py.crane.params import CraneParams
     from crane_planner.planning import PlanOptions
     from crane_planner.planning.dispatch import SolverCache
     params, cache = CraneParams(), SolverCache()

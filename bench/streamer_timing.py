@@ -54,11 +54,11 @@ def measure(args, env: dict) -> int:
     from sensor_msgs.msg import JointState
     from trajectory_msgs.msg import JointTrajectory
 
-    from crane_msgs_py.conversions import stamp_ns
-    from crane_msgs_py.diagnostics import DiagnosticsReader, status_values
-    from crane_msgs_py.names import JOINT_STATES_TOPIC, REFERENCE_TOPIC
-    from crane_msgs_py.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS
-    from crane_msgs_py.runner import spinning
+    from crane_msgs_py.messages.conversions import stamp_ns
+    from crane_msgs_py.messages.names import JOINT_STATES_TOPIC, REFERENCE_TOPIC
+    from crane_msgs_py.runtime.diagnostics import DiagnosticsReader, status_values
+    from crane_msgs_py.runtime.qos import JOINT_STATES_QOS, REFERENCE_EVERY_SAMPLE_QOS
+    from crane_msgs_py.runtime.runner import spinning
     from crane_planner.tools.processes import SIM, STREAMER, NodeGroup
 
     ns = '/bench'

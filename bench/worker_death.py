@@ -61,7 +61,7 @@ def wait_until(predicate, timeout: float = 300.0) -> None:
 def case(move, budget: float, kill: str, repeats: int) -> dict:
     """``repeats`` kills of ``kill`` ('one', 'workers', 'server') under ``move(k)`` with ``max_solve_time``
     ``budget``."""
-    from crane_msgs_py.params import CraneParams
+    from crane_msgs_py.crane.params import CraneParams
     from crane_planner.planning import PlanOptions
     from crane_planner.planning.dispatch import VariationalRequest
     from crane_planner.serving import Planner

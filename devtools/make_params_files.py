@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def nodes():
-    from crane_msgs_py.names import PLANNER_NODE, SIM_NODE, STREAMER_NODE
+    from crane_msgs_py.messages.names import PLANNER_NODE, SIM_NODE, STREAMER_NODE
     from crane_planner.serving.config import PARAMETERS
     from crane_planner.streaming import config as streamer
     from crane_sim.nodes import sim_node

@@ -9,7 +9,7 @@ ROS_TESTS = Path(__file__).resolve().parent / 'ros'
 #: messages and exit statuses, with hang guards only, long enough for a start-up at that niceness beside a
 #: CPU-bound process. ``make test`` runs them beside the real-time ROS tests, at the pure tests' niceness,
 #: instead of after them (``pytest_xdist_make_scheduler``).
-UNTIMED_ROS_MODULES = ('test_workspace.py', 'test_params_files.py', 'test_demo_failures.py')
+UNTIMED_ROS_MODULES = ('test_workspace.py', 'test_params_files.py', 'test_demo_failures.py', 'test_without_sim.py')
 
 
 def untimed(path: str) -> bool:

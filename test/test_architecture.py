@@ -23,9 +23,9 @@ PACKAGES = ('crane_msgs_py', 'crane_sim', 'crane_planner')
 ROS_MODULES = {
     'crane_planner.tools.demo', 'crane_planner.tools.harness', 'crane_planner.tools.record',
     'crane_planner.tools.teleop',
-    'crane_msgs_py.action_client', 'crane_msgs_py.action_server', 'crane_msgs_py.client', 'crane_msgs_py.conversions',
-    'crane_msgs_py.diagnostics',
-    'crane_msgs_py.node_parameters', 'crane_msgs_py.qos', 'crane_msgs_py.runner',
+    'crane_msgs_py.client', 'crane_msgs_py.messages.conversions',
+    'crane_msgs_py.runtime.action_client', 'crane_msgs_py.runtime.action_server', 'crane_msgs_py.runtime.diagnostics',
+    'crane_msgs_py.runtime.node_parameters', 'crane_msgs_py.runtime.qos', 'crane_msgs_py.runtime.runner',
 }
 #: ROS distributions' Python packages that are not named *_msgs, *_srvs or *_interfaces.
 ROS_PACKAGES = {'rclpy', 'rosidl_runtime_py', 'rosidl_parser', 'rpyutils', 'launch', 'launch_ros',
@@ -109,7 +109,8 @@ def test_the_rule_flags_a_ros_import_in_a_core_module(tmp_path, source, module):
 
 def test_the_rule_lets_nodes_and_pure_imports_pass(tmp_path):
     path = tmp_path / 'fake.py'
-    path.write_text('import numpy\nfrom crane_msgs_py.params import CraneParams\nfrom ..planning import Planner\n')
+    path.write_text('import numpy\nfrom crane_msgs_py.crane.params import CraneParams\n'
+                    'from ..planning import Planner\n')
     assert violations({'crane_planner.tools.fake': path}) == []
     path.write_text('import rclpy\nfrom nav_msgs.srv import GetPlan\n')
     assert violations({'crane_planner.nodes.fake': path}) == []
@@ -197,3 +198,34 @@ def test_the_streamer_node_loads_no_casadi():
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == '[]'
+
+
+#: What runs on a real crane: these rooms of crane_planner never import the simulator (the offline tools may).
+PRODUCTION_ROOMS = ('crane_planner.planning', 'crane_planner.serving', 'crane_planner.streaming',
+                    'crane_planner.nodes')
+
+
+def simulator_violations(found: dict[str, Path]) -> list[str]:
+    return [f'{path.name}:{line}: {module} imports {name}'
+            for module, path in found.items() if module.startswith(PRODUCTION_ROOMS)
+            for line, name in imports(module, path) if name.split('.')[0] == 'crane_sim']
+
+
+def test_the_production_planner_and_streamer_import_no_simulator():
+    assert simulator_violations(modules()) == []
+
+
+def test_the_simulator_rule_flags_a_lazy_import(tmp_path):
+    path = tmp_path / 'fake.py'
+    path.write_text('def f():\n    from crane_sim.spatial import SpatialPendulum\n')
+    assert len(simulator_violations({'crane_planner.serving.fake': path})) >= 1
+    assert simulator_violations({'crane_planner.tools.fake': path}) == []
+
+
+def test_the_shared_crane_facts_are_pure():
+    """What the planner and the simulator share (``crane_msgs_py.crane``) imports neither ROS nor either of them."""
+    found = modules()
+    shared = {m: p for m, p in found.items() if m.startswith('crane_msgs_py.crane')}
+    assert {'crane_msgs_py.crane.axes', 'crane_msgs_py.crane.geometry', 'crane_msgs_py.crane.drive'} <= set(shared)
+    assert [f'{m}: {name}' for m, p in shared.items() for _, name in imports(m, p)
+            if is_ros(name) or name.split('.')[0] in ('crane_sim', 'crane_planner')] == []

@@ -13,7 +13,9 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
     ],
-    install_requires=['setuptools', 'numpy', 'scipy', 'casadi', 'matplotlib', 'crane_msgs_py', 'crane_sim'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'casadi', 'matplotlib', 'crane_msgs_py'],
+    # The nodes never need the simulator; the offline tools that simulate a plan (crane-plan, crane-demo) do.
+    extras_require={'sim': ['crane_sim']},
     zip_safe=True,
     maintainer='Crane trajectory server team',
     maintainer_email='crane@example.com',

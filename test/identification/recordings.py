@@ -3,7 +3,7 @@ sensor noise (crane_sim.measurement), as CSV and as rosbag2 MCAP, and ``crane-pl
 import numpy as np
 from crane_plan_cli import crane_plan
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.identification import Recording
 from crane_planner.planning.profiles import quintic
 from crane_sim.measurement import measured_angles

@@ -1,4 +1,4 @@
-"""crane_msgs_py.action_client: a response that comes back while its request is still being registered is not
+"""crane_msgs_py.runtime.action_client: a response that comes back while its request is still being registered is not
 lost (ros2/rclpy#1123), over real DDS with the executor spinning on a thread of its own."""
 import threading
 import time
@@ -36,8 +36,8 @@ def test_goal_cancel_and_result_responses_arriving_before_registration_complete_
     from rclpy.action import CancelResponse, GoalResponse
     from rclpy.executors import MultiThreadedExecutor
 
-    from crane_msgs_py.action_client import ActionClient
-    from crane_msgs_py.action_server import ActionServer
+    from crane_msgs_py.runtime.action_client import ActionClient
+    from crane_msgs_py.runtime.action_server import ActionServer
     release = threading.Event()
 
     def execute(handle):

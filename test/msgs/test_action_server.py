@@ -1,9 +1,9 @@
-"""crane_msgs_py.action_server: goal IDs format as hex, and the server is rclpy's otherwise (real DDS)."""
+"""crane_msgs_py.runtime.action_server: goal IDs format as hex, and the server is rclpy's otherwise (real DDS)."""
 import uuid
 
 import numpy as np
 
-from crane_msgs_py.action_server import GoalId
+from crane_msgs_py.runtime.action_server import GoalId
 
 from .action_graph import served, wait
 
@@ -24,7 +24,7 @@ def test_the_server_accepts_executes_and_logs_the_client_s_goal_id_in_hex(ros_do
     from rclpy.action import ActionClient
     from rclpy.executors import SingleThreadedExecutor
 
-    from crane_msgs_py.action_server import ActionServer
+    from crane_msgs_py.runtime.action_server import ActionServer
     seen = {}
 
     def accepted(goal):

@@ -1,11 +1,11 @@
-"""The axes registry (crane_msgs_py.axes): records, lookups, the one limits type."""
+"""The axes registry (crane_msgs_py.crane.axes): records, lookups, the one limits type."""
 import math
 
 import pytest
 
-from crane_msgs_py.axes import AXES, AXIS_NAMES, BRIDGE, CART, HOIST, Axis, AxisLimits, axis, check_axes
-from crane_msgs_py.names import ACTUATED_JOINTS, CART_JOINT, HOIST_JOINT, SIM_JOINTS, check_joints
-from crane_msgs_py.params import ParameterError
+from crane_msgs_py.crane.axes import AXES, AXIS_NAMES, BRIDGE, CART, HOIST, Axis, AxisLimits, axis, check_axes
+from crane_msgs_py.crane.params import ParameterError
+from crane_msgs_py.messages.names import ACTUATED_JOINTS, CART_JOINT, HOIST_JOINT, SIM_JOINTS, check_joints
 
 
 def test_the_names_of_the_contract_come_from_the_registry():

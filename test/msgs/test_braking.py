@@ -1,4 +1,4 @@
-"""crane_msgs_py.braking: the closed-form jerk-limited stop against ruckig, closed forms of its own, and its
+"""crane_msgs_py.crane.braking: the closed-form jerk-limited stop against ruckig, closed forms of its own, and its
 properties (it ends at rest, within its limits, and without a velocity reversal from a0 = 0)."""
 import math
 
@@ -6,8 +6,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from crane_msgs_py.braking import Braking, stopping_distance
-from crane_msgs_py.params import ParameterError
+from crane_msgs_py.crane.braking import Braking, stopping_distance
+from crane_msgs_py.crane.params import ParameterError
 
 
 def ruckig_stop(v0: float, a0: float, D: float, J: float):

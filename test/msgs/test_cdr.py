@@ -9,7 +9,7 @@ from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from crane_msgs_py.cdr import read_float64_array, read_joint_trajectory
+from crane_msgs_py.messages.cdr import read_float64_array, read_joint_trajectory
 
 names = st.text(st.characters(codec='utf-8', exclude_characters='\x00'), max_size=9)
 doubles = st.lists(st.floats(allow_nan=False), max_size=4)
@@ -86,8 +86,8 @@ def test_the_writer_s_bytes_are_what_rclpy_serializes_of_the_filled_message(outp
     from rclpy.serialization import deserialize_message
     from rosbags.typesys import Stores, get_typestore
 
-    from crane_msgs_py.cdr import ReferenceWriter
-    from crane_msgs_py.conversions import fill_reference, reference_message
+    from crane_msgs_py.messages.cdr import ReferenceWriter
+    from crane_msgs_py.messages.conversions import fill_reference, reference_message
     typestore = get_typestore(Stores.ROS2_JAZZY)
     type_name = 'std_msgs/msg/Float64MultiArray' if output == 'float64_array' else 'trajectory_msgs/msg/JointTrajectory'
     msg = reference_message(output, joint=list(joints))
@@ -108,7 +108,7 @@ def test_the_writer_s_bytes_are_what_rclpy_serializes_of_the_filled_message(outp
 
 
 def test_the_writer_refuses_a_template_of_another_shape():
-    from crane_msgs_py.cdr import ReferenceWriter
+    from crane_msgs_py.messages.cdr import ReferenceWriter
     two_points = JointTrajectory(joint_names=['cart'], points=[point([1.0], [0.0], [0.0])] * 2)
     with pytest.raises(ValueError, match='one point'):
         ReferenceWriter(serialize_message(two_points))

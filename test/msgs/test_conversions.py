@@ -1,4 +1,4 @@
-"""Plans and states <-> standard messages (crane_msgs_py.conversions, names)."""
+"""Plans and states <-> standard messages (crane_msgs_py.messages.conversions, names)."""
 import math
 from types import SimpleNamespace
 
@@ -10,9 +10,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from crane_msgs_py import conversions as cv
-from crane_msgs_py.names import EXECUTE_MOVE_ACTION, PLAN_MOVE_SERVICE, service_of
-from crane_msgs_py.params import ParameterError
+from crane_msgs_py.crane.params import ParameterError
+from crane_msgs_py.messages import conversions as cv
+from crane_msgs_py.messages.names import EXECUTE_MOVE_ACTION, PLAN_MOVE_SERVICE, service_of
 
 START_NS = 1_700_000_000 * 10**9 + 999_000_000  # nanoseconds that carry into the seconds
 
@@ -126,7 +126,7 @@ def test_service_names():
 
 @pytest.mark.parametrize('output', ['joint_trajectory', 'float64_array'])
 def test_a_reference_of_the_cart_and_the_hoist_carries_a_column_each_and_reads_back_by_name(output):
-    from crane_msgs_py.conversions import fill_reference, read_reference, reference_message
+    from crane_msgs_py.messages.conversions import fill_reference, read_reference, reference_message
     msg = reference_message(output, joint=['cart', 'hoist'])
     fill_reference(msg, 5_000_000_123, (0.25, 0.4), (0.1, -0.05), (0.2, -0.3))
     wire = deserialize_message(serialize_message(msg), type(msg))

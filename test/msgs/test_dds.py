@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from crane_msgs_py.dds import FASTDDS_PROFILES, LOOPBACK_PROFILES, use_loopback_udp, use_node_profiles
+from crane_msgs_py.runtime.dds import FASTDDS_PROFILES, LOOPBACK_PROFILES, use_loopback_udp, use_node_profiles
 
 NS = {'dds': 'http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles'}
 

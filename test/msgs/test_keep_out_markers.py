@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from crane_msgs_py.conversions import KEEP_OUT_DRAWN, keep_out_markers
+from crane_msgs_py.messages.conversions import KEEP_OUT_DRAWN, keep_out_markers
 
 
 def test_each_box_and_its_margin_are_cubes_of_its_centre_and_size():
@@ -26,7 +26,7 @@ def test_each_box_and_its_margin_are_cubes_of_its_centre_and_size():
 
 
 def test_the_route_is_a_line_strip_through_its_points_expiring():
-    from crane_msgs_py.conversions import route_markers
+    from crane_msgs_py.messages.conversions import route_markers
     [line] = route_markers([(0.0, 0.0, -0.861), (0.1, 0.02, -0.8), (0.3, 0.0, -0.861)], 'crane_base', 5,
                            lifetime=4.5).markers
     assert (line.ns, line.type, line.header.frame_id) == ('route', line.LINE_STRIP, 'crane_base')

@@ -1,5 +1,5 @@
-"""crane_msgs_py.qos: a recording reader's queue is deeper, every other policy the publisher's."""
-from crane_msgs_py.qos import JOINT_STATES_QOS, MARKERS_QOS, REFERENCE_EVERY_SAMPLE_QOS, recording
+"""crane_msgs_py.runtime.qos: a recording reader's queue is deeper, every other policy the publisher's."""
+from crane_msgs_py.runtime.qos import JOINT_STATES_QOS, MARKERS_QOS, REFERENCE_EVERY_SAMPLE_QOS, recording
 
 
 def test_a_recording_profile_holds_the_seconds_asked_and_matches_the_publisher_otherwise():

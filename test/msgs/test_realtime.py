@@ -1,4 +1,4 @@
-"""crane_msgs_py.realtime.die_with_parent: a child started for a test or a demo does not outlive it."""
+"""crane_msgs_py.runtime.realtime.die_with_parent: a child started for a test or a demo does not outlive it."""
 import os
 import signal
 import subprocess
@@ -6,7 +6,7 @@ import sys
 import time
 
 CHILD = ('import signal, sys, time\n'
-         'from crane_msgs_py.realtime import die_with_parent\n'
+         'from crane_msgs_py.runtime.realtime import die_with_parent\n'
          'signal.signal(signal.SIGINT, lambda *_: sys.exit(0))\n'
          'print(die_with_parent(), flush=True)\n'
          'time.sleep(30)\n')
@@ -56,7 +56,7 @@ def test_without_the_flag_a_child_is_left_alone():
 def test_set_fifo_sets_and_clears_the_priority_of_the_calling_thread_only():
     import threading
 
-    from crane_msgs_py.realtime import set_fifo
+    from crane_msgs_py.runtime.realtime import set_fifo
     seen = {}
 
     def thread():
@@ -80,7 +80,7 @@ def test_set_fifo_sets_and_clears_the_priority_of_the_calling_thread_only():
 def test_set_threads_fifo_raises_the_threads_so_named_and_no_other():
     import threading
 
-    from crane_msgs_py.realtime import set_threads_fifo
+    from crane_msgs_py.runtime.realtime import set_threads_fifo
     ready, done, tids = threading.Barrier(3), threading.Event(), {}
 
     def thread(name):

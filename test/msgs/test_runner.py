@@ -1,4 +1,4 @@
-"""crane_msgs_py.runner's spins: a background spin survives an entity destroyed while its executor gathers the
+"""crane_msgs_py.runtime.runner's spins: a background spin survives an entity destroyed while its executor gathers the
 wait set (rclpy raises InvalidHandle there, ros2/rclpy#1284) and goes on serving the node; an InvalidHandle
 from a callback, and a wait set that can never be gathered, are still raised."""
 import time
@@ -72,7 +72,7 @@ def _ticks_after(ticks: list, t0: float, count: int, within: float) -> int:
 
 def test_a_waitable_destroyed_while_the_wait_set_is_gathered_does_not_end_the_spin(ros_domain):
     """The failure made certain: the spin thread meets it once, and goes on: the node's timer keeps firing."""
-    from crane_msgs_py.runner import spinning
+    from crane_msgs_py.runtime.runner import spinning
     with node_and_executor('spin_survives') as (node, executor, ticks), spinning(executor):
         assert _ticks_after(ticks, 0.0, 3, 10.0) >= 3
         waitable = destroyed_waitable(node, remove=True)
@@ -90,7 +90,7 @@ def test_an_invalid_handle_in_a_callback_and_a_wait_set_never_gathered_are_raise
     callback's fault, and an entity that stays listed after its destruction fails every gathering."""
     from rclpy.exceptions import InvalidHandle
 
-    from crane_msgs_py.runner import GATHER_FAILURES, Spin, spin_once
+    from crane_msgs_py.runtime.runner import GATHER_FAILURES, Spin, spin_once
     with node_and_executor('spin_raises') as (node, executor, _):
         def use_a_destroyed_entity():
             raise InvalidHandle('cannot use Destroyable because destruction was requested')

@@ -8,7 +8,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning.collocation import Transcription
 from crane_planner.planning.problem import Form, Problem
 

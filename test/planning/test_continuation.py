@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
+from crane_msgs_py.messages.names import CART_JOINT, HOIST_JOINT
 from crane_planner.planning.continuation import (
     AxisState,
     Continuation,

@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanOptions
 from crane_planner.planning.direct import DirectSolver
 from crane_planner.planning.plan import PlanError

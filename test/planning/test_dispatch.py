@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams, ParameterError
+from crane_msgs_py.crane.params import CraneParams, ParameterError
 from crane_planner.planning import dispatch
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, VariationalRequest
 from crane_planner.planning.plan import PlanError

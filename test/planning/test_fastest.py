@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from crane_msgs_py.axes import AxisLimits
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.axes import AxisLimits
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import METHODS, SHAPER_METHODS, PlanError, PlanOptions
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.profiles import limited_base, quintic_duration

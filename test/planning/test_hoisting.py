@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanError
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, fastest, plan
 from crane_planner.planning.dynamics import hoisting_swing, swing_accelerations

@@ -7,7 +7,7 @@ their agreement checks both.
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanError, PlanOptions
 from crane_planner.planning.direct import DirectSolver
 from crane_planner.planning.dispatch import variational_solver

@@ -12,7 +12,7 @@ import re
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanOptions
 from crane_planner.planning.dispatch import SolverCache, plan
 from crane_planner.planning.dynamics import mass_positions

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from crane_msgs_py.axes import HOIST, AxisLimits
+from crane_msgs_py.crane.axes import HOIST, AxisLimits
 from crane_planner.planning.limits import axis_limit_error, check_fastest_request, shortest_duration_bound
 from crane_planner.planning.plan import PlanError
 from crane_planner.planning.profiles import limited_base

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from crane_msgs_py.params import CraneParams, ParameterError
+from crane_msgs_py.crane.params import CraneParams, ParameterError
 from crane_planner.planning.model import linearized_matrices, modal_frequencies
 
 

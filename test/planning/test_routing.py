@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanOptions
 from crane_planner.planning.collocation import keep_out_values, smooth_max
 from crane_planner.planning.dispatch import VariationalRequest, hoisting_options, variational_solver

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanOptions
 from crane_planner.planning.model import linearized_matrices, modal_frequencies
 from crane_planner.planning.plan import PlanError

@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.linalg import expm
 
-from crane_msgs_py.params import ParameterError
+from crane_msgs_py.crane.params import ParameterError
 from crane_planner.planning.shapers import (
     SHAPERS,
     Shaper,

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from references import peak_swing_at_rest
 
-from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT
 from crane_planner.planning.continuation import AxisState, MotionState, first_period, predict, problem_start
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, VariationalRequest, plan
 from crane_planner.planning.plan import AxesPlan, PlanError

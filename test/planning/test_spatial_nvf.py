@@ -10,7 +10,7 @@ comparison applies two planar NVF plans, one per axis, together.
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanError
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, fastest, plan
 from crane_planner.planning.plan import AxesPlan

@@ -10,7 +10,7 @@ suspension point (the norm) over 4 s after the motion.
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanError
 from crane_planner.planning.dispatch import PlanOptions, fastest, plan
 from crane_planner.planning.hoisting import quintic_axes_plan, quintic_hoisting_plan

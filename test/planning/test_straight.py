@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, plan
 from crane_planner.planning.dynamics import mass_positions
 from crane_planner.planning.mass_path import solved_mass_path

@@ -1,7 +1,7 @@
 """planning.variational: what the two NVF/RVF routes share (solver keys, request checks)."""
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanError, PlanOptions
 from crane_planner.planning.direct import DirectSolver
 from crane_planner.planning.variational import VariationalSolver

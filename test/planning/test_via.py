@@ -8,7 +8,7 @@ timing reaches its share of the polyline's length.
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanOptions
 from crane_planner.planning.dispatch import VariationalRequest, variational_solver
 from crane_planner.planning.plan import PlanError

@@ -21,8 +21,8 @@ import time
 import numpy as np
 import pytest
 
-from crane_msgs_py.braking import stopping_distance
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.braking import stopping_distance
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.serving.execution import STREAM_TIMEOUT  # the planner's default (config/planner.yaml)
 
 NS = '/crane_faults'
@@ -47,9 +47,9 @@ class Recorder:
         from rclpy.executors import SingleThreadedExecutor
         from sensor_msgs.msg import JointState
 
-        from crane_msgs_py.names import AXIS_STATUS_TOPIC, JOINT_STATES_TOPIC
-        from crane_msgs_py.qos import AXIS_STATUS_QOS, JOINT_STATES_QOS, recording
-        from crane_msgs_py.runner import spinning
+        from crane_msgs_py.messages.names import AXIS_STATUS_TOPIC, JOINT_STATES_TOPIC
+        from crane_msgs_py.runtime.qos import AXIS_STATUS_QOS, JOINT_STATES_QOS, recording
+        from crane_msgs_py.runtime.runner import spinning
         self.states, self.statuses, self._lock = [], [], threading.Lock()
         self.node = rclpy.create_node('crane_faults_recorder', namespace=NS)
         self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state,
@@ -62,13 +62,13 @@ class Recorder:
         self._spinning.__enter__()
 
     def _on_state(self, msg):
-        from crane_msgs_py.conversions import stamp_ns
+        from crane_msgs_py.messages.conversions import stamp_ns
         k = list(msg.name).index('cart')
         with self._lock:
             self.states.append((stamp_ns(msg.header.stamp), msg.position[k], msg.velocity[k]))
 
     def _on_status(self, msg):
-        from crane_msgs_py.conversions import stamp_ns
+        from crane_msgs_py.messages.conversions import stamp_ns
         with self._lock:
             self.statuses.append((stamp_ns(msg.header.stamp), msg.state, tuple(msg.position), msg.message,
                                   tuple(msg.joint_names)))
@@ -135,8 +135,8 @@ def kill_streamer(driver) -> tuple[int, int]:
 
 
 def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new_one_start_where_it_stands(crane):
-    from crane_msgs_py.conversions import joint_trajectory_to_arrays
-    from crane_msgs_py.diagnostics import WARN, level_of, status_values
+    from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays
+    from crane_msgs_py.runtime.diagnostics import WARN, level_of, status_values
     from crane_planner.tools.processes import STREAMER
     driver, recorder = crane
     states_after(driver, recorder, lambda s: bool(s) and s[-1][1] == 'tracking', 60.0, 'tracking')

@@ -50,7 +50,7 @@ def planner(ros_domain, tmp_path_factory):
     from rclpy.executors import MultiThreadedExecutor
 
     from crane_msgs_py.client import PlannerClient
-    from crane_msgs_py.runner import spinning
+    from crane_msgs_py.runtime.runner import spinning
     from crane_planner.tools.processes import PLANNER, NodeGroup
     rclpy.init()
     node = rclpy.create_node('faults_check', namespace=NS)
@@ -84,7 +84,7 @@ def test_solver_processes_killed_mid_request_are_reported_replaced_and_the_next_
                                                                                                fork_server):
     import threading
 
-    from crane_msgs_py.diagnostics import OK, WARN, level_of, status_values
+    from crane_msgs_py.runtime.diagnostics import OK, WARN, level_of, status_values
     nodes, process, client = planner
     name, hardware_id = 'crane_planner: solver_processes', f'{NS}/crane_planner'
     workers = wait_until(nodes, lambda: (lambda w: w if len(w) == SOLVER_PROCESSES else None)(

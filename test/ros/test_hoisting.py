@@ -8,7 +8,7 @@ they carry, and checks the served trajectory and the stream per joint.
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 
 NS = '/crane_hoist'
 SETTLE = 2.0
@@ -49,7 +49,7 @@ def measured_residual_mm(driver, start_ns: int) -> tuple[float, dict]:
 @pytest.mark.parametrize('method, cart, hoist', [('zv', (0.0, 0.3), (0.47, 0.27)),
                                                  ('rvf', (0.3, 0.0), (0.27, 0.47))], ids=['zv-lift', 'rvf-lower'])
 def test_a_move_that_hoists_streams_both_joints_and_leaves_no_swing(hoist_crane, method, cart, hoist):
-    from crane_msgs_py.conversions import joint_trajectory_to_arrays
+    from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays
     driver = hoist_crane
     start_ns, _, traj = driver.move(method, cart[0], cart[1], T, settle=SETTLE, hoist=hoist)
     # the served trajectory: a column per joint, from the hold to the goal of each
@@ -74,7 +74,7 @@ def test_a_move_that_hoists_streams_both_joints_and_leaves_no_swing(hoist_crane,
 
 
 def test_a_cart_move_holds_the_rope_and_a_rope_of_no_length_is_refused(hoist_crane):
-    from crane_msgs_py.conversions import joint_trajectory_to_arrays, move_message
+    from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays, move_message
     driver = hoist_crane
     hold = driver.planner.call(None, None, 0.0, 0.0, move=move_message([0.1], 3.0, method='zv',
                                                                           joint_names=['cart']))
@@ -92,7 +92,7 @@ def test_a_move_past_a_wall_is_lifted_over_it_and_the_measured_masses_keep_out_a
     from joint_states both masses stay out of the wall by the margin (less 1 mm of measurement), the move ends
     at its goal without swing. The same move canceled when the load is over the wall stops without entering
     it."""
-    from crane_msgs_py.conversions import move_message
+    from crane_msgs_py.messages.conversions import move_message
     from crane_planner.planning.keep_out import boxes_from_flat
     from crane_planner.tools.harness import measured_masses, state_columns
     driver = hoist_crane

@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import METHODS, SHAPER_METHODS
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.plan import PlanError
@@ -65,7 +65,7 @@ class Crane:
     def __init__(self, driver):
         from rclpy.parameter_client import AsyncParameterClient
 
-        from crane_msgs_py.names import PLANNER_NODE
+        from crane_msgs_py.messages.names import PLANNER_NODE
 
         self.driver, self.nodes = driver, driver.nodes  # the driver records joint_states and the plans
         self.node = driver.node
@@ -94,7 +94,7 @@ class Crane:
         return status
 
     def values(self, node: str, task: str, after: int = 0, predicate=None) -> dict:
-        from crane_msgs_py.diagnostics import status_values
+        from crane_msgs_py.runtime.diagnostics import status_values
         return status_values(self.status(node, task, after, predicate=predicate))
 
     @contextmanager
@@ -113,10 +113,10 @@ class Crane:
         from rclpy.experimental import EventsExecutor
         from trajectory_msgs.msg import JointTrajectory
 
-        from crane_msgs_py.conversions import read_reference
-        from crane_msgs_py.names import REFERENCE_TOPIC
-        from crane_msgs_py.qos import REFERENCE_EVERY_SAMPLE_QOS, recording
-        from crane_msgs_py.runner import spinning
+        from crane_msgs_py.messages.conversions import read_reference
+        from crane_msgs_py.messages.names import REFERENCE_TOPIC
+        from crane_msgs_py.runtime.qos import REFERENCE_EVERY_SAMPLE_QOS, recording
+        from crane_msgs_py.runtime.runner import spinning
         rows = []
         node = rclpy.create_node('crane_it_recorder', namespace=NS)
         if arrival:
@@ -154,7 +154,7 @@ class Crane:
         machine) is streamed whole from the next tick: the stamps follow that.
         The goal's result is ``self.driver.move_result(start)``.
         """
-        from crane_msgs_py.conversions import joint_trajectory_to_arrays, stamp_ns
+        from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays, stamp_ns
         start_ns, _, traj = self.driver.move(method, self.hold, goal, duration, settle=SETTLE)
         t, p, v, a = joint_trajectory_to_arrays(traj)
         plan = SimpleNamespace(t=t, position=p, velocity=v, acceleration=a, start_ns=stamp_ns(traj.header.stamp),
@@ -187,7 +187,7 @@ def crane(start_crane):
 
 def quintic_trajectory(start: float, goal: float, duration: float, stamp_ns: int = 0):
     """A rest-to-rest quintic as the planner would publish it (independent of the planner)."""
-    from crane_msgs_py.conversions import samples_to_joint_trajectory
+    from crane_msgs_py.messages.conversions import samples_to_joint_trajectory
     t = np.append(np.arange(0.0, duration, 0.01), duration)
     s = t / duration
     d = goal - start
@@ -202,7 +202,7 @@ def quintic_trajectory(start: float, goal: float, duration: float, stamp_ns: int
 
 @pytest.mark.parametrize('method', METHODS)
 def test_method_is_planned_published_streamed_and_leaves_no_swing(crane, method):
-    from crane_msgs_py.conversions import joint_trajectory_to_arrays
+    from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays
     T = duration_for(method)
     start, goal = crane.hold, crane.next_goal()
     crane.driver.reset_sim()  # the simulated crane has no damping: start each motion at rest
@@ -407,7 +407,7 @@ def test_the_harness_finds_a_late_motion_s_trajectory_by_the_start_it_was_stream
     """A move whose start had passed when it reached the streamer starts at the streamer's next tick, the
     start CraneHarness.move returns; CraneHarness.trajectory of that start is the trajectory the planner
     published, stamped with the start asked for (crane-demo reads a late plan so, and must not fail under load)."""
-    from crane_msgs_py.conversions import stamp_ns
+    from crane_msgs_py.messages.conversions import stamp_ns
     crane.driver.reset_sim()
     hold, goal = crane.hold, crane.next_goal()
     asked = crane.now() - 300_000_000
@@ -440,7 +440,7 @@ def test_a_request_exhausting_max_solve_time_delays_no_other(crane):
     bench/service_load.py.)"""
     import threading
 
-    from crane_msgs_py.diagnostics import ERROR, status_float, status_values
+    from crane_msgs_py.runtime.diagnostics import ERROR, status_float, status_values
     budget = 1.0  # the default max_solve_time
     rng = np.random.default_rng(4)
     typical = []
@@ -592,7 +592,7 @@ def test_impaired_stream_shows_delay_and_loss_and_every_node_survives(crane):
 
 
 def _values(status):
-    from crane_msgs_py.diagnostics import status_values
+    from crane_msgs_py.runtime.diagnostics import status_values
     return status_values(status)
 
 
@@ -602,9 +602,9 @@ def _values(status):
 def test_streamer_refuses_a_jump_and_a_trajectory_arriving_mid_stream(crane):
     from trajectory_msgs.msg import JointTrajectory
 
-    from crane_msgs_py.diagnostics import ERROR
-    from crane_msgs_py.names import TRAJECTORY_TOPIC
-    from crane_msgs_py.qos import TRAJECTORY_QOS
+    from crane_msgs_py.messages.names import TRAJECTORY_TOPIC
+    from crane_msgs_py.runtime.diagnostics import ERROR
+    from crane_msgs_py.runtime.qos import TRAJECTORY_QOS
     pub = crane.publisher(JointTrajectory, TRAJECTORY_TOPIC, TRAJECTORY_QOS)
     try:
         hold = crane.hold
@@ -655,8 +655,8 @@ def test_bad_request_is_refused_naming_the_field_moves_nothing_and_a_good_one_su
         crane, request_, field, reason):
     """Each bad PlanMove is success: false with a message naming the field, also on /diagnostics; the
     same move as an ExecuteMove goal is aborted with the same reason and streams nothing."""
-    from crane_msgs_py.conversions import move_message
-    from crane_msgs_py.diagnostics import ERROR, status_values
+    from crane_msgs_py.messages.conversions import move_message
+    from crane_msgs_py.runtime.diagnostics import ERROR, status_values
     method, joints, start, goal, duration = request_
     move = move_message(goal, duration, start, method, joints)
     mark = crane.diagnostics.mark()
@@ -685,7 +685,7 @@ def test_bad_request_is_refused_naming_the_field_moves_nothing_and_a_good_one_su
 def test_bad_planner_parameter_is_refused_with_reason_and_planning_goes_on(crane, name, value, words):
     from rclpy.parameter import Parameter
 
-    from crane_msgs_py.diagnostics import ERROR
+    from crane_msgs_py.runtime.diagnostics import ERROR
     mark = crane.diagnostics.mark()
     future = crane.planner_params.set_parameters([Parameter(name, value=value)])
     deadline = time.monotonic() + 5.0
@@ -719,7 +719,7 @@ def test_keep_out_boxes_set_on_the_planner_refuse_a_preview_through_one_and_give
     """A wall across the runway 0.10 m above the load, 0.25 m ahead of the cart at 5 m: a move through it is
     refused naming it (also on /diagnostics); one that stops before it says its clearance; a box of five
     numbers is refused naming the parameter; without boxes the clearance is infinite."""
-    from crane_msgs_py.diagnostics import ERROR
+    from crane_msgs_py.runtime.diagnostics import ERROR
     from crane_planner.tools.harness import HarnessError
     wall = [5.25, 5.35, -math.inf, math.inf, -2.0, -0.76]
     crane.driver.set_parameters('planner', {'keep_out': wall, 'keep_out_margin': 0.02})
@@ -735,8 +735,8 @@ def test_keep_out_boxes_set_on_the_planner_refuse_a_preview_through_one_and_give
         # the planner draws the box on crane_markers (once a second, expiring after 2 s)
         from visualization_msgs.msg import MarkerArray
 
-        from crane_msgs_py.names import MARKERS_TOPIC
-        from crane_msgs_py.qos import MARKERS_QOS
+        from crane_msgs_py.messages.names import MARKERS_TOPIC
+        from crane_msgs_py.runtime.qos import MARKERS_QOS
         drawn = []
         sub = crane.driver.node.create_subscription(
             MarkerArray, MARKERS_TOPIC, lambda m: drawn.extend(k for k in m.markers if k.ns == 'keep_out'), MARKERS_QOS)
@@ -771,7 +771,7 @@ def fastest_when_built(crane, method: str, start: float, goal: float, within: fl
 def test_fastest_services_answer_the_shortest_plan_within_the_limits_and_refuse_without(crane):
     """~/fastest/<method>: the goal stamp is ignored, the last pose carries the end time, equal to the
     planning core's own fastest plan; refused naming the missing limit when none is set."""
-    from crane_msgs_py.params import CraneParams
+    from crane_msgs_py.crane.params import CraneParams
     from crane_planner.planning import PlanOptions
     from crane_planner.serving import Planner
     with pytest.raises(PlanError, match='needs max_velocity or max_acceleration'):
@@ -801,9 +801,9 @@ def test_fastest_services_answer_the_shortest_plan_within_the_limits_and_refuse_
 def test_sim_ignores_and_counts_nonfinite_out_of_order_and_stale_references(crane):
     from trajectory_msgs.msg import JointTrajectory
 
-    from crane_msgs_py.conversions import fill_reference, reference_message
-    from crane_msgs_py.names import REFERENCE_TOPIC
-    from crane_msgs_py.qos import REFERENCE_QOS
+    from crane_msgs_py.messages.conversions import fill_reference, reference_message
+    from crane_msgs_py.messages.names import REFERENCE_TOPIC
+    from crane_msgs_py.runtime.qos import REFERENCE_QOS
     crane.driver.reset_sim()
     pub = crane.publisher(JointTrajectory, REFERENCE_TOPIC, REFERENCE_QOS)
     try:
@@ -842,8 +842,8 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
 
     from trajectory_msgs.msg import JointTrajectory
 
-    from crane_msgs_py.diagnostics import status_values
-    from crane_msgs_py.qos import TRAJECTORY_QOS
+    from crane_msgs_py.runtime.diagnostics import status_values
+    from crane_msgs_py.runtime.qos import TRAJECTORY_QOS
     from crane_planner.tools.processes import SIM, STREAMER, NodeGroup
     ns = f'{NS}_f64'
     with NodeGroup(ros_domain, tmp_path) as nodes:
@@ -898,10 +898,10 @@ def test_markers_draw_the_crane_of_the_published_joint_states(crane):
     from sensor_msgs.msg import JointState
     from visualization_msgs.msg import MarkerArray
 
-    from crane_msgs_py.conversions import CABLES_MARKER, CART_MARKER, MASS1_MARKER, MASS2_MARKER, stamp_ns
-    from crane_msgs_py.names import JOINT_STATES_TOPIC, MARKERS_TOPIC
-    from crane_msgs_py.qos import JOINT_STATES_QOS, MARKERS_QOS, recording
-    from crane_msgs_py.runner import spinning
+    from crane_msgs_py.messages.conversions import CABLES_MARKER, CART_MARKER, MASS1_MARKER, MASS2_MARKER, stamp_ns
+    from crane_msgs_py.messages.names import JOINT_STATES_TOPIC, MARKERS_TOPIC
+    from crane_msgs_py.runtime.qos import JOINT_STATES_QOS, MARKERS_QOS, recording
+    from crane_msgs_py.runtime.runner import spinning
     L1, L2 = 0.47, 0.391
     states, markers = {}, {}
     deep_states, deep_markers = (recording(qos, 10.0, 50.0) for qos in (JOINT_STATES_QOS, MARKERS_QOS))

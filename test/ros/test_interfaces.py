@@ -32,7 +32,7 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 from crane_interfaces.action import ExecuteMove
 from crane_interfaces.msg import PlanInfo
 from crane_interfaces.srv import PlanMove
-from crane_msgs_py.dds import use_node_profiles
+from crane_msgs_py.runtime.dds import use_node_profiles
 
 
 def info_for(move):
@@ -217,5 +217,5 @@ def test_plan_move_and_execute_move_over_dds(server, client_node):
     assert fb.progress == 0.5 and fb.time_remaining == pytest.approx(1.625) and math.isnan(fb.swing)
     action_client.destroy()
     assert proc.poll() is None, log_path.read_text()
-    # the nodes' Fast DDS profile (crane_msgs_py.dds) was loaded without a complaint, no answer was dropped
+    # the nodes' Fast DDS profile (crane_msgs_py.runtime.dds) was loaded without a complaint, no answer was dropped
     assert 'XMLPARSER' not in log_path.read_text() and 'failed to send response' not in log_path.read_text()

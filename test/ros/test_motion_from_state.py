@@ -4,7 +4,7 @@ streamed reference from the 1 kHz ``reference`` topic."""
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 
 NS = '/crane_any_state'
 T = 3.0
@@ -89,7 +89,7 @@ def test_the_handover_warm_up_rehearses_during_a_motion_and_sends_nothing(crane)
     /diagnostics counts the rehearsals from its trajectory sent to its end, each shorter than the period; the
     topic carried the goal's own trajectory only, and the crane ends at its goal, not where the rehearsals
     went. 0 turns it off."""
-    from crane_msgs_py.diagnostics import status_float
+    from crane_msgs_py.runtime.diagnostics import status_float
     driver = crane
     mark = driver.planner.diagnostics.mark()
     before = driver.sent_trajectories()
@@ -137,7 +137,7 @@ def test_cancel_at_half_way_stops_the_crane_without_swing(crane):
     assert np.ptp(rec[:, 3]) < 1e-5 and rec[-1, 3] == pytest.approx(where, abs=1e-4)
     # the stop took over during the motion and braked forward from where the motion was then (how far into
     # the motion depends on how long the stop took to plan: a loaded host plans it further ahead)
-    from crane_msgs_py.conversions import joint_trajectory_to_arrays
+    from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays
     from crane_planner.streaming.hermite import QuinticHermite
     t_k, p, v, a = joint_trajectory_to_arrays(traj, 'cart')
     assert start < stop < start + round(T * 1e9)
@@ -168,7 +168,7 @@ def test_settle_damps_a_push_below_1_mm_within_3_s(crane):
 
 
 def test_settle_is_refused_during_a_motion_and_a_goal_with_a_start_mid_move(crane):
-    from crane_msgs_py.errors import PlanError
+    from crane_msgs_py.crane.errors import PlanError
     from crane_planner.tools.harness import HarnessError
     driver = crane
     start, _, _ = driver.move('zv', 0.0, 0.2, T, settle=0.5)

@@ -5,7 +5,7 @@ import signal
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 
 NS = '/crane_operator'
 NOMINAL = CraneParams()
@@ -99,7 +99,7 @@ def test_a_lost_stick_stops_the_crane_within_the_timeout_and_the_stop(crane):
 
 
 def test_operator_mode_refuses_trajectories_and_its_stop_brakes_without_swing(crane):
-    from crane_msgs_py.errors import PlanError
+    from crane_msgs_py.crane.errors import PlanError
     driver = crane
     with pytest.raises(PlanError, match='the streamer is in operator mode'):
         driver.move('zv', None, 0.3, 3.0)

@@ -23,7 +23,7 @@ def test_every_message_of_a_500_hz_publisher_is_recorded_with_its_receive_time(r
     from mcap_ros2.decoder import DecoderFactory
     from sensor_msgs.msg import JointState
 
-    from crane_msgs_py.qos import JOINT_STATES_QOS
+    from crane_msgs_py.runtime.qos import JOINT_STATES_QOS
 
     rclpy.init()
     node = rclpy.create_node('record_source', namespace='/rec_test')
@@ -108,7 +108,7 @@ def test_a_topic_seen_only_through_its_subscribers_has_no_publisher_to_record(ro
     import rclpy
     from trajectory_msgs.msg import JointTrajectory
 
-    from crane_msgs_py.qos import TRAJECTORY_QOS
+    from crane_msgs_py.runtime.qos import TRAJECTORY_QOS
     rclpy.init()
     node = rclpy.create_node('only_a_subscriber', namespace='/sub_only')
     node.create_subscription(JointTrajectory, 'trajectory', lambda _: None, TRAJECTORY_QOS)

@@ -10,7 +10,7 @@ import signal
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 
 NS = '/crane_bridge'
 T = 3.0
@@ -50,7 +50,7 @@ def record(driver, begin_ns: int, end_ns: int) -> dict:
 
 def swing_mm(rec: dict) -> np.ndarray:
     """The load's horizontal offset from below the suspension point (mm) at each joint_state."""
-    from crane_sim.spatial import load_offset
+    from crane_msgs_py.crane.geometry import load_offset
     return 1e3 * np.hypot(*load_offset(rec['theta1'], rec['theta2'], rec['phi1'], rec['phi2'], NOMINAL.L1,
                                        NOMINAL.L2))
 
@@ -177,7 +177,7 @@ def test_a_move_past_a_column_goes_around_it_with_the_bridge_and_the_measured_ma
     """The cart's 0.6 m in 4 s past a column at x 0.25-0.35 m, y -0.1-0.1 m up to 0.1 m below the trolley
     (contract): NVF takes the load around it with the bridge (PlanInfo route around) and ends at (0.6, 0)
     without swing; measured from joint_states both masses stay out of it by the margin (less 1 mm)."""
-    from crane_msgs_py.conversions import move_message
+    from crane_msgs_py.messages.conversions import move_message
     from crane_planner.planning.keep_out import boxes_from_flat
     from crane_planner.tools.harness import measured_masses
     driver = crane
@@ -220,7 +220,7 @@ def test_a_preview_through_a_via_point_passes_it_moving_and_a_shapers_off_its_li
     """PlanMove with Move.via (contract): (0, 0) -> (0.6, 0.4) via (0.5, 0.0) in 4 s: the NVF trajectory (its
     knots as the streamer interpolates them) passes within 1 mm of the via point at >= 0.02 m/s; ZV is refused
     naming the point; nothing moves."""
-    from crane_msgs_py.conversions import joint_trajectory_to_arrays, move_message
+    from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays, move_message
     from crane_planner.streaming.hermite import QuinticHermite
     driver = crane
     sent = len(driver.sent_trajectories())

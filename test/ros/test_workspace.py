@@ -167,7 +167,7 @@ def test_colcon_installed_node_starts_and_answers(colcon_install, ros_domain, tm
     from crane_interfaces.srv import PlanMove
     from std_srvs.srv import Trigger
 
-    from crane_msgs_py.conversions import move_message
+    from crane_msgs_py.messages.conversions import move_message
     from crane_planner.tools.processes import ros_args
 
     env = colcon_env(colcon_install, ros_domain)

@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanOptions
 from crane_planner.serving import Planner
 from crane_planner.serving.moves import AxisMove, Move, MoveBounds, MoveError, check_move, plan_move, summarize

@@ -5,7 +5,7 @@ import time
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams, ParameterError
+from crane_msgs_py.crane.params import CraneParams, ParameterError
 from crane_planner.planning import PlanError, PlanOptions
 from crane_planner.planning.direct import DirectSolver
 from crane_planner.planning.dispatch import VariationalRequest

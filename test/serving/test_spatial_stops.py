@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from references import peak_swing_at_rest
 
-from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, plan
 from crane_planner.planning.plan import PlanError
 from crane_planner.planning.signals import Swing

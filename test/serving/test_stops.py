@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning.dispatch import SolverCache, plan
 from crane_planner.planning.plan import PlanError
 from crane_planner.serving.stops import STOP_LEAD, StopRequest, StopWarmup, StopWorker, plan_stop, warmups

@@ -3,8 +3,8 @@ every handover is checked against the streamer's own rules (ReferenceStream) and
 import numpy as np
 import pytest
 
-from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
+from crane_msgs_py.messages.names import CART_JOINT, HOIST_JOINT
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, plan
 from crane_planner.planning.plan import AxesPlan, PlanError
 from crane_planner.planning.signals import Swing

@@ -17,7 +17,7 @@ from multiprocessing import forkserver
 
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanError, PlanOptions
 from crane_planner.planning.dispatch import VariationalRequest
 from crane_planner.serving import Planner

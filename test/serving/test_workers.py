@@ -16,7 +16,7 @@ import threading
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import PlanError, PlanOptions
 from crane_planner.planning.dispatch import VariationalRequest
 from crane_planner.serving import Planner

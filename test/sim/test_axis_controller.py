@@ -11,8 +11,8 @@ import itertools
 
 import pytest
 
-from crane_msgs_py.braking import Braking, stopping_distance
-from crane_msgs_py.params import CraneParams, ParameterError
+from crane_msgs_py.crane.braking import Braking, stopping_distance
+from crane_msgs_py.crane.params import CraneParams, ParameterError
 from crane_sim.axis_controller import (
     FAULT_STATES,
     TRANSITIONS,

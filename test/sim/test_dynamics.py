@@ -3,8 +3,9 @@ import numpy as np
 import pytest
 from references import lagrangian_energy, linearized_modes
 
-from crane_msgs_py.params import CraneParams
-from crane_sim.dynamics import load_excursion, swing_accelerations
+from crane_msgs_py.crane.geometry import load_excursion
+from crane_msgs_py.crane.params import CraneParams
+from crane_sim.dynamics import swing_accelerations
 from crane_sim.simulator import simulate
 
 P = CraneParams()

@@ -8,7 +8,7 @@ upper cable does work on them, through the cart and the hoist).
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_sim.dynamics import hoisting_accelerations, mass_positions
 from crane_sim.simulator import HOIST_STATE_NAMES, STATE_NAMES, SimulationError, simulate
 

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_sim.metrics import peak, residual_load_mm, rms, swing_metrics, window
 from crane_sim.simulator import STATE_NAMES, PlantBatch, SimResult, SimulationError
 

@@ -6,7 +6,7 @@ import pytest
 import scipy.linalg
 from references import lagrangian_energy
 
-from crane_msgs_py.params import CraneParams, ParameterError
+from crane_msgs_py.crane.params import CraneParams, ParameterError
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.profiles import quintic
 from crane_sim.simulator import CraneSimulator, CraneState, SimulationError, simulate

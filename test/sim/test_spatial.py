@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_sim.dynamics import hoisting_accelerations
 from crane_sim.simulator import CraneSimulator, SpatialSwing, simulate
 from crane_sim.spatial import SpatialPendulum

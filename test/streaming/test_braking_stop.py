@@ -7,7 +7,7 @@ and the axis stops where ``braking.stopping_distance`` (checked against ruckig i
 import numpy as np
 import pytest
 
-from crane_msgs_py.braking import stopping_distance
+from crane_msgs_py.crane.braking import stopping_distance
 from crane_planner.streaming.braking_stop import LEADS, brake, braking_stop
 from crane_planner.streaming.reference_stream import ReferenceStream
 

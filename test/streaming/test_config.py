@@ -2,7 +2,7 @@
 values are refused naming the parameter, the mode changes only at rest."""
 import pytest
 
-from crane_msgs_py.params import ParameterError
+from crane_msgs_py.crane.params import ParameterError
 from crane_planner.streaming.config import PARAMETERS, StreamerConfig
 
 DEFAULTS = {name: default for name, (default, _, _) in PARAMETERS.items()}

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import ParameterError
+from crane_msgs_py.crane.params import ParameterError
 from crane_planner.streaming.impairment import DelayLine, Impairment, Link
 
 N = 20000

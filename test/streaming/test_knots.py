@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import METHODS, SHAPER_METHODS
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.plan import Plan

@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from crane_msgs_py.axes import AxisLimits
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.axes import AxisLimits
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning.plan import PlanError
 from crane_planner.streaming.operator import OperatorStream
 from crane_sim.simulator import simulate

@@ -1,5 +1,5 @@
 """streaming.status: the streamer's /diagnostics status."""
-from crane_msgs_py import diagnostics
+from crane_msgs_py.runtime import diagnostics
 from crane_planner.streaming import status
 from crane_planner.streaming.start_position import StartPosition
 

@@ -6,7 +6,7 @@ yardstick, is simulated here the same way.
 """
 import pytest
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning.hoisting import quintic_axes_plan
 from crane_planner.tools.evaluate import residual_load_mm, simulate_plans
 from crane_planner.tools.spatial_demo import (

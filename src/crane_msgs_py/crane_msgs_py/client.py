@@ -25,12 +25,12 @@ from crane_interfaces.srv import PlanMove
 from rclpy.callback_groups import ReentrantCallbackGroup
 from trajectory_msgs.msg import JointTrajectory
 
-from .action_client import ActionClient
-from .conversions import joint_trajectory_to_arrays, move_message, stamp_ns
-from .diagnostics import DiagnosticsReader
-from .errors import PlanError
-from .names import EXECUTE_MOVE_ACTION, PLAN_MOVE_SERVICE, PLANNER_NODE, service_of
-from .qos import PLAN_MOVE_QOS
+from crane_msgs_py.crane.errors import PlanError
+from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays, move_message, stamp_ns
+from crane_msgs_py.messages.names import EXECUTE_MOVE_ACTION, PLAN_MOVE_SERVICE, PLANNER_NODE, service_of
+from crane_msgs_py.runtime.action_client import ActionClient
+from crane_msgs_py.runtime.diagnostics import DiagnosticsReader
+from crane_msgs_py.runtime.qos import PLAN_MOVE_QOS
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ follows the reference accelerations it returns, as always. Its states
   integrated here step by step into the reference's velocity and position.
 - ``FAULT_STOPPING``: the stream was lost (the playout had no fresh sample for
   its timeout, or samples went missing mid-motion, ``played``): each axis brakes its reference from its velocity and
-  acceleration then to rest along ``crane_msgs_py.braking.Braking`` at
+  acceleration then to rest along ``crane_msgs_py.crane.braking.Braking`` at
   ``FaultConfig.deceleration`` and ``jerk``. Samples are refused meanwhile.
 - ``FAULT_HOLD``: braked to rest, holding. A sample whose position is within
   ``resume_tolerance`` of every axis's held position, at rest (within
@@ -40,20 +40,11 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
-from crane_msgs_py.braking import Braking
-from crane_msgs_py.params import ParameterError, check_positive
+from crane_msgs_py.crane.braking import Braking
+from crane_msgs_py.crane.drive import FAULT_STATES, AxisState
+from crane_msgs_py.crane.params import ParameterError, check_positive
 
 from .playout import moved_across_gap
-
-
-class AxisState(enum.Enum):
-    """The controller's state (module docstring); the values are crane_interfaces/AxisStatus's ``state``."""
-
-    IDLE = 'idle'
-    TRACKING = 'tracking'
-    FAULT_STOPPING = 'fault_stopping'
-    FAULT_HOLD = 'fault_hold'
-
 
 S = AxisState
 #: state -> the states it may change to. A reset goes to IDLE from every state; a stream lost always goes
@@ -64,8 +55,6 @@ TRANSITIONS = {
     S.FAULT_STOPPING: frozenset({S.IDLE, S.FAULT_HOLD}),
     S.FAULT_HOLD: frozenset({S.IDLE, S.TRACKING}),
 }
-#: The states of a fault reaction.
-FAULT_STATES = frozenset({S.FAULT_STOPPING, S.FAULT_HOLD})
 
 
 class IllegalTransition(RuntimeError):

@@ -135,12 +135,3 @@ def mass_positions(cart, theta1, theta2, L1, L2):
     phi = theta1 + theta2
     x1, z1 = cart - L1 * np.sin(theta1), -L1 * np.cos(theta1)
     return x1, z1, x1 - L2 * np.sin(phi), z1 - L2 * np.cos(phi)
-
-
-def load_excursion(theta1, theta2, L1, L2):
-    """Horizontal offset (m) of the load m2 from its rest position below the cart.
-
-    x_cart - x_m2 = L1 sin(theta1) + L2 sin(theta1 + theta2) (Fig. 1);
-    positive when the load lags behind the cart.
-    """
-    return L1 * np.sin(theta1) + L2 * np.sin(theta1 + theta2)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from crane_msgs_py.params import check_nonnegative
+from crane_msgs_py.crane.params import check_nonnegative
 
 
 class AngleNoise:

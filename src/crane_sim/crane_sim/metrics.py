@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .dynamics import load_excursion
+from crane_msgs_py.crane.geometry import load_excursion
+
 from .simulator import PlantBatch, SimResult, SimulationError
 
 #: Relative slack on window ends, so grid times t0 + k dt that round to just

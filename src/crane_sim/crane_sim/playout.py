@@ -48,7 +48,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from crane_msgs_py.params import check_choice
+from crane_msgs_py.crane.params import check_choice
 
 from .simulator import INTERPOLATIONS, SOURCES, SimulationError
 

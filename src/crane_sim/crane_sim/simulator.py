@@ -31,9 +31,9 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from crane_msgs_py.axes import AXIS_NAMES, axis, check_axes
-from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import (
+from crane_msgs_py.crane.axes import AXIS_NAMES, axis, check_axes
+from crane_msgs_py.crane.geometry import load_swing
+from crane_msgs_py.crane.params import (
     PARAMETER_NAMES,
     CraneParams,
     ParameterError,
@@ -42,9 +42,10 @@ from crane_msgs_py.params import (
     check_parameter,
     check_positive,
 )
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 
 from .dynamics import SwingModel, hoisting_accelerations
-from .spatial import SPATIAL_SWING_NAMES, SpatialPendulum, load_swing
+from .spatial import SPATIAL_SWING_NAMES, SpatialPendulum
 
 
 @dataclass(frozen=True)
@@ -58,7 +59,7 @@ class AxisServo:
     start: str | None = None
 
 
-#: The simulator's physics of each axis of ``crane_msgs_py.axes``, by axis name.
+#: The simulator's physics of each axis of ``crane_msgs_py.crane.axes``, by axis name.
 SERVOS = {CART_JOINT: AxisServo(('y', 'v', 'a'), 'tau'),
           BRIDGE_JOINT: AxisServo(('yb', 'vb', 'ab'), 'tau'),
           HOIST_JOINT: AxisServo(('L1', 'dL1', 'ddL1'), 'tau_hoist', start='L1')}
@@ -98,7 +99,7 @@ class SimulationError(ValueError):
 
 @dataclass(frozen=True)
 class Layout:
-    """Which row of a state array holds what, for a crane with ``axes`` (names of ``crane_msgs_py.axes``, in
+    """Which row of a state array holds what, for a crane with ``axes`` (names of ``crane_msgs_py.crane.axes``, in
     its order): the first axis's rows, the swing's, then each further axis's."""
 
     axes: tuple[str, ...] = (CART_JOINT,)
@@ -154,7 +155,7 @@ class PlantBatch:
         """From one params object / mapping, or a sequence of them (validated).
 
         Anything with attributes (or keys) ``L1 L2 m1 m2 g tau c1 c2`` is accepted,
-        e.g. ``crane_msgs_py.params.CraneParams``; ``tau_hoist`` defaults to CraneParams'.
+        e.g. ``crane_msgs_py.crane.params.CraneParams``; ``tau_hoist`` defaults to CraneParams'.
         """
         if isinstance(plants, PlantBatch):
             return plants
@@ -502,7 +503,7 @@ def simulate(t_ref, references, plants, *, dt: float = 1e-3, t_end: float | None
     Args:
         t_ref: sample times (s), strictly increasing; the simulation starts at t_ref[0].
         references: the cart's reference samples, or the references of several axes by axis name
-            (``crane_msgs_py.axes``: ``{'cart': ..., 'hoist': ...}``; the cart's is always needed): each an
+            (``crane_msgs_py.crane.axes``: ``{'cart': ..., 'hoist': ...}``; the cart's is always needed): each an
             acceleration (m/s^2) or position (m) per sample, shape (m,) for all plants or (n_batch, m),
             one row per plant. An axis is simulated if it has a reference (the hoist: the upper cable's
             length L1 follows its reference through the servo ``tau_hoist``; the state then has the rows
@@ -744,7 +745,7 @@ class CraneSimulator:
         params: plant parameters (attributes or keys L1 L2 m1 m2 g tau c1 c2).
         dt: integration step (s).
         state: initial :class:`CraneState` (default at rest at y = 0).
-        axes: the axes driven (names of ``crane_msgs_py.axes``, the cart first); with the bridge the
+        axes: the axes driven (names of ``crane_msgs_py.crane.axes``, the cart first); with the bridge the
             suspension point moves along y too and the load swings in both directions (``phi1``, ``phi2``);
             with the hoist the upper cable's length is an axis too, driven through the servo ``tau_hoist``;
             it starts at the plant's L1 (later changes of L1 do not move it; ``reset`` keeps it where it is).

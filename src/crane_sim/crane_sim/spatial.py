@@ -49,17 +49,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .dynamics import load_excursion
+from crane_msgs_py.crane.geometry import cable_direction
 
 #: The spatial swing coordinates, in the contract's order (joint_states' order after the axes).
 SPATIAL_SWING_NAMES = ('theta1', 'theta2', 'phi1', 'phi2')
-
-
-def cable_direction(a, b) -> tuple:
-    """u(a, b): the unit vector along a cable at in-plane angle ``a`` and out-of-plane angle ``b`` (floats or
-    arrays: numpy's functions, off the real-time step's path)."""
-    cb = np.cos(b)
-    return -np.sin(a) * cb, np.sin(b), -np.cos(a) * cb
 
 
 def mass_paths(x, y, L1, L2, theta1, theta2, phi1=0.0, phi2=0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -71,22 +64,6 @@ def mass_paths(x, y, L1, L2, theta1, theta2, phi1=0.0, phi2=0.0) -> tuple[np.nda
     u2 = np.array(cable_direction(theta1 + theta2, phi1 + phi2))
     m1 = np.stack([x, y, np.zeros_like(x)]) + L1 * u1
     return m1, m1 + L2 * u2
-
-
-def load_swing(theta1, theta2, L1, L2, phi1=None, phi2=None):
-    """The load's swing (m), floats or arrays: on the planar crane (no ``phi``) its offset along x, signed,
-    positive when it lags (``dynamics.load_excursion``, Fig. 1); with ``phi1``, ``phi2`` (a crane with a
-    bridge) the norm of its horizontal offset from below the suspension point (contract)."""
-    if phi1 is None:
-        return load_excursion(theta1, theta2, L1, L2)
-    return np.hypot(*load_offset(theta1, theta2, phi1, phi2, L1, L2))
-
-
-def load_offset(theta1, theta2, phi1, phi2, L1, L2) -> tuple:
-    """(dx, dy): the load m2's horizontal position relative to the suspension point (floats or arrays);
-    its norm is the spatial crane's swing (contract)."""
-    u1, u2 = cable_direction(theta1, phi1), cable_direction(theta1 + theta2, phi1 + phi2)
-    return L1 * u1[0] + L2 * u2[0], L1 * u1[1] + L2 * u2[1]
 
 
 @dataclass(frozen=True)

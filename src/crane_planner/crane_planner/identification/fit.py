@@ -43,7 +43,7 @@ from scipy.interpolate import make_interp_spline
 from scipy.optimize import least_squares
 from scipy.signal import find_peaks
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 
 from ..planning.dynamics import swing_accelerations
 from ..planning.model import modal_properties

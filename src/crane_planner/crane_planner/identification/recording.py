@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.errors import PlanError
+from crane_msgs_py.crane.errors import PlanError
 
 REQUIRED_COLUMNS = ('t', 'cart', 'theta1', 'theta2')
 #: Fewest samples a fit is attempted on.

@@ -26,12 +26,13 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from crane_msgs_py import conversions, names, qos
-from crane_msgs_py.action_server import ActionServer
-from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from crane_msgs_py.node_parameters import Guard, declare
-from crane_msgs_py.realtime import fix_mmap_threshold, set_threads_fifo
-from crane_msgs_py.runner import run, spinning
+from crane_msgs_py.messages import conversions, names
+from crane_msgs_py.runtime import qos
+from crane_msgs_py.runtime.action_server import ActionServer
+from crane_msgs_py.runtime.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from crane_msgs_py.runtime.node_parameters import Guard, declare
+from crane_msgs_py.runtime.realtime import fix_mmap_threshold, set_threads_fifo
+from crane_msgs_py.runtime.runner import run, spinning
 from crane_planner.planning import METHODS, VARIATIONAL_METHODS
 from crane_planner.serving import Planner, service
 from crane_planner.serving.config import PARAMETERS, Config

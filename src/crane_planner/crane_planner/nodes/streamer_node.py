@@ -27,11 +27,12 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from crane_msgs_py import conversions, names, qos
-from crane_msgs_py.diagnostics import ERROR, OK, DiagnosticsPublisher
-from crane_msgs_py.node_parameters import Guard, declare
-from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
-from crane_msgs_py.runner import LoopThread, run
+from crane_msgs_py.messages import conversions, names
+from crane_msgs_py.runtime import qos
+from crane_msgs_py.runtime.diagnostics import ERROR, OK, DiagnosticsPublisher
+from crane_msgs_py.runtime.node_parameters import Guard, declare
+from crane_msgs_py.runtime.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
+from crane_msgs_py.runtime.runner import LoopThread, run
 from crane_planner.serving.stops import StopWorker
 from crane_planner.streaming.config import INITIAL_POSITIONS, PARAMETERS, StreamerConfig
 from crane_planner.streaming.impairment import Link

@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from crane_msgs_py.axes import AXIS_NAMES, BRIDGE, CART, HOIST, axis
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.axes import AXIS_NAMES, BRIDGE, CART, HOIST, axis
+from crane_msgs_py.crane.params import CraneParams
 
 from .dynamics import PARAMETERS, crane_ode
 from .model import modal_frequencies
@@ -79,7 +79,7 @@ class MotionState:
     """The crane at one instant, SI units.
 
     Attributes:
-        axes: each axis's ``AxisState`` by its name (``crane_msgs_py.axes``), kept in
+        axes: each axis's ``AxisState`` by its name (``crane_msgs_py.crane.axes``), kept in
             ``AXES`` order; the cart's always, the others' if the crane has them.
         swing: the load's ``Swing``: the planar crane's, with a bridge the spatial crane's (phi too);
             None = the load hanging still.

@@ -15,8 +15,8 @@ import time
 
 import numpy as np
 
-from crane_msgs_py.axes import AxisLimits
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.axes import AxisLimits
+from crane_msgs_py.crane.params import CraneParams
 
 from .collocation import CollocationPlan, Transcription, keep_out_values
 from .free_time import FreeTimeSearch

@@ -19,9 +19,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Callable
 
-from crane_msgs_py.axes import AXES, AXIS_NAMES, AxisLimits, axis
-from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import (
+from crane_msgs_py.crane.axes import AXES, AXIS_NAMES, AxisLimits, axis
+from crane_msgs_py.crane.params import (
     CraneParams,
     ParameterError,
     check_choice,
@@ -29,6 +28,7 @@ from crane_msgs_py.params import (
     check_nonnegative,
     check_positive,
 )
+from crane_msgs_py.messages.names import CART_JOINT, HOIST_JOINT
 
 from .hoisting import HOIST_SHAPER_DESIGNS, check_hoist, shaped_hoisting_plan, travel_displacements
 from .limits import axis_limit_error, check_fastest_request
@@ -67,7 +67,7 @@ class PlanOptions:
             axis's limits on its reference (m/s, m/s^2, m/s^3), None = no limit.
         limits: the axes' limits as ``AxisLimits`` by axis name, in place of (or agreeing with) the
             flat keywords above, which remain how the cart's and the hoist's are given; after
-            construction the ``AxisLimits`` of every axis in ``crane_msgs_py.axes.AXES`` order (read
+            construction the ``AxisLimits`` of every axis in ``crane_msgs_py.crane.axes.AXES`` order (read
             them with ``limits_of``), the flat fields the same values.
         hoist_robust: the parameters RVF is made insensitive to while
             hoisting (it replaces ``robust`` then): the payload's cable ``L2``

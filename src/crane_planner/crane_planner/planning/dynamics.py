@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from crane_msgs_py.params import PARAMETER_NAMES
+from crane_msgs_py.crane.params import PARAMETER_NAMES
 
 from .signals import SPATIAL_SWING_STATES, SWING_STATES, swing_rates
 
@@ -272,7 +272,7 @@ def crane_ode(servo: bool, hoist: bool = False, hoist_servo: bool = False, bridg
     States: the cart's, then ``BRIDGE_STATES`` (with a bridge), then
     ``HOIST_STATES`` (with a hoist; ``a_ref``, ``ab_ref`` only with ``servo``,
     ``ha_ref`` only with ``hoist_servo``), then the swing. Inputs: one per axis
-    in the same order (``crane_msgs_py.axes.AXES``).
+    in the same order (``crane_msgs_py.crane.axes.AXES``).
     """
     cart_names = CART_STATES if servo else CART_STATES[:3]
     bridge_names = (BRIDGE_STATES if servo else BRIDGE_STATES[:3]) if bridge else ()

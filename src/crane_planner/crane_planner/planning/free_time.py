@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 
 from .collocation import CollocationPlan
 from .ipopt import Instance

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-from crane_msgs_py.axes import AxisLimits
+from crane_msgs_py.crane.axes import AxisLimits
 
 from .plan import PlanError
 

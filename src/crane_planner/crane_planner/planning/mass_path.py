@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 
 from .continuation import CHUNK, _rk4_steps
 from .dynamics import PARAMETERS, masses_at

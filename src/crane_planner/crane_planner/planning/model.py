@@ -12,7 +12,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 
 
 def linearized_matrices(p: CraneParams):

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from crane_msgs_py.errors import PlanError  # noqa: F401  (the planner's error type, re-exported)
+from crane_msgs_py.crane.errors import PlanError  # noqa: F401  (the planner's error type, re-exported)
 
 
 @dataclass(frozen=True)
@@ -120,7 +120,7 @@ class AxesPlan(Plan):
 
     As a ``Plan`` it is the cart's reference (so everything that reads a
     cart plan reads this one); ``axes`` holds every axis's own plan by joint
-    name in ``crane_msgs_py.axes.AXES`` order, ``cart`` first, all of the
+    name in ``crane_msgs_py.crane.axes.AXES`` order, ``cart`` first, all of the
     same duration. The bridge's plan is relative like the cart's (``starts``
     0). The hoist's too: its displacement is L1_goal - L1_start, and
     ``starts['hoist']`` is L1_start (m), where the ROS layer and the CSV put it.

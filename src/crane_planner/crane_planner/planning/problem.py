@@ -25,8 +25,8 @@ import numpy as np
 from numpy.polynomial import polynomial as poly
 from scipy.optimize import brentq
 
-from crane_msgs_py.axes import AXIS_NAMES
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.axes import AXIS_NAMES
+from crane_msgs_py.crane.params import CraneParams
 
 from .dynamics import BRIDGE_STATES, CART_STATES, HOIST_STATES, PARAMETERS, augment, crane_ode, mass_positions
 from .profiles import QUINTIC
@@ -87,7 +87,7 @@ def _state_scale(name: str, T, P, g, params: dict):
 
 
 def axis_displacements(displacement) -> dict[str, float]:
-    """{axis name: D} of a request's ``displacement``, in ``crane_msgs_py.axes.AXES`` order.
+    """{axis name: D} of a request's ``displacement``, in ``crane_msgs_py.crane.axes.AXES`` order.
 
     ``displacement`` is a number (the cart alone), a pair (the cart's and the
     hoist's, the form before the bridge), or a mapping by axis name (any of
@@ -131,7 +131,7 @@ class Form:
 
     @property
     def axes(self) -> tuple:
-        """The axes planned, in ``crane_msgs_py.axes.AXES`` order."""
+        """The axes planned, in ``crane_msgs_py.crane.axes.AXES`` order."""
         return ('cart',) + (('bridge',) if self.bridge else ()) + (('hoist',) if self.hoist else ())
 
     @classmethod

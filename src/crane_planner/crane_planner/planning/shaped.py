@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.polynomial.polynomial import polyder, polyval
 
-from crane_msgs_py.axes import AxisLimits
+from crane_msgs_py.crane.axes import AxisLimits
 
 from .limits import check_fastest_request, lead_axis, path_limits, shortest_duration_bound
 from .plan import Plan, PlanError

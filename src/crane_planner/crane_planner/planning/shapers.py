@@ -21,7 +21,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.optimize import root
 
-from crane_msgs_py.params import ParameterError, check_nonnegative, check_positive
+from crane_msgs_py.crane.params import ParameterError, check_nonnegative, check_positive
 
 #: Default EI tolerance: the residual vibration V allowed at the design frequency.
 EI_TOLERANCE = 0.05

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 
 from .collocation import CollocationPlan
 from .dynamics import BRIDGE_STATES, CART_STATES, HOIST_STATES

@@ -10,9 +10,9 @@ import threading
 
 import numpy as np
 
-from crane_msgs_py.axes import AxisLimits
-from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.axes import AxisLimits
+from crane_msgs_py.crane.params import CraneParams
+from crane_msgs_py.messages.names import CART_JOINT, HOIST_JOINT
 
 from .limits import axis_limit_error
 from .methods import Family, family_of, find_method

@@ -8,9 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from crane_msgs_py.axes import AXES
-from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, DEFAULT_FRAME_ID, HOIST_JOINT, check_joints
-from crane_msgs_py.params import (
+from crane_msgs_py.crane.axes import AXES
+from crane_msgs_py.crane.params import (
     PARAMETER_DESCRIPTIONS,
     PARAMETER_NAMES,
     CraneParams,
@@ -21,6 +20,7 @@ from crane_msgs_py.params import (
     parameter_range,
     renamed_from,
 )
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT, DEFAULT_FRAME_ID, HOIST_JOINT, check_joints
 
 from ..planning import METHODS, ROBUST_PARAMETERS, PlanOptions
 from ..planning.continuation import AxisState, MotionState, problem_start

@@ -19,7 +19,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable
 
-from crane_msgs_py.axes import AXES, CART
+from crane_msgs_py.crane.axes import AXES, CART
 
 from ..planning.signals import Swing
 from .goals import Goals
@@ -31,7 +31,8 @@ STREAM_FRESH = 1.0
 #: How long (s) a goal waits for a streamer not heard: one just (re)started is matched by discovery within a
 #: participant announcement period of Fast DDS (3 s) if its first announcements were missed.
 DISCOVERY_WAIT = 3.5
-#: ``StreamState.state`` values (``crane_msgs_py.conversions``): streaming a motion, following cmd_vel, at rest.
+#: ``StreamState.state`` values (``crane_msgs_py.messages.conversions``): streaming a motion, following cmd_vel,
+#: at rest.
 STREAMING, OPERATOR, HOLDING = 'streaming', 'operator', 'holding'
 #: A motion the streamer says it does not stream this long (ns) after its origin was refused.
 REFUSED_AFTER_NS = 100_000_000

@@ -26,12 +26,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from crane_msgs_py.names import STREAM_STATE_TOPIC
-from crane_sim.axis_controller import FAULT_STATES
-from crane_sim.spatial import load_swing
+from crane_msgs_py.crane.drive import FAULT_STATE_VALUES
+from crane_msgs_py.crane.geometry import load_swing
+from crane_msgs_py.messages.names import STREAM_STATE_TOPIC
 
 #: ``axis_status`` states of the axes' fault reaction.
-FAULT_STATE_VALUES = frozenset(state.value for state in FAULT_STATES)
 
 #: A streamer holding this long (ns) before the motion's end has dropped it (its last ticks are sampled at or
 #: past the end: a stream_state just before it may say holding by a tick).

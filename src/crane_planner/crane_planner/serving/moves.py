@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.names import ACTUATED_JOINTS, BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
+from crane_msgs_py.messages.names import ACTUATED_JOINTS, BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 
 from ..planning.dispatch import PlanOptions, VariationalRequest, check_request, checked, hoisting_options, shaper_design
 from ..planning.hoisting import QuinticPlan

@@ -22,7 +22,7 @@ import threading
 import time
 from contextlib import contextmanager
 
-from crane_msgs_py.params import check_count
+from crane_msgs_py.crane.params import check_count
 
 from ..planning.plan import PlanError
 

@@ -50,9 +50,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import CraneParams
-from crane_msgs_py.realtime import set_fifo
+from crane_msgs_py.crane.params import CraneParams
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
+from crane_msgs_py.runtime.realtime import set_fifo
 
 from ..planning.plan import PlanError
 from ..streaming.hermite import QuinticHermite

@@ -48,10 +48,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.axes import axis
-from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import CraneParams
-from crane_sim.spatial import load_offset
+from crane_msgs_py.crane.axes import axis
+from crane_msgs_py.crane.geometry import load_offset
+from crane_msgs_py.crane.params import CraneParams
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 
 from ..planning.continuation import (
     AxisState,

@@ -41,7 +41,7 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from multiprocessing import popen_forkserver
 
-from crane_msgs_py.params import ParameterError
+from crane_msgs_py.crane.params import ParameterError
 
 from ..planning.plan import PlanError
 

@@ -7,7 +7,7 @@ is dead or not ready, or every answer came too late), holding where the
 stream is would be an infinite deceleration: the swing the product exists to
 avoid, and a step no drive can follow. Instead every axis brakes from its
 reference's velocity and acceleration at the handover along its fastest
-jerk-limited ramp (``crane_msgs_py.braking.Braking``, the same ramp the sim's
+jerk-limited ramp (``crane_msgs_py.crane.braking.Braking``, the same ramp the sim's
 axis controller runs when its reference stream is lost), so the acceleration
 never steps by more than the jerk limit allows in a tick. It swings; it is
 the controlled stop of IEC 60204-1's category 1, not an anti-sway move.
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from crane_msgs_py.braking import Braking
+from crane_msgs_py.crane.braking import Braking
 
 from .reference_stream import ReferenceStream
 from .stop_trajectory import StopTrajectory

@@ -20,6 +20,7 @@ from crane_msgs_py.params import (
     parameter_range,
     renamed_from,
 )
+from crane_msgs_py.messages.names import OUTPUT_JOINT_TRAJECTORY, OUTPUTS
 
 from .impairment import DISTRIBUTIONS, Impairment
 from .operator import OPERATOR_SHAPERS, OperatorStream

@@ -26,7 +26,7 @@ import math
 import random
 from dataclasses import dataclass
 
-from crane_msgs_py.params import ParameterError, check_choice, check_nonnegative
+from crane_msgs_py.crane.params import ParameterError, check_choice, check_nonnegative
 
 DISTRIBUTIONS = ('normal', 'uniform', 'exponential')
 

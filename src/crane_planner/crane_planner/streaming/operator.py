@@ -28,8 +28,8 @@ from operator import attrgetter
 
 import numpy as np
 
-from crane_msgs_py.axes import CART, HOIST, axis, check_axes
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.axes import CART, HOIST, axis, check_axes
+from crane_msgs_py.crane.params import CraneParams
 
 from ..planning.model import modal_properties
 from ..planning.plan import PlanError
@@ -57,9 +57,9 @@ class OperatorStream:
     Args:
         period: tick period (s).
         start: the axes' positions (m) to start from at rest, in ``joints`` order (the hoist's: its length).
-        limits: an ``AxisLimits`` per axis (``crane_msgs_py.axes``), each with a finite velocity and
+        limits: an ``AxisLimits`` per axis (``crane_msgs_py.crane.axes``), each with a finite velocity and
             acceleration limit (ruckig needs them); no jerk limit = none.
-        joints: the axes' names (``crane_msgs_py.axes``, in its order); default (cart,) or (cart, hoist)
+        joints: the axes' names (``crane_msgs_py.crane.axes``, in its order); default (cart,) or (cart, hoist)
             by the length of ``start``.
         shaper: one of ``OPERATOR_SHAPERS``.
         params: the crane model the shaper is designed on (L1 = the rope length without a hoist).

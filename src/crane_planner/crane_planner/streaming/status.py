@@ -1,7 +1,7 @@
 """The streamer's status on ``/diagnostics``: its state, level and message from what the node knows.
 
 Pure Python, no ROS import: the levels are ``diagnostic_msgs/DiagnosticStatus``'s numbers
-(``crane_msgs_py.diagnostics`` has them from the message, and a test checks they agree).
+(``crane_msgs_py.runtime.diagnostics`` has them from the message, and a test checks they agree).
 """
 from __future__ import annotations
 

@@ -14,9 +14,9 @@ import time
 
 import numpy as np
 
-from crane_msgs_py.axes import AXES, LIMIT_QUANTITIES
-from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
+from crane_msgs_py.crane.axes import AXES, LIMIT_QUANTITIES
+from crane_msgs_py.crane.params import PARAMETER_DESCRIPTIONS, PARAMETER_NAMES, CraneParams
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 from crane_planner.planning import METHODS, ROBUST_PARAMETERS, Plan, PlanError, PlanOptions, dispatch
 from crane_planner.planning.hoisting import HOIST_SHAPER_DESIGNS
 from crane_planner.planning.keep_out import DEFAULT_MARGIN, KeepOut, KeepOutError, boxes_from_flat

@@ -32,9 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
-from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import PARAMETER_NAMES, CraneParams
-from crane_msgs_py.realtime import DIE_WITH_PARENT
+from crane_msgs_py.crane.params import PARAMETER_NAMES, CraneParams
+from crane_msgs_py.messages.names import CART_JOINT, HOIST_JOINT
+from crane_msgs_py.runtime.realtime import DIE_WITH_PARENT
 
 from .harness import CraneHarness, HarnessError, start_crane_nodes, state_columns
 from .processes import NodeDied, NodeGroup, find_executable, isolated_graph
@@ -258,7 +258,7 @@ def case_methods(case: Case, methods, every: bool = False) -> list[str]:
 def _window_residual(driver: CraneHarness, case: Case, begin_ns: int, origin_ns: int, after_ns: int, end_ns: int):
     """(t from ``origin_ns`` s, load mm, rope or None, residual mm over [after, end]) of joint_states in
     [begin, end], the load's excursion with the rope length they carry (a hoist), else the plant's L1."""
-    from crane_sim.dynamics import load_excursion
+    from crane_msgs_py.crane.geometry import load_excursion
     from crane_sim.metrics import residual_load_mm
     # a 50 Hz sample past the window; the timeout only guards against a hang: on a busy host the sim's plant
     # time (joint_states' stamps) may run seconds behind the clock, and catches up
@@ -277,7 +277,7 @@ def _window_residual(driver: CraneHarness, case: Case, begin_ns: int, origin_ns:
 def _served(driver: CraneHarness, stamp_ns: int):
     """(t, v, a) of the trajectory stamped ``stamp_ns`` as the streamer plays it, and its peak |a|: the peaks
     lie between knots (a ZVD base motion of 76 ms starts and ends at rest: its knots carry no acceleration)."""
-    from crane_msgs_py.conversions import joint_trajectory_to_arrays
+    from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays
     t, p, v, a = _dense(*joint_trajectory_to_arrays(driver.trajectory(stamp_ns)))
     return t, v, a, float(np.max(np.abs(a)))
 

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crane_msgs_py.names import ACTUATED_JOINTS, CART_JOINT, HOIST_JOINT
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
+from crane_msgs_py.messages.names import ACTUATED_JOINTS, CART_JOINT, HOIST_JOINT
 from crane_planner.planning import Plan, Samples
 from crane_planner.planning.plan import AxesPlan, time_grid
 from crane_sim.metrics import peak, rms, swing_metrics, window

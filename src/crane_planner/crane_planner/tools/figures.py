@@ -95,7 +95,7 @@ def _plot_keep_out(side_ax, top_ax, sim, keep_out):
 def _plot_top_view(path_ax, zoom_ax, sim):
     """The spatial crane from above (x along the cart, y along the bridge): the suspension point's and the load's
     paths (``path_ax``), and the load's horizontal offset from below the suspension point in mm (``zoom_ax``)."""
-    from crane_sim.spatial import load_offset
+    from crane_msgs_py.crane.geometry import load_offset
     L1 = sim.plants.L1[0] if sim.L1 is None else sim.L1[0]
     dx, dy = load_offset(sim.theta1[0], sim.theta2[0], sim.phi1[0], sim.phi2[0], L1, sim.plants.L2[0])
     x, y = sim.y[0], sim.yb[0]

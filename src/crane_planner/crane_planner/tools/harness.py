@@ -26,7 +26,8 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from crane_msgs_py.client import PlannerClient
-from crane_msgs_py.conversions import (
+from crane_msgs_py.crane.drive import AxisState
+from crane_msgs_py.messages.conversions import (
     HOLDING,
     move_message,
     read_reference,
@@ -34,8 +35,7 @@ from crane_msgs_py.conversions import (
     samples_to_joint_trajectory,
     stamp_ns,
 )
-from crane_msgs_py.diagnostics import OK, level_of, status_values
-from crane_msgs_py.names import (
+from crane_msgs_py.messages.names import (
     ACTUATED_JOINTS,
     AXIS_STATUS_TOPIC,
     BRIDGE_JOINT,
@@ -53,7 +53,8 @@ from crane_msgs_py.names import (
     TRAJECTORY_TOPIC,
     service_of,
 )
-from crane_msgs_py.qos import (
+from crane_msgs_py.runtime.diagnostics import OK, level_of, status_values
+from crane_msgs_py.runtime.qos import (
     AXIS_STATUS_QOS,
     JOINT_STATES_QOS,
     REFERENCE_EVERY_SAMPLE_QOS,
@@ -61,8 +62,7 @@ from crane_msgs_py.qos import (
     TRAJECTORY_QOS,
     recording,
 )
-from crane_msgs_py.runner import spinning
-from crane_sim.axis_controller import AxisState
+from crane_msgs_py.runtime.runner import spinning
 
 from .processes import PLANNER, SIM, STREAMER, NodeGroup
 
@@ -230,7 +230,7 @@ class CraneHarness:
         sent later, is over), ``move()`` (a move home, its start stamp) unless ``at_home(the newest
         joint_states row)``; once more if the planner refused it because a motion started meanwhile after
         all."""
-        from crane_msgs_py.errors import PlanError
+        from crane_msgs_py.crane.errors import PlanError
         for attempt in range(2):
             self.sleep(max(0.0, (self.trajectories_end_ns() - self.now_ns()) * 1e-9))
             self.wait_until_holding()

@@ -16,8 +16,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from crane_msgs_py.dds import use_loopback_udp
-from crane_msgs_py.realtime import DIE_WITH_PARENT
+from crane_msgs_py.runtime.dds import use_loopback_udp
+from crane_msgs_py.runtime.realtime import DIE_WITH_PARENT
 
 #: Fast DDS maps domain ids 0..232 to UDP ports; 0 is everyone's default, so avoid it.
 DOMAIN_ID_RANGE = (1, 232)
@@ -36,7 +36,7 @@ def isolated_ros_env(domain_id: int | None = None) -> dict:
     """This process's environment for a private ROS graph: a random domain id, Fast DDS on 127.0.0.1 UDP only.
 
     Other projects share these machines; a random ``ROS_DOMAIN_ID`` and sockets bound to loopback
-    (``crane_msgs_py.dds.use_loopback_udp``) keep our traffic to ourselves.
+    (``crane_msgs_py.runtime.dds.use_loopback_udp``) keep our traffic to ourselves.
     """
     env = dict(os.environ)
     env['ROS_DOMAIN_ID'] = str(random.randint(*DOMAIN_ID_RANGE) if domain_id is None else int(domain_id))

@@ -34,8 +34,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from rclpy.type_support import check_for_type_support
 
-from crane_msgs_py.realtime import die_with_parent, set_threads_fifo
-from crane_msgs_py.taking import take_all
+from crane_msgs_py.runtime.realtime import die_with_parent, set_threads_fifo
+from crane_msgs_py.runtime.taking import take_all
 
 PROG = 'crane-record'
 #: What ``crane-demo --record`` records (relative names resolve in the nodes' namespace).

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.identification.recording import RecordingError
 
 #: The joint_states columns kept after the stamp (``BagData.states``), the planar crane's first.
@@ -128,7 +128,7 @@ def _cart(msg) -> int:
 def load_mm(data: BagData) -> np.ndarray:
     """Horizontal offset (mm) of the load from its rest below the cart at each joint_state (with a hoist,
     with the rope length that joint_state reports; with a bridge, the norm of the offset)."""
-    from crane_sim.spatial import load_swing
+    from crane_msgs_py.crane.geometry import load_swing
     rope = data.states[:, 4]
     L1 = np.where(np.isnan(rope), data.L1, rope)
     phi = data.states[:, 6:8].T

@@ -27,7 +27,7 @@ from typing import Callable
 
 import numpy as np
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 
 from .evaluate import residual_load_mm, simulate_plans, simulated_masses
 

@@ -30,8 +30,8 @@ from typing import Callable
 
 import numpy as np
 
-from crane_msgs_py.names import BRIDGE_JOINT, CART_JOINT
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT
 from crane_planner.planning.dispatch import PlanOptions, SolverCache, plan, travel_plan
 from crane_planner.planning.plan import AxesPlan, time_grid
 
@@ -137,7 +137,7 @@ def _timed(planning: Callable[[], AxesPlan]) -> tuple[AxesPlan, float]:
 
 def _record(column: str, method: str, plan_time_s: float, ev: Evaluation, index: int = 0) -> SpatialRun:
     """The SpatialRun of plant ``index`` of ``ev``."""
-    from crane_sim.spatial import load_offset
+    from crane_msgs_py.crane.geometry import load_offset
     p: AxesPlan = ev.plan
     grid = time_grid(p.duration, EVAL_STEP)
     a = np.hypot(p.evaluate_axis(CART_JOINT, grid).acceleration, p.evaluate_axis(BRIDGE_JOINT, grid).acceleration)

@@ -87,8 +87,8 @@ def main(argv=None) -> int:
     from geometry_msgs.msg import Twist
     from rclpy.signals import SignalHandlerOptions
 
-    from crane_msgs_py.names import CMD_VEL_TOPIC
-    from crane_msgs_py.realtime import die_with_parent
+    from crane_msgs_py.messages.names import CMD_VEL_TOPIC
+    from crane_msgs_py.runtime.realtime import die_with_parent
     die_with_parent()
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('crane_teleop', namespace=args.namespace, start_parameter_services=False)

@@ -19,9 +19,9 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from crane_msgs_py.cdr import ReferenceSample, read_float64_array, read_joint_trajectory
-from crane_msgs_py.names import OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, REFERENCE_TOPIC
-from crane_msgs_py.taking import take_all
+from crane_msgs_py.messages.cdr import ReferenceSample, read_float64_array, read_joint_trajectory
+from crane_msgs_py.messages.names import OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, REFERENCE_TOPIC
+from crane_msgs_py.runtime.taking import take_all
 
 #: ``reference_type`` values: the streamer's two outputs, their message types and readers.
 REFERENCE_TYPES = {OUTPUT_JOINT_TRAJECTORY: JointTrajectory, OUTPUT_FLOAT64_ARRAY: Float64MultiArray}

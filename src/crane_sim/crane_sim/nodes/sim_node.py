@@ -37,7 +37,17 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
-from crane_msgs_py.conversions import (
+from crane_msgs_py.crane.drive import FAULT_STATES, AxisState
+from crane_msgs_py.crane.params import (
+    PARAMETER_DESCRIPTIONS,
+    PARAMETER_NAMES,
+    CraneParams,
+    ParameterError,
+    check_choice,
+    check_nonnegative,
+    check_positive,
+)
+from crane_msgs_py.messages.conversions import (
     crane_markers_message,
     fill_crane_markers,
     fill_joint_state,
@@ -45,8 +55,7 @@ from crane_msgs_py.conversions import (
     read_reference,
     set_stamp,
 )
-from crane_msgs_py.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
-from crane_msgs_py.names import (
+from crane_msgs_py.messages.names import (
     AXIS_STATUS_TOPIC,
     DEFAULT_FRAME_ID,
     JOINT_STATES_TOPIC,
@@ -59,20 +68,12 @@ from crane_msgs_py.names import (
     SIM_NODE,
     check_joints,
 )
-from crane_msgs_py.node_parameters import Guard, declare, float_range, int_range
-from crane_msgs_py.params import (
-    PARAMETER_DESCRIPTIONS,
-    PARAMETER_NAMES,
-    CraneParams,
-    ParameterError,
-    check_choice,
-    check_nonnegative,
-    check_positive,
-)
-from crane_msgs_py.qos import AXIS_STATUS_QOS, JOINT_STATES_QOS, MARKERS_QOS, REFERENCE_EVERY_SAMPLE_QOS
-from crane_msgs_py.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
-from crane_msgs_py.runner import LoopThread, run
-from crane_sim.axis_controller import FAULT_STATES, AxisController, AxisState, FaultConfig, Offer
+from crane_msgs_py.runtime.diagnostics import ERROR, OK, WARN, DiagnosticsPublisher
+from crane_msgs_py.runtime.node_parameters import Guard, declare, float_range, int_range
+from crane_msgs_py.runtime.qos import AXIS_STATUS_QOS, JOINT_STATES_QOS, MARKERS_QOS, REFERENCE_EVERY_SAMPLE_QOS
+from crane_msgs_py.runtime.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
+from crane_msgs_py.runtime.runner import LoopThread, run
+from crane_sim.axis_controller import AxisController, FaultConfig, Offer
 from crane_sim.measurement import AngleNoise
 from crane_sim.nodes.reference_reader import REFERENCE_TYPES, ReferenceReader
 from crane_sim.playout import ReferencePlayout, StallAllowance

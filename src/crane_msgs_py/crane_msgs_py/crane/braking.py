@@ -36,7 +36,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .params import ParameterError, check_finite, check_positive
+from crane_msgs_py.crane.params import ParameterError, check_finite, check_positive
 
 
 @dataclass(frozen=True)

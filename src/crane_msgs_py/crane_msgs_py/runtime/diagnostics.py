@@ -17,8 +17,8 @@ from collections import deque
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from .names import DIAGNOSTICS_TOPIC
-from .qos import DIAGNOSTICS_QOS
+from crane_msgs_py.messages.names import DIAGNOSTICS_TOPIC
+from crane_msgs_py.runtime.qos import DIAGNOSTICS_QOS
 
 # Levels as ints (the message constants and field are one-byte ``bytes``).
 OK, WARN, ERROR, STALE = (c[0] for c in (DiagnosticStatus.OK, DiagnosticStatus.WARN,

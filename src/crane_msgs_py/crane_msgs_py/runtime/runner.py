@@ -22,9 +22,9 @@ import rclpy
 from rclpy.exceptions import InvalidHandle, InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.signals import SignalHandlerOptions
 
-from .dds import use_node_profiles
-from .params import ParameterError
-from .realtime import die_with_parent, set_fifo, set_threads_fifo, tune_thread
+from crane_msgs_py.crane.params import ParameterError
+from crane_msgs_py.runtime.dds import use_node_profiles
+from crane_msgs_py.runtime.realtime import die_with_parent, set_fifo, set_threads_fifo, tune_thread
 
 
 def run(node_class, executor_class, args=None, **executor_kwargs) -> int:
@@ -113,7 +113,7 @@ class Spin:
 
 
 class LoopThread:
-    """A node's fixed-rate loop (``crane_msgs_py.realtime``) on a thread of its own.
+    """A node's fixed-rate loop (``crane_msgs_py.runtime.realtime``) on a thread of its own.
 
     Started by a one-shot timer once the executor spins: until then the main
     thread holds the GIL for long stretches. With ``priority`` > 0 the loop

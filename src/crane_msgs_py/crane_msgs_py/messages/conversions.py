@@ -32,9 +32,16 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
-from .cdr import ReferenceSample, ReferenceWriter
-from .names import CART_JOINT, DEFAULT_FRAME_ID, OUTPUT_FLOAT64_ARRAY, OUTPUT_JOINT_TRAJECTORY, OUTPUTS, SIM_JOINTS
-from .params import check_choice
+from crane_msgs_py.crane.params import check_choice
+from crane_msgs_py.messages.cdr import ReferenceSample, ReferenceWriter
+from crane_msgs_py.messages.names import (
+    CART_JOINT,
+    DEFAULT_FRAME_ID,
+    OUTPUT_FLOAT64_ARRAY,
+    OUTPUT_JOINT_TRAJECTORY,
+    OUTPUTS,
+    SIM_JOINTS,
+)
 
 NS = 1_000_000_000
 

@@ -7,7 +7,7 @@ Topics are relative so that a whole setup runs in one namespace
 """
 from __future__ import annotations
 
-from .axes import AXIS_NAMES, BRIDGE, CART, HOIST, check_axes
+from crane_msgs_py.crane.axes import AXIS_NAMES, BRIDGE, CART, HOIST, check_axes
 
 #: Default node names.
 PLANNER_NODE = 'crane_planner'

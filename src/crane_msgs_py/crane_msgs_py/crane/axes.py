@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .params import ParameterError
+from crane_msgs_py.crane.params import ParameterError
 
 #: What an axis moves: ``travel`` the suspension point along ``direction``, ``hoist`` the upper cable's length.
 KINDS = ('travel', 'hoist')
