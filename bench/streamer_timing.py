@@ -161,7 +161,7 @@ def measure(args, env: dict) -> int:
 def bare_loop(duration: float):
     """Print the tick lateness (us) of a bare 1 kHz loop with the streamer's default settings (its SCHED_FIFO
     priority and busy_wait)."""
-    from crane_msgs_py.realtime import sleep_until, tune_thread
+    from crane_msgs_py.runtime.realtime import sleep_until, tune_thread
     from crane_planner.streaming.config import PARAMETERS
     spin_ns = round(PARAMETERS['busy_wait'][0] * 1e9)
     tune_thread(50)

@@ -1,4 +1,4 @@
-"""crane_msgs_py.node_parameters: a renamed parameter's former name still works for one release, from the
+"""crane_msgs_py.runtime.node_parameters: a renamed parameter's former name still works for one release, from the
 parameters given at start-up and from a set, applied to the new name with a deprecation warning naming it.
 
 The nodes' own tables (the planner's axis limits ``limits.<joint>.max_velocity``, ..., formerly
@@ -6,7 +6,7 @@ The nodes' own tables (the planner's axis limits ``limits.<joint>.max_velocity``
 """
 from contextlib import contextmanager
 
-from crane_msgs_py.params import renamed
+from crane_msgs_py.crane.params import renamed
 from crane_planner.serving.config import PARAMETERS, Config
 
 
@@ -67,7 +67,7 @@ def test_the_planners_limits_are_a_map_over_the_joints_each_renamed_from_its_fla
 
 
 def test_a_former_name_given_at_start_up_is_applied_to_the_new_one_with_a_warning(ros_domain):
-    from crane_msgs_py.node_parameters import declare
+    from crane_msgs_py.runtime.node_parameters import declare
     log = Log()
     with node_with({'max_velocity': 0.25, 'max_hoist_jerk': 3.0}, log) as node:
         values = declare(node, PARAMETERS)
@@ -82,7 +82,7 @@ def test_a_former_name_given_at_start_up_is_applied_to_the_new_one_with_a_warnin
 def test_a_former_name_set_is_set_as_the_new_one_with_a_warning_and_checked_as_it(ros_domain):
     from rclpy.parameter import Parameter
 
-    from crane_msgs_py.node_parameters import Guard, declare
+    from crane_msgs_py.runtime.node_parameters import Guard, declare
     log, applied = Log(), []
     with node_with({}, log) as node:
         declare(node, PARAMETERS)
@@ -105,7 +105,7 @@ def test_a_former_name_set_is_set_as_the_new_one_with_a_warning_and_checked_as_i
 
 
 def test_the_streamers_former_operator_limits_given_at_start_up_are_its_per_joint_ones(ros_domain):
-    from crane_msgs_py.node_parameters import declare
+    from crane_msgs_py.runtime.node_parameters import declare
     from crane_planner.streaming import config as streamer
     log = Log()
     with node_with({'operator.hoist_range': [0.2, 2.0], 'operator.max_bridge_velocity': 0.1}, log) as node:

@@ -41,7 +41,7 @@ def test_the_mode_and_the_operator_settings_change_only_at_rest():
 def test_each_axis_s_operator_limits_are_a_map_over_the_joints_and_their_former_names_are_kept():
     """``operator.limits.<joint>.max_velocity``, ...: each axis's ``AxisLimits`` in operator mode; the former flat
     names (``operator.max_velocity``, ``operator.max_hoist_jerk``, ``operator.hoist_range``) map onto them."""
-    from crane_msgs_py.params import renamed
+    from crane_msgs_py.crane.params import renamed
     values = {**DEFAULTS, 'operator.limits.bridge.max_velocity': 0.1, 'operator.limits.hoist.max_jerk': 2.0}
     limits = StreamerConfig.of(values).operator.limits
     assert (limits[0].max_velocity, limits[1].max_velocity, limits[2].max_jerk) == (0.3, 0.1, 2.0)

@@ -3,8 +3,8 @@ corrections, takes a request at its next tick and ends a ~/stop at rest; run on 
 import numpy as np
 import pytest
 
-from crane_msgs_py.axes import AxisLimits
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.axes import AxisLimits
+from crane_msgs_py.crane.params import CraneParams
 from crane_planner.streaming.operator import OperatorStream
 from crane_planner.streaming.reference_stream import ReferenceStream
 from crane_planner.streaming.source import Correction, Setpoint, Source, corrected

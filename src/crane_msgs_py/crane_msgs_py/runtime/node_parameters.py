@@ -18,8 +18,8 @@ from __future__ import annotations
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.parameter import Parameter
 
-from .diagnostics import ERROR
-from .params import RENAMED_FROM, renamed
+from crane_msgs_py.crane.params import RENAMED_FROM, renamed
+from crane_msgs_py.runtime.diagnostics import ERROR
 
 #: The diagnostic task of refused parameter changes (status ``<node>: parameters``).
 PARAMETERS_TASK = 'parameters'

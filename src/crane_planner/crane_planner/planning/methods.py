@@ -17,7 +17,7 @@ import enum
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from crane_msgs_py.errors import PlanError
+from crane_msgs_py.crane.errors import PlanError
 
 from .shapers import SHAPERS, Shaper
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-from crane_msgs_py.errors import PlanError
+from crane_msgs_py.crane.errors import PlanError
 
 #: The swing's angles: both cables' in the x-z plane, and on the spatial crane out of it; a rate is 'd' + angle.
 PLANAR_ANGLES = ('theta1', 'theta2')

@@ -9,7 +9,7 @@ deaths), so concurrent requests never queue behind each other. Used by the
 """
 from __future__ import annotations
 
-from crane_msgs_py.params import CraneParams
+from crane_msgs_py.crane.params import CraneParams
 
 from ..planning import dispatch
 from ..planning.dispatch import PlanOptions, VariationalRequest

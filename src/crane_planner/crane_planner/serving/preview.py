@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from crane_msgs_py.names import CART_JOINT, STREAM_STATE_TOPIC
+from crane_msgs_py.messages.names import CART_JOINT, STREAM_STATE_TOPIC
 
 from ..planning.plan import Plan, time_grid
 from ..streaming.knots import knot_times

@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from crane_msgs_py.names import BRIDGE_JOINT, HOIST_JOINT
+from crane_msgs_py.messages.names import BRIDGE_JOINT, HOIST_JOINT
 
 from ..planning.methods import METHODS, Family, method_spec
 from ..planning.signals import Swing

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from crane_msgs_py.names import CART_JOINT, STREAM_STATE_TOPIC
+from crane_msgs_py.messages.names import CART_JOINT, STREAM_STATE_TOPIC
 
 from ..planning.plan import Plan
 from ..streaming.reference_stream import position_text

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from crane_msgs_py.names import CART_JOINT
+from crane_msgs_py.messages.names import CART_JOINT
 
 from ..planning.mass_path import predict_mass_path
 from .context import Serving

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from typing import Any, Callable
 
-from crane_msgs_py.names import CART_JOINT, HOIST_JOINT
+from crane_msgs_py.messages.names import CART_JOINT, HOIST_JOINT
 
 from ..planning.continuation import problem_start
 from ..planning.methods import Family, family_of, method_spec, methods_of

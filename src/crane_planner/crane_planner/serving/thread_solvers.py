@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import threading
 
-from crane_msgs_py.params import check_count
+from crane_msgs_py.crane.params import check_count
 
 from ..planning.dispatch import PlanOptions, VariationalRequest, variational_solver
 from ..planning.plan import Plan

@@ -13,7 +13,7 @@ from __future__ import annotations
 import dataclasses
 import threading
 
-from crane_msgs_py.params import check_count
+from crane_msgs_py.crane.params import check_count
 
 from ..planning.dispatch import VariationalRequest
 from ..planning.plan import PlanError

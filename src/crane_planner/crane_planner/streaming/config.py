@@ -9,9 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from crane_msgs_py.axes import AXES, AXIS_NAMES, HOIST, LIMIT_QUANTITIES, LIMITS_MAP
-from crane_msgs_py.names import OUTPUT_JOINT_TRAJECTORY, OUTPUTS
-from crane_msgs_py.params import (
+from crane_msgs_py.crane.axes import AXES, AXIS_NAMES, HOIST, LIMIT_QUANTITIES, LIMITS_MAP
+from crane_msgs_py.crane.params import (
     PARAMETER_DESCRIPTIONS,
     PARAMETER_NAMES,
     CraneParams,

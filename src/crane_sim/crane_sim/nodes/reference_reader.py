@@ -4,7 +4,7 @@ An axis controller reads its setpoint once a cycle from what the fieldbus receiv
 simulator's loop: each step it takes every reference the middleware has received since the last
 one. Handing 1 kHz messages through an executor's callbacks cost the simulator a large part of a
 core on its own; taking their bytes (``raw``) and reading the few fields the loop needs
-(``crane_msgs_py.cdr``) costs a small fraction of that (``bench/reference_take.py``), and the
+(``crane_msgs_py.messages.cdr``) costs a small fraction of that (``bench/reference_take.py``), and the
 middleware's own threads keep receiving while the Python process stalls. Each message's receive
 time is the middleware's.
 
