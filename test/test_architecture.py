@@ -229,3 +229,19 @@ def test_the_shared_crane_facts_are_pure():
     assert {'crane_msgs_py.crane.axes', 'crane_msgs_py.crane.geometry', 'crane_msgs_py.crane.drive'} <= set(shared)
     assert [f'{m}: {name}' for m, p in shared.items() for _, name in imports(m, p)
             if is_ros(name) or name.split('.')[0] in ('crane_sim', 'crane_planner')] == []
+
+
+#: The nodes only translate messages and keep time; the serving machinery is small classes, each of one job.
+NODE_LINES = 300
+SERVING_CLASS_LINES = 250
+
+
+def test_the_nodes_stay_thin_and_the_serving_classes_small():
+    found = modules()
+    long_nodes = {m: n for m in ('crane_planner.nodes.planner_node', 'crane_planner.nodes.streamer_node')
+                  if (n := len(found[m].read_text().splitlines())) > NODE_LINES}
+    large = {f'{m}.{c.name}': c.end_lineno - c.lineno + 1 for m, p in found.items()
+             if m.startswith('crane_planner.serving.')
+             for c in ast.parse(p.read_text()).body if isinstance(c, ast.ClassDef)
+             and c.end_lineno - c.lineno + 1 > SERVING_CLASS_LINES}
+    assert long_nodes == {} and large == {}

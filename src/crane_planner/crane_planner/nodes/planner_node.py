@@ -204,10 +204,9 @@ class PlannerNode(Node):
         return response
 
     def _on_goal(self, request) -> GoalResponse:
-        """Every goal is accepted (a refusal is its result's reason) and registered here, on the goals'
-        thread, and a shaper's during a motion handed over at once (``MoveService.arrive``): before rclpy's
-        acceptance of it (a noticeable share of that handover's 5 ms budget; rclpy fails to accept a goal
-        only on an internal error, which it logs), and before the executor runs ``_execute``."""
+        """Every goal is accepted (a refusal is its result's reason) and registered here, on the goals' thread,
+        and a shaper's during a motion handed over at once (``MoveService.arrive``): before rclpy accepts it (a
+        noticeable share of that handover's budget; rclpy fails to only on an internal error, which it logs)."""
         self._service.arrive(id(request), _move(request.move), request.settle)
         return GoalResponse.ACCEPT
 
@@ -217,7 +216,7 @@ class PlannerNode(Node):
 
     def _on_cancel(self, goal_handle) -> CancelResponse:
         """Every cancel is accepted: before the goal's trajectory is sent nothing streams; during its motion
-        the goal's thread plans a stop (contract "Motion from any state"); after it the goal ends at once."""
+        the goal runner plans a stop (contract "Motion from any state"); after it the goal ends at once."""
         self._service.goals.cancel(goal_handle)
         return CancelResponse.ACCEPT
 

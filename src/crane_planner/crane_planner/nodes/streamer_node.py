@@ -11,9 +11,8 @@ never waits on the executor, fills one pre-allocated message per tick (with
 network impairment on, through an ``impairment.Link``) and every ``rate /
 state_rate`` ticks publishes ``stream_state``. Modes (switched only at rest):
 ``trajectory`` streams what the planner sends, ``operator`` follows
-``cmd_vel`` (``streaming.operator``). ``~/stop`` stops without swing
-(``streaming.stop_request``), a motion's stop planned by ``serving.stops``
-in a worker process (this process never loads CasADi).
+``cmd_vel`` (``streaming.operator``). ``~/stop`` stops without swing (``streaming.stop_request``), a
+motion's stop planned by ``serving.stops`` in a worker process (this process never loads CasADi).
 """
 from __future__ import annotations
 
