@@ -9,7 +9,7 @@ from crane_planner.streaming.operator import OperatorStream
 from crane_planner.streaming.reference_stream import ReferenceStream
 from crane_planner.streaming.source import Correction, Setpoint, Source, corrected
 from crane_planner.streaming.streamer import Inbox, Streamer
-from crane_planner.streaming.streamer_state import Mode, State
+from crane_planner.streaming.streamer_state import IllegalTransition, Mode, State
 
 from .test_reference_stream import EPOCH, HOLD, MS, PERIOD, quintic_knots
 
@@ -160,6 +160,54 @@ def test_a_halt_stops_the_stream_at_once_and_a_start_streams_from_the_new_hold()
     streamer.go(Mode.TRAJECTORY, streamer.stream)
     loop = Loop(streamer)
     assert loop.run(1) == [(0.5, 0.0, 0.0)]
+
+
+class RestartedWhenAsked:
+    """The hold's source, at rest; the first time the loop asks whether it is at rest during a stop, the executor
+    halts the streamer and starts it again (a fault reaction's restart) before the loop goes on."""
+
+    def __init__(self, streamer: Streamer):
+        self.streamer, self.stream, self.restarted = streamer, streamer.stream, False
+
+    def sample(self, tick):
+        return self.stream.sample(tick)
+
+    @property
+    def at_rest(self):
+        if self.streamer.state is State.STOPPING and not self.restarted:
+            self.restarted = True
+            self.streamer.halt()
+            self.streamer.go(Mode.TRAJECTORY, self)
+        return True
+
+    moving = False
+
+    @property
+    def position(self):
+        return self.stream.position
+
+
+def test_a_start_between_the_loops_look_at_a_stop_and_its_end_is_not_stopped_by_it():
+    """The loop saw a ~/stop at rest; a halt and a new start came before it ended the stop: the stop is over,
+    and the new start streams on (its stream not stopped under it)."""
+    streamer = streaming()
+    loop = Loop(streamer)
+    source = RestartedWhenAsked(streamer)
+    streamer.use(Mode.TRAJECTORY, source)
+    loop.run(1)
+    streamer.stopping()
+    loop.run(1)
+    assert source.restarted
+    assert streamer.state is State.STREAMING and streamer.running.is_set()
+    assert streamer.start(EPOCH, lambda: loop.tick)  # the new start's stream runs: not stopped by the old stop
+
+
+def test_a_start_refused_by_the_state_changes_nothing():
+    streamer = streaming()
+    streamer.stopping()
+    with pytest.raises(IllegalTransition):
+        streamer.go(Mode.OPERATOR, operator_at(HOLD))
+    assert streamer.mode is Mode.TRAJECTORY and streamer.source is streamer.stream
 
 
 def test_two_joints_stream_a_tuple_per_field():

@@ -124,9 +124,10 @@ class Streamer:
 
     def go(self, mode: Mode, source: Source) -> None:
         """Stream ``source`` in ``mode`` from the hold (``stream.hold_at`` it first)."""
-        self.use(mode, source)
-        self.stream.resume()  # (first: the loop wakes on the state and starts the stream)
-        self._state.to(State.STREAMING)
+        def resume():  # (before the move: the loop wakes on the state and starts the stream)
+            self.use(mode, source)
+            self.stream.resume()
+        self._state.to(State.STREAMING, then=resume)
 
     def stopping(self) -> None:
         """A ``~/stop`` runs to rest (its source was told to stop): the loop stops once it is at rest."""
@@ -134,8 +135,7 @@ class Streamer:
 
     def halt(self) -> None:
         """Stop streaming now: the loop holds nothing and waits for a start."""
-        self._state.to(State.STOPPED)
-        self.stream.stop()
+        self._state.to(State.STOPPED, then=self.stream.stop)
 
     def cancel(self) -> bool:
         """A ``~/stop`` while not running: a start waiting for the hold is dropped; False if none waited."""
@@ -168,7 +168,8 @@ class Streamer:
         return self._active.moving
 
     def _stopped(self, source: Source) -> None:
-        if source is not self.stream:  # the hold where the source stopped the axes
-            self.stream.hold_at(source.position)
-        self.stream.stop()  # (first: a start once stopped finds the stream stopped, not stopping it after)
-        self._state.end_stop()
+        def stop():  # (under the state's lock: a start once stopped finds the stream stopped, not stopping it after)
+            if source is not self.stream:  # the hold where the source stopped the axes
+                self.stream.hold_at(source.position)
+            self.stream.stop()
+        self._state.end_stop(then=stop)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import enum
 import threading
+from typing import Callable
 
 
 class State(enum.Enum):
@@ -62,17 +63,25 @@ class StreamerState:
     def state(self) -> State:
         return self._state
 
-    def to(self, state: State) -> None:
-        """Move to ``state``; IllegalTransition if ``TRANSITIONS`` does not allow it."""
+    def to(self, state: State, then: Callable[[], None] | None = None) -> None:
+        """Move to ``state``; IllegalTransition (and nothing done) if ``TRANSITIONS`` does not allow it.
+        ``then`` runs once the move is known legal, before it, under the lock: what goes with the move (a
+        stream resumed) happens whole before any other move, never after a move that came later."""
         with self._lock:
+            self._check(state)
+            if then is not None:
+                then()
             self._move(state)
 
-    def end_stop(self) -> bool:
-        """The loop's end of a ``~/stop``: ``STOPPING`` -> ``STOPPED``; False (nothing changes) if no stop runs
-        any more (a halt came first)."""
+    def end_stop(self, then: Callable[[], None] | None = None) -> bool:
+        """The loop's end of a ``~/stop``: ``STOPPING`` -> ``STOPPED``, ``then`` run first under the lock (the
+        stream stopped where the source came to rest); False (nothing done) if no stop runs any more (a halt,
+        maybe a start after it, came first: stopping the stream then would stop the new start's)."""
         with self._lock:
             if self._state is not State.STOPPING:
                 return False
+            if then is not None:
+                then()
             self._move(State.STOPPED)
             return True
 
@@ -85,9 +94,12 @@ class StreamerState:
             self._move(State.STOPPED)
             return True
 
-    def _move(self, state: State) -> None:
+    def _check(self, state: State) -> None:
         if state not in TRANSITIONS[self._state]:
             raise IllegalTransition(f'{self._state.value} -> {state.value}')
+
+    def _move(self, state: State) -> None:
+        self._check(state)
         self._state = state
         if state in RUNNING:
             self.running.set()
