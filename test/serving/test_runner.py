@@ -137,6 +137,22 @@ def test_the_worker_thread_serves_goals_submitted_from_other_threads_and_a_stop_
         runner.run(ticks('late', log, 1))
 
 
+@pytest.mark.filterwarnings('ignore::pytest.PytestUnhandledThreadExceptionWarning')  # (raised on, to be seen)
+def test_a_worker_that_fails_ends_every_goal_and_refuses_the_next_instead_of_leaving_them_waiting():
+    class Failing(GoalRunner):
+        def step(self):  # the worker's own machinery breaks (not a goal's steps: those are the goal's outcome)
+            raise SystemError('broken')
+
+    runner = Failing()
+    waiting = runner.submit(ticks('a', [], 3))
+    runner.start()
+    assert waiting.done.wait(10.0)  # (a hang guard: ended at once)
+    with pytest.raises(RunnerStopped, match='broken'):
+        waiting.result()
+    with pytest.raises(RunnerStopped):
+        runner.run(ticks('late', [], 1))
+
+
 def test_the_timeline_changes_with_a_goal_only_if_the_goal_may_and_replaces_only_what_it_still_streams():
     timeline = Timeline()
     assert timeline.running is None and not timeline.sent_any()

@@ -11,7 +11,10 @@ once the streamer takes the new one's handover; one settling is observed
 until the new motion starts): the runner decides who runs, never how a goal
 ends. A step that plans runs to its end before the next step of any other
 goal (as in nav2, whose execute callback plans between its preemption
-checks); a wait never holds the worker. The planner node's execute callback
+checks); so does a step that waits for a reply it needs before it can go on
+(the streamer taking a handover, its first ``stream_state`` after a
+restart), while the waits between steps (holding until a start, feedback)
+never hold the worker. The planner node's execute callback
 submits a goal and waits for its outcome on the run's Event (``run``):
 rclpy's action server takes what that callback returns as the goal's
 result and ends the goal then, so the callback, its executor thread and
@@ -155,17 +158,29 @@ class GoalRunner:
         self._thread.start()
 
     def _serve(self) -> None:
-        while True:
-            with self._wake:
-                while not self._stopped:
-                    due = self._next_due()
-                    wait = None if due is None else due - self._timer()
-                    if wait is not None and wait <= 0.0:
-                        break
-                    self._wake.wait(wait)
-                if self._stopped:
-                    return
-            self.step()
+        try:
+            while True:
+                with self._wake:
+                    while not self._stopped:
+                        due = self._next_due()
+                        wait = None if due is None else due - self._timer()
+                        if wait is not None and wait <= 0.0:
+                            break
+                        self._wake.wait(wait)
+                    if self._stopped:
+                        return
+                self.step()
+        except BaseException as exc:  # the worker itself failed: no goal may wait for it for ever
+            self._end_all(RunnerStopped(f'the goal runner failed: {type(exc).__name__}: {exc}'))
+            raise
+
+    def _end_all(self, error: BaseException) -> None:
+        """Stopped: every goal still executing, and every one submitted from now on, ends with ``error``."""
+        with self._wake:
+            self._stopped = True
+            runs = [run for run in (*self.finishing, self.current, self.pending) if run is not None]
+        for run in runs:
+            run.finish(error=error)
 
     def stop(self, timeout: float = 1.0) -> None:
         """The worker stopped; a goal still executing then ends with ``RunnerStopped`` for its caller."""
@@ -174,7 +189,4 @@ class GoalRunner:
             self._wake.notify()
         if self._thread is not None:
             self._thread.join(timeout)
-        with self._wake:
-            runs = [run for run in (*self.finishing, self.current, self.pending) if run is not None]
-        for run in runs:
-            run.finish(error=RunnerStopped('the goal runner stopped before the goal ended'))
+        self._end_all(RunnerStopped('the goal runner stopped before the goal ended'))
