@@ -78,7 +78,7 @@ def measure(args, env) -> int:
             # -- goal-to-handover latency
             from service_load import cpu_s  # (bench/: the planner and its solver processes)
 
-            from crane_planner.planning import VARIATIONAL_METHODS
+            from crane_planner.planning.methods import Family, family_of
             from crane_planner.serving.config import PARAMETERS
             warmup = PARAMETERS['handover_warmup'][0]  # the default, restored after each handover timed without
             planner_pid = next(p.popen.pid for p in nodes.processes if p.name == 'planner')
@@ -108,7 +108,7 @@ def measure(args, env) -> int:
                 samples, without = [], []
                 for _ in range(args.repeats):
                     samples.append(handover(method))
-                    if method not in VARIATIONAL_METHODS:  # the same with the warm-up off, in turn
+                    if family_of(method) is not Family.VARIATIONAL:  # the same with the warm-up off, in turn
                         driver.set_parameters('planner', {'handover_warmup': 0.0})
                         try:
                             without.append(handover(method))
@@ -119,7 +119,7 @@ def measure(args, env) -> int:
                     cold[method] = summary(without)
             result['goal_to_handover'] = latency
             result['goal_to_handover_targets_met'] = all(
-                v['median_ms'] <= (50.0 if m in VARIATIONAL_METHODS else 5.0) for m, v in latency.items())
+                v['median_ms'] <= (50.0 if family_of(m) is Family.VARIATIONAL else 5.0) for m, v in latency.items())
             if cold:
                 result['goal_to_handover_without_warmup'] = cold
                 result['warmup_latency_ratio'] = {m: round(latency[m]['median_ms'] / v['median_ms'], 2)

@@ -39,10 +39,11 @@ TARGETS = {'typical_p50_ms': 30.0, 'typical_p99_ms': 150.0, 'answer_slack_s': 0.
 def requests(n: int, seed: int, weights=(0.7, 0.15, 0.15)):
     """(kind, method or None, start, goal, duration) of the seeded mix."""
     from crane_msgs_py.crane.params import CraneParams
-    from crane_planner.planning import METHODS, SHAPER_METHODS
+    from crane_planner.planning import METHODS
+    from crane_planner.planning.methods import Family, methods_of
     from crane_planner.planning.model import modal_frequencies
     from crane_planner.planning.shapers import design
-    shortest = {m: design(m, modal_frequencies(CraneParams()), 0.0).duration for m in SHAPER_METHODS}
+    shortest = {m: design(m, modal_frequencies(CraneParams()), 0.0).duration for m in methods_of(Family.SHAPER)}
     rng = np.random.default_rng(seed)
     out = []
     while len(out) < n:

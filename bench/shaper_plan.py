@@ -10,7 +10,7 @@ import sys
 import time
 
 from crane_msgs_py.crane.params import CraneParams
-from crane_planner.planning import SHAPER_METHODS
+from crane_planner.planning.methods import Family, methods_of
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.shaped import shaped_plan
 
@@ -28,7 +28,7 @@ def main() -> int:
     omegas = modal_frequencies(CraneParams())
     zeta = 0.05  # with damping so NZV and EI really solve for their impulses
     out = {'runs': RUNS, 'zeta': zeta, 'target_ms': TARGET_MS, 'methods': {}}
-    for method in SHAPER_METHODS:
+    for method in methods_of(Family.SHAPER):
         duration = 4.5 if method == 'zvdd' else 3.0  # ZVDD alone lasts 3.6 s
         cold, n = run(method, omegas, zeta, duration)
         times = [run(method, omegas, zeta, duration)[0] for _ in range(RUNS)]

@@ -40,6 +40,14 @@ def parameter_range(lo, hi) -> dict:
     return {'floating_point_range': (float(lo), float(hi))}
 
 
+def model_parameters(describe=lambda description: description, bound=lambda name: 1e4) -> dict:
+    """The crane model's parameters (``CraneParams``' fields) as entries of a node's parameter table: name ->
+    (default, ``describe(the field's description)``, the range [0, ``bound(name)``]). The planner, the streamer
+    and the simulator declare the same model, each in its own role."""
+    return {name: (getattr(CraneParams, name), describe(PARAMETER_DESCRIPTIONS[name]),
+                   parameter_range(0.0, bound(name))) for name in PARAMETER_NAMES}
+
+
 #: The descriptor field of a parameter table's entry naming the parameter's former name (``renamed_from``).
 RENAMED_FROM = 'renamed_from'
 
@@ -146,3 +154,8 @@ class CraneParams:
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+    @classmethod
+    def of(cls, values) -> 'CraneParams':
+        """The model a node's parameters (or any mapping holding every ``PARAMETER_NAMES``) give."""
+        return cls(**{name: values[name] for name in PARAMETER_NAMES})

@@ -33,7 +33,7 @@ from crane_msgs_py.runtime.diagnostics import ERROR, OK, WARN, DiagnosticsPublis
 from crane_msgs_py.runtime.node_parameters import Guard, declare
 from crane_msgs_py.runtime.realtime import fix_mmap_threshold, set_threads_fifo
 from crane_msgs_py.runtime.runner import run, spinning
-from crane_planner.planning import METHODS, VARIATIONAL_METHODS
+from crane_planner.planning.methods import METHODS, Family, methods_of
 from crane_planner.serving import Planner, service
 from crane_planner.serving.config import PARAMETERS, Config
 from crane_planner.serving.crane_view import StreamSample, joint_sample
@@ -139,7 +139,7 @@ class PlannerNode(Node):
     def executor_threads(self) -> int:
         """Enough executor threads for every solver busy at once, the shapers' and parameter requests and the
         goals being executed (each waits on one for its result: one moving, one settling)."""
-        return self._config.solver_processes + self._config.solver_pool_size * len(VARIATIONAL_METHODS) + 7
+        return self._config.solver_processes + self._config.solver_pool_size * len(methods_of(Family.VARIATIONAL)) + 7
 
     def _build_solvers(self):
         """Every method built once at start-up (``service.build_solvers``); a ``solvers`` status with the times."""

@@ -10,13 +10,12 @@ from dataclasses import dataclass
 
 from crane_msgs_py.crane.axes import AXES
 from crane_msgs_py.crane.params import (
-    PARAMETER_DESCRIPTIONS,
-    PARAMETER_NAMES,
     CraneParams,
     ParameterError,
     check_choice,
     check_nonnegative,
     check_positive,
+    model_parameters,
     parameter_range,
     renamed_from,
 )
@@ -51,8 +50,7 @@ AXIS_LIMIT_PARAMETERS = {
 #: outer bounds rclpy enforces; the exact domain (e.g. > 0) is checked by
 #: ``Config.from_values``, whose reason the node reports on /diagnostics.
 PARAMETERS = {
-    **{name: (getattr(CraneParams, name), PARAMETER_DESCRIPTIONS[name], parameter_range(0.0, MODEL_BOUNDS[name]))
-       for name in PARAMETER_NAMES},
+    **model_parameters(bound=MODEL_BOUNDS.__getitem__),
     'method': ('rvf', f'method of a move that names none: one of {", ".join(METHODS)}',
                {'additional_constraints': f'one of {", ".join(METHODS)}'}),
     'robust_parameters': (['L1'], f'parameters RVF is made insensitive to, among {", ".join(ROBUST_PARAMETERS)}',
@@ -172,7 +170,7 @@ class Config:
     @classmethod
     def from_values(cls, v: dict) -> 'Config':
         """From parameter values by name; ParameterError names the bad one."""
-        params = CraneParams(**{name: v[name] for name in PARAMETER_NAMES})
+        params = CraneParams.of(v)
         check_choice('method', v['method'], METHODS)
         intervals = int(v['intervals'])
         options = PlanOptions(

@@ -1,7 +1,7 @@
 """A goal's motion followed to its result: done, taken over by a newer goal, or stopped on a cancel.
 
 ``follow`` is a goal's last steps on the ``runner.GoalRunner``: each one
-publishes the feedback of its ``execution.Execution`` (a 20 Hz period) and
+publishes the feedback of its ``execution.Execution`` (every ``FEEDBACK_PERIOD``) and
 looks at the goal's state; a cancel during the motion stops it
 (``settling.stop_motion``) and follows the stop. Its result is an
 ``Outcome``. Pure Python, no ROS import.

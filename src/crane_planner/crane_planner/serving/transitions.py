@@ -310,10 +310,10 @@ def _shaped_travel(p: Plan | None) -> dict | None:
 
 def swing_of(state: MotionState, params: CraneParams) -> float:
     """The amplitude (m) of the load's swing in ``state``, as the first mode's: sqrt(|x|^2 + |x'|^2 / omega_1^2)
-    of the load's horizontal offset x from below the suspension point (``crane_sim.spatial.load_offset``, whose
-    norm is the contract's residual; the instant's alone is 0 as the load passes below). The planar swing is
-    the spatial one with phi = 0. x' = (dx/dq) q' by a complex step along q' (exact to rounding, the
-    kinematics written once)."""
+    of the load's horizontal offset x from below the suspension point (``crane_msgs_py.crane.geometry``'s
+    ``load_offset``, whose norm is the contract's residual; the instant's alone is 0 as the load passes below).
+    The planar swing is the spatial one with phi = 0. x' = (dx/dq) q' by a complex step along q' (exact to
+    rounding, the kinematics written once)."""
     model = _model(params, state)
     q, dq = np.array(state.swing.angles()), np.array(state.swing.rates())
     step = 1e-20

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import threading
 
+from crane_msgs_py.crane.axes import AXES
 from crane_msgs_py.crane.params import check_count
 
 from ..planning.dispatch import VariationalRequest
@@ -178,8 +179,7 @@ def toggled_limits(requests) -> list[VariationalRequest]:
         if (options.solver != 'direct' or request.operation != 'plan' or request.start is not None
                 or request.free_end or not isinstance(request.displacement, float | int)):
             continue
-        flat = {name: None for name in ('max_velocity', 'max_acceleration', 'max_jerk', 'max_hoist_velocity',
-                                        'max_hoist_acceleration', 'max_hoist_jerk')}
+        flat = {name: None for axis in AXES for name in axis.limit_names}  # every axis's, the bridge's too
         if any(limits.any for limits in options.limits):
             cleared = dataclasses.replace(options, base='quintic', limits=(), **flat)
             twins.append(dataclasses.replace(request, options=cleared))

@@ -11,11 +11,10 @@ from dataclasses import dataclass
 
 from crane_msgs_py.crane.axes import AXES, AXIS_NAMES, HOIST, LIMIT_QUANTITIES, LIMITS_MAP
 from crane_msgs_py.crane.params import (
-    PARAMETER_DESCRIPTIONS,
-    PARAMETER_NAMES,
     CraneParams,
     ParameterError,
     check_choice,
+    model_parameters,
     parameter_range,
     renamed_from,
 )
@@ -112,9 +111,7 @@ PARAMETERS = {
     HOIST_RANGE: ([0.1, 3.0], 'operator mode: the shortest and longest rope (m) the hoist may reach',
                   {'additional_constraints': '[shortest, longest], 0 < shortest < longest',
                    **renamed_from('operator.hoist_range')}),
-    **{name: (getattr(CraneParams, name), f'crane model of the operator shaper and of a ~/stop: '
-                                          f'{PARAMETER_DESCRIPTIONS[name]}', parameter_range(0.0, 1e4))
-       for name in PARAMETER_NAMES},
+    **model_parameters(lambda description: f'crane model of the operator shaper and of a ~/stop: {description}'),
 }
 
 
@@ -158,7 +155,7 @@ class StreamerConfig:
         impairment = Impairment(delay=values['network.delay'], jitter=values['network.jitter'],
                                 distribution=values['network.distribution'], loss=values['network.loss'],
                                 reorder=values['network.reorder'], seed=values['network.seed'])
-        model = CraneParams(**{name: values[name] for name in PARAMETER_NAMES})
+        model = CraneParams.of(values)
         check_choice('hold_source', values['hold_source'], HOLD_SOURCES)
         check_choice('mode', values['mode'], MODES)
         check_choice('operator_shaper', values['operator_shaper'], OPERATOR_SHAPERS)

@@ -346,7 +346,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _model_and_options(args) -> tuple[CraneParams, PlanOptions]:
-    model = CraneParams(**{n: getattr(args, n) for n in PARAMETER_NAMES})
+    model = CraneParams.of(vars(args))
     if args.hoist is not None:
         if not args.hoist[0] > 0.0:
             raise UsageError(f'argument --hoist: L1_START must be > 0, got {args.hoist[0]:g}')
@@ -540,7 +540,7 @@ def _print_sweep(result: dict):
 
 def cmd_identify(args) -> int:
     from crane_planner.identification import identify, read_bag, read_csv
-    model = CraneParams(**{n: getattr(args, n) for n in PARAMETER_NAMES})
+    model = CraneParams.of(vars(args))
     source = args.csv or args.bag
     with Progress(2, 'identify', PROG) as progress:
         recording = read_csv(args.csv) if args.csv else read_bag(args.bag)

@@ -39,13 +39,13 @@ from visualization_msgs.msg import MarkerArray
 
 from crane_msgs_py.crane.drive import FAULT_STATES, AxisState
 from crane_msgs_py.crane.params import (
-    PARAMETER_DESCRIPTIONS,
     PARAMETER_NAMES,
     CraneParams,
     ParameterError,
     check_choice,
     check_nonnegative,
     check_positive,
+    model_parameters,
 )
 from crane_msgs_py.messages.conversions import (
     crane_markers_message,
@@ -90,8 +90,8 @@ _TYPE_NAMES = {'trajectory_msgs/msg/JointTrajectory': OUTPUT_JOINT_TRAJECTORY,
 
 
 PARAMETERS = {
-    **{name: (getattr(CraneParams, name), f'true plant: {PARAMETER_DESCRIPTIONS[name]}; may change while running',
-              float_range(0.0, 10.0 if name.startswith('tau') else 1e4)) for name in PARAMETER_NAMES},
+    **model_parameters(lambda description: f'true plant: {description}; may change while running',
+                       lambda name: 10.0 if name.startswith('tau') else 1e4),
     'joints': (['cart'], "the actuated joints: [cart], [cart, hoist], [cart, bridge] or [cart, bridge, hoist] "
                          "(a column of the reference each; with the hoist the upper cable's length follows it "
                          'through tau_hoist, from L1 at start-up; with the bridge the suspension point moves along '
@@ -163,7 +163,7 @@ class SimNode(Node):
         # Late steps are caught up, never skipped (a skipped step would drop its references);
         # the playout delay keeps them in time up to a point, the lateness diagnostics show it.
         self._ticker = Ticker(round(p['step'] * 1e9), max_backlog=10**9)
-        self._sim = CraneSimulator(CraneParams(**{n: p[n] for n in PARAMETER_NAMES}), dt=self._ticker.period * 1e-9,
+        self._sim = CraneSimulator(CraneParams.of(p), dt=self._ticker.period * 1e-9,
                                    axes=self._joints)
         self._publish_every = max(1, round(1.0 / (p['publish_rate'] * p['step'])))
         self._source, self._interpolation = p['reference_source'], p['interpolation']
@@ -226,7 +226,7 @@ class SimNode(Node):
                                  f'reference_timeout {values["reference_timeout"]} s')
         for name in ('fault_deceleration', 'fault_jerk', 'resume_tolerance'):
             check_positive(name, values[name])
-        return CraneParams(**{name: values[name] for name in PARAMETER_NAMES})
+        return CraneParams.of(values)
 
     @staticmethod
     def _fault_config_of(values: dict) -> FaultConfig:
