@@ -37,16 +37,9 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
+from crane_msgs_py.crane import params as crane_params
 from crane_msgs_py.crane.drive import FAULT_STATES, AxisState
-from crane_msgs_py.crane.params import (
-    PARAMETER_NAMES,
-    CraneParams,
-    ParameterError,
-    check_choice,
-    check_nonnegative,
-    check_positive,
-    model_parameters,
-)
+from crane_msgs_py.crane.params import PARAMETER_NAMES, CraneParams, ParameterError, model_parameters
 from crane_msgs_py.messages.conversions import (
     crane_markers_message,
     fill_crane_markers,
@@ -219,13 +212,13 @@ class SimNode(Node):
         """The plant of a full set of values; ParameterError names a bad value."""
         for name, choices in (('reference_source', SOURCES), ('interpolation', INTERPOLATIONS),
                               ('reference_type', ('auto', *REFERENCE_TYPES))):
-            check_choice(name, values[name], choices)
-        check_nonnegative('noise', values['noise'])
+            crane_params.check_choice(name, values[name], choices)
+        crane_params.check_nonnegative('noise', values['noise'])
         if not values['playout_delay'] < values['reference_timeout']:
             raise ParameterError(f'playout_delay {values["playout_delay"]} s must be shorter than '
                                  f'reference_timeout {values["reference_timeout"]} s')
         for name in ('fault_deceleration', 'fault_jerk', 'resume_tolerance'):
-            check_positive(name, values[name])
+            crane_params.check_positive(name, values[name])
         return CraneParams.of(values)
 
     @staticmethod
