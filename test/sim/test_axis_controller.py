@@ -8,6 +8,7 @@ stopping distance is checked against ``braking.stopping_distance`` (itself
 checked against ruckig) plus the servo's lag.
 """
 import itertools
+import math
 
 import pytest
 
@@ -23,7 +24,7 @@ from crane_sim.axis_controller import (
     Offer,
     check_transition,
 )
-from crane_sim.playout import ReferencePlayout
+from crane_sim.playout import DRY, ReferencePlayout
 from crane_sim.reference_intake import ReferenceIntake
 from crane_sim.simulator import CraneSimulator
 
@@ -140,11 +141,11 @@ def test_a_lost_stream_brakes_the_reference_and_the_cart_stops_within_the_stoppi
     fault, (_, stopping, holding) = rig.controller.fault, rig.changes
     # declared lost when the newest sample (stamped 1.499 s) is older than the timeout at the playout time
     assert stopping.time == pytest.approx(1.499 + DELAY + TIMEOUT, abs=1.01 * DT)
-    # from the reference's velocity and acceleration then: the zoh-held 0.1 m/s^2 kept accelerating it (to a
-    # step: which step a stamp on the grid falls in is the rounding's)
+    # from the reference's velocity and acceleration then: the newest sample's 0.1 m/s^2 played only while it was
+    # within DRY sample spacings of the playout time (two steps), then the buffer was dry and the velocity held
     braking = fault.brakings[0]
-    assert braking.a0 == pytest.approx(0.1, abs=1e-12)
-    assert braking.v0 == pytest.approx(0.3 + 0.1 * (stopping.time - DELAY - 1.0), abs=0.2 * DT + 1e-12)
+    assert braking.a0 == 0.0
+    assert braking.v0 == pytest.approx(0.3 + 0.1 * (1.499 + (math.floor(DRY) + 1) * DT - 1.0), abs=1e-9)
     assert holding.time - stopping.time == pytest.approx(braking.duration, abs=DT)
     # the plant travels the reference's stopping distance plus the servo's lag (Eq. 6: the reference leads
     # the cart by tau * v), which comes to rest exactly where the reference holds
@@ -157,6 +158,26 @@ def test_a_lost_stream_brakes_the_reference_and_the_cart_stops_within_the_stoppi
     # the servo never demands more than the ramp: |a| within D once the first phase has eased a0 off
     braking_rows = [s[0] for t, s in rig.rows if stopping.time < t <= holding.time]
     assert max(abs(a) for _, _, a in braking_rows) <= max(D, abs(braking.a0)) + 1e-9
+
+
+@pytest.mark.parametrize('kill', [0.3, 1.5, 2.7])
+def test_a_lost_stream_stops_the_axis_within_the_watchdogs_distance_of_its_last_reference(kill):
+    """docs/faults.md: from the reference of the last sample received (stamped t_last, velocity v there), the axis
+    goes on at v until the watchdog (``reference_timeout`` T) and then brakes: it comes to rest no further than
+    |v| T + stopping_distance(|v|, 0, D, J), plus the servo's lag tau |v| (Eq. 6) and the acceleration of the
+    DRY steps played past t_last. It never extrapolates the last acceleration over the watchdog."""
+    rig = lost_stream(kill)
+    t_last = kill - DT
+    x_last, a = accelerating(t_last)[0]
+    v = 0.3 * min(t_last, 1.0) + 0.1 * max(t_last - 1.0, 0.0)
+    y_end = rig.at(rig.t)[0]
+    dry = (math.floor(DRY) + 1) * DT
+    bound = abs(v) * TIMEOUT + stopping_distance(abs(v) + a * dry, 0.0, D, J) + PLANT.tau * abs(v) + a * dry * TIMEOUT
+    assert 0.0 < y_end - x_last <= bound + 1e-9
+    # extrapolating the acceleration over the watchdog, as the drive never does, goes measurably further
+    v_x = v + a * TIMEOUT
+    extrapolated = v * TIMEOUT + a * TIMEOUT ** 2 / 2 + stopping_distance(v_x, a, D, J)
+    assert y_end - x_last < extrapolated - 1e-3
 
 
 def test_the_braking_follows_the_closed_form_step_by_step():

@@ -103,10 +103,11 @@ def test_samples_on_time_play_out_unchanged(interpolation):
 
 def test_what_a_timeout_declared_dead_is_not_made_up():
     stamped = [(k * DT, 0.0, 1.0 if k == 0 else 2.0) for k in range(80)]
-    # sample 0 on time, 1..21 only at 21 ms: the stream timed out at 20 ms, what it missed stays missed
+    # sample 0 on time, 1..21 only at 21 ms: the buffer ran dry 1.5 ms after sample 0 (the velocity held), the
+    # stream timed out at 20 ms, and what it missed stays missed
     playout = ReferencePlayout(delay=0.0, timeout=0.02)
     a = play(playout, [(max(s[0], 0.021) if s[0] > 0 else 0.0, s) for s in stamped], 80)[:, 0]
-    assert np.array_equal(a, [1.0] * 20 + [0.0] + [2.0] * 59) and playout.timeouts == 1
+    assert np.array_equal(a, [1.0] * 2 + [0.0] * 19 + [2.0] * 59) and playout.timeouts == 1
     # the first samples of a stream, 0..30 ms, all more than the timeout late (at 60 ms): dead on arrival;
     # it goes on, on time, at 61 ms
     playout = ReferencePlayout(delay=0.0, timeout=0.02)
@@ -261,7 +262,9 @@ def test_a_stall_is_forgiven_for_the_timeout_after_it_while_its_backlog_arrives(
     playout = ReferencePlayout(delay=0.0, timeout=1.0)
     playout.push(0.0, 0.0, 0.5)
     playout.behind(StallAllowance(1.0)(1.5, 3.0))
-    assert playout.step(2.4, 2.401) == (0.5, 0.5) and playout.timeouts == 0  # 2.4 s old: within 1 + 1.5 s
+    assert playout.step(1.5, 1.501) == (0.5, 0.5)  # the stall's own lateness: its samples are on their way
+    assert playout.step(2.4, 2.401) == (0.0, 0.0)  # dry: the velocity holds ...
+    assert playout.timeouts == 0  # ... but 2.4 s old is within 1 + 1.5 s: not lost
 
 
 def test_stamps_must_increase_and_choices_are_checked():

@@ -11,10 +11,13 @@ pattern, as long as it arrives within ``delay``.
 
 Per step ``[t0, t1]`` the acceleration is the newest stamped <= t0 - delay
 (``zoh``), or interpolated between the samples bracketing t0 - delay and
-t1 - delay (``linear``). Without a sample newer than ``timeout`` the
-acceleration falls back to 0 (the stream stopped: never hold an acceleration)
-and ``timeouts`` counts it; the sim node's axis controller
-(``axis_controller``) then brakes the reference to rest instead.
+t1 - delay (``linear``). Once the playout time has passed the newest sample
+by more than ``DRY`` of the samples' spacing, the buffer has run dry: the
+acceleration is 0, so the axis holds its velocity and never runs ahead of
+its reference on an acceleration nobody sent (a drive given no new setpoint
+does not extrapolate one). Without a sample newer than ``timeout`` the
+stream counts as stopped and ``timeouts`` counts it; the sim node's axis
+controller (``axis_controller``) then brakes the reference to rest.
 
 An acceleration sample later than that comes after steps that needed it and
 held an older one instead. Nothing would ever make up their deficit: the
@@ -84,8 +87,17 @@ def moved_across_gap(before: tuple, after: tuple, max_gap: float = MAX_GAP,
             or any(a != 0.0 for a in (*before[2::2], *after[2::2])))
 
 
+#: How far (in the spacing of its last two samples) the playout time may pass the newest sample before the
+#: buffer counts as dry and the acceleration as 0: one sample late is jitter, and holding its acceleration the
+#: better guess (what it turns out to be is made up); past that, the stream has gaps or has stopped.
+DRY = 1.5
+
 #: How late (s) a step of the plant's loop must be to count as a stall of its process (``StallAllowance``).
 STALL = 0.1
+#: How long (s) after a stall of its own the loop waits for the stall's backlog (the samples sent while it stood
+#: still, queued in the middleware and its executor) before a silence counts again: the receiving side's
+#: catching up, not the drive's watchdog, so not ``reference_timeout``.
+BACKLOG = 1.0
 
 
 class StallAllowance:
@@ -94,7 +106,7 @@ class StallAllowance:
     Its lateness now, or, for ``hold`` seconds of the clock after a stall, that stall's length: the samples
     sent while the process stood still (SIGSTOP, a host pause) reach its executor only after it, a
     backlog it works through while the loop has long caught up, so their gap is forgiven until the
-    executor has had ``hold`` (the reference timeout) to deliver them. A stream that stops within
+    executor has had ``hold`` (``BACKLOG``) to deliver them. A stream that stops within
     ``hold`` of a stall is judged lost that much later, never not at all.
     """
 
@@ -118,6 +130,7 @@ class ReferencePlayout:
 
     Args:
         delay: playout delay (s), >= 0.
+        period: the samples' expected spacing (s), for the first sample's ``DRY`` (later: their own).
         timeout: age (s) beyond which the newest sample no longer counts, > 0.
         interpolation: ``zoh`` or ``linear``.
         source: ``acceleration`` (use each sample's acceleration) or ``position``.
@@ -128,13 +141,15 @@ class ReferencePlayout:
     caused stays (a longer ``delay`` avoids it).
     """
 
-    def __init__(self, delay: float, timeout: float, interpolation: str = 'zoh', source: str = 'acceleration'):
+    def __init__(self, delay: float, timeout: float, interpolation: str = 'zoh', source: str = 'acceleration',
+                 period: float = 1e-3):
         check_choice('interpolation', interpolation, INTERPOLATIONS, SimulationError)
         check_choice('source', source, SOURCES, SimulationError)
         if not (delay >= 0.0 and timeout > 0.0):
             raise SimulationError(f'need delay >= 0 and timeout > 0, got {delay}, {timeout}')
         self.delay, self.timeout = float(delay), float(timeout)
         self.interpolation, self.source = interpolation, source
+        self.period = float(period)  # the samples' spacing until two have come (``DRY``)
         self.timeouts = self.made_up = 0
         self.made_up_late = 0.0
         self.reset()
@@ -144,12 +159,14 @@ class ReferencePlayout:
         self._queue: deque = deque()   # (t, value) not yet reached by the playout time
         self._last = -math.inf         # stamp of the last sample pushed
         self._current = None           # (t, value): the newest sample at or before the playout time
+        self._dry = 0.0                # how far (s) past _current the playout runs dry if nothing newer is known
         self._live = False             # whether _current is recent enough to count
         self._behind = 0.0             # how late (s) the plant's loop runs this step (``behind``)
         self._played: list[float] = []  # position source: positions played out at the last two steps
         # acceleration source, samples later than the delay:
-        # (end, h, tau0, tau1) of the last steps, which a later sample could still change: plant time (s) at
-        # the step's end counted over them, its length (s), its first and last playout times (s)
+        # (end, h, tau0, tau1, behind) of the last steps, which a later sample could still change: plant time (s)
+        # at the step's end counted over them, its length (s), its first and last playout times (s), and how
+        # late the loop ran then (s: it moves where the buffer counts as dry)
         self._pending: deque = deque()
         self._ev = self._ep = 0.0       # reference velocity (m/s), position (m) still to make up: on time - applied
         self._settling = 0              # steps of the deadbeat correction of _ev, _ep still to come: 2 or less
@@ -171,7 +188,8 @@ class ReferencePlayout:
     def _advance(self, tau: float):
         queue = self._queue
         while queue and queue[0][0] <= tau:
-            self._current = queue.popleft()
+            previous, self._current = self._current, queue.popleft()
+            self._dry = DRY * (self._current[0] - previous[0] if previous is not None else self.period)
         live = self._current is not None and tau - self._current[0] <= self.timeout + self._behind
         if self._live and not live:
             self.timeouts += 1
@@ -183,9 +201,12 @@ class ReferencePlayout:
         if self._current is None or not (self._live or self.source == 'position'):
             return 0.0
         t0, a0 = self._current
-        if self.interpolation == 'linear' and self._queue:  # _interpolate, inline: this runs twice a step
-            t1, a1 = self._queue[0]
-            return a0 + (a1 - a0) * (tau - t0) / (t1 - t0)
+        if self._queue:
+            if self.interpolation == 'linear':  # _interpolate, inline: this runs twice a step
+                t1, a1 = self._queue[0]
+                return a0 + (a1 - a0) * (tau - t0) / (t1 - t0)
+        elif tau - t0 > self._dry + self._behind and self.source == 'acceleration':  # dry: the velocity holds
+            return 0.0
         return a0
 
     def step(self, t0: float, t1: float) -> tuple[float, float]:
@@ -203,7 +224,7 @@ class ReferencePlayout:
             a1 = self._at(tau1)
         if tau1 > self._last and (self._live or self._current is None):  # ahead of the samples, live or before any
             pending, h = self._pending, t1 - t0
-            pending.append(((pending[-1][0] if pending else 0.0) + h, h, tau0, tau1))
+            pending.append(((pending[-1][0] if pending else 0.0) + h, h, tau0, tau1, self._behind))
         elif self._pending:  # final (behind the samples, or timed out: the stream is dead), so are those before
             self._pending.clear()
         if self._settling:
@@ -230,36 +251,32 @@ class ReferencePlayout:
             t_prev, held = prev if prev else (-math.inf, 0.0)
             samples = [prev, *queue] if prev else list(queue)
             n, t_new, now_end = len(samples), queue[-1][0], pending[-1][0]
+            dry_prev = self._dry  # how far past prev the pending steps ran before they played 0
+            dry_new = DRY * (t_new - samples[-2][0] if n > 1 else self.period)
             j = 0  # samples[:j] are stamped at or before the playout time in hand
 
-            def change(tau: float) -> float:
-                """The value at ``tau`` with every sample now known (as on time) minus the value accounted for."""
+            def change(tau: float, behind: float) -> float:
+                """The value at ``tau`` with every sample now known (as on time) minus the value played then, when
+                the loop ran ``behind`` s late."""
                 nonlocal j
                 if not tau > t_prev:
                     return 0.0  # final when played
+                played = held if tau - t_prev <= dry_prev + behind else 0.0
                 while j < n and samples[j][0] <= tau:
                     j += 1
                 if j == 0 or tau - samples[j - 1][0] > timeout:
-                    return -held
-                if linear and j < n:
-                    return _interpolate(samples[j - 1], samples[j], tau) - held
-                return samples[j - 1][1] - held
+                    return -played
+                if j < n:
+                    return (_interpolate(samples[j - 1], samples[j], tau) if linear else samples[j - 1][1]) - played
+                return (samples[-1][1] if tau - t_new <= dry_new + behind else 0.0) - played  # past the newest
 
             ev = ep = 0.0
-            k = 0
-            for end, h, tau0, tau1 in pending:  # up to the newest sample, step by step
-                if tau0 > t_new:
-                    break
-                d0 = change(tau0)
-                d1 = change(tau1) if linear else d0
+            for end, h, tau0, tau1, behind in pending:  # step by step: what each played, against what it would now
+                d0 = change(tau0, behind)
+                d1 = change(tau1, behind) if linear else d0
                 dv = h * (d0 + d1) / 2  # the difference ramps d0 -> d1 over the step
                 ev += dv
                 ep += dv * (now_end - end) + h * h * (d0 / 3 + d1 / 6)
-                k += 1
-            if k < len(pending):  # the steps after the newest sample, which now holds (live: not dead on arrival)
-                d, span = queue[-1][1] - held, now_end - (pending[k][0] - pending[k][1])  # from the first one's start
-                ev += d * span
-                ep += d * span * span / 2
             if queue[0][0] <= pending[-1][2]:  # (else ahead of the samples by design: no delay, linear)
                 self.made_up += 1  # came after the step that should have played it began
                 self.made_up_late = max(self.made_up_late, now - queue[0][0])

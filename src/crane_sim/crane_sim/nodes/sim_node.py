@@ -39,7 +39,7 @@ from visualization_msgs.msg import MarkerArray
 
 from crane_msgs_py.crane import params as crane_params
 from crane_msgs_py.crane.drive import FAULT_STATES, AxisState
-from crane_msgs_py.crane.params import PARAMETER_NAMES, CraneParams, ParameterError, model_parameters
+from crane_msgs_py.crane.params import PARAMETER_NAMES, CraneParams, model_parameters
 from crane_msgs_py.messages.conversions import (
     crane_markers_message,
     fill_crane_markers,
@@ -69,7 +69,7 @@ from crane_msgs_py.runtime.runner import LoopThread, run
 from crane_sim.axis_controller import AxisController, FaultConfig, Offer
 from crane_sim.measurement import AngleNoise
 from crane_sim.nodes.reference_reader import REFERENCE_TYPES, ReferenceReader
-from crane_sim.playout import ReferencePlayout, StallAllowance
+from crane_sim.playout import BACKLOG, ReferencePlayout, StallAllowance
 from crane_sim.reference_intake import ReferenceIntake
 from crane_sim.simulator import INTERPOLATIONS, SOURCES, CraneSimulator, CraneState, SimulationError
 
@@ -106,9 +106,11 @@ PARAMETERS = {
                         'read_only': True}),
     # Looser than a drive's watchdog: a busy 2-core host stalls this process for up to about this long, and a stall
     # taken for a lost stream stops the motion
-    'reference_timeout': (1.0, 'a reference older than this (s) on arrival is stale and ignored; without a '
-                          'fresh one for this long the stream is lost: the fault reaction brakes every axis to '
-                          'rest (fault_deceleration) and holds', float_range(1e-3, 10.0)),
+    'reference_timeout': (0.1, 'the drive\'s watchdog: once the plant has played its newest reference (the '
+                          'playout has run dry) each axis holds its velocity, and after this long (s) more the '
+                          'stream is lost: the fault reaction brakes every axis to rest (fault_deceleration) and '
+                          'holds; a reference arriving more than playout_delay + reference_timeout after its stamp '
+                          'is stale and ignored', float_range(1e-3, 10.0)),
     'fault_deceleration': (0.5, 'fault reaction to a lost reference stream: every axis (the hoist too) brakes its '
                            'reference from its velocity and acceleration then to rest at this deceleration '
                            '(m/s^2), jerk-limited by fault_jerk, as a drive\'s quick stop, then holds; may change '
@@ -214,9 +216,6 @@ class SimNode(Node):
                               ('reference_type', ('auto', *REFERENCE_TYPES))):
             crane_params.check_choice(name, values[name], choices)
         crane_params.check_nonnegative('noise', values['noise'])
-        if not values['playout_delay'] < values['reference_timeout']:
-            raise ParameterError(f'playout_delay {values["playout_delay"]} s must be shorter than '
-                                 f'reference_timeout {values["reference_timeout"]} s')
         for name in ('fault_deceleration', 'fault_jerk', 'resume_tolerance'):
             crane_params.check_positive(name, values[name])
         return CraneParams.of(values)
@@ -232,11 +231,13 @@ class SimNode(Node):
 
     def _playout_args_of(self, values: dict) -> tuple:
         source = 'position' if self._reference_type == OUTPUT_FLOAT64_ARRAY else values['reference_source']
-        return values['playout_delay'], values['reference_timeout'], values['interpolation'], source
+        return (values['playout_delay'], values['reference_timeout'], values['interpolation'], source,
+                values['unstamped_period'])
 
     def _intake_args_of(self, values: dict) -> tuple:
         delay, timeout, _, source = self._playout_args_of(values)
-        return timeout, delay, values['unstamped_period'], source == 'position'
+        # stale: too late for its playout, and for making up what the steps without it played (the timeout)
+        return delay + timeout, delay, values['unstamped_period'], source == 'position'
 
     def _apply(self, params: CraneParams, values, changes):
         if {c.name for c in changes} & set(PARAMETER_NAMES):
@@ -263,7 +264,7 @@ class SimNode(Node):
         self._reader = ReferenceReader(self, kind, REFERENCE_EVERY_SAMPLE_QOS)  # the loop takes from it
         self.get_logger().info(f'reference type {kind}')
         if kind == OUTPUT_FLOAT64_ARRAY:  # positions only, timed by their arrival
-            self._playout_args = (*self._playout_args[:3], 'position')  # what _playout_args_of gives now
+            self._playout_args = (*self._playout_args[:3], 'position', *self._playout_args[4:])  # as _playout_args_of
             self._intake.positions_only = True  # and _intake_args_of
             if self._source == 'acceleration':
                 self.get_logger().warn('float64_array references carry positions only: '
@@ -342,7 +343,7 @@ class SimNode(Node):
                 made_up += playouts[0].made_up if playouts else 0
                 playouts = tuple(ReferencePlayout(*playout_args) for _ in sim.axes)
                 playout, seen = playouts[0], 0  # the cart's: its timeouts are the stream's
-                allowance = StallAllowance(playout.timeout)
+                allowance = StallAllowance(BACKLOG)
                 self._plant_clock = (epoch_ros, round(playout.delay * 1e9))
             if self._fault_config is not controller.config:
                 controller.config = self._fault_config
