@@ -235,7 +235,7 @@ class SimNode(Node):
                 values['unstamped_period'])
 
     def _intake_args_of(self, values: dict) -> tuple:
-        delay, timeout, _, source = self._playout_args_of(values)
+        delay, timeout, _, source, _ = self._playout_args_of(values)
         # stale: too late for its playout, and for making up what the steps without it played (the timeout)
         return delay + timeout, delay, values['unstamped_period'], source == 'position'
 
