@@ -410,17 +410,17 @@ def test_a_sim_paused_longer_than_its_reference_timeout_resumes_tracking_without
 
 
 def test_a_streamer_paused_mid_move_sends_what_it_missed_and_the_cart_ends_at_its_goal(crane):
-    """The streamer's process stopped (SIGSTOP) for 0.4 s mid-move: longer than the sim's playout delay
-    (0.2 s), shorter than its reference timeout (1 s). Continued, it sends every sample it missed, back to
-    back, and the sim makes up those that came late: the cart ends at the goal, at rest (a sample skipped
-    would have left it off by what its acceleration carried, and moving), and no fault reaction runs."""
+    """The streamer's process stopped (SIGSTOP) mid-move for 0.23 s: longer than the sim's playout delay
+    (0.2 s), within its watchdog (0.1 s after that). Continued, it sends every sample it missed, back to back,
+    and the sim makes up those that came late: the cart ends at the goal, at rest (a sample skipped would have
+    left it off by what its acceleration carried, and moving), and no fault reaction runs."""
     crane, recorder = crane
     here = streamed_hold(crane)
     count = len(recorder.status_list())
     goal, duration, settle = here + 0.3, 3.0, 1.0
     start, _, _ = crane.move('nvf', None, goal, duration, settle=settle)
     crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.0))
-    pause(crane, 0.4, 'streamer')
+    pause(crane, DELAY + 0.3 * TIMEOUT, 'streamer')
     crane.outcome(start)  # (its residual is not this test's: the samples made up late swing the load)
     end = start + round((duration + settle) * 1e9)
     crane.wait_until(lambda: len(recorder.rows(end)) > 0, 30.0, 'no joint_states past the settle window')

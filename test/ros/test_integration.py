@@ -835,8 +835,9 @@ def test_sim_ignores_and_counts_nonfinite_out_of_order_and_stale_references(cran
 def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_domain, tmp_path):
     """A streamer with ``output: float64_array`` and a sim of their own: the sim detects the type
     and reconstructs the acceleration from the positions, so the cart still ends at the goal; also when
-    the streamer stalls (SIGSTOP) 0.4 s mid-motion, longer than the playout delay: its unstamped samples,
-    sent late, are timed from their arrival again, a delay the sim must not take for a lost stream."""
+    the streamer stalls (SIGSTOP) 0.4 s mid-motion, longer than the playout delay, within the sim's watchdog
+    (set to 0.5 s here: a drive on a link known to stall): its unstamped samples, sent late, are timed from their
+    arrival again, a delay the sim must not take for a lost stream."""
     import os
     import signal
 
@@ -848,7 +849,7 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
     ns = f'{NS}_f64'
     with NodeGroup(ros_domain, tmp_path) as nodes:
         streamer = nodes.start(*STREAMER, namespace=ns, params={'output': 'float64_array'})
-        nodes.start(*SIM, namespace=ns)
+        nodes.start(*SIM, namespace=ns, params={'reference_timeout': 0.5})
         sim_status = dict(name='crane_sim: sim', hardware_id=f'{ns}/crane_sim')
         # the type is known from the streamer's publisher; the streamer takes trajectories once it streams
         # (after the sim's first joint_states): the sim then accepts references

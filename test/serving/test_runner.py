@@ -147,6 +147,7 @@ def test_a_worker_that_fails_ends_every_goal_and_refuses_the_next_instead_of_lea
     waiting = runner.submit(ticks('a', [], 3))
     runner.start()
     assert waiting.done.wait(10.0)  # (a hang guard: ended at once)
+    runner._thread.join(10.0)  # (its failure raised on, within this test)
     with pytest.raises(RunnerStopped, match='broken'):
         waiting.result()
     with pytest.raises(RunnerStopped):
