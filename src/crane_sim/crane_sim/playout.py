@@ -130,10 +130,10 @@ class ReferencePlayout:
 
     Args:
         delay: playout delay (s), >= 0.
-        period: the samples' expected spacing (s), for the first sample's ``DRY`` (later: their own).
         timeout: age (s) beyond which the newest sample no longer counts, > 0.
         interpolation: ``zoh`` or ``linear``.
         source: ``acceleration`` (use each sample's acceleration) or ``position``.
+        period: the samples' expected spacing (s), for the first sample's ``DRY`` (later: their own).
 
     ``timeouts`` counts the times the reference fell back to 0 after having had samples; ``made_up`` the
     times samples came too late for steps already played and their difference was made up, ``made_up_late``

@@ -104,8 +104,8 @@ PARAMETERS = {
                        f"'{OUTPUT_FLOAT64_ARRAY}'; fixed at start-up",
                        {'additional_constraints': f'auto, {OUTPUT_JOINT_TRAJECTORY} or {OUTPUT_FLOAT64_ARRAY}',
                         'read_only': True}),
-    # Looser than a drive's watchdog: a busy 2-core host stalls this process for up to about this long, and a stall
-    # taken for a lost stream stops the motion
+    # A fieldbus drive's watchdog: a stream silent longer is lost, and an axis must not coast on in the meantime.
+    # A stall of this process's own loop is not the stream's silence (playout.StallAllowance, BACKLOG)
     'reference_timeout': (0.1, 'the drive\'s watchdog: once the plant has played its newest reference (the '
                           'playout has run dry) each axis holds its velocity, and after this long (s) more the '
                           'stream is lost: the fault reaction brakes every axis to rest (fault_deceleration) and '
