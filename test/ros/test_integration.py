@@ -426,7 +426,7 @@ def test_a_goal_during_a_motion_that_names_its_start_is_refused_saying_why_and_t
     crane.sleep_until(start_ns + 500_000_000)  # streaming
     with pytest.raises(PlanError, match='a goal during a motion starts where the motion is when it takes over'):
         crane.planner.execute('nvf', crane.hold, crane.hold + 0.1, 3.0)
-    result = crane.driver.move_result(start_ns)  # raises PlanError unless it succeeded
+    result = crane.driver.move_result(start_ns)
     assert result.success and crane.driver.now_ns() > end_ns + round(SETTLE * 1e9)
 
 

@@ -7,7 +7,9 @@
     result.residual_swing                    # m, measured from joint_states over the settle window
 
 A refused request raises ``PlanError`` with the planner's reason (the
-response's or the result's ``message``). The node must be spun by an
+response's or the result's ``message``); a goal aborted after its motion
+because the load still swung has its result, residual included, as the
+error's ``result``. The node must be spun by an
 executor in another thread (or by none: the client then spins it while it
 waits); do not call these from a callback of a single-threaded executor
 spinning the same node.
@@ -140,10 +142,14 @@ class PlannerClient:
         return handle
 
     def result(self, handle, timeout: float = 120.0) -> ExecuteMove.Result:
-        """The result of a goal from ``send_execute``; PlanError with its message unless it succeeded."""
+        """The result of a goal from ``send_execute``; PlanError with its message unless it succeeded, the
+        goal's result as its ``result`` (a goal that moved but left the load swinging over the planner's
+        residual_tolerance has its ``residual_swing``; its message says ``names.STILL_SWINGING``)."""
         response = self._wait(handle.get_result_async(), timeout, 'the execute_move result')
         if not response.result.success:
-            raise PlanError(response.result.message)
+            error = PlanError(response.result.message)
+            error.result = response.result
+            raise error
         return response.result
 
     def execute(self, method: str | None, start: float | None, goal: float, duration: float, start_ns: int = 0,

@@ -35,6 +35,9 @@ RESET_SERVICE = '~/reset'
 SETTLE_SERVICE = '~/settle'  # planner: damp the swing measured now (std_srvs/Trigger)
 PUSH_SERVICE = '~/push'  # sim: set the load swinging (std_srvs/Trigger), for tests and the demo
 CMD_VEL_TOPIC = 'cmd_vel'  # streamer in operator mode: geometry_msgs/Twist
+#: How an ExecuteMove result that ended aborted only because the load swings over residual_tolerance says so
+#: (its residual_swing has the figure): what a client that measures residuals takes as a result, not a refusal.
+STILL_SWINGING = 'the load still swings'
 
 #: The actuated joints, named by their axes (``axes.AXES``, the one registry): the cart's, the swing angles
 #: the sim publishes after it, the hoist's (its position is the upper cable's length L1; larger = load lower).

@@ -1,11 +1,12 @@
 """A goal's admission: registered on arrival (a shaper's during a motion handed over at once), and its
-execution begun from rest or by taking the running motion over.
+execution begun where the axes are held or by taking the running motion over.
 
 ``arrive`` runs on the goals' thread, before the action server accepts the
 goal; ``execute`` is the goal's steps on the ``runner.GoalRunner``: a
 settle window that is not finite and >= 0 is refused, a goal that arrived
 during a motion takes it over (``takeover.take_over``), any other starts
-from rest (``starting.from_rest``). Pure Python, no ROS import.
+where the axes are held (``swinging.start``: from rest, or from the load's
+swing). Pure Python, no ROS import.
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from .following import DEFAULT_SETTLE, end
 from .goals import Goal, TakeOver
 from .moves import Move
 from .runner import Steps
-from .starting import from_rest
+from .swinging import start
 from .takeover import send_handover, take_over
 
 
@@ -61,4 +62,4 @@ def _steps(serving: Serving, goal: Goal, move: Move, settle: float, feedback, ca
     settle = settle or DEFAULT_SETTLE
     if goal.take_over is not None:  # a new goal during a motion: it takes over (preemption)
         return (yield from take_over(serving, goal, move, settle, feedback, canceled))
-    return (yield from from_rest(serving, goal, move, settle, feedback, canceled, t0))
+    return (yield from start(serving, goal, move, settle, feedback, canceled, t0))

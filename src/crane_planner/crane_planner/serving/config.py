@@ -90,6 +90,11 @@ PARAMETERS = {
                        'aborted naming the lost stream (the streamer died or stopped; the axes brake to rest '
                        'by their fault reaction); longer than the 1 s of ticks a stalled streamer catches up on',
                        parameter_range(0.05, 60.0)),
+    'residual_tolerance': (0.002, 'a goal succeeds only if the load is quiet: its residual swing (m, the peak load '
+                                  'excursion measured over its settle window) at most this, else it ends aborted with '
+                                  'the residual in its message; a goal sent while the load swings more than half of it '
+                                  'is planned from the measured swing (a shaper\'s after settle_method damps it), > 0',
+                           parameter_range(0.0, 10.0)),
     'max_duration': (60.0, 'longest motion served (s), > 0', parameter_range(0.0, 3600.0)),
     'max_displacement': (10.0, 'largest |goal - start| served (m), > 0',
                          parameter_range(0.0, 1e4)),
@@ -162,6 +167,7 @@ class Config:
     stream_timeout: float = STREAM_TIMEOUT
     keep_out: KeepOut = KeepOut()
     via_tolerance: float = 0.01
+    residual_tolerance: float = 0.002
 
     @property
     def bounds(self) -> MoveBounds:
@@ -195,7 +201,8 @@ class Config:
                    int(v['handover_priority']), check_nonnegative('handover_warmup', v['handover_warmup']),
                    check_positive('stream_timeout', v['stream_timeout']),
                    KeepOut.from_values(v['keep_out'], v['keep_out_margin']),
-                   check_nonnegative('via_tolerance', v['via_tolerance']))
+                   check_nonnegative('via_tolerance', v['via_tolerance']),
+                   check_positive('residual_tolerance', v['residual_tolerance']))
 
     def warmups(self) -> list[VariationalRequest]:
         """Requests that build the NVF/RVF solvers of this configuration.

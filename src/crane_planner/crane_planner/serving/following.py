@@ -4,12 +4,16 @@
 publishes the feedback of its ``execution.Execution`` (every ``FEEDBACK_PERIOD``) and
 looks at the goal's state; a cancel during the motion stops it
 (``settling.stop_motion``) and follows the stop. Its result is an
-``Outcome``. Pure Python, no ROS import.
+``Outcome``: success means the axes are at the goal and the load is quiet
+(its residual at most ``residual_tolerance``); a load left swinging more
+aborts it, the residual in its message. Pure Python, no ROS import.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
+from crane_msgs_py.messages.names import STILL_SWINGING
 
 from .context import Serving
 from .execution import DONE, FAILED, MOVING, WAITING
@@ -98,4 +102,8 @@ def follow(serving: Serving, goal: Goal, planned: Planned, feedback, canceled, s
     if stopped is not None:
         return end(serving, goal, 'cancel', f'canceled: stopped at {stopped} m in {execution.duration:.4g} s '
                                             f'without swing ({what}); {residual}{cut}', planned, execution.residual)
+    tolerance = serving.config().residual_tolerance
+    if execution.residual > tolerance:  # (NaN, not measured, is not over it: nothing says the load swings)
+        return end(serving, goal, 'abort', f'{what}; {residual}, over residual_tolerance {1e3 * tolerance:g} mm: '
+                                           f'{STILL_SWINGING}{cut}', planned, execution.residual)
     return end(serving, goal, 'succeed', f'{what}; {residual}{cut}', planned, execution.residual)

@@ -9,11 +9,14 @@ from __future__ import annotations
 
 import contextlib
 
+from crane_msgs_py.messages.names import HOIST_JOINT
+
+from ..planning.continuation import problem_start
 from ..planning.plan import Plan
 from . import transitions
 from .context import Serving
 from .handover import plan_handover
-from .moves import MoveError, axis_samples
+from .moves import CheckedMove, MoveError, axis_samples, keep_out_clearance
 from .preview import knots_of
 from .transitions import Running, Trajectory
 
@@ -42,3 +45,19 @@ def trajectory_from(serving: Serving, plan: Plan, state, joints, handover_ns: in
     starts = transitions.joint_starts(plan, state)
     return Trajectory(tuple(joints), axis_samples(plan, knots_of(plan, serving.config())), tuple(starts),
                       handover_ns)
+
+
+def retargeting(serving: Serving, running: Running, checked: CheckedMove):
+    """The ``make_plan`` of a handover of ``running`` to ``checked``'s goal in its duration
+    (``transitions.retarget``), kept out of the keep-out boxes from the state at the handover."""
+    config = serving.config()
+
+    def make(handover_ns, state):
+        plan = transitions.retarget(serving.planner.variational, running, handover_ns, state, checked.method,
+                                    checked.goals, checked.duration, config.params, config.options)
+        if config.keep_out:  # from the state at the handover: its swing, the servo's lag
+            start, model = problem_start(state, config.params)
+            origin = {name: s.position for name, s in state.axes.items() if name != HOIST_JOINT}
+            keep_out_clearance(plan, origin, model, config.keep_out, start)
+        return plan
+    return make

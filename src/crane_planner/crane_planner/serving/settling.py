@@ -27,11 +27,13 @@ from .transitions import Running
 
 @dataclass(frozen=True)
 class Settled:
-    """A settle sent: what it says, the swing's amplitude it damps (m) and its plan."""
+    """A settle sent: what it says, the swing's amplitude it damps (m), its plan and when its motion ends
+    (ROS time, ns)."""
 
     message: str
     swing: float
     plan: Plan
+    end_ns: int = 0
 
 
 def stop_motion(serving: Serving, goal: Goal, settle: float) -> str:
@@ -88,12 +90,13 @@ def settle(serving: Serving) -> Settled:
     done = plan_from_running(serving, holding, config.handover_lead, make,
                              kind=('settle', config.settle_method, joints))
     trajectory = trajectory_from(serving, done.plan, done.state, joints, done.handover_ns)
-    serving.timeline.send(trajectory.running(done.handover_ns, done.plan))
+    running = trajectory.running(done.handover_ns, done.plan)
+    serving.timeline.send(running)
     serving.publish(trajectory)
     swing = transitions.swing_of(done.state, config.params)
     return Settled(f'settling a swing of about {1e3 * swing:.1f} mm: a {done.plan.duration:.3g} s '
                    f'{done.plan.method} motion ending where the cart is held ({hold[CART_JOINT]:.6g} m)', swing,
-                   done.plan)
+                   done.plan, running.end_ns)
 
 
 def where(positions) -> str:

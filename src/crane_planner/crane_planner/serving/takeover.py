@@ -7,30 +7,28 @@ goals' thread); a variational one in its first step on the
 again further ahead (``handover.HandoverPolicy``). Once the streamer takes
 it, the goal in motion is taken over (``goals.Goals.take_over``) and the
 motion is the new goal's on the axes' timeline. A motion that ended before
-its handover could be planned leaves the goal to be planned from rest
-(``starting.from_rest``). Pure Python, no ROS import.
+its handover could be planned leaves the goal to be planned where the
+motion ended (``swinging.start``). Pure Python, no ROS import.
 """
 from __future__ import annotations
 
 import math
 from typing import Any, Callable
 
-from crane_msgs_py.messages.names import CART_JOINT, HOIST_JOINT
+from crane_msgs_py.messages.names import CART_JOINT
 
-from ..planning.continuation import problem_start
 from ..planning.methods import Family, family_of, method_spec, methods_of
-from . import transitions
+from . import swinging, transitions
 from .context import Serving
-from .crane_view import HOLDING
 from .execution import Execution
 from .following import end, follow, unsent
 from .goals import Goal
 from .handover import HandoverPolicy, HandoverResult, NotSent, Sent, arrival_lead
-from .moves import Move, MoveError, check_move, check_rests_keep_out, keep_out_clearance
+from .moves import Move, MoveError, check_move, check_rests_keep_out
 from .preview import Planned
-from .replanning import plan_from_running, trajectory_from
+from .replanning import plan_from_running, retargeting, trajectory_from
 from .runner import Steps
-from .starting import from_rest
+from .swinging import until_held
 from .transitions import Running, Trajectory
 
 
@@ -91,27 +89,16 @@ def take_over(serving: Serving, goal: Goal, move: Move, settle: float, feedback,
 
 
 def after_the_motion(serving: Serving, goal: Goal, move: Move, settle: float, feedback, canceled) -> Steps:
-    """A goal whose running motion ended before its handover could be planned: planned from rest where the
-    streamer holds, once its stream_state says it holds there (nothing accepted is lost)."""
+    """A goal whose running motion ended before its handover could be planned: planned where the streamer
+    holds (from rest, or from the swing: ``swinging.start``), once its stream_state says it holds there
+    (nothing accepted is lost)."""
     take = goal.take_over
     serving.log.warn('execute_move: the motion this goal was to take over ended before its handover could be '
                      'planned: planning it from where the motion ended')
-    stream_timeout = serving.config().stream_timeout
-    heard_t = serving.timer()
-    last = None
-    while True:
-        heard = serving.view.heard()
-        if heard is not None and heard.state == HOLDING and heard.stamp_ns >= take.running.end_ns:
-            break
-        if canceled():
-            return end(serving, goal, 'cancel', 'canceled before its motion started: nothing was streamed')
-        if heard is not None and heard.stamp_ns != last:
-            heard_t, last = serving.timer(), heard.stamp_ns
-        elif serving.timer() - heard_t >= stream_timeout:
-            return end(serving, goal, 'abort', f'the motion it was to take over ended, and no stream_state said '
-                                               f'the streamer holds after it within {stream_timeout:g} s')
-        yield 0.005
-    return (yield from from_rest(serving, goal, move, settle, feedback, canceled, take.arrived_t))
+    why = yield from until_held(serving, goal, take.running.end_ns, canceled, 'the motion it was to take over')
+    if why is not None:
+        return why
+    return (yield from swinging.start(serving, goal, move, settle, feedback, canceled, take.arrived_t))
 
 
 def send_handover(serving: Serving, goal: Goal, move: Move, running: Running, settle: float,
@@ -150,22 +137,13 @@ def preempting(serving: Serving, move: Move, running: Running, lead_scale: float
             raise MoveError('duration', 'a goal during a motion needs a duration (> 0 s): the fastest plan is '
                                         'planned from rest only')
         check_rests_keep_out(checked, config.params, config.keep_out)
-        goal = checked.goals
         shaper = method_spec(checked.method).family is Family.SHAPER
         asked = (config.shaper_handover_lead if shaper else config.handover_lead) * lead_scale
         lead = arrival_lead(asked, arrived_ns, serving.clock())
 
-        def make(handover_ns, state):
-            plan = transitions.retarget(serving.planner.variational, running, handover_ns, state, checked.method,
-                                        goal, checked.duration, config.params, config.options)
-            if config.keep_out:  # from the state at the handover: its swing, the servo's lag
-                start, model = problem_start(state, config.params)
-                origin = {name: s.position for name, s in state.axes.items() if name != HOIST_JOINT}
-                keep_out_clearance(plan, origin, model, config.keep_out, start)
-            return plan
-
         try:
-            done = plan_from_running(serving, running, lead, make, swing=not shaper, rehearse=rehearse,
+            done = plan_from_running(serving, running, lead, retargeting(serving, running, checked),
+                                     swing=not shaper, rehearse=rehearse,
                                      kind=None if shaper else ('goal', checked.method, running.joints))
         except MoveError:
             raise

@@ -505,10 +505,19 @@ class CraneHarness:
             return self._goals[start_ns]
 
     def move_result(self, start_ns: int, timeout: float = 30.0):
-        """The ExecuteMove result of the move that started at ``start_ns`` (as :meth:`move` returned it)."""
+        """The ExecuteMove result of the move that started at ``start_ns`` (as :meth:`move` returned it), also
+        one aborted only because the load still swung over the planner's residual_tolerance (its
+        ``success`` false, its ``residual_swing`` measured): what the harness measures. PlanError otherwise."""
+        from crane_msgs_py.crane.errors import PlanError
+        from crane_msgs_py.messages.names import STILL_SWINGING
         with self._lock:
             handle = self._goals.pop(start_ns)
-        return self.planner.result(handle, timeout)
+        try:
+            return self.planner.result(handle, timeout)
+        except PlanError as exc:
+            if STILL_SWINGING not in str(exc):
+                raise
+            return exc.result
 
     def send(self, samples, start: float, what: str = 'the test') -> int:
         """Stream a trajectory of one's own (``plan.Samples``, relative) from ``start`` m, :meth:`lead` from now.
