@@ -29,7 +29,7 @@ from .execution import Execution
 from .following import end, follow, unsent
 from .goals import Goal, GoalState
 from .moves import Move, MoveError, check_move, check_rests_keep_out
-from .preview import Planned
+from .preview import Planned, check_executable
 from .replanning import plan_from_running, retargeting, trajectory_from
 from .runner import Steps
 from .settling import settle as damp
@@ -97,22 +97,18 @@ def from_swing(serving: Serving, goal: Goal, move: Move, settle: float, feedback
 
 def _planned(serving: Serving, move: Move, swing: float, values: dict) -> Planned:
     """``move`` planned from the swing at its start; MoveError says why it cannot be."""
-    config = serving.config()
-    hold = serving.view.hold()
+    config, heard = serving.config(), serving.view.heard()
+    hold = None if heard is None else heard.hold
     swinging = (f'the load swings {1e3 * swing:.1f} mm (over {SWINGING:g} of residual_tolerance '
                 f'{1e3 * config.residual_tolerance:g} mm)')
-    if hold is None:
-        raise MoveError('goal', 'no streamer heard: nothing would stream the motion')
     checked = check_move(move, config.bounds, hold, config.params.L1)
+    check_executable(checked, hold, heard is not None and heard.operator, serving.view.foreign_motion())
     if checked.vias:
         raise MoveError('via', f'{swinging}: a goal through via points is planned from a load at rest: leave via '
                                'empty, or call ~/settle first')
     if checked.duration is None:
         raise MoveError('duration', f'{swinging}: the fastest plan is planned from a load at rest: give a '
                                     'duration, or call ~/settle first')
-    if any(abs(checked.axes[j].start - hold[j]) > 1e-9 for j in checked.axes if j in hold):
-        raise MoveError('start', f'{swinging}: the goal starts where the streamer holds the axes: leave start '
-                                 'empty')
     check_rests_keep_out(checked, config.params, config.keep_out)
     joints = tuple(j for j in checked.joints if j in hold)
     now = serving.clock()
