@@ -19,8 +19,9 @@ fault reaction's ramp (``fault_deceleration``, ``fault_jerk``) and holds
 until a stream at rest where the axes stand; its state goes to
 ``axis_status`` (crane_interfaces/AxisStatus) and ``/diagnostics``. The loop
 alone touches the simulator and the controller, so parameter changes and
-resets are handed over too. The executor (an EventsExecutor) serves the
-parameters, services and timers.
+resets are handed over too; ``~/reset`` and ``~/push`` answer once the loop
+has applied them and published ``joint_states`` of the crane as it is then.
+The executor (an EventsExecutor) serves the parameters, services and timers.
 """
 from __future__ import annotations
 
@@ -73,6 +74,9 @@ from crane_sim.playout import BACKLOG, ReferencePlayout, StallAllowance
 from crane_sim.reference_intake import ReferenceIntake
 from crane_sim.simulator import INTERPOLATIONS, SOURCES, CraneSimulator, CraneState, SimulationError
 
+#: How long (s) the ~/reset and ~/push services wait for the loop to have applied them and published the
+#: crane as it is then, before answering anyway (a loop stalled by the host).
+APPLIED_WAIT = 1.0
 SIM_TASK = 'sim'
 #: A step this late (ns) is caught up (``SimNode._await_samples``): waiting for samples in polls of
 #: CATCH_UP_POLL s while any arrive within CATCH_UP_QUIET s, CATCH_UP_WAIT s at most per step.
@@ -181,6 +185,10 @@ class SimNode(Node):
         self._pending_params: CraneParams | None = None
         self._reset_requested = threading.Event()
         self._push: float | None = None  # a push for the loop to apply (m)
+        # Set by the loop once a reset or push it applied is in a joint_states published: the service answers
+        # then, so a caller that acts on its answer (a goal sent at once) finds the crane measured as it is.
+        self._applied = threading.Event()
+        self._applied.set()
         # The loop's counts (out_of_order: a sample a swapped playout could not take) and the intake's,
         # both written by the loop alone; the diagnostics add them up.
         self.counts = dict.fromkeys(('out_of_order', 'timeouts', 'made_up', 'steps', 'skipped', 'published'), 0)
@@ -300,17 +308,20 @@ class SimNode(Node):
             response.success = False
             response.message = f'push_swing {push:g} m: must be less than the cables\' length ({length:g} m)'
             return response
+        self._applied.clear()
         self._push = push
         response.success = True
-        response.message = f'load pushed {push * 1e3:g} mm aside and released, from the next step'
+        response.message = f'load pushed {push * 1e3:g} mm aside and released'
+        self._applied.wait(APPLIED_WAIT)
         self.get_logger().info(response.message)
         return response
 
     def _on_reset(self, request, response):
+        self._applied.clear()
         self._reset_requested.set()
         response.success = True
-        response.message = 'plant at rest where the cart is, from the next step; a fault reaction cleared: ' \
-                           'waiting for a first reference'
+        response.message = 'plant at rest where the cart is; a fault reaction cleared: waiting for a first reference'
+        self._applied.wait(APPLIED_WAIT)
         return response
 
     # -- the loop (its own thread) -------------------------------------------
@@ -347,6 +358,7 @@ class SimNode(Node):
                 self._plant_clock = (epoch_ros, round(playout.delay * 1e9))
             if self._fault_config is not controller.config:
                 controller.config = self._fault_config
+            applied = self._push is not None or self._reset_requested.is_set()
             if self._push is not None:
                 push, self._push = self._push, None
                 try:
@@ -400,7 +412,7 @@ class SimNode(Node):
             if playout.made_up + made_up > counts['made_up']:  # (every axis's playout has the same samples)
                 counts['made_up'] = made_up + playout.made_up
                 self.made_up_late = max(self.made_up_late, playout.made_up_late)
-            if ticker.tick % self._publish_every == 0:
+            if ticker.tick % self._publish_every == 0 or applied:
                 positions, velocities = sim.joint_state()
                 positions[angles] = self._noise(*positions[angles])
                 plant_time = epoch_ros + (ticker.tick + 1) * dt_ns - round(playout.delay * 1e9)
@@ -413,6 +425,8 @@ class SimNode(Node):
                 except Exception:  # the context is shut down (SIGINT): end quietly
                     return
                 counts['published'] += 1
+                if applied:
+                    self._applied.set()
             counts['skipped'] += ticker.advance(time.monotonic_ns())
 
     def _await_samples(self, newest: int, needed: int, ros_offset: int) -> None:
