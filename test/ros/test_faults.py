@@ -35,7 +35,7 @@ GOAL = 0.6       # m
 KILL_AT = 0.4    # of the move
 PLANT = CraneParams()
 #: the sim's defaults (config/sim.yaml): its fault reaction and its playout
-D, J, DELAY, TIMEOUT = 0.5, 5.0, 0.2, 0.1
+D, J, DELAY, TIMEOUT = 1.0, 10.0, 0.1, 0.1
 
 
 class Recorder:
@@ -314,8 +314,9 @@ def stop_planner_processes(streamer_pid: int) -> list[int]:
 
 def test_a_stop_with_no_stop_planner_brakes_along_the_jerk_limited_ramp_never_an_abrupt_hold(crane):
     """The streamer's stop planner killed: a ~/stop during a motion cannot be one without swing, so every axis
-    brakes along its ramp (fault_deceleration 0.5 m/s^2, fault_jerk 5 m/s^3): the reference's acceleration
-    never steps by more than the jerk limit allows in one tick (a hold would step by the whole of it)."""
+    brakes along its ramp (the streamer's own fault_deceleration 0.5 m/s^2 and fault_jerk 5 m/s^3, not the sim's):
+    the reference's acceleration never steps by more than the jerk limit allows in one tick (a hold would step by
+    the whole of it)."""
     crane, _ = crane
     streamer = next(p for p in crane.nodes.processes if p.name.startswith('streamer'))
     here = streamed_hold(crane)
@@ -410,8 +411,8 @@ def test_a_sim_paused_longer_than_its_reference_timeout_resumes_tracking_without
 
 
 def test_a_streamer_paused_mid_move_sends_what_it_missed_and_the_cart_ends_at_its_goal(crane):
-    """The streamer's process stopped (SIGSTOP) mid-move for 0.23 s: longer than the sim's playout delay
-    (0.2 s), within its watchdog (0.1 s after that). Continued, it sends every sample it missed, back to back,
+    """The streamer's process stopped (SIGSTOP) mid-move for 0.13 s: longer than the sim's playout delay
+    (0.1 s), within its watchdog (0.1 s after that). Continued, it sends every sample it missed, back to back,
     and the sim makes up those that came late: the cart ends at the goal, at rest (a sample skipped would have
     left it off by what its acceleration carried, and moving), and no fault reaction runs."""
     crane, recorder = crane
