@@ -437,7 +437,7 @@ def pause(driver, seconds: float, name: str | None = None) -> None:
 
 
 def test_a_sim_paused_longer_than_its_reference_timeout_resumes_tracking_without_a_fault(crane):
-    """The sim's process stopped (SIGSTOP) for 1.5 s, longer than its reference_timeout (1 s), while the stream
+    """The sim's process stopped (SIGSTOP) for 1.5 s, far longer than its reference_timeout (0.1 s), while the stream
     holds, then continued: its own stall is not the stream's silence (``ReferencePlayout.behind``), so the axes
     run no fault reaction and the next goal is served."""
     crane, recorder = crane
