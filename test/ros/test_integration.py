@@ -866,7 +866,7 @@ def test_float64_array_output_drives_the_sim_from_positions_alone(crane, ros_dom
                 time.sleep(0.4)
             finally:
                 os.kill(streamer.popen.pid, signal.SIGCONT)
-            crane.sleep_until(start_ns + 3_900_000_000)  # 2 s motion, its 0.4 s pause, 0.2 s playout, a report
+            crane.sleep_until(start_ns + 3_900_000_000)  # 2 s motion, its 0.4 s pause, 0.1 s playout, a report
             mark = crane.diagnostics.mark()
             # the sim reports once a second. Unstamped samples are timed by their arrival: a stall of the sim
             # longer than the playout delay delays the rest of the stream by its length (it cannot be told from

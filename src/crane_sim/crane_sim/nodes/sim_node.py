@@ -115,18 +115,26 @@ PARAMETERS = {
                           'stream is lost: the fault reaction brakes every axis to rest (fault_deceleration) and '
                           'holds; a reference arriving more than playout_delay + reference_timeout after its stamp '
                           'is stale and ignored', float_range(1e-3, 10.0)),
-    'fault_deceleration': (0.5, 'fault reaction to a lost reference stream: every axis (the hoist too) brakes its '
+    # A drive's quick-stop ramp, steeper than a motion's own limits: with the playout_delay below, a streamer
+    # killed at 40 % of an NVF move of 0.6 m in 4 s leaves the cart at rest about 0.11 m past where it was at the
+    # kill (0.5 m/s^2 and 5 m/s^3 with a 0.2 s delay: about 0.17 m, more than the 0.15 m allowed)
+    'fault_deceleration': (1.0, 'fault reaction to a lost reference stream: every axis (the hoist too) brakes its '
                            'reference from its velocity and acceleration then to rest at this deceleration '
                            '(m/s^2), jerk-limited by fault_jerk, as a drive\'s quick stop, then holds; may change '
                            'while running (the next fault uses it)', float_range(1e-3, 100.0)),
-    'fault_jerk': (5.0, 'fault reaction: the jerk limit (m/s^3) of its braking ramp; may change while running',
+    'fault_jerk': (10.0, 'fault reaction: the jerk limit (m/s^3) of its braking ramp; may change while running',
                    float_range(1e-3, 1e4)),
     'resume_tolerance': (1e-3, 'after a fault the axes resume only from a reference at rest where they '
                          'stand: within this distance (m) of each held position; others are refused and counted '
                          '(refused_after_fault)', float_range(1e-9, 1.0)),
-    'playout_delay': (0.2, 'the plant runs this far (s) behind the clock and applies each reference at its '
+    # Whatever was sent but not yet played when the stream dies still plays: the delay is travel after a kill.
+    # Beside two CPU-bound processes on 2 cores the loop ran at most 1 ms late at its real-time priority
+    # (sched_priority); at normal scheduling up to 70 ms, and a sample now and then came after its playout time
+    'playout_delay': (0.1, 'the plant runs this far (s) behind the clock and applies each reference at its '
                       'stamp (a jitter buffer: every sample arriving within the delay counts for exactly its '
-                      'own interval); joint_states are stamped with plant time', float_range(0.0, 1.0)),
+                      'own interval); joint_states are stamped with plant time. Longer absorbs more jitter, but '
+                      'what was sent and not yet played when the stream is lost still plays: the axes run that '
+                      'much further before the watchdog', float_range(0.0, 1.0)),
     'unstamped_period': (1e-3, 'period (s) of references without stamps (float64_array): each is taken to come '
                          'this long after the previous one, like commands at a fixed rate', float_range(1e-5, 1.0)),
     'frame_id': (DEFAULT_FRAME_ID, 'frame of the crane_markers (x along the rail, z up); fixed at start-up',
