@@ -53,7 +53,7 @@ class Recorder:
         from crane_msgs_py.messages.names import AXIS_STATUS_TOPIC, JOINT_STATES_TOPIC
         from crane_msgs_py.runtime.qos import AXIS_STATUS_QOS, JOINT_STATES_QOS, recording
         from crane_msgs_py.runtime.runner import spinning
-        self.states, self.statuses, self._lock = [], [], threading.Lock()
+        self.states, self.swings, self.statuses, self._lock = [], [], [], threading.Lock()
         self.node = rclpy.create_node('crane_faults_recorder', namespace=NS)
         self.node.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state,
                                       recording(JOINT_STATES_QOS, 30.0, 50.0))
@@ -66,9 +66,11 @@ class Recorder:
 
     def _on_state(self, msg):
         from crane_msgs_py.messages.conversions import stamp_ns
-        k = list(msg.name).index('cart')
+        names = list(msg.name)
+        k, t1, t2 = names.index('cart'), names.index('theta1'), names.index('theta2')
         with self._lock:
             self.states.append((stamp_ns(msg.header.stamp), msg.position[k], msg.velocity[k]))
+            self.swings.append((stamp_ns(msg.header.stamp), msg.position[t1], msg.position[t2]))
 
     def _on_status(self, msg):
         from crane_msgs_py.messages.conversions import stamp_ns
@@ -79,6 +81,13 @@ class Recorder:
     def rows(self, begin_ns: int = 0) -> np.ndarray:
         with self._lock:
             return np.array([r for r in self.states if r[0] >= begin_ns]).reshape(-1, 3)
+
+    def swing(self, begin_ns: int, end_ns: int) -> float:
+        """The load's largest horizontal excursion (m) from below the cart in joint_states stamped in [begin, end]."""
+        from crane_msgs_py.crane.geometry import load_excursion
+        with self._lock:
+            rows = np.array([r for r in self.swings if begin_ns <= r[0] <= end_ns]).reshape(-1, 3)
+        return float(np.max(np.abs(load_excursion(rows[:, 1], rows[:, 2], PLANT.L1, PLANT.L2)))) if len(rows) else 0.0
 
     def status_list(self) -> list:
         with self._lock:
@@ -128,7 +137,7 @@ def states_after(driver, recorder, predicate, timeout: float, what: str):
 def kill_streamer(driver) -> tuple[int, int]:
     """SIGKILL the streamer's process group (its stop worker too): ROS times (ns) just before and after. The
     process leaves the node group: it is meant to be dead."""
-    proc = next(p for p in driver.nodes.processes if p.name == 'streamer')
+    proc = next(p for p in driver.nodes.processes if p.name.startswith('streamer'))
     before = driver.now_ns()
     os.killpg(proc.popen.pid, signal.SIGKILL)
     after = driver.now_ns()
@@ -175,11 +184,7 @@ def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new
     assert int(status_values(report)['fault_stamp_ns']) == fault_ns
     # the sim's own stalls meanwhile (the largest lateness of its loop, in its reports each second): a sim that
     # stood still judges the stream lost that much later (crane_sim.playout.StallAllowance), the host's doing
-    from crane_sim.playout import STALL
-    stall = max([late for late in (float(status_values(s).get('lateness_max_us', 'nan')) * 1e-6 for s in
-                                   driver.planner.diagnostics.statuses(name='crane_sim: sim', after=mark,
-                                                                       hardware_id=f'{NS}/crane_sim'))
-                 if late >= STALL] or [0.0])
+    stall = sim_stall(driver, mark)
 
     # at rest within 3 s of the kill (plant time: the stamps of joint_states, the references' clock)
     rest_ns = kill_after + 3_000_000_000 + round(stall * 1e9)
@@ -225,21 +230,34 @@ def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new
     # the planner finds the new streamer by itself and serves the next goal from where the crane stands
     assert streamed_hold(driver) == pytest.approx(y_rest, abs=1e-3)
     result = driver.planner.result(driver.planner.send_execute('nvf', None, 0.2, 3.0, settle=0.5), timeout=30.0)
-    assert result.success, result.message  # (the load still swings from the fault's braking: no anti-sway stop)
+    assert result.success, result.message  # (planned from the swing the braking left: it ends quiet)
     assert streamed_hold(driver) == pytest.approx(0.2, abs=1e-9)
     driver.reset_sim()  # the swing gone for the next test: the plant at rest where the cart is
 
 
-def test_a_streamer_killed_at_40_percent_of_an_nvf_move_stops_the_cart_near_where_it_was_short_of_the_goal(crane):
-    """The requirement, with every node at its defaults: the streamer SIGKILLed at 40 % of an NVF move of 0.6 m
-    in 4 s; the goal aborts naming the lost stream, and the cart comes to rest no further than 0.15 m past where
-    it was at the kill, never beyond the goal."""
+#: (method, the part of its move at which the streamer is killed): each method and each point once on real
+#: processes (every pair of them offline: test/sim/test_axis_controller.py); NVF at 40 % is the requirement
+KILLS = [('nvf', 0.4), ('rvf', 0.1), ('zv', 0.9)]
+
+
+@pytest.mark.parametrize('method, at', KILLS)
+def test_a_streamer_killed_mid_move_stops_the_cart_within_the_formula_and_the_next_goal_leaves_the_load_quiet(
+        crane, method, at):
+    """Every node at its defaults: the streamer SIGKILLed during a move of 0.6 m in 4 s. The goal aborts naming
+    the lost stream; the cart comes to rest within docs/faults.md's distance of the last sample sent, and at 40 %
+    of NVF (the requirement) no further than 0.15 m past where it was at the kill, never beyond the goal. The
+    braking leaves the load swinging; with the streamer started again, the next goal of the same method (back to
+    the start in 3 s) is planned from that swing (a shaper's after a settle damps it) and ends quiet: within
+    residual_tolerance, and within 1 mm after a swing of 50 mm or more."""
+    from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays
+    from crane_planner.streaming.hermite import QuinticHermite
     driver, recorder = crane
     here = streamed_hold(driver)
     goal = here + GOAL  # the move is 0.6 m from wherever the cart stands (the dynamics do not depend on where)
     count = len(recorder.status_list())
-    start, _, _ = driver.move('nvf', None, goal, T)
-    driver.sleep(max(0.0, (start + round(KILL_AT * T * 1e9) - driver.now_ns()) * 1e-9))
+    start, _, trajectory = driver.move(method, None, goal, T)
+    driver.sleep(max(0.0, (start + round(at * T * 1e9) - driver.now_ns()) * 1e-9))
+    mark = driver.planner.diagnostics.mark()
     kill_before, kill_after = kill_streamer(driver)
     status, result = driver.outcome(start, timeout=20.0)
     assert status == STATUS_ABORTED and LOST_STREAM in result.message, result.message
@@ -253,20 +271,55 @@ def test_a_streamer_killed_at_40_percent_of_an_nvf_move_stops_the_cart_near_wher
     assert len(at_rest) >= 20 and np.all(np.abs(at_rest[:, 2]) < 1e-3), at_rest[:5]
     y_rest = at_rest[-1, 1]
     assert y_rest == pytest.approx(held, abs=1e-6)
-    # Where the cart was at the kill: joint_states are stamped with plant time, which the sim's loop runs
-    # playout_delay behind the clock (sim_node: a message published at ROS time t carries t - playout_delay, the
-    # stamp of the references it plays then). The cart the kill found is the one stamped kill_before - DELAY; the
-    # one stamped kill_before is where the samples already sent took it, a playout_delay later (before the kill
-    # returned: the earliest, so the distance measured is the longest it can be).
-    y_kill = float(np.interp(kill_before - DELAY * 1e9, rows[:, 0], rows[:, 1]))
-    y_sent = float(np.interp(kill_before, rows[:, 0], rows[:, 1]))
-    print(f'\nNVF {GOAL} m in {T} s killed at {KILL_AT:.0%}: the cart at {y_kill - here:.4f} m at the kill, '
-          f'{y_sent - here:.4f} m a playout_delay later, at rest at {y_rest - here:.4f} m: {y_rest - y_kill:.4f} m '
-          f'past where it was at the kill ({y_rest - y_sent:.4f} m past the later one); furthest '
-          f'{np.max(rows[:, 1]) - here:.4f} m of the goal\'s {GOAL} m')
-    assert 0.0 < y_rest - y_kill <= PAST_THE_KILL, (y_kill, y_rest)
-    assert np.max(rows[:, 1]) <= goal, (np.max(rows[:, 1]), goal)  # never beyond the goal, at rest or on the way
-    # the fixture starts the streamer again (from where the axes hold) for the next test
+
+    # docs/faults.md: at most |v| T + S(|v|) + tau |v| past the last sample's position, v its velocity (the
+    # plan's: the streamer's last tick lies between the two stamps of the kill), T the watchdog stretched by the
+    # sim's own stalls meanwhile (they delay its judgement: playout.StallAllowance), a millimetre for the last
+    # acceleration's steps and the servo's transient
+    t, p, v, a = joint_trajectory_to_arrays(trajectory)
+    plan = QuinticHermite(t, p, v, a)
+    last = np.linspace((kill_before - start) * 1e-9 - 0.002, (kill_after - start) * 1e-9, 50)
+    x_last = float(np.min(plan(last)[0]))
+    v_last = float(np.max(np.abs(plan(last)[1])))
+    window = TIMEOUT + sim_stall(driver, mark)
+    bound = v_last * window + stopping_distance(v_last, 0.0, D, J) + PLANT.tau * v_last + 1e-3
+    assert 0.0 < y_rest - x_last <= bound, (y_rest - x_last, bound)
+    if at <= KILL_AT:
+        assert np.max(rows[:, 1]) <= goal, (np.max(rows[:, 1]), goal)  # never beyond the goal
+    if (method, at) == ('nvf', KILL_AT):
+        # Where the cart was at the kill: joint_states carry plant time, which the sim's loop runs playout_delay
+        # behind the clock (a message published at ROS time t is stamped t - playout_delay): the cart the kill
+        # found is the one stamped kill_before - DELAY (the earliest: the distance measured is the longest)
+        y_kill = float(np.interp(kill_before - DELAY * 1e9, rows[:, 0], rows[:, 1]))
+        print(f'\nNVF {GOAL} m in {T} s killed at {KILL_AT:.0%}: the cart at {y_kill - here:.4f} m at the kill, at '
+              f'rest at {y_rest - here:.4f} m: {y_rest - y_kill:.4f} m past where it was at the kill')
+        assert 0.0 < y_rest - y_kill <= PAST_THE_KILL, (y_kill, y_rest)
+
+    # the streamer started again holds where the cart stands; the next goal starts from the swing the braking left
+    restart(driver, 'streamer')
+    assert streamed_hold(driver) == pytest.approx(y_rest, abs=1e-3)
+    now = driver.now_ns() - round(DELAY * 1e9)  # (joint_states' plant time)
+    swing = recorder.swing(now - 2_000_000_000, now)  # over more than a period of the swing
+    result = driver.planner.result(driver.planner.send_execute(method, None, here, 3.0, settle=1.0), timeout=60.0)
+    print(f'{method} killed at {at:.0%}: the load swung {1e3 * swing:.1f} mm after the braking; the next {method} '
+          f'goal: {result.message}')
+    assert result.success, result.message
+    assert result.residual_swing <= (1e-3 if swing >= 0.05 else 2e-3), (swing, result.message)
+    if (method, at) == ('nvf', KILL_AT):
+        assert swing >= 0.05  # the case the requirement names
+    assert streamed_hold(driver) == pytest.approx(here, abs=1e-9)
+    driver.reset_sim()
+
+
+def sim_stall(driver, mark) -> float:
+    """The sim's largest stall since ``mark`` (its loop's lateness, in its reports each second) if one was as long
+    as ``STALL``: a sim that stood still judges the stream lost that much later (``playout.StallAllowance``), the
+    host's doing; else 0."""
+    from crane_msgs_py.runtime.diagnostics import status_values
+    from crane_sim.playout import STALL
+    late = [float(status_values(s).get('lateness_max_us', 'nan')) * 1e-6 for s in
+            driver.planner.diagnostics.statuses(name='crane_sim: sim', after=mark, hardware_id=f'{NS}/crane_sim')]
+    return max([x for x in late if x >= STALL] or [0.0])
 
 
 def kill(driver, name: str) -> int:

@@ -151,3 +151,18 @@ def test_a_newer_goal_during_the_settle_before_a_shapers_goal_takes_its_place(pl
     # goes on under its shaped change
     (_, settle), (_, handover) = crane.published
     assert settle.stamp_ns < handover.stamp_ns < settle.stamp_ns + round(float(settle.samples[0].t[-1]) * 1e9)
+
+
+def test_an_nvf_goal_while_the_load_swings_starts_at_its_start_time_sent_publish_lead_before_it(planner):
+    """A start_time ahead: planned from the swing predicted to it, stamped with it exactly (what the caller
+    waits for), held until publish_lead before it as a goal from rest is."""
+    crane = Crane(planner=planner, method='nvf')
+    crane.at(T0 + 300 * MS, measuring(crane, SWUNG))
+    crane.clock.sleep(0.05)
+    start_ns = T0 + 1_500 * MS
+    later = move(0.3, 2.5, start_ns=start_ns, method='nvf')
+    outcome, _ = crane.execute(crane.goal('a', later), later, settle=0.2)
+    (sent_ns, trajectory), = crane.published
+    assert outcome.success and 'from a swing of 8.6 mm' in outcome.message
+    assert trajectory.stamp_ns == start_ns
+    assert start_ns - round(crane.config.publish_lead * 1e9) <= sent_ns < start_ns

@@ -24,10 +24,11 @@ from crane_msgs_py.messages.names import CART_JOINT
 from ..planning.methods import Family, family_of
 from . import transitions
 from .context import Serving
-from .crane_view import HOLDING
+from .crane_view import DISCOVERY_WAIT, HOLDING
 from .execution import Execution
-from .following import end, follow, unsent
+from .following import FEEDBACK_PERIOD, end, follow, unsent
 from .goals import Goal, GoalState
+from .handover import send_at
 from .moves import Move, MoveError, check_move, check_rests_keep_out
 from .preview import Planned, check_executable
 from .replanning import plan_from_running, retargeting, trajectory_from
@@ -43,9 +44,10 @@ SWINGING = 0.5
 
 def swing_now(serving: Serving) -> float | None:
     """The load's swing (m, the first mode's amplitude: ``transitions.swing_of``) with the axes held, from
-    the newest joint_states if one is recent (``transitions.MEASUREMENT_AGE``) and the streamer is heard;
-    None if not measured."""
-    config, hold, measured = serving.config(), serving.view.hold(), serving.view.measured
+    the newest joint_states if one is recent (``transitions.MEASUREMENT_AGE``) and the streamer is heard
+    (waiting a moment for one just restarted, as a goal from rest does); None if not measured."""
+    heard = serving.view.wait_heard(DISCOVERY_WAIT)
+    config, hold, measured = serving.config(), None if heard is None else heard.hold, serving.view.measured
     now = serving.clock()
     if hold is None or measured is None or now - measured.stamp_ns > transitions.MEASUREMENT_AGE * 1e9:
         return None
@@ -69,11 +71,18 @@ def start(serving: Serving, goal: Goal, move: Move, settle: float, feedback, can
 
 def from_swing(serving: Serving, goal: Goal, move: Move, settle: float, feedback, canceled, t0: float,
                swing: float) -> Steps:
-    """An NVF/RVF goal planned from the swing predicted to its start, sent, followed."""
+    """An NVF/RVF goal planned from the swing predicted to its start, held until ``publish_lead`` before it,
+    sent, followed. A start further ahead than the swing is predicted (``transitions.HANDOVER_PREDICTION``)
+    is waited for until it is within that."""
     config = serving.config()
     values = {'service': 'execute_move', 'method': move.method or config.method,
               'goal': move.goal[0] if move.goal else math.nan, 'duration': move.duration,
               'start_swing': swing}
+    while (move.start_ns - serving.clock() > transitions.HANDOVER_PREDICTION * 1e9
+           and goal.state is GoalState.ARRIVED and not canceled()):
+        yield FEEDBACK_PERIOD
+    if goal.state is not GoalState.ARRIVED or canceled():
+        return unsent(serving, goal, None)
     try:
         planned = _planned(serving, move, swing, values)
     except ValueError as exc:
@@ -82,6 +91,10 @@ def from_swing(serving: Serving, goal: Goal, move: Move, settle: float, feedback
     serving.report(planned.values, planned, t0, serving.timer())
     plan, checked = planned.plan, planned.checked
     feedback(progress=0.0, time_remaining=plan.duration, swing=swing)
+    serving.goals.hold(goal)
+    due = send_at(checked.start_ns, config.publish_lead)  # a cancel before then streams nothing
+    while serving.clock() < due and goal.state is GoalState.HELD and not canceled():
+        yield min(FEEDBACK_PERIOD, max(0.0, (due - serving.clock()) * 1e-9))
     execution = Execution(plan.duration, settle, checked.start_ns, config.params.L1, config.params.L2,
                           stream_timeout=config.stream_timeout)
     running = planned.trajectory.running(checked.start_ns, plan)
@@ -96,7 +109,9 @@ def from_swing(serving: Serving, goal: Goal, move: Move, settle: float, feedback
 
 
 def _planned(serving: Serving, move: Move, swing: float, values: dict) -> Planned:
-    """``move`` planned from the swing at its start; MoveError says why it cannot be."""
+    """``move`` planned from the swing at its start: its ``start_time`` if that is more than ``handover_lead``
+    ahead, else ``handover_lead`` from now (planned again further ahead if planning took longer); MoveError
+    says why it cannot be."""
     config, heard = serving.config(), serving.view.heard()
     hold = None if heard is None else heard.hold
     swinging = (f'the load swings {1e3 * swing:.1f} mm (over {SWINGING:g} of residual_tolerance '
@@ -113,15 +128,20 @@ def _planned(serving: Serving, move: Move, swing: float, values: dict) -> Planne
     joints = tuple(j for j in checked.joints if j in hold)
     now = serving.clock()
     holding = Running.holding(joints, [hold[j] for j in joints], now)
-    lead = max(config.handover_lead, (checked.start_ns - now) * 1e-9)
-    done = plan_from_running(serving, holding, lead, retargeting(serving, holding, checked),
-                             kind=None if checked.start_ns > now else ('goal', checked.method, joints))
-    checked = checked.starting({name: s.position for name, s in done.state.axes.items()}, done.handover_ns)
+    make = retargeting(serving, holding, checked)
+    if checked.start_ns > now + round(config.handover_lead * 1e9):  # at its start_time exactly
+        with serving.handing_over:
+            state = transitions.handover_state(holding, checked.start_ns, serving.view.measured, config.params)
+            plan, handover = make(checked.start_ns, state), checked.start_ns
+    else:
+        done = plan_from_running(serving, holding, config.handover_lead, make,
+                                 kind=('goal', checked.method, joints))
+        plan, handover, state = done.plan, done.handover_ns, done.state
+    checked = checked.starting({name: s.position for name, s in state.axes.items()}, handover)
     cart = checked.axes[CART_JOINT]
     values = {**values, 'method': checked.method, 'start': cart.start, 'goal': cart.goal,
-              'duration': done.plan.duration, 'displacement': checked.displacement}
-    return Planned(checked, done.plan, trajectory_from(serving, done.plan, done.state, joints, done.handover_ns),
-                   values)
+              'duration': plan.duration, 'displacement': checked.displacement}
+    return Planned(checked, plan, trajectory_from(serving, plan, state, joints, handover), values)
 
 
 def damped_first(serving: Serving, goal: Goal, move: Move, settle: float, feedback, canceled, t0: float,
