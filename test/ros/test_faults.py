@@ -237,7 +237,7 @@ def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new
 
 #: (method, the part of its move at which the streamer is killed): each method and each point once on real
 #: processes (every pair of them offline: test/sim/test_axis_controller.py); NVF at 40 % is the requirement
-KILLS = [('nvf', 0.4), ('rvf', 0.1), ('zv', 0.9)]
+KILLS = [('nvf', 0.4), ('rvf', 0.9), ('zv', 0.1)]
 
 
 @pytest.mark.parametrize('method, at', KILLS)
