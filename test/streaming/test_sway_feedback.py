@@ -10,12 +10,13 @@ import math
 import numpy as np
 import pytest
 
+from crane_msgs_py.crane.axes import AxisLimits
 from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.streaming import sway_law, sway_model
 from crane_planner.streaming.source import Setpoint
 from crane_planner.streaming.sway_estimator import SwayEstimator
-from crane_planner.streaming.sway_feedback import AxisLimits, FeedbackState, SwayFeedback
+from crane_planner.streaming.sway_feedback import FeedbackState, SwayFeedback
 from crane_planner.tools import closed_loop as cl
 
 P = CraneParams()
@@ -152,3 +153,28 @@ def test_a_correction_never_takes_the_reference_beyond_an_axis_limit():
     acc = np.diff(v) / TICK
     assert np.abs(v).max() <= 0.05 + 1e-6 and np.abs(acc).max() <= 0.2 + 1e-3
     assert np.abs(a['load'][a['t'] > 6.0]).max() < 0.1 * 0.06
+
+
+def test_switched_off_a_correction_fades_within_the_limits_and_then_setpoints_pass_untouched():
+    """Off in the middle of a correction: measurements are ignored, the correction fades to zero within the
+    limits, and once nothing is left the setpoint is returned as it is; on again it waits for measurements."""
+    fb = SwayFeedback(('cart',), P, TICK, {'cart': AxisLimits(0.3, 0.5, 5.0)})
+    hold = Setpoint(0.1, 0.0, 0.0)
+    swing = 0.02 / (P.L1 + P.L2)
+    out = []
+    for k in range(8000):
+        stamp = k * 1_000_000
+        if k % 20 == 0:
+            fb.measure(stamp - 100_000_000, {'theta1': swing * math.cos(2 * math.pi * k / 1730), 'theta2': 0.0})
+        if k == 1000:
+            fb.enable(False)
+        if k == 7000:
+            fb.enable(True)
+        out.append((fb.correct(k, stamp, hold), fb.state))
+    assert out[999][1] is FeedbackState.ACTIVE and abs(out[999][0].position - 0.1) > 1e-4
+    assert out[1000][1] is FeedbackState.OFF
+    positions = np.array([sp.position for sp, _ in out])
+    assert np.abs(np.diff(positions[995:1010])).max() < 1e-4  # no jump at the switch
+    assert out[6999][0] is hold  # faded: untouched
+    # on again: measurements stamped before its fresh estimate began (0.1 s late here) are not placed; then active
+    assert out[7000][1] is FeedbackState.WAITING and out[7200][1] is FeedbackState.ACTIVE

@@ -13,7 +13,7 @@ damped while the axes end where the plan ends. Per plane:
   deviation from the plan's own swing into the correction's jerk, the design
   of the cable length the hoist's reference has now;
 - the jerk is held within each axis's limits on the published reference
-  (``AxisLimits``), and the correction integrated over the tick.
+  (``crane.axes.AxisLimits``), and the correction integrated over the tick.
 
 With nothing to correct the correction is nothing: the plan is the
 feed-forward. When no finite measurement has come for ``timeout`` the state is
@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from crane_msgs_py.crane.axes import AxisLimits
 from crane_msgs_py.crane.params import CraneParams
 from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT, HOIST_JOINT
 
@@ -48,27 +49,23 @@ FADE_RATE = 3.0
 class FeedbackState(enum.Enum):
     """Whether the correction follows the measurements."""
 
-    WAITING = 'waiting'  # no measurement yet: no correction
+    OFF = 'off'          # switched off: measurements ignored, a correction left fades to zero
+    WAITING = 'waiting'  # on, no measurement yet: no correction
     ACTIVE = 'active'    # measurements come: the law corrects
     LOST = 'lost'        # none finite for feedback_timeout: the correction fades to zero, open loop
 
 
+S = FeedbackState
 #: state -> the states it may change to.
 TRANSITIONS = {
-    FeedbackState.WAITING: {FeedbackState.ACTIVE},
-    FeedbackState.ACTIVE: {FeedbackState.LOST, FeedbackState.WAITING},
-    FeedbackState.LOST: {FeedbackState.ACTIVE, FeedbackState.WAITING},
+    S.OFF: {S.WAITING},
+    S.WAITING: {S.ACTIVE, S.OFF},
+    S.ACTIVE: {S.LOST, S.WAITING, S.OFF},
+    S.LOST: {S.ACTIVE, S.WAITING, S.OFF},
 }
-
-
-@dataclass(frozen=True)
-class AxisLimits:
-    """An axis's limits on the published reference (m/s, m/s^2, m/s^3; None: none). A correction never takes
-    the reference beyond one, nor further beyond it where the plan itself is."""
-
-    velocity: float | None = None
-    acceleration: float | None = None
-    jerk: float | None = None
+#: Below these (m, m/s, m/s^2) a faded correction is nothing (a tenth of a micrometre): switched off, it is
+#: dropped and the loop leaves setpoints alone.
+FADED = (1e-7, 1e-6, 1e-5)
 
 
 @dataclass
@@ -97,14 +94,16 @@ class SwayFeedback:
         joints: the streamed joints, in the setpoint's order.
         params: the planning model (L1 the cable when there is no hoist).
         tick: the streamer's period (s).
-        limits: ``AxisLimits`` by joint (a joint not given: none).
+        limits: the limits on the published reference by joint (``crane.axes.AxisLimits``; a joint not given:
+            none). A correction never takes the reference beyond one, nor further beyond one the plan exceeds.
         timeout: ``feedback_timeout`` (s).
         noise: the angles' noise the estimator expects (rad).
         lengths: (shortest, longest) cable L1 the hoist may give (m), for the schedule; None: ``params.L1``.
+        on: switched on (``enable``).
     """
 
     def __init__(self, joints, params: CraneParams, tick: float, limits: dict | None = None, timeout: float = 0.2,
-                 noise: float = 1e-3, lengths: tuple | None = None):
+                 noise: float = 1e-3, lengths: tuple | None = None, on: bool = True):
         self.joints = tuple(joints)
         self.params, self.tick, self.timeout = params, float(tick), float(timeout)
         shortest, longest = lengths or (params.L1, params.L1)
@@ -114,7 +113,8 @@ class SwayFeedback:
                                        SwayEstimator(capacity)) for j in PLANE_ANGLES if j in self.joints]
         self._hoist = self.joints.index(HOIST_JOINT) if HOIST_JOINT in self.joints else None
         self._inbox: deque = deque()
-        self.state = FeedbackState.WAITING
+        self.state = S.WAITING if on else S.OFF
+        self._switch: bool | None = None  # an enable() for the loop to take
         self._heard_ns: int | None = None  # the tick stamp at which the last finite measurement was taken
         self.ignored = 0  # measurements not finite, or of a tick no longer kept
 
@@ -126,6 +126,31 @@ class SwayFeedback:
 
     # -- the loop's side -----------------------------------------------------------------
 
+    def enable(self, on: bool) -> None:
+        """Switch the feedback on (it waits for measurements, its estimate started afresh) or off (a correction
+        left fades to zero within the limits; measurements are ignored), from the loop's next tick: the executor
+        writes the request, the loop takes it."""
+        self._switch = bool(on)
+
+    def _switched(self) -> None:
+        on, self._switch = self._switch, None
+        if on is None:
+            return
+        if on and self.state is S.OFF:
+            for plane in self.planes:
+                plane.estimator.reset()
+            self._inbox.clear()
+            self._heard_ns = None
+            self._change(S.WAITING)
+        elif not on and self.state is not S.OFF:
+            self._change(S.OFF)
+
+    @property
+    def faded(self) -> bool:
+        """Nothing left of a correction."""
+        return all(abs(plane.p) < FADED[0] and abs(plane.v) < FADED[1] and abs(plane.a) < FADED[2]
+                   for plane in self.planes)
+
     def reset(self) -> None:
         """Forget the correction and the estimate: the axes re-anchored where they stand (a fault reaction held
         them): no correction left to add to the new hold."""
@@ -133,21 +158,29 @@ class SwayFeedback:
             plane.p = plane.v = plane.a = 0.0
             plane.last_plan_accel = math.nan
             plane.estimator.reset()
-        if self.state is not FeedbackState.WAITING:
-            self._change(FeedbackState.WAITING)
+        if self.state in (S.ACTIVE, S.LOST):
+            self._change(S.WAITING)
         self._heard_ns = None
 
     def correct(self, tick: int, stamp_ns: int, setpoint: Setpoint) -> Setpoint:
         """``setpoint`` plus the correction of each travel axis at this tick (``source.Correction``)."""
+        if self._switch is not None:
+            self._switched()
+        if self.state is S.OFF:
+            self._inbox.clear()
+            if self.faded:
+                for plane in self.planes:
+                    plane.p = plane.v = plane.a = 0.0
+                return setpoint
         design = self.schedule.at(self._rope(setpoint))
         self._take(design, stamp_ns)
-        if self.state is FeedbackState.ACTIVE and stamp_ns - self._heard_ns > self.timeout * 1e9:
-            self._change(FeedbackState.LOST)
+        if self.state is S.ACTIVE and stamp_ns - self._heard_ns > self.timeout * 1e9:
+            self._change(S.LOST)
         positions, velocities, accelerations = (list(x) if isinstance(x, tuple) else [x] for x in setpoint)
         for plane in self.planes:
             i = plane.index
             p_plan, v_plan, a_plan = positions[i], velocities[i], accelerations[i]
-            if self.state is FeedbackState.ACTIVE:
+            if self.state is S.ACTIVE:
                 x = np.concatenate((plane.state(), plane.estimator.deviation(design)))
                 jerk = -float(design.K[0] @ x)
             else:  # fade (or nothing yet): the correction's own state to zero
@@ -198,8 +231,8 @@ class SwayFeedback:
                 self.ignored += 1
                 continue
             self._heard_ns = stamp_ns
-            if self.state is not FeedbackState.ACTIVE:
-                self._change(FeedbackState.ACTIVE)
+            if self.state is not S.ACTIVE:
+                self._change(S.ACTIVE)
 
     def _change(self, new: FeedbackState) -> None:
         if new not in TRANSITIONS[self.state]:
@@ -209,24 +242,24 @@ class SwayFeedback:
     def _limited(self, plane: PlaneCorrection, jerk: float, v_plan: float, a_plan: float, jerk_plan: float) -> float:
         """``jerk`` held so that the published reference keeps within the axis's limits over the next tick (or
         gets no further beyond one the plan itself exceeds)."""
-        limits, h = plane.limits, self.tick
-        if limits.jerk is not None:
-            bound = max(limits.jerk, abs(jerk_plan))
+        (max_v, max_a, max_j), h = plane.limits, self.tick
+        if max_j is not None:
+            bound = max(max_j, abs(jerk_plan))
             jerk = min(max(jerk, -bound - jerk_plan), bound - jerk_plan)
-        if limits.acceleration is not None:
-            bound = max(limits.acceleration, abs(a_plan))
+        if max_a is not None:
+            bound = max(max_a, abs(a_plan))
             a_next = a_plan + jerk_plan * h + plane.a + jerk * h
             if a_next > bound:
                 jerk -= (a_next - bound) / h
             elif a_next < -bound:
                 jerk += (-bound - a_next) / h
-        if limits.velocity is not None:
+        if max_v is not None:
             # the velocity the reference would reach if its acceleration were ramped to zero from the next tick
             # on (at the jerk limit; without one, at once): past the bound, the correction ramps it down now
-            bound = max(limits.velocity, abs(v_plan))
+            bound = max(max_v, abs(v_plan))
             total = a_plan + plane.a + (jerk_plan + jerk) * h
             v_next = v_plan + plane.v + (a_plan + plane.a) * h
-            ramp = max(limits.jerk, abs(jerk_plan)) if limits.jerk is not None else math.inf
+            ramp = max(max_j, abs(jerk_plan)) if max_j is not None else math.inf
             v_stop = v_next + total * abs(total) / (2.0 * ramp)
             if (v_stop > bound and total > 0.0) or (v_stop < -bound and total < 0.0):
                 direction = math.copysign(1.0, total)

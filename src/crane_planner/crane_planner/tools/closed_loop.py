@@ -20,11 +20,12 @@ from typing import Callable
 
 import numpy as np
 
+from crane_msgs_py.crane.axes import AxisLimits
 from crane_msgs_py.crane.params import CraneParams
 from crane_msgs_py.messages.names import CART_JOINT
 
 from ..streaming.source import Setpoint
-from ..streaming.sway_feedback import AxisLimits, SwayFeedback
+from ..streaming.sway_feedback import SwayFeedback
 
 
 @dataclass(frozen=True)
