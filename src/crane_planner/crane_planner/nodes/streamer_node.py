@@ -12,8 +12,8 @@ network impairment on, through an ``impairment.Link``) and every ``rate /
 state_rate`` ticks publishes ``stream_state``. Modes (switched only at rest):
 ``trajectory`` streams what the planner sends, ``operator`` follows
 ``cmd_vel`` (``streaming.operator``). ``~/stop`` stops without swing (``streaming.stop_request``), a
-motion's stop planned by ``serving.stops`` in a worker process (this process never loads CasADi).
-"""
+motion's stop planned by ``serving.stops`` in a worker process (this process never loads CasADi). With
+``feedback`` the measured swing corrects what streams (``streaming.feedback_port``)."""
 from __future__ import annotations
 
 import time
@@ -34,6 +34,7 @@ from crane_msgs_py.runtime.realtime import Lateness, Ticker, lateness_summary_us
 from crane_msgs_py.runtime.runner import LoopThread, run
 from crane_planner.serving.stops import StopWorker
 from crane_planner.streaming.config import INITIAL_POSITIONS, PARAMETERS, StreamerConfig
+from crane_planner.streaming.feedback_port import FeedbackPort
 from crane_planner.streaming.impairment import Link
 from crane_planner.streaming.operator import twist_velocities
 from crane_planner.streaming.reference_stream import CATCH_UP, ReferenceStream, position_text
@@ -62,8 +63,7 @@ class StreamerNode(Node):
         self._impairment = config.impairment
         self._ticker = Ticker(round(1e9 / p['rate']), max_backlog=round(CATCH_UP * p['rate']))
         self._period_ns = self._ticker.period
-        self._busy_wait_ns = round(p['busy_wait'] * 1e9)
-        self._timing_log = p['timing_log']
+        self._busy_wait_ns, self._timing_log = round(p['busy_wait'] * 1e9), p['timing_log']
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._config_of, self._apply, self._diagnostics)
         self._publisher = self.create_publisher(type(self._msg), names.REFERENCE_TOPIC, qos.REFERENCE_QOS)
@@ -80,9 +80,10 @@ class StreamerNode(Node):
         self._stream = ReferenceStream(self._period_ns, initial if len(initial) > 1 else initial[0],
                                        p['start_tolerance'], stopped=True)
         self._streamer = Streamer(self._stream)
+        self._feedback = FeedbackPort(self._streamer, self._joints, self._period_ns * 1e-9, p['feedback_noise'])
+        self._feedback.configure(config, self.get_logger().info)
         self._created_ns = self._synced_ns = self.get_clock().now().nanoseconds
-        self._lateness = Lateness(keep_all=bool(self._timing_log))
-        self._first_tick_ns = None
+        self._lateness, self._first_tick_ns = Lateness(keep_all=bool(self._timing_log)), None
         self.ticks = self.sent = self.skipped = self.accepted = self.refused = self.commands = self._ticks_window = 0
         self._window_start = time.monotonic()
         self._link = Link()  # the loop's, with the impairment of the moment
@@ -116,6 +117,7 @@ class StreamerNode(Node):
         if config.impairment != self._impairment:
             self._impairment = config.impairment  # the loop picks it up at its next tick
             self.get_logger().info(f'network impairment: {config.impairment}')
+        self._feedback.configure(config, self.get_logger().info)
         if config.changes_mode(self._config):  # (at rest: the new source starts where the old left the axes)
             self._streamer.use(Mode(config.mode), self._source(config, self._streamer.settle()))
             following = f': following {self.resolve_topic_name(names.CMD_VEL_TOPIC)}, shaper {config.operator.shaper}'
@@ -133,8 +135,8 @@ class StreamerNode(Node):
 
     def _on_trajectory(self, msg: JointTrajectory, info: dict):
         sampled = self._stream.last_tick  # first: a handover takes over at the tick after it
-        now_ns = self.get_clock().now().nanoseconds
-        start_ns = conversions.stamp_ns(msg.header.stamp)
+        now_ns, start_ns = self.get_clock().now().nanoseconds, conversions.stamp_ns(msg.header.stamp)
+        values = dict(hold_position=position_text(self._stream.hold), points=len(msg.points), start_stamp=start_ns)
         try:
             refusal = trajectory_refusal(info.get('source_timestamp', now_ns), self._created_ns,
                                          self._streamer.mode is Mode.OPERATOR, self._streamer.state is State.STOPPING)
@@ -147,15 +149,14 @@ class StreamerNode(Node):
             self.refused += 1
             self.get_logger().error(f'trajectory refused: {exc}')
             return self._diagnostics.report(TRAJECTORY_TASK, ERROR, f'trajectory refused: {exc}', error=str(exc),
-                                            hold_position=position_text(self._stream.hold), points=len(msg.points),
-                                            start_stamp=start_ns)
+                                            **values)
         self.accepted += 1
         self.get_logger().info(f'trajectory accepted: {motion.summary}')
         self._diagnostics.report(TRAJECTORY_TASK, OK, f'trajectory accepted: {motion.summary}',
-                                 hold_position=position_text(self._stream.hold), points=len(msg.points),
-                                 start_stamp=start_ns, late_start=motion.late, error='')
+                                 late_start=motion.late, error='', **values)
 
     def _on_joint_state(self, msg: JointState):
+        self._feedback.measure(conversions.stamp_ns(msg.header.stamp), msg.name, msg.position)
         hold = self._start.on_joint_state(msg.name, msg.position, msg.velocity)
         if hold is not None:
             self._go(hold)
@@ -178,6 +179,7 @@ class StreamerNode(Node):
     def _go(self, hold: Hold) -> str:
         self._synced_ns = self.get_clock().now().nanoseconds
         self._stream.hold_at(hold.position)
+        self._feedback.reset()
         self._streamer.go(Mode(self._config.mode), self._source(self._config, self._stream.hold))
         message = f'streaming, hold {position_text(self._stream.hold)} m ({hold.source}: {hold.reason})'
         self.get_logger().info(message)
@@ -278,15 +280,13 @@ class StreamerNode(Node):
         streamer = self._streamer
         status = stream_status(streamer.running.is_set(), streamer.moving, streamer.mode is Mode.OPERATOR,
                                self._start, self._loop_thread.error, self._stops.status, self.skipped, rate)
-        network = {f'network_{k}': getattr(self._impairment, k) for k in ('delay', 'jitter', 'distribution', 'loss',
-                                                                            'reorder')}
         self._diagnostics.report(
             STREAM_TASK, status.level, status.message, state=status.state, rate_hz=rate,
             target_rate_hz=1e9 / self._period_ns, **lateness_summary_us(self._lateness.take()),
             ticks=self.ticks, sent=self.sent, dropped=self._link.lost, reordered=self._link.reordered,
             skipped=self.skipped, hold_position=position_text(self._stream.hold), trajectories_accepted=self.accepted,
             trajectories_refused=self.refused, mode=self._config.mode, commands=self.commands,
-            stop_planner=self._stops.status, **network)
+            stop_planner=self._stops.status, **self._impairment.values(), **self._feedback.status())
 
     def destroy_node(self):
         self._loop_thread.stop()

@@ -7,8 +7,11 @@ which lines up with the reference's stamps) give the swing angles.
 ``Execution`` takes both as plain numbers and tells the feedback (progress
 0..1 of the plan's duration, time remaining, load excursion now) and, once
 the settle window after the end has been observed, the residual swing: the
-peak load excursion from ``joint_states`` stamped in
-[end, end + settle]. Without ``joint_states`` the swing and the residual
+peak load excursion from ``joint_states`` stamped in the window, [end, end +
+settle]. With a correction on the reference (the streamer's sway feedback:
+``stream_state`` differs from the motion sent, ``reference``) the window
+starts once the corrected reference has settled at the goal (``AT_GOAL``),
+and the largest correction is kept (``correction``). Without ``joint_states`` the swing and the residual
 are NaN and the window is timed by the streamer's clock. A ``stream_state``
 silent for ``stream_timeout`` while the motion moves fails it: the stream
 is lost, and a goal must not wait for it. The silence counts only while the
@@ -25,6 +28,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
+import numpy as np
 
 from crane_msgs_py.crane.drive import FAULT_STATE_VALUES
 from crane_msgs_py.crane.geometry import load_swing
@@ -43,6 +48,15 @@ STREAM_TIMEOUT = 2.0
 #: The most (ns) of the time between two checks of the phase (they come every ``following.FEEDBACK_PERIOD``)
 #: that counts as silence: a longer gap is a pause of the planner's own.
 LOOK_GAP_NS = 250_000_000
+#: With a correction on the reference (the streamer's sway feedback), the settle window starts once the reference
+#: is back at the motion's end within AT_GOAL (m) and still (its speed since the previous stream_state at most
+#: STILL, m/s), MAX_SETTLING s after the end at the latest: the goal ends when the axes are at its goal and the
+#: swing has settled. Without a correction the reference holds the goal exactly from the end on.
+AT_GOAL = 5e-4
+STILL = 2.5e-4
+MAX_SETTLING = 10.0
+#: A reference further than this (m) from the motion sent was corrected (closer: the rounding of two evaluations).
+CORRECTED = 1e-6
 #: ``Execution.phase`` values.
 WAITING, MOVING, SETTLING, DONE, FAILED = 'waiting', 'moving', 'settling', 'done', 'failed'
 
@@ -85,20 +99,27 @@ class Execution:
         self.stream_ns: int | None = None  # the newest stream_state stamp
         self.swing = math.nan  # m, the newest load excursion
         self._state_ns: int | None = None  # the newest joint_states stamp
-        self._residual = math.nan
         self._failure = ''
         self.cut_ns: int | None = None  # a next motion's start: the settle window ends there at the latest
         self._looked_ns: int | None = None  # the newest phase check's time since the newest stream_state
         self._silent_ns = 0  # the silence of stream_state looked at since then
         self._axis_fault = ''  # the axes' fault reaction heard during the motion or its settle window
+        self.reference = None  # the motion as the streamer streams it (transitions.Running): what a correction is of
+        self.correction = 0.0  # m: the largest |reference streamed - motion| heard, over the joints
+        self.settled_ns: int | None = None  # when the reference came to rest at the goal after the end
+        self._last_positions: dict | None = None
+        self._last_ns = 0
+        self._swings: list = []  # (stamp ns, |load excursion| m) of joint_states past the end
 
     # -- inputs -------------------------------------------------------------------
 
     def on_stream_state(self, stamp_ns: int, motion_start_ns: int, motion_duration: float,
-                        motion_origin_ns: int | None = None, streaming: bool = True) -> None:
+                        motion_origin_ns: int | None = None, streaming: bool = True,
+                        positions: dict | None = None) -> None:
         """A ``stream_state``: its tick's stamp and the current (or last) motion's start, duration and origin
         (when its first knot is streamed; default its start), and whether it streams a motion: one that holds
-        before this motion's end has dropped it (its ~/stop, or the axes' fault reaction)."""
+        before this motion's end has dropped it (its ~/stop, or the axes' fault reaction); ``positions``: the
+        reference it streamed then, by joint (what a correction is measured from, ``reference``)."""
         if self.stream_ns is None or stamp_ns > self.stream_ns:  # the silence counts from the next check
             self._silent_ns, self._looked_ns = 0, None
         self.stream_ns = stamp_ns
@@ -110,6 +131,28 @@ class Execution:
                 and abs(motion_duration - self.duration) < 1e-6):
             self.motion_start_ns = motion_start_ns  # ours: started at or after its start, as long as planned
             self.motion_origin_ns = motion_start_ns if motion_origin_ns is None else motion_origin_ns
+        if positions and self.motion_start_ns is not None and stamp_ns >= self.motion_start_ns:
+            self._corrected(stamp_ns, positions)
+
+    def _corrected(self, stamp_ns: int, positions: dict) -> None:
+        """The correction the streamer added at ``stamp_ns`` (kept at its largest), and past the end whether the
+        reference has settled at the goal."""
+        end, running = self.end_ns, self.reference
+        if running is None or not running.origin_ns:  # (one sent to start at once: its origin not learned yet)
+            return
+        planned = {name: float(np.ravel(x[0])[0]) for name, x in zip(running.joints, running.at(stamp_ns))}
+        common = [name for name in planned if name in positions]
+        if not common:
+            return
+        self.correction = max(self.correction, max(abs(positions[n] - planned[n]) for n in common))
+        if self.settled_ns is None and stamp_ns >= end:
+            at_goal = all(abs(positions[n] - planned[n]) <= AT_GOAL for n in common)
+            last, span = self._last_positions, (stamp_ns - self._last_ns) * 1e-9 if self._last_ns else 0.0
+            still = last is not None and span > 0.0 and all(abs(positions[n] - last.get(n, math.inf)) <= STILL * span
+                                                            for n in common)
+            if at_goal and (still or all(positions[n] == planned[n] for n in common)):
+                self.settled_ns = stamp_ns
+        self._last_positions, self._last_ns = {n: positions[n] for n in common}, stamp_ns
 
     def on_joint_state(self, stamp_ns: int, theta1: float, theta2: float, L1: float | None = None,
                        phi: tuple[float, float] | None = None) -> None:
@@ -119,9 +162,8 @@ class Execution:
         self.swing = float(load_swing(theta1, theta2, self.L1 if L1 is None else L1, self.L2, *(phi or ())))
         self._state_ns = stamp_ns
         end = self.end_ns
-        if end is not None and end <= stamp_ns <= self.window_end_ns:
-            magnitude = abs(self.swing)
-            self._residual = magnitude if math.isnan(self._residual) else max(self._residual, magnitude)
+        if end is not None and stamp_ns >= end:
+            self._swings.append((stamp_ns, abs(self.swing)))
 
     def on_axis_status(self, stamp_ns: int, state: str, message: str) -> None:
         """An ``axis_status`` (stamped with the plant's time, which lines up with the reference's stamps): a
@@ -141,12 +183,28 @@ class Execution:
         return self.motion_start_ns + round(self.duration * 1e9)
 
     @property
+    def window_start_ns(self) -> int | None:
+        """The settle window's start: the motion's end, or with a correction on the reference (``AT_GOAL``) once
+        it has settled at the goal; None while it is not known yet."""
+        end = self.end_ns
+        if end is None or self.reference is None or self.correction <= CORRECTED:
+            return end
+        if self.settled_ns is not None:
+            return self.settled_ns
+        latest = end + round(MAX_SETTLING * 1e9)
+        if self.cut_ns is not None and self.cut_ns <= latest:
+            return self.cut_ns
+        return latest if (self.stream_ns or 0) >= latest else None
+
+    @property
     def window_end_ns(self) -> int | None:
-        """The settle window's end: ``settle`` after the motion's end, or a next motion's start if earlier."""
+        """The settle window's end: ``settle`` after its start, or a next motion's start if earlier (at the
+        latest ``settle`` after the latest start it may have, while that is not known)."""
         end = self.end_ns
         if end is None:
             return None
-        window_end = end + round(self.settle * 1e9)
+        start = self.window_start_ns
+        window_end = (start if start is not None else end + round(MAX_SETTLING * 1e9)) + round(self.settle * 1e9)
         return window_end if self.cut_ns is None else max(end, min(window_end, self.cut_ns))
 
     def cut(self, next_start_ns: int) -> None:
@@ -168,7 +226,11 @@ class Execution:
     @property
     def residual(self) -> float:
         """Peak |load excursion| (m) over the settle window so far; NaN without joint_states in it."""
-        return self._residual
+        start, end = self.window_start_ns, self.window_end_ns
+        if start is None:
+            return math.nan
+        inside = [x for stamp, x in self._swings if start <= stamp <= end]
+        return max(inside) if inside else math.nan
 
     @property
     def failure(self) -> str:
@@ -207,6 +269,8 @@ class Execution:
         if self._axis_fault:
             self._failure = f'the axes ran their fault reaction ({self._axis_fault}): they stand where they braked'
             return FAILED
+        if self.window_start_ns is None:  # the reference still corrected: the axes not yet at the goal
+            return SETTLING
         window_end = self.window_end_ns
         if self._state_ns is not None and self._state_ns >= window_end:
             return DONE

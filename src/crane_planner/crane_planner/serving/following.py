@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from crane_msgs_py.messages.names import STILL_SWINGING
 
 from .context import Serving
-from .execution import DONE, FAILED, MOVING, WAITING
+from .execution import CORRECTED, DONE, FAILED, MOVING, WAITING
 from .goals import Goal, GoalState
 from .preview import Planned
 from .runner import Steps
@@ -31,7 +31,8 @@ FEEDBACK_PERIOD = 0.05
 @dataclass(frozen=True)
 class Outcome:
     """A goal's result: how it ends (``succeed``, ``abort``, ``cancel``), why, the residual swing (m), its
-    plan (None if none was made) and the handover warm-ups during its motion (count, s)."""
+    plan (None if none was made), the handover warm-ups during its motion (count, s) and the largest correction
+    the streamer's sway feedback added to its motion (m; 0: none)."""
 
     how: str
     message: str
@@ -39,6 +40,7 @@ class Outcome:
     plan: Planned | None = None
     warmups: int = 0
     warmup_s: float = 0.0
+    correction: float = 0.0
 
     @property
     def success(self) -> bool:
@@ -47,6 +49,7 @@ class Outcome:
     def status(self) -> dict:
         """Its values on /diagnostics."""
         return dict(outcome=self.how, residual_swing=self.residual_swing, error='' if self.success else self.message,
+                    feedback_correction=self.correction,
                     handover_warmups=self.warmups,
                     handover_warmup_ms=1e3 * self.warmup_s / self.warmups if self.warmups else 0.0)
 
@@ -55,7 +58,8 @@ def end(serving: Serving, goal: Goal, how: str, message: str, planned: Planned |
         residual: float = math.nan) -> Outcome:
     """``goal`` ended as ``how`` says (its state ``ENDED``), with its outcome."""
     serving.goals.end(goal)
-    return Outcome(how, message, residual, planned, goal.warmups, goal.warmup_s)
+    correction = goal.execution.correction if goal.execution is not None else 0.0
+    return Outcome(how, message, residual, planned, goal.warmups, goal.warmup_s, correction)
 
 
 def unsent(serving: Serving, goal: Goal, planned: Planned | None) -> Outcome:
@@ -97,8 +101,12 @@ def follow(serving: Serving, goal: Goal, planned: Planned, feedback, canceled, s
         return end(serving, goal, 'abort', execution.failure, planned)
     residual = ('no joint_states: residual not measured' if math.isnan(execution.residual)
                 else f'residual swing {1e3 * execution.residual:.3f} mm')
-    cut = ('' if execution.window_end_ns == execution.end_ns + round(settle * 1e9) else
-           f' (observed {(execution.window_end_ns - execution.end_ns) * 1e-9:.3g} s: the next motion started)')
+    if execution.correction > CORRECTED:  # the streamer's sway feedback corrected the motion
+        residual += (f' once settled at the goal, the sway feedback having moved the axes up to '
+                     f'{1e3 * execution.correction:.2f} mm off the plan')
+    start = execution.window_start_ns
+    cut = ('' if execution.window_end_ns == start + round(settle * 1e9) else
+           f' (observed {(execution.window_end_ns - start) * 1e-9:.3g} s: the next motion started)')
     if stopped is not None:
         return end(serving, goal, 'cancel', f'canceled: stopped at {stopped} m in {execution.duration:.4g} s '
                                             f'without swing ({what}); {residual}{cut}', planned, execution.residual)

@@ -107,6 +107,17 @@ PARAMETERS = {
                         {'additional_constraints': f'one of {", ".join(OPERATOR_SHAPERS)}'}),
     'cmd_timeout': (0.5, 'operator mode: a command older than this (s) counts as zero, so a lost joystick stops '
                          'the crane (without swing)', parameter_range(0.001, 10.0)),
+    'feedback': (False, 'closed-loop sway control: add to whatever is streamed (a trajectory, the hold, operator mode) '
+                        'a correction of each travel axis computed from the measured swing (joint_states at their '
+                        'stamps) and the reference streamed, so that swing the plan did not foresee is damped and the '
+                        'axes end where the plan ends; within the operator limits of each axis; switched off, a '
+                        'correction left fades to zero', {}),
+    'feedback_timeout': (0.2, 'with feedback: no finite joint_states for this long (s) and the correction fades to '
+                              'zero within the limits, the plan streaming on open loop, until they return',
+                         parameter_range(0.01, 10.0)),
+    'feedback_noise': (1e-3, 'with feedback: the standard deviation (rad) of the measured angles\' noise; the '
+                             'estimator weighs measurements by it, and a noisier camera gets a gentler law (fixed at '
+                             'start-up)', {**parameter_range(0.0, 0.1), 'read_only': True}),
     **OPERATOR_LIMIT_PARAMETERS,
     HOIST_RANGE: ([0.1, 3.0], 'operator mode: the shortest and longest rope (m) the hoist may reach',
                   {'additional_constraints': '[shortest, longest], 0 < shortest < longest',
@@ -138,8 +149,9 @@ class OperatorConfig:
 @dataclass(frozen=True)
 class StreamerConfig:
     """The streamer's parameters checked together: the link's impairment, the crane model (of the operator's
-    shaper and of a ~/stop), the mode and operator mode's settings, and the axes' braking ramp (m/s^2, m/s^3)
-    of a ~/stop that cannot be one without swing."""
+    shaper, of a ~/stop and of the sway feedback), the mode and operator mode's settings, the axes' braking ramp
+    (m/s^2, m/s^3) of a ~/stop that cannot be one without swing, and whether the sway feedback is on (and its
+    timeout, s)."""
 
     impairment: Impairment
     model: CraneParams
@@ -147,6 +159,8 @@ class StreamerConfig:
     operator: OperatorConfig
     fault_deceleration: float = 0.5
     fault_jerk: float = 5.0
+    feedback: bool = False
+    feedback_timeout: float = 0.2
 
     @classmethod
     def of(cls, values: dict, current: 'StreamerConfig | None' = None, at_rest: bool = True) -> 'StreamerConfig':
@@ -164,7 +178,8 @@ class StreamerConfig:
             raise ParameterError(f'{HOIST_RANGE} must be [shortest, longest] with 0 < shortest < longest (m)')
         limits = tuple(a.limits(*(values[name] for name in a.limit_parameters('operator'))) for a in AXES)
         operator = OperatorConfig(values['operator_shaper'], values['cmd_timeout'], limits, (shortest, longest), model)
-        config = cls(impairment, model, values['mode'], operator, values['fault_deceleration'], values['fault_jerk'])
+        config = cls(impairment, model, values['mode'], operator, values['fault_deceleration'], values['fault_jerk'],
+                     bool(values['feedback']), values['feedback_timeout'])
         if current is not None and config.changes_mode(current) and not at_rest:
             raise ParameterError('mode and the operator settings change only with the crane at rest (no motion '
                                  'streaming, the operator\'s command played out)')

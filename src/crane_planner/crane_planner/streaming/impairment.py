@@ -67,6 +67,10 @@ class Impairment:
         """Whether messages can be anything but delivered at once, in order."""
         return self.delay > 0.0 or self.jitter > 0.0 or self.loss > 0.0
 
+    def values(self) -> dict:
+        """Its settings as /diagnostics values, named ``network_<setting>``."""
+        return {f'network_{k}': getattr(self, k) for k in ('delay', 'jitter', 'distribution', 'loss', 'reorder')}
+
 
 class DelayLine:
     """Messages in flight through an impaired link.

@@ -115,6 +115,7 @@ class SwayFeedback:
         self._inbox: deque = deque()
         self.state = S.WAITING if on else S.OFF
         self._switch: bool | None = None  # an enable() for the loop to take
+        self._reset = False  # a reset() for the loop to take
         self._heard_ns: int | None = None  # the tick stamp at which the last finite measurement was taken
         self.ignored = 0  # measurements not finite, or of a tick no longer kept
 
@@ -151,9 +152,18 @@ class SwayFeedback:
         return all(abs(plane.p) < FADED[0] and abs(plane.v) < FADED[1] and abs(plane.a) < FADED[2]
                    for plane in self.planes)
 
+    @property
+    def switching_on(self) -> bool:
+        """Switched on, and the loop has not taken it yet."""
+        return self._switch is True
+
     def reset(self) -> None:
-        """Forget the correction and the estimate: the axes re-anchored where they stand (a fault reaction held
-        them): no correction left to add to the new hold."""
+        """Forget the correction and the estimate from the loop's next tick: the stream starts again from a new
+        hold (where a fault reaction held the axes): no correction is carried over to it."""
+        self._reset = True
+
+    def _reset_now(self) -> None:
+        self._reset = False
         for plane in self.planes:
             plane.p = plane.v = plane.a = 0.0
             plane.last_plan_accel = math.nan
@@ -164,6 +174,8 @@ class SwayFeedback:
 
     def correct(self, tick: int, stamp_ns: int, setpoint: Setpoint) -> Setpoint:
         """``setpoint`` plus the correction of each travel axis at this tick (``source.Correction``)."""
+        if self._reset:
+            self._reset_now()
         if self._switch is not None:
             self._switched()
         if self.state is S.OFF:
