@@ -34,13 +34,20 @@ def test_stream_state_fill_in_place_and_read_back():
     msg = cv.stream_state_message()
     cv.fill_stream_state(msg, START_NS, True, 0.25, 0.1, -0.2, START_NS - 10**9, 3.0, motion_origin_ns=START_NS - 2)
     back = deserialize_message(serialize_message(msg), StreamState)
-    assert cv.read_stream_state(back) == (START_NS, 'streaming', {'cart': 0.25}, START_NS - 10**9, 3.0, START_NS - 2)
+    assert cv.read_stream_state(back) == (START_NS, 'streaming', {'cart': 0.25}, START_NS - 10**9, 3.0, START_NS - 2,
+                                          {'cart': 0.0})
     assert (back.header.frame_id, list(back.velocity), list(back.acceleration)) == ('crane_base', [0.1], [-0.2])
     cv.fill_stream_state(msg, START_NS + 1, False, 0.3, 0.0, 0.0, 7, 0.0)
     assert cv.read_stream_state(msg)[5] == 7  # the origin is the first tick unless given
     assert cv.read_stream_state(msg)[:3] == (START_NS + 1, 'holding', {'cart': 0.3}) and msg.state == 'holding'
     cv.fill_stream_state(msg, START_NS + 2, True, 0.3, 0.0, 0.0, 0, 0.0, operator=True)
     assert cv.read_stream_state(msg)[1] == 'operator'
+    # a sway feedback's correction: in the published position, not in the source's (the hold) read back
+    cv.fill_stream_state(msg, START_NS + 3, False, 0.302, 0.0, 0.0, 0, 0.0, correction=(0.002,))
+    back = deserialize_message(serialize_message(msg), StreamState)
+    assert list(back.position) == [0.302] and list(back.correction) == [0.002]
+    _, _, source, _, _, _, correction = cv.read_stream_state(back)
+    assert source == {'cart': pytest.approx(0.3, abs=1e-15)} and correction == {'cart': 0.002}
 
 
 def test_joint_trajectory_round_trip():

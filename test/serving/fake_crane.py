@@ -43,7 +43,7 @@ class Crane:
     """The service with a fake streamer: stream_state every 20 ms; a trajectory published starts at its
     stamp's tick, or at the next 1 ms tick if it has none or it has passed (streamed whole from there); one
     published during a motion is a handover (its origin its stamp) unless ``refuse`` says to refuse it; the
-    reference it reports is the motion's (or the hold) plus ``correction(ns)``, as a sway feedback adds it."""
+    correction it reports is ``correction(ns)``, what a sway feedback adds."""
 
     def __init__(self, refuse=0, hold=0.0, planner=None, correction=lambda now: 0.0, **parameters):
         self.clock, self.log, self.published, self.refuse = FakeClock(T0), Log(), [], refuse
@@ -69,8 +69,7 @@ class Crane:
         handover = self.current is not None
         start = max(trajectory.stamp_ns, tick)
         origin = trajectory.stamp_ns if handover or trajectory.stamp_ns >= tick else start
-        self.pending = SimpleNamespace(start=start, origin=origin, duration=duration, trajectory=trajectory,
-                                       running=trajectory.running(origin))
+        self.pending = SimpleNamespace(start=start, origin=origin, duration=duration, trajectory=trajectory)
 
     def tick(self, now):
         if self.pending is not None and now >= self.pending.start:
@@ -81,11 +80,10 @@ class Crane:
         if now >= self.next_state:
             self.next_state = now + 20 * MS
             streaming = m is not None and now < m.start + round(m.duration * 1e9)
-            # the reference at this tick: the motion's (as the streamer interpolates its knots), else the hold
-            at = (float(m.running.at(now)[0][0][0]) if streaming else self.hold) + self.correction(now)
             self.service.on_stream_state(StreamSample(now, 'streaming' if streaming else 'holding',
-                                                      {'cart': at}, m.start if m else 0,
-                                                      m.duration if m else 0.0, m.origin if m else 0))
+                                                      {'cart': self.hold}, m.start if m else 0,
+                                                      m.duration if m else 0.0, m.origin if m else 0,
+                                                      {'cart': self.correction(now)}))
 
     def goal(self, key, move, settle=0.2):
         goal = self.service.arrive(key, move, settle)

@@ -14,6 +14,7 @@ from crane_msgs_py.crane.axes import AxisLimits
 from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning.model import modal_frequencies
 from crane_planner.streaming import sway_law, sway_model
+from crane_planner.streaming.config import OPERATOR_LIMITS
 from crane_planner.streaming.source import Setpoint
 from crane_planner.streaming.sway_estimator import SwayEstimator
 from crane_planner.streaming.sway_feedback import FeedbackState, SwayFeedback
@@ -21,6 +22,8 @@ from crane_planner.tools import closed_loop as cl
 
 P = CraneParams()
 TICK = 1e-3
+#: the streamer's default limits of a travel axis (its operator limits), which the correction keeps within
+LIMITS = AxisLimits(*OPERATOR_LIMITS['travel'])
 #: the first mode's period (s): 1.73 s with Table 1's cables
 PERIOD = 2 * math.pi / modal_frequencies(P)[0]
 
@@ -75,11 +78,13 @@ def test_a_measurement_taken_late_gives_the_same_estimate_as_taken_at_its_stamp(
 
 def test_a_push_at_rest_is_damped_below_5_percent_within_one_period_and_the_cart_returns_to_its_hold():
     """A push of 30 mm at rest, the camera 50 ms late and the plant playing 0.1 s behind: open loop the load
-    swings on; closed loop below 5 % of the push one slow period after it, the cart back within 1 mm."""
+    swings on; closed loop (within the streamer's default limits) below 5 % of the push one slow period after it,
+    the cart back within 1 mm."""
     push = cl.Push(0.5, 0.03)
     sensor = cl.Sensor(latency=0.05)
     open_loop = cl.closed_loop(cl.holding(0.2), 8.0, P, P, feedback=False, sensor=sensor, pushes=[push]).arrays()
-    closed = cl.closed_loop(cl.holding(0.2), 8.0, P, P, feedback=True, sensor=sensor, pushes=[push]).arrays()
+    closed = cl.closed_loop(cl.holding(0.2), 8.0, P, P, feedback=True, sensor=sensor, pushes=[push],
+                            limits=LIMITS).arrays()
     after = closed['t'] >= push.t + PERIOD
     assert np.abs(open_loop['load'][after]).max() > 0.9 * push.dx
     assert np.abs(closed['load'][after]).max() < 0.05 * push.dx
@@ -90,14 +95,15 @@ def test_a_push_at_rest_is_damped_below_5_percent_within_one_period_and_the_cart
 @pytest.mark.parametrize('method', ['nvf', 'zv'])
 def test_the_perturbed_crane_settles_with_feedback_where_open_loop_swings_on(method):
     """The model's L1 0.47 m, the plant's 0.42 m (paper §5.2), 0.3 m in 2.5 s: open loop leaves 8.6-8.9 mm;
-    closed loop the swing is settled below 0.1 mm 1.5 s after the motion and the cart at its goal."""
+    closed loop (within the streamer's default limits) the swing is settled below 0.2 mm 1.5 s after the motion and
+    the cart at its goal."""
     from crane_planner.planning.dispatch import plan
     plant = dataclasses.replace(P, L1=0.42)
     p = plan(method, 0.3, 2.5, P)
     open_loop = cl.closed_loop(cl.of_plan(p), 6.0, P, plant, feedback=False)
-    closed = cl.closed_loop(cl.of_plan(p), 6.0, P, plant, feedback=True)
+    closed = cl.closed_loop(cl.of_plan(p), 6.0, P, plant, feedback=True, limits=LIMITS)
     assert cl.residual(open_loop, 4.0) > 7e-3
-    assert cl.residual(closed, 4.0) < 1e-4
+    assert cl.residual(closed, 4.0) < 2e-4
     assert closed.arrays()['cart'][-1] == pytest.approx(0.3, abs=1e-4)
 
 
@@ -107,7 +113,8 @@ def test_with_nothing_to_correct_the_reference_stays_within_half_a_millimetre_of
     from crane_planner.planning.dispatch import plan
     p = plan('nvf', 0.3, 2.5, P)
     for seed in range(4):
-        closed = cl.closed_loop(cl.of_plan(p), 5.0, P, P, feedback=True, sensor=cl.Sensor(noise=1e-3), seed=seed)
+        closed = cl.closed_loop(cl.of_plan(p), 5.0, P, P, feedback=True, sensor=cl.Sensor(noise=1e-3), seed=seed,
+                                limits=LIMITS)
         assert np.abs(closed.arrays()['correction']).max() <= 5e-4, seed
 
 

@@ -405,6 +405,7 @@ def stream_state_message(joints=(CART_JOINT,), frame_id: str = DEFAULT_FRAME_ID)
     msg.position = array.array('d', [0.0] * len(joints))
     msg.velocity = array.array('d', [0.0] * len(joints))
     msg.acceleration = array.array('d', [0.0] * len(joints))
+    msg.correction = array.array('d', [0.0] * len(joints))
     return msg
 
 
@@ -415,10 +416,11 @@ OPERATOR = 'operator'
 
 def fill_stream_state(msg: StreamState, stamp: int, streaming: bool, position, velocity,
                       acceleration, motion_start_ns: int, motion_duration: float, operator: bool = False,
-                      motion_origin_ns: int | None = None):
+                      motion_origin_ns: int | None = None, correction=None):
     """One tick's state of a stream into a message from ``stream_state_message``, in place (floats for one
     joint, tuples for several); ``operator``: the state is ``operator`` (the streamer follows cmd_vel);
-    ``motion_origin_ns``: when the motion's first knot is streamed (default: its first tick)."""
+    ``motion_origin_ns``: when the motion's first knot is streamed (default: its first tick); ``correction``:
+    the sway feedback's share of ``position`` per joint (a sequence; None: none)."""
     s = msg.header.stamp
     s.sec, s.nanosec = divmod(stamp, NS)
     msg.state = OPERATOR if operator else STREAMING if streaming else HOLDING
@@ -433,10 +435,15 @@ def fill_stream_state(msg: StreamState, stamp: int, streaming: bool, position, v
     msg.motion_duration = motion_duration
     o = msg.motion_origin
     o.sec, o.nanosec = divmod(motion_start_ns if motion_origin_ns is None else motion_origin_ns, NS)
+    if correction is not None:
+        msg.correction[:] = array.array('d', correction)
 
 
-def read_stream_state(msg: StreamState) -> tuple[int, str, dict, int, float, int]:
-    """(stamp ns, state: streaming/holding/operator, {joint: position}, motion start ns, motion duration s,
-    motion origin ns) of a ``StreamState``."""
-    return (stamp_ns(msg.header.stamp), msg.state, dict(zip(msg.joint_names, msg.position)),
-            stamp_ns(msg.motion_start), msg.motion_duration, stamp_ns(msg.motion_origin))
+def read_stream_state(msg: StreamState) -> tuple[int, str, dict, int, float, int, dict]:
+    """(stamp ns, state: streaming/holding/operator, {joint: the source's position}, motion start ns, motion
+    duration s, motion origin ns, {joint: the sway feedback's correction}) of a ``StreamState``: the position
+    the source streams (the hold, the motion's) is the published one less the correction."""
+    correction = dict(zip(msg.joint_names, msg.correction)) if len(msg.correction) else {}
+    source = {name: p - correction.get(name, 0.0) for name, p in zip(msg.joint_names, msg.position)}
+    return (stamp_ns(msg.header.stamp), msg.state, source, stamp_ns(msg.motion_start), msg.motion_duration,
+            stamp_ns(msg.motion_origin), correction)

@@ -246,10 +246,10 @@ class StreamerNode(Node):
         self._deliver(link.use(None))  # what is still in flight; the next run starts a fresh line
 
     def _publish_state(self, stamp: int, setpoint: Setpoint):
-        motion, streamer = self._stream.last_motion, self._streamer
-        conversions.fill_stream_state(self._state_msg, stamp, streamer.moving, *setpoint,
-                                      motion.start_ns if motion else 0, motion.duration if motion else 0.0,
-                                      streamer.mode is Mode.OPERATOR, motion.origin_ns if motion else 0)
+        motion, streamer, m = self._stream.last_motion, self._streamer, self._stream.last_motion is not None
+        conversions.fill_stream_state(self._state_msg, stamp, streamer.moving, *setpoint, motion.start_ns if m else 0,
+                                      motion.duration if m else 0.0, streamer.mode is Mode.OPERATOR,
+                                      motion.origin_ns if m else 0, self._feedback.corrections())
         try:
             self._state_pub.publish(self._state_msg)
         except Exception:  # the context is shut down (SIGINT): the reference's publish ends the loop

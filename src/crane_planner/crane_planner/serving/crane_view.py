@@ -16,7 +16,7 @@ import dataclasses
 import math
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 from crane_msgs_py.crane.axes import AXES, CART
@@ -48,6 +48,7 @@ class StreamSample:
     motion_start_ns: int  # the current (or last) motion's first tick
     motion_duration: float
     motion_origin_ns: int  # when its first knot is streamed
+    correction: dict = field(default_factory=dict)  # joint -> the sway feedback's correction (m), not in hold
 
     @property
     def operator(self) -> bool:

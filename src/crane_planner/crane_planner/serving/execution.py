@@ -8,10 +8,10 @@ which lines up with the reference's stamps) give the swing angles.
 0..1 of the plan's duration, time remaining, load excursion now) and, once
 the settle window after the end has been observed, the residual swing: the
 peak load excursion from ``joint_states`` stamped in the window, [end, end +
-settle]. With a correction on the reference (the streamer's sway feedback:
-``stream_state`` differs from the motion sent, ``reference``) the window
-starts once the corrected reference has settled at the goal (``AT_GOAL``),
-and the largest correction is kept (``correction``). Without ``joint_states`` the swing and the residual
+settle]. With a correction on the reference (the streamer's sway feedback,
+in ``stream_state``) the window starts once the correction has settled back
+to zero, the axes at the goal (``AT_GOAL``), and the largest correction is
+kept (``correction``). Without ``joint_states`` the swing and the residual
 are NaN and the window is timed by the streamer's clock. A ``stream_state``
 silent for ``stream_timeout`` while the motion moves fails it: the stream
 is lost, and a goal must not wait for it. The silence counts only while the
@@ -28,8 +28,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-
-import numpy as np
 
 from crane_msgs_py.crane.drive import FAULT_STATE_VALUES
 from crane_msgs_py.crane.geometry import load_swing
@@ -48,14 +46,14 @@ STREAM_TIMEOUT = 2.0
 #: The most (ns) of the time between two checks of the phase (they come every ``following.FEEDBACK_PERIOD``)
 #: that counts as silence: a longer gap is a pause of the planner's own.
 LOOK_GAP_NS = 250_000_000
-#: With a correction on the reference (the streamer's sway feedback), the settle window starts once the reference
-#: is back at the motion's end within AT_GOAL (m) and still (its speed since the previous stream_state at most
-#: STILL, m/s), MAX_SETTLING s after the end at the latest: the goal ends when the axes are at its goal and the
-#: swing has settled. Without a correction the reference holds the goal exactly from the end on.
+#: With a correction on the reference (the streamer's sway feedback), the settle window starts once the correction
+#: is back within AT_GOAL (m) of zero and still (its speed since the previous stream_state at most STILL, m/s),
+#: MAX_SETTLING s after the end at the latest: the goal ends when the axes are at its goal and the swing has
+#: settled. Without a correction the reference holds the goal exactly from the end on.
 AT_GOAL = 5e-4
 STILL = 2.5e-4
 MAX_SETTLING = 10.0
-#: A reference further than this (m) from the motion sent was corrected (closer: the rounding of two evaluations).
+#: A correction this small (m) or smaller is none: the window starts at the motion's end.
 CORRECTED = 1e-6
 #: ``Execution.phase`` values.
 WAITING, MOVING, SETTLING, DONE, FAILED = 'waiting', 'moving', 'settling', 'done', 'failed'
@@ -104,10 +102,9 @@ class Execution:
         self._looked_ns: int | None = None  # the newest phase check's time since the newest stream_state
         self._silent_ns = 0  # the silence of stream_state looked at since then
         self._axis_fault = ''  # the axes' fault reaction heard during the motion or its settle window
-        self.reference = None  # the motion as the streamer streams it (transitions.Running): what a correction is of
-        self.correction = 0.0  # m: the largest |reference streamed - motion| heard, over the joints
-        self.settled_ns: int | None = None  # when the reference came to rest at the goal after the end
-        self._last_positions: dict | None = None
+        self.correction = 0.0  # m: the largest |correction| of the streamer's sway feedback heard, over the joints
+        self.settled_ns: int | None = None  # when the correction came to rest at zero after the end
+        self._last_correction: dict | None = None
         self._last_ns = 0
         self._swings: list = []  # (stamp ns, |load excursion| m) of joint_states past the end
 
@@ -115,11 +112,11 @@ class Execution:
 
     def on_stream_state(self, stamp_ns: int, motion_start_ns: int, motion_duration: float,
                         motion_origin_ns: int | None = None, streaming: bool = True,
-                        positions: dict | None = None) -> None:
+                        correction: dict | None = None) -> None:
         """A ``stream_state``: its tick's stamp and the current (or last) motion's start, duration and origin
         (when its first knot is streamed; default its start), and whether it streams a motion: one that holds
-        before this motion's end has dropped it (its ~/stop, or the axes' fault reaction); ``positions``: the
-        reference it streamed then, by joint (what a correction is measured from, ``reference``)."""
+        before this motion's end has dropped it (its ~/stop, or the axes' fault reaction); ``correction``: what its
+        sway feedback added to the reference then, by joint (m)."""
         if self.stream_ns is None or stamp_ns > self.stream_ns:  # the silence counts from the next check
             self._silent_ns, self._looked_ns = 0, None
         self.stream_ns = stamp_ns
@@ -131,28 +128,23 @@ class Execution:
                 and abs(motion_duration - self.duration) < 1e-6):
             self.motion_start_ns = motion_start_ns  # ours: started at or after its start, as long as planned
             self.motion_origin_ns = motion_start_ns if motion_origin_ns is None else motion_origin_ns
-        if positions and self.motion_start_ns is not None and stamp_ns >= self.motion_start_ns:
-            self._corrected(stamp_ns, positions)
+        if correction and self.motion_start_ns is not None and stamp_ns >= self.motion_start_ns:
+            self._corrected(stamp_ns, correction)
 
-    def _corrected(self, stamp_ns: int, positions: dict) -> None:
-        """The correction the streamer added at ``stamp_ns`` (kept at its largest), and past the end whether the
-        reference has settled at the goal."""
-        end, running = self.end_ns, self.reference
-        if running is None or not running.origin_ns:  # (one sent to start at once: its origin not learned yet)
-            return
-        planned = {name: float(np.ravel(x[0])[0]) for name, x in zip(running.joints, running.at(stamp_ns))}
-        common = [name for name in planned if name in positions]
-        if not common:
-            return
-        self.correction = max(self.correction, max(abs(positions[n] - planned[n]) for n in common))
-        if self.settled_ns is None and stamp_ns >= end:
-            at_goal = all(abs(positions[n] - planned[n]) <= AT_GOAL for n in common)
-            last, span = self._last_positions, (stamp_ns - self._last_ns) * 1e-9 if self._last_ns else 0.0
-            still = last is not None and span > 0.0 and all(abs(positions[n] - last.get(n, math.inf)) <= STILL * span
-                                                            for n in common)
-            if at_goal and (still or all(positions[n] == planned[n] for n in common)):
+    def _corrected(self, stamp_ns: int, correction: dict) -> None:
+        """The sway feedback's correction at ``stamp_ns`` (kept at its largest), and past the end whether it has
+        settled: within ``AT_GOAL`` and slower than ``STILL``, and staying within ``AT_GOAL`` over the window
+        (else the window starts again once it has settled again)."""
+        largest = max(abs(c) for c in correction.values())
+        self.correction = max(self.correction, largest)
+        last, span = self._last_correction, (stamp_ns - self._last_ns) * 1e-9 if self._last_ns else 0.0
+        if self.settled_ns is not None and largest > AT_GOAL and stamp_ns <= self.window_end_ns:
+            self.settled_ns = None  # it left the goal during the window: the axes are not there yet
+        if self.settled_ns is None and stamp_ns >= self.end_ns and largest <= AT_GOAL:
+            if largest == 0.0 or (last is not None and span > 0.0 and all(
+                    abs(c - last.get(name, math.inf)) <= STILL * span for name, c in correction.items())):
                 self.settled_ns = stamp_ns
-        self._last_positions, self._last_ns = {n: positions[n] for n in common}, stamp_ns
+        self._last_correction, self._last_ns = dict(correction), stamp_ns
 
     def on_joint_state(self, stamp_ns: int, theta1: float, theta2: float, L1: float | None = None,
                        phi: tuple[float, float] | None = None) -> None:
@@ -187,7 +179,7 @@ class Execution:
         """The settle window's start: the motion's end, or with a correction on the reference (``AT_GOAL``) once
         it has settled at the goal; None while it is not known yet."""
         end = self.end_ns
-        if end is None or self.reference is None or self.correction <= CORRECTED:
+        if end is None or self.correction <= CORRECTED:
             return end
         if self.settled_ns is not None:
             return self.settled_ns

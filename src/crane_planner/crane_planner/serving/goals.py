@@ -204,7 +204,7 @@ class Goals:
                 for other in self._goals:
                     if other is not goal and other.execution is not None:
                         other.execution.cut(execution.start_ns)
-                goal.running = execution.reference = running
+                goal.running = running
             return True
 
     def follow(self, goal: Goal) -> None:
@@ -223,21 +223,19 @@ class Goals:
                         other.change(S.TAKEN_OVER)
             if goal.state is not S.TAKEN_OVER:  # (a newer goal took it over while the streamer took it)
                 goal.change(S.FOLLOWING)
-            goal.running = goal.execution.reference = running
+            goal.running = running
 
     def stopping(self, goal: Goal, stop: Running, execution: Execution) -> None:
         """A stop of ``goal``'s motion sent (together: the stop's origin is learned from its execution)."""
         with self.lock:
             goal.change(S.STOPPING)
-            goal.running = execution.reference = stop
+            goal.running = stop
             goal.execution = execution
 
     def own(self, goal: Goal, running: Running) -> None:
         """``running`` is ``goal``'s motion now (a stop of it, as the streamer streams it)."""
         with self.lock:
             goal.running = running
-            if goal.execution is not None:
-                goal.execution.reference = running
 
     def end(self, goal: Goal) -> None:
         with self.lock:

@@ -115,9 +115,10 @@ PARAMETERS = {
     'feedback_timeout': (0.2, 'with feedback: no finite joint_states for this long (s) and the correction fades to '
                               'zero within the limits, the plan streaming on open loop, until they return',
                          parameter_range(0.01, 10.0)),
-    'feedback_noise': (1e-3, 'with feedback: the standard deviation (rad) of the measured angles\' noise; the '
-                             'estimator weighs measurements by it, and a noisier camera gets a gentler law (fixed at '
-                             'start-up)', {**parameter_range(0.0, 0.1), 'read_only': True}),
+    'feedback_noise': (0.0, 'with feedback: the standard deviation (rad) of the measured angles\' noise, as the '
+                            'camera has it (a sway camera: about 1e-3); the estimator weighs measurements by it, and '
+                            'a camera noisier than 1e-4 gets a gentler law, lest its noise move the axes (fixed at '
+                            'start-up)', {**parameter_range(0.0, 0.1), 'read_only': True}),
     **OPERATOR_LIMIT_PARAMETERS,
     HOIST_RANGE: ([0.1, 3.0], 'operator mode: the shortest and longest rope (m) the hoist may reach',
                   {'additional_constraints': '[shortest, longest], 0 < shortest < longest',

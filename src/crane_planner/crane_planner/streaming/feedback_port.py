@@ -59,6 +59,14 @@ class FeedbackPort:
         if self.feedback is not None:
             self.feedback.reset()
 
+    def corrections(self) -> tuple | None:
+        """The correction in the newest setpoint, per streamed joint (m; 0 for one it does not correct); None
+        before it was ever on. The loop's (what stream_state carries)."""
+        if self.feedback is None:
+            return None
+        applied = self.feedback.correction()
+        return tuple(applied.get(joint, 0.0) for joint in self.joints)
+
     def status(self) -> dict:
         """Its values on /diagnostics: its state, each corrected axis's correction now and its largest since the
         last report (m), and the measurements it could not use."""

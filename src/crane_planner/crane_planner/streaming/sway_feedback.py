@@ -81,6 +81,7 @@ class PlaneCorrection:
     v: float = 0.0
     a: float = 0.0
     peak: float = 0.0
+    applied: float = 0.0  # the correction in the newest setpoint corrected
     last_plan_accel: float = math.nan
 
     def state(self) -> np.ndarray:
@@ -165,7 +166,7 @@ class SwayFeedback:
     def _reset_now(self) -> None:
         self._reset = False
         for plane in self.planes:
-            plane.p = plane.v = plane.a = 0.0
+            plane.p = plane.v = plane.a = plane.applied = 0.0
             plane.last_plan_accel = math.nan
             plane.estimator.reset()
         if self.state in (S.ACTIVE, S.LOST):
@@ -182,7 +183,7 @@ class SwayFeedback:
             self._inbox.clear()
             if self.faded:
                 for plane in self.planes:
-                    plane.p = plane.v = plane.a = 0.0
+                    plane.p = plane.v = plane.a = plane.applied = 0.0
                 return setpoint
         design = self.schedule.at(self._rope(setpoint))
         self._take(design, stamp_ns)
@@ -200,6 +201,7 @@ class SwayFeedback:
             jerk_plan = 0.0 if math.isnan(plane.last_plan_accel) else (a_plan - plane.last_plan_accel) / self.tick
             plane.last_plan_accel = a_plan
             jerk = self._limited(plane, jerk, v_plan, a_plan, jerk_plan)
+            plane.applied = plane.p
             positions[i] = p_plan + plane.p
             velocities[i] = v_plan + plane.v
             accelerations[i] = a_plan + plane.a
@@ -214,8 +216,8 @@ class SwayFeedback:
         return Setpoint(tuple(positions), tuple(velocities), tuple(accelerations))
 
     def correction(self) -> dict:
-        """Each corrected joint's correction now (m), by name."""
-        return {plane.joint: plane.p for plane in self.planes}
+        """Each corrected joint's correction in the newest setpoint (m), by name."""
+        return {plane.joint: plane.applied for plane in self.planes}
 
     def take_peak(self) -> dict:
         """Each corrected joint's largest |correction| (m) since the last call, by name."""

@@ -5,11 +5,14 @@ The law is a linear-quadratic regulator of the control model
 the integral of
 
     (l / LOAD_SCALE)^2 + (l' / (OMEGA_SCALE LOAD_SCALE))^2 + (e^2 + (e' / omega_2)^2) / SECOND_MODE_SCALE^2
-    + (p / POSITION_SCALE)^2 + (v / VELOCITY_SCALE)^2 + (j / JERK_SCALE)^2,
+    + (p / POSITION_SCALE)^2 + (v / VELOCITY_SCALE)^2 + (a / ACCELERATION_SCALE)^2 + (j / JERK_SCALE)^2,
 
 l the load's offset from below the suspension point (L1 theta1 + L2 (theta1 +
 theta2)), e the second (fast, omega_2) mode's coordinate, which the offset
-alone would leave undamped, p, v the correction's own position and velocity:
+alone would leave undamped, p, v, a the correction's own position, velocity and
+acceleration (a and j weighed so that damping a push of centimetres keeps
+within an axis's usual limits, 0.5 m/s^2 and 5 m/s^3: a law that saturates
+them swings the load further instead):
 the swing is damped within about a period of the first mode, and what the
 correction moved the axis returns to zero in a few seconds, so the axis ends
 where the plan ends. The swing's scales grow with the camera's noise beyond
@@ -42,15 +45,16 @@ from . import sway_model
 #: The law's weights (see the module docstring): the load's offset (m) and its rate's scale (rad/s) ...
 LOAD_SCALE = 0.01
 OMEGA_SCALE = 3.0
-#: ... the correction's position (m) and velocity (m/s), and its jerk (m/s^3).
+#: ... the correction's position (m), velocity (m/s), acceleration (m/s^2) and its jerk (m/s^3).
 POSITION_SCALE = 0.1
-VELOCITY_SCALE = 0.5
-JERK_SCALE = 2.0
+VELOCITY_SCALE = 0.1
+ACCELERATION_SCALE = 0.3
+JERK_SCALE = 0.5
 #: ... and the second (fast) mode's share of the load's offset (m), which the offset alone leaves undamped.
 SECOND_MODE_SCALE = 0.001
 #: A camera this quiet (angle noise, rad) or quieter gets the law's weights as they are; a noisier one a law
 #: as much gentler as it is noisier (``gentleness``).
-QUIET_CAMERA = 1.5e-4
+QUIET_CAMERA = 1e-4
 #: The estimator's model of the disturbance: a random walk of this intensity (m/s^2 per sqrt(s)), slow, so that
 #: it follows a steady wind but not the camera's noise; and of the swing's own rates (rad/s per sqrt(s)): what
 #: the model does not know of the plant (gusts, a cable of another length).
@@ -99,7 +103,8 @@ def regulator(p: CraneParams, noise: float = 0.0) -> np.ndarray:
     Q = (np.outer(offset, offset) / load_scale ** 2
          + np.outer(rate, rate) / (OMEGA_SCALE * load_scale) ** 2
          + np.outer(unit[0], unit[0]) / POSITION_SCALE ** 2
-         + np.outer(unit[1], unit[1]) / VELOCITY_SCALE ** 2)
+         + np.outer(unit[1], unit[1]) / VELOCITY_SCALE ** 2
+         + np.outer(unit[2], unit[2]) / ACCELERATION_SCALE ** 2)
     # the second mode's own coordinate: the load's offset hardly sees it, its swing does
     second, omega2 = _second_mode(p)
     modal, modal_rate = np.zeros(8), np.zeros(8)
