@@ -1,4 +1,4 @@
-"""A horizontal disturbance acting on both masses (wind, gusts) in ``crane_sim.simulator``.
+"""A horizontal disturbance acting on both masses (wind, gusts) in ``crane_sim.simulator``, and the push.
 
 References independent of the code under test: the static equilibrium of a double pendulum in a uniform
 field (both cables along g and the field's resultant), its linearized modes (``references``), the
@@ -12,6 +12,7 @@ import pytest
 import scipy.linalg
 from references import lagrangian_energy, lagrangian_linearization
 
+from crane_msgs_py.crane.geometry import load_offset
 from crane_msgs_py.crane.params import CraneParams
 from crane_sim.dynamics import mass_positions
 from crane_sim.simulator import CraneSimulator, SimulationError, SpatialSwing, simulate
@@ -160,3 +161,35 @@ def test_a_batch_disturbance_of_a_wrong_shape_or_a_y_row_without_the_bridge_is_n
     # one per plant: the second plant's field only
     r = simulate(t, [[0.0, 0.0], [0.0, 0.0]], P, disturbance=[[0.0, 0.5], [0.0, 0.0]])
     assert not np.any(r.theta1[0]) and r.theta1[1, -1] < 0.0
+
+
+def test_a_push_displaces_the_load_along_x_and_y_with_the_cables_in_line_from_rest():
+    sim = CraneSimulator(P, axes=('cart', 'bridge', 'hoist'))
+    for _ in range(500):  # the axes moving: a push leaves them be
+        sim.step((0.5, -0.3, 0.1))
+    axes = [sim.axis_state(name) for name in sim.axes]
+    sim.push(0.02, 0.03)
+    w = sim.swing
+    assert load_offset(w.theta1, w.theta2, w.phi1, w.phi2, sim.L1, P.L2) == pytest.approx((-0.02, -0.03), abs=1e-15)
+    p1, p2 = sim.mass_positions()  # the cables in line: m1 on the line from the suspension point to the load
+    s = sim.suspension
+    assert [(p1[i] - s[i]) / sim.L1 for i in range(3)] == pytest.approx(
+        [(p2[i] - s[i]) / (sim.L1 + P.L2) for i in range(3)], abs=1e-15)
+    assert w.theta2 == 0.0 and w.phi2 == 0.0 and w.phi1 < 0.0 < w.theta1
+    assert (w.dtheta1, w.dtheta2, w.dphi1, w.dphi2) == (0.0, 0.0, 0.0, 0.0)
+    assert [sim.axis_state(name) for name in sim.axes] == axes
+    assert sim.load_excursion == pytest.approx(math.hypot(0.02, 0.03), abs=1e-15)
+    # along x alone the push of the crane without a bridge: in the plane
+    sim.push(0.02)
+    assert sim.swing.phi1 == 0.0 and sim.swing.theta1 == math.asin(0.02 / (sim.L1 + P.L2))
+
+
+def test_a_push_along_y_without_the_bridge_or_past_the_cables_is_refused_naming_why():
+    sim = CraneSimulator(P)
+    with pytest.raises(SimulationError, match='along y .*needs the bridge'):
+        sim.push(0.01, 0.02)
+    spatial = CraneSimulator(P, axes=('cart', 'bridge'))
+    with pytest.raises(SimulationError, match='less than the cables'):
+        spatial.push(0.7, 0.7)
+    with pytest.raises(SimulationError, match='less than the cables'):
+        spatial.push(math.nan)

@@ -917,15 +917,24 @@ class CraneSimulator:
         """The axis's position, rate and acceleration now."""
         return tuple(self._axes[self.axes.index(name)])
 
-    def push(self, excursion: float) -> None:
-        """Set the load swinging, as a push would: the load displaced ``excursion`` (m) along x with both
-        cables in line (theta2 = 0) and released from rest; every axis keeps its state."""
-        excursion = float(excursion)
+    def push(self, excursion: float, excursion_y: float = 0.0) -> None:
+        """Set the load swinging, as a push would: the load displaced horizontally with both cables in line
+        (theta2 = phi2 = 0) and released from rest; every axis keeps its state. ``excursion`` (m) along x
+        as ``load_excursion`` measures it (positive: the load behind the suspension point, at -x, theta1
+        > 0), ``excursion_y`` (m) likewise along y (positive: the load at -y, phi1 < 0); the y push needs the
+        bridge."""
+        dx, dy = float(excursion), float(excursion_y)
+        if dy != 0.0 and not self.spatial:
+            raise SimulationError(f'a push along y ({dy:g} m) needs the bridge: the crane without one swings in '
+                                  'the x-z plane alone')
         length = self.L1 + float(self._plants.L2[0])
-        if not (math.isfinite(excursion) and abs(excursion) < length):
+        if not (math.isfinite(dx) and math.isfinite(dy) and math.hypot(dx, dy) < length):
+            given = f'({dx}, {dy})' if dy else dx
             raise SimulationError(f'a push must displace the load less than the cables\' length '
-                                  f'({length:g} m), got {excursion} m')
-        self._set_swing(SpatialSwing(theta1=math.asin(excursion / length)))
+                                  f'({length:g} m), got {given} m')
+        # the load at -(dx, dy) from the suspension point: L u(theta1, phi1) = (-L sin theta1 cos phi1, L sin phi1)
+        phi1 = -math.asin(dy / length) if dy else 0.0
+        self._set_swing(SpatialSwing(theta1=math.asin(dx / (length * math.cos(phi1))), phi1=phi1))
 
     @property
     def L1(self) -> float:
