@@ -568,7 +568,7 @@ def simulate(t_ref, references, plants, *, dt: float = 1e-3, t_end: float | None
             n_batch) one per plant; or a callable ``w(t)`` of an array of times ``t`` (s, shape (k,)) returning
             the acceleration there, shape (2, k) or (2, n_batch, k): rows x and y. It is called once, with the
             grid's times and each step's midpoint (RK4 evaluates it at 0, h/2 and h of every step), so a
-            sampled path interpolates its samples there. The y row needs
+            sampled path interpolates its samples there (``disturbances.SampledDisturbance``). The y row needs
             a bridge (the planar crane swings in the x-z plane alone): elsewhere it must be 0. The default
             start hangs straight down whatever the disturbance, as a wind rising at t_ref[0].
     """
