@@ -151,6 +151,23 @@ def test_the_real_time_disturbance_is_checked_kept_over_a_reset_and_none_when_ze
     assert sim.state.theta1 == 0.0
 
 
+def test_no_disturbance_is_the_run_without_one_to_the_bit():
+    """Off is off: a zero field, or one set and taken back, steps exactly as a crane never given one (the
+    node's defaults leave the sim as it was)."""
+    t = np.arange(0.0, 2.0 + 1e-9, 1e-3)
+    a = np.sin(3.0 * t)
+    plain = simulate(t, {'cart': a, 'hoist': 0.1 * a}, [P, P.replace(L1=0.4)])
+    zero = simulate(t, {'cart': a, 'hoist': 0.1 * a}, [P, P.replace(L1=0.4)], disturbance=(0.0, 0.0))
+    assert all(np.array_equal(plain.states[name], zero.states[name]) for name in plain.states)
+    never, taken_back = (CraneSimulator(P, axes=('cart', 'bridge')) for _ in range(2))
+    taken_back.disturbance = (0.5, 0.5)
+    taken_back.disturbance = (0.0, 0.0)
+    for k in range(t.size - 1):
+        for sim in (never, taken_back):
+            sim.step((a[k], -a[k]), (a[k + 1], -a[k + 1]))
+    assert never.joint_state() == taken_back.joint_state()
+
+
 def test_a_batch_disturbance_of_a_wrong_shape_or_a_y_row_without_the_bridge_is_named():
     t = [0.0, 1.0]
     for disturbance, match in (((0.1, 0.2), 'bridge'), ((0.1,), 'constant'), ((math.inf, 0.0), 'finite'),

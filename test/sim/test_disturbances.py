@@ -72,6 +72,9 @@ def test_the_settings_are_checked_and_a_y_wind_needs_the_bridge():
     with pytest.raises(ParameterError, match='needs the bridge'):
         Disturbances(wind=(0.1, 0.2)).check_planes(bridge=False)
     assert Disturbances(wind=(0.1, 0.2)).check_planes(bridge=True).wind == (0.1, 0.2)
+    # the wind plus a gust of one plane (x) or two (x, y)
+    assert Disturbances(wind=(0.1, 0.2)).plus((0.5, -0.5)) == (0.6, -0.3)
+    assert Disturbances(wind=(0.1, 0.0)).plus((0.5,)) == (0.6, 0.0)
 
 
 def test_sampled_disturbances_drive_the_batch_simulation_wind_as_the_constant_and_gusts_seeded():

@@ -125,6 +125,11 @@ class Disturbances:
                                  'swings in the x-z plane alone')
         return self
 
+    def plus(self, gust) -> tuple[float, float]:
+        """The acceleration (ax, ay) (m/s^2) of the wind plus a gust's value (one per plane: x, then y)."""
+        ax, ay = self.wind
+        return ax + gust[0], ay + gust[1] if len(gust) > 1 else ay
+
     @property
     def active(self) -> bool:
         """Whether anything acts at all."""
