@@ -22,6 +22,19 @@ def linearized_modes(p):
     return [abs(x) for x in lam], [-x.real / abs(x) for x in lam]
 
 
+def lagrangian_linearization(p):
+    """(M, K): the mass and stiffness matrices of the double pendulum linearized at rest, in the relative angles
+    (theta1, theta2), from the Lagrangian written here independently of the code under test:
+    T = m1/2 (L1 th1')^2 + m2/2 (L1 th1' + L2 (th1' + th2'))^2,
+    V = -m1 g L1 cos th1 - m2 g (L1 cos th1 + L2 cos(th1 + th2))."""
+    m1, m2, L1, L2, g = p.m1, p.m2, p.L1, p.L2, p.g
+    M = np.array([[m1 * L1**2 + m2 * (L1 + L2)**2, m2 * L2 * (L1 + L2)],
+                  [m2 * L2 * (L1 + L2), m2 * L2**2]])
+    K = np.array([[(m1 + m2) * g * L1 + m2 * g * L2, m2 * g * L2],
+                  [m2 * g * L2, m2 * g * L2]])
+    return M, K
+
+
 def lagrangian_energy(th1, th2, d1, d2, p):
     """Kinetic plus potential energy of the two masses, cart at rest (Fig. 1 kinematics).
 

@@ -949,3 +949,75 @@ def test_markers_draw_the_crane_of_the_published_joint_states(crane):
     assert swing > 0.01  # the crane really swung: the check is not of a crane at rest
     rate = (len(common) - 1) / ((common[-1] - common[0]) * 1e-9)
     assert rate == pytest.approx(50.0, rel=0.05)
+
+
+def test_the_sim_s_sensor_latency_delays_joint_states_and_a_steady_wind_deflects_the_measured_load(crane):
+    """sensor_latency 0.05 s: every joint_states sample reaches the middleware 0.05 s later after its stamp than
+    without (by construction at least playout_delay + latency - one step after it), all of them, in order. A
+    wind of [0.3, 0] m/s^2 at rest swings the measured load about its deflection L w / sqrt(g^2 + w^2) ahead
+    of the cart (26 mm: the mean over two periods of the slow mode). Both set back afterwards and the sim
+    reset, so no swing is left for the next test.
+
+    Arrival is the DDS reader's receive time (``references(arrival=True)``'s), which this process's own lag
+    does not shift."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import JointState
+
+    from crane_msgs_py.messages.conversions import stamp_ns
+    from crane_msgs_py.messages.names import JOINT_STATES_TOPIC
+    from crane_msgs_py.runtime.qos import JOINT_STATES_QOS, recording
+    from crane_msgs_py.runtime.runner import spinning
+    from crane_planner.tools.harness import state_columns
+    latency, playout_delay, step = 0.05, 0.1, 1e-3  # (the sim's playout_delay and step at their defaults)
+    driver = crane.driver
+    driver.wait_until_holding()  # a motion a test before left running has ended,
+    driver.wait_until_still()
+    driver.reset_sim()  # and the load is at rest: the wind swings it from there
+    rows = []  # (received ns, stamp ns)
+    node = rclpy.create_node('crane_it_sensor', namespace=NS)
+    node.create_subscription(JointState, JOINT_STATES_TOPIC,
+                             lambda m, info: rows.append((info['received_timestamp'], stamp_ns(m.header.stamp))),
+                             recording(JOINT_STATES_QOS, 10.0, 50.0))
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+
+    def received(seconds: float) -> np.ndarray:
+        begin = len(rows)
+        driver.sleep(seconds)
+        return np.array(rows[begin:], dtype=np.int64).reshape(-1, 2)
+
+    try:
+        with spinning(executor):
+            driver.wait_until(lambda: len(rows) > 5, 5.0, 'no joint_states received')
+            before = received(1.0)
+            driver.set_parameters('sim', {'sensor_latency': latency})
+            try:
+                driver.sleep(0.2)  # (what the change released at once counts for neither)
+                after = received(1.0)
+            finally:
+                driver.set_parameters('sim', {'sensor_latency': 0.0})
+    finally:
+        node.destroy_node()
+    lag_before, lag_after = ((r[:, 0] - r[:, 1]) * 1e-9 for r in (before, after))
+    assert np.median(lag_after) - np.median(lag_before) == pytest.approx(latency, abs=0.01)
+    assert lag_after.min() >= playout_delay + latency - step - 1e-3, lag_after.min()
+    assert np.all(np.diff(after[:, 1]) > 0) and len(after) >= 45, len(after)  # every sample (50 Hz), in order
+
+    wind = 0.3
+    driver.set_parameters('sim', {'wind': [wind, 0.0]})
+    try:
+        begin = driver.now_ns() + round(0.3e9)
+        end = begin + round(2 * 2 * math.pi / modal_frequencies(NOMINAL)[0] * 1e9)
+        crane.sleep_until(end)
+        rec = state_columns(driver.states_between(begin, end, timeout=5.0))
+    finally:
+        driver.set_parameters('sim', {'wind': [0.0, 0.0]})
+        driver.reset_sim()
+    assert len(rec['stamp']) > 40 * (end - begin) * 1e-9
+    theta1, theta2 = rec['theta1'], rec['theta2']
+    ahead = -(NOMINAL.L1 * np.sin(theta1) + NOMINAL.L2 * np.sin(theta1 + theta2))  # the load's offset along x
+    deflection = (NOMINAL.L1 + NOMINAL.L2) * wind / math.hypot(NOMINAL.g, wind)
+    assert ahead.mean() == pytest.approx(deflection, rel=0.03)
+    assert ahead.min() > -0.1 * deflection and ahead.max() < 2.2 * deflection  # swinging about it, from rest
+    assert np.ptp(rec['cart']) < 1e-9  # the cart held: the wind acts on the load

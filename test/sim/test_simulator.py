@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 import scipy.linalg
-from references import lagrangian_energy
+from references import lagrangian_energy, lagrangian_linearization
 
 from crane_msgs_py.crane.params import CraneParams, ParameterError
 from crane_planner.planning.model import modal_frequencies
@@ -24,14 +24,7 @@ def zero_crossing_frequency(t, x):
 
 def test_small_angle_modes_match_the_linearization():
     """Free response started on each linear mode shape swings at that mode's frequency (0.1 %)."""
-    # linearization of the Lagrangian at rest, written here independently of the code under test:
-    # T = m1/2 (L1 th1')^2 + m2/2 (L1 th1' + L2 (th1' + th2'))^2,
-    # V = -m1 g L1 cos th1 - m2 g (L1 cos th1 + L2 cos(th1 + th2))
-    m1, m2, L1, L2, g = P.m1, P.m2, P.L1, P.L2, P.g
-    M = np.array([[m1 * L1**2 + m2 * (L1 + L2)**2, m2 * L2 * (L1 + L2)],
-                  [m2 * L2 * (L1 + L2), m2 * L2**2]])
-    K = np.array([[(m1 + m2) * g * L1 + m2 * g * L2, m2 * g * L2],
-                  [m2 * g * L2, m2 * g * L2]])
+    M, K = lagrangian_linearization(P)  # written independently of the code under test
     lam, shapes = scipy.linalg.eigh(K, M)
     omega = np.sqrt(lam)
     assert omega == pytest.approx(modal_frequencies(P), rel=1e-9)  # two independent linearizations agree

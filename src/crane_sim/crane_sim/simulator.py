@@ -14,6 +14,12 @@ by classic RK4. Each axis is therefore exact for every ``tau >= 0``, including
 ``tau`` much smaller than the step, where an explicit integrator of Eq. 6
 would blow up.
 
+A disturbance ``w`` (m/s^2 per horizontal direction: wind, gusts) is a horizontal
+acceleration field acting on both masses (a force ``m w`` on each): in the frame
+of the suspension point the masses feel ``-m a`` and ``m w``, so for the swing
+it is the same as the suspension point accelerating by ``a - w``. The axes are
+servo-driven and the field does not reach them: each axis's rows are unchanged.
+
 Everything is vectorized over a batch of plants (numpy arrays of shape
 ``(n,)``); the batch path (:func:`simulate`) and the streaming path
 (:class:`CraneSimulator`, for the real-time node) share one step function.
@@ -332,9 +338,10 @@ class _Stepper:
 
         return at(0), at(1), at(2)
 
-    def step(self, x, r0, r1):
+    def step(self, x, r0, r1, w=None):
         """Internal states ``x`` one step later, each axis's reference acceleration going linearly from
-        ``r0[k]`` to ``r1[k]`` (``r0``, ``r1``: one row per axis of the layout, in its order)."""
+        ``r0[k]`` to ``r1[k]`` (``r0``, ``r1``: one row per axis of the layout, in its order); ``w``: the
+        disturbance along x at the stage times 0, h/2, h (3, n), or None (none)."""
         h, h2, h6 = self._h, self._h2, self._h6
         out = np.empty_like(x)
         ends = []
@@ -345,6 +352,8 @@ class _Stepper:
             out[a] = c[2]
             ends.append(c)
         c = ends[self._cart]
+        if w is not None:  # the swing feels the cart's acceleration less the field's (module docstring)
+            c = (c[0] - w[0], c[1] - w[1], c[2] - w[2])
         if self._hoist is not None:
             f_begin, f_mid, f_end = self._hoist_stages(x, ends[self._hoist[0]], r0, r1)
         else:
@@ -495,9 +504,35 @@ def _references(references) -> tuple[tuple, dict]:
     return axes, refs
 
 
+def _disturbance_stages(disturbance, t, n: int, spatial: bool):
+    """``simulate``'s ``disturbance`` at every step's RK4 stage times 0, h/2, h of the grid ``t``: an array
+    (steps, 3, 2, n) of (x, y) per plant, or None."""
+    if disturbance is None:
+        return None
+    times = np.concatenate((t, 0.5 * (t[:-1] + t[1:])))  # the grid, then each step's midpoint
+    if callable(disturbance):
+        w = np.asarray(disturbance(times), dtype=float)
+        if w.shape not in ((2, times.size), (2, n, times.size)):
+            raise SimulationError(f'disturbance(t) must return shape (2, {times.size}) or (2, {n}, {times.size}) '
+                                  f'for {times.size} times, got {w.shape}')
+        w = np.broadcast_to(w.reshape(2, -1, times.size), (2, n, times.size))
+    else:
+        w = np.asarray(disturbance, dtype=float)
+        if w.shape not in ((2,), (2, n)):
+            raise SimulationError(f'a constant disturbance must be (ax, ay) or shape (2, {n}), got {w.shape}')
+        w = np.broadcast_to(w.reshape(2, -1, 1), (2, n, times.size))
+    if not np.all(np.isfinite(w)):
+        raise SimulationError('disturbance must be finite')
+    if not spatial and np.any(w[1] != 0.0):
+        raise SimulationError('disturbance: a y component needs the bridge (the planar crane swings in x-z only)')
+    k = t.size
+    stages = np.stack((w[..., :k - 1], w[..., k:], w[..., 1:k]))  # (3, 2, n, steps)
+    return np.ascontiguousarray(stages.transpose(3, 0, 1, 2))
+
+
 def simulate(t_ref, references, plants, *, dt: float = 1e-3, t_end: float | None = None,
              interpolation: str = 'linear', source: str = 'acceleration', record_every: int = 1,
-             initial_state=None, rest_dt: float | None = None) -> SimResult:
+             initial_state=None, rest_dt: float | None = None, disturbance=None) -> SimResult:
     """Simulate a batch of plants driven by sampled axis references.
 
     Args:
@@ -527,6 +562,15 @@ def simulate(t_ref, references, plants, *, dt: float = 1e-3, t_end: float | None
             RK4 as accurate on the free swing (its error grows as (omega h)^5,
             ~1e-9 of the swing per 5 ms step at 9 rad/s) for a fraction of
             the steps; the grid then continues in steps of ``rest_dt``.
+        disturbance: a horizontal acceleration (m/s^2) acting on both masses, as wind and gusts do
+            (``crane_sim.disturbances``): for the swing the same as the suspension point accelerating by its
+            negative, the axes (servo-driven) unaffected. None (none); a constant (ax, ay), or of shape (2,
+            n_batch) one per plant; or a callable ``w(t)`` of an array of times ``t`` (s, shape (k,)) returning
+            the acceleration there, shape (2, k) or (2, n_batch, k): rows x and y. It is called once, with the
+            grid's times and each step's midpoint (RK4 evaluates it at 0, h/2 and h of every step), so a
+            sampled path interpolates its samples there (``disturbances.SampledDisturbance``). The y row needs
+            a bridge (the planar crane swings in the x-z plane alone): elsewhere it must be 0. The default
+            start hangs straight down whatever the disturbance, as a wind rising at t_ref[0].
     """
     check_choice('interpolation', interpolation, INTERPOLATIONS, SimulationError)
     check_choice('source', source, SOURCES, SimulationError)
@@ -604,11 +648,16 @@ def simulate(t_ref, references, plants, *, dt: float = 1e-3, t_end: float | None
     out[0] = x
     j = 1
     # the planar crane's numpy batch, or with a bridge each plant's spatial step in plain floats
-    kind = _PointBatch if BRIDGE_JOINT in axes else _Stepper
+    spatial = BRIDGE_JOINT in axes
+    kind = _PointBatch if spatial else _Stepper
     stepper = kind(p, dt, layout)
     rest = kind(p, rest_dt, layout) if n_steps > n_fine else None
+    ws = _disturbance_stages(disturbance, t, n, spatial)
+    if ws is not None and not spatial:
+        ws = ws[:, :, 0]  # the planar stepper takes x alone
     for k in range(n_steps):
-        x = stepper.step(x, r_begin[k], r_end[k]) if k < n_fine else rest.step(x, r_rest, r_rest)
+        w = None if ws is None else ws[k]
+        x = stepper.step(x, r_begin[k], r_end[k], w) if k < n_fine else rest.step(x, r_rest, r_rest, w)
         if keep[k + 1]:
             out[j] = x
             j += 1
@@ -658,9 +707,10 @@ class _PointStepper:
         if self.hoist is not None:  # the hoist's servo over the first half too: RK4's midpoint needs L1 there
             self.hoist_half = weights(plants.tau_hoist, 0.5 * h)
 
-    def step(self, axes: list, q: list, v: list, r0, r1) -> None:
+    def step(self, axes: list, q: list, v: list, r0, r1, w=None) -> None:
         """Advance ``axes`` (per axis [position, rate, acceleration]) and the swing's absolute angles ``q``
-        and rates ``v`` in place by one step, each axis's reference acceleration going from r0[k] to r1[k]."""
+        and rates ``v`` in place by one step, each axis's reference acceleration going from r0[k] to r1[k];
+        ``w``: the disturbance (x, y) at the stage times 0, h/2, h, or None (none)."""
         h = self.h
         hoisted = tuple(axes[self.hoist]) if self.hoist is not None else None  # (L1, L1', L1'') before the step
         ends = []
@@ -674,6 +724,9 @@ class _PointStepper:
             ends.append(e)
         ax = ends[self.cart]
         ay = ends[self.bridge] if self.bridge is not None else (0.0, 0.0, 0.0)
+        if w is not None:  # the swing feels the suspension point's acceleration less the field's
+            ax = [ax[j] - w[j][0] for j in range(3)]
+            ay = [ay[j] - w[j][1] for j in range(3)]
         if self.hoist is not None:
             k, W = self.hoist, self.hoist_half
             L, dL, ddL = hoisted
@@ -710,12 +763,13 @@ class _PointBatch:
         self._angles = [layout.index(n) for n in ('theta1', 'phi1', 'theta2', 'phi2')]
         self._rates = [layout.index(n) for n in ('dtheta1', 'dphi1', 'dtheta2', 'dphi2')]
 
-    def step(self, x, r0, r1):
+    def step(self, x, r0, r1, w=None):
+        """As ``_Stepper.step``; ``w``: the disturbance (x, y) at the stage times (3, 2, n), or None."""
         out = np.array(x)
         for i, stepper in enumerate(self._steppers):
             axes = [[float(x[row, i]) for row in rows] for rows in self._axes]
             q, v = [float(x[row, i]) for row in self._angles], [float(x[row, i]) for row in self._rates]
-            stepper.step(axes, q, v, r0[:, i], r1[:, i])
+            stepper.step(axes, q, v, r0[:, i], r1[:, i], None if w is None else w[:, :, i].tolist())
             for rows, values in zip(self._axes, axes):
                 out[list(rows), i] = values
             out[self._angles, i], out[self._rates, i] = q, v
@@ -761,6 +815,7 @@ class CraneSimulator:
         self.hoist = HOIST_JOINT in self.axes
         self.spatial = BRIDGE_JOINT in self.axes
         self._axes = None
+        self._disturbance, self._w = (0.0, 0.0), None
         self.set_params(params)
         self.reset(state)
 
@@ -823,8 +878,27 @@ class CraneSimulator:
                                   f'got {begin} to {end}')
         if not all(math.isfinite(v) for v in r0 + r1):
             raise SimulationError(f'reference acceleration must be finite, got {begin} to {end}')
-        self._stepper.step(self._axes, self._q, self._v, r0, r1)
+        self._stepper.step(self._axes, self._q, self._v, r0, r1, self._w)
         self._steps += 1
+
+    @property
+    def disturbance(self) -> tuple[float, float]:
+        """The horizontal acceleration (m/s^2) acting on both masses, (x, y): wind and gusts (module docstring;
+        ``crane_sim.disturbances``). Set it to change it from the next step on (held over each step); it
+        survives ``reset``. The y component needs the bridge: the planar crane swings in x-z alone."""
+        return self._disturbance
+
+    @disturbance.setter
+    def disturbance(self, w) -> None:
+        ax, ay = (float(v) for v in w)
+        if not (math.isfinite(ax) and math.isfinite(ay)):
+            raise SimulationError(f'the disturbance must be finite, got {w}')
+        if ay != 0.0 and not self.spatial:
+            raise SimulationError(f'a disturbance along y ({ay:g} m/s^2) needs the bridge: the crane without one '
+                                  'swings in the x-z plane alone')
+        self._disturbance = (ax, ay)
+        # none: the step of a crane without disturbance, not one less zero
+        self._w = None if ax == 0.0 and ay == 0.0 else ((ax, ay),) * 3
 
     @property
     def swing(self) -> SpatialSwing:
@@ -843,15 +917,24 @@ class CraneSimulator:
         """The axis's position, rate and acceleration now."""
         return tuple(self._axes[self.axes.index(name)])
 
-    def push(self, excursion: float) -> None:
-        """Set the load swinging, as a push would: the load displaced ``excursion`` (m) along x with both
-        cables in line (theta2 = 0) and released from rest; every axis keeps its state."""
-        excursion = float(excursion)
+    def push(self, excursion: float, excursion_y: float = 0.0) -> None:
+        """Set the load swinging, as a push would: the load displaced horizontally with both cables in line
+        (theta2 = phi2 = 0) and released from rest; every axis keeps its state. ``excursion`` (m) along x
+        as ``load_excursion`` measures it (positive: the load behind the suspension point, at -x, theta1
+        > 0), ``excursion_y`` (m) likewise along y (positive: the load at -y, phi1 < 0); the y push needs the
+        bridge."""
+        dx, dy = float(excursion), float(excursion_y)
+        if dy != 0.0 and not self.spatial:
+            raise SimulationError(f'a push along y ({dy:g} m) needs the bridge: the crane without one swings in '
+                                  'the x-z plane alone')
         length = self.L1 + float(self._plants.L2[0])
-        if not (math.isfinite(excursion) and abs(excursion) < length):
+        if not (math.isfinite(dx) and math.isfinite(dy) and math.hypot(dx, dy) < length):
+            given = f'({dx}, {dy})' if dy else dx
             raise SimulationError(f'a push must displace the load less than the cables\' length '
-                                  f'({length:g} m), got {excursion} m')
-        self._set_swing(SpatialSwing(theta1=math.asin(excursion / length)))
+                                  f'({length:g} m), got {given} m')
+        # the load at -(dx, dy) from the suspension point: L u(theta1, phi1) = (-L sin theta1 cos phi1, L sin phi1)
+        phi1 = -math.asin(dy / length) if dy else 0.0
+        self._set_swing(SpatialSwing(theta1=math.asin(dx / (length * math.cos(phi1))), phi1=phi1))
 
     @property
     def L1(self) -> float:

@@ -18,9 +18,13 @@ reference on while it tracks, and when the stream is lost (the playouts'
 fault reaction's ramp (``fault_deceleration``, ``fault_jerk``) and holds
 until a stream at rest where the axes stand; its state goes to
 ``axis_status`` (crane_interfaces/AxisStatus) and ``/diagnostics``. The loop
-alone touches the simulator and the controller, so parameter changes and
-resets are handed over too; ``~/reset`` and ``~/push`` answer once the loop
-has applied them and published ``joint_states`` of the crane as it is then.
+alone touches the simulator, the controller, the sensor and the gusts, so
+parameter changes and resets are handed over too; ``~/reset`` and ``~/push``
+answer once the loop has applied them and measured the crane as it is then.
+``joint_states`` are what a camera would report (``crane_sim.sensor``): each
+sample taken at its stamp and published ``sensor_latency`` later, some lost
+(``sensor_dropout``), the angles noisy (``noise``); ``crane_markers`` show the
+crane as it is. Wind and gusts (``crane_sim.disturbances``) act on both masses.
 The executor (an EventsExecutor) serves the parameters, services and timers.
 """
 from __future__ import annotations
@@ -51,6 +55,7 @@ from crane_msgs_py.messages.conversions import (
 )
 from crane_msgs_py.messages.names import (
     AXIS_STATUS_TOPIC,
+    BRIDGE_JOINT,
     DEFAULT_FRAME_ID,
     JOINT_STATES_TOPIC,
     MARKERS_TOPIC,
@@ -68,13 +73,14 @@ from crane_msgs_py.runtime.qos import AXIS_STATUS_QOS, JOINT_STATES_QOS, MARKERS
 from crane_msgs_py.runtime.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runtime.runner import LoopThread, run
 from crane_sim.axis_controller import AxisController, FaultConfig, Offer
-from crane_sim.measurement import AngleNoise
+from crane_sim.disturbances import Disturbances, Gust
 from crane_sim.nodes.reference_reader import REFERENCE_TYPES, ReferenceReader
 from crane_sim.playout import BACKLOG, ReferencePlayout, StallAllowance
 from crane_sim.reference_intake import ReferenceIntake
+from crane_sim.sensor import Sensor, SensorSettings
 from crane_sim.simulator import INTERPOLATIONS, SOURCES, CraneSimulator, CraneState, SimulationError
 
-#: How long (s) the ~/reset and ~/push services wait for the loop to have applied them and published the
+#: How long (s) the ~/reset and ~/push services wait for the loop to have applied them and measured the
 #: crane as it is then, before answering anyway (a loop stalled by the host).
 APPLIED_WAIT = 1.0
 SIM_TASK = 'sim'
@@ -139,12 +145,28 @@ PARAMETERS = {
                          'this long after the previous one, like commands at a fixed rate', float_range(1e-5, 1.0)),
     'frame_id': (DEFAULT_FRAME_ID, 'frame of the crane_markers (x along the rail, z up); fixed at start-up',
                  {'read_only': True}),
-    'noise': (0.0, 'standard deviation (rad) of Gaussian noise added to the published theta1 and theta2 '
+    'noise': (0.0, 'standard deviation (rad) of Gaussian noise added to the published swing angles '
                    '(a measurement such as a camera\'s; the simulation itself is exact); may change while running',
               float_range(0.0, 1.0)),
-    'seed': (0, 'seed of the measurement noise; fixed at start-up', {**int_range(0, 2**31 - 1), 'read_only': True}),
-    'push_swing': (0.03, '~/push displaces the load this far (m) horizontally, cables in line, and lets go: a '
+    'sensor_latency': (0.0, 'the sway sensor\'s latency (s): each joint_states sample is published this long after '
+                       'it was measured, with the stamp of its measurement and in order, as a camera\'s processing '
+                       'would; may change while running (the samples still queued too)', float_range(0.0, 1.0)),
+    'sensor_dropout': (0.0, 'probability that a joint_states sample is lost (seeded by seed), as a camera drops '
+                       'frames; may change while running', float_range(0.0, 1.0)),
+    'seed': (0, 'seed of the measurement noise, the sensor\'s dropout and the gusts (a stream each); fixed at '
+                'start-up', {**int_range(0, 2**31 - 1), 'read_only': True}),
+    'push_swing': (0.03, '~/push displaces the load this far (m) along x, as the swing is signed (positive: the '
+                         'load behind the cart, theta1 > 0), cables in line, and lets go, also during a motion: a '
                          'swing for tests and the demo (the planner\'s ~/settle damps it)', float_range(-1.0, 1.0)),
+    'push_swing_y': (0.0, '~/push displaces the load this far (m) along y too, signed alike (positive: the load '
+                          'behind the bridge, phi1 < 0); with the bridge only', float_range(-1.0, 1.0)),
+    'wind': ([0.0, 0.0], 'a steady horizontal acceleration [ax, ay] (m/s^2) on both masses, as a wind\'s (ay with '
+                         'the bridge only); may change while running',
+             {'additional_constraints': 'two finite numbers [ax, ay]; ay 0 without the bridge'}),
+    'gust': (0.0, 'standard deviation (m/s^2) of a random horizontal acceleration on both masses, in x and with '
+                  'the bridge in y (an Ornstein-Uhlenbeck process, seeded by seed); may change while running',
+             float_range(0.0, 10.0)),
+    'gust_time': (1.0, 'correlation time (s) of the gusts; may change while running', float_range(1e-3, 1e3)),
     # Real-time: the sim stands for the axes' drives, whose control loop no other program delays. At normal
     # scheduling a busy host (one CPU-bound process beside the suite) kept its executor from a core for
     # longer than the playout delay: references came after their playout time, or the receive buffers
@@ -176,7 +198,10 @@ class SimNode(Node):
         self._source, self._interpolation = p['reference_source'], p['interpolation']
         self._diagnostics = DiagnosticsPublisher(self)
         Guard(self, PARAMETERS, self._check, self._apply, self._diagnostics)
-        self._noise = AngleNoise(p['noise'], p['seed'])
+        # the loop alone uses these: the executor hands it new settings (_apply)
+        self._sensor_settings, self._disturbances = self._sensor_settings_of(p), self._disturbances_of(p)
+        self._sensor = Sensor(self._sensor_settings, p['seed'])
+        self._gust = Gust(planes=2 if self._sim.spatial else 1, seed=p['seed'])
         self._frame_id = p['frame_id']
         self._markers = crane_markers_message(self._frame_id, bridge=self._sim.spatial)
         self._markers_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, MARKERS_QOS)
@@ -192,9 +217,10 @@ class SimNode(Node):
         self._inbox: deque = deque()
         self._pending_params: CraneParams | None = None
         self._reset_requested = threading.Event()
-        self._push: float | None = None  # a push for the loop to apply (m)
-        # Set by the loop once a reset or push it applied is in a joint_states published: the service answers
-        # then, so a caller that acts on its answer (a goal sent at once) finds the crane measured as it is.
+        self._push: tuple[float, float] | None = None  # a push for the loop to apply (m, along x and y)
+        # Set by the loop once a reset or push it applied is in a joint_states sample taken: the service answers
+        # then, so a caller that acts on its answer (a goal sent at once) finds the crane measured as it is
+        # (published at once without sensor_latency; with it as soon as a camera would report it).
         self._applied = threading.Event()
         self._applied.set()
         # The loop's counts (out_of_order: a sample a swapped playout could not take) and the intake's,
@@ -231,10 +257,23 @@ class SimNode(Node):
         for name, choices in (('reference_source', SOURCES), ('interpolation', INTERPOLATIONS),
                               ('reference_type', ('auto', *REFERENCE_TYPES))):
             crane_params.check_choice(name, values[name], choices)
-        crane_params.check_nonnegative('noise', values['noise'])
         for name in ('fault_deceleration', 'fault_jerk', 'resume_tolerance'):
             crane_params.check_positive(name, values[name])
+        SimNode._sensor_settings_of(values)
+        bridge = BRIDGE_JOINT in values['joints']
+        SimNode._disturbances_of(values).check_planes(bridge)
+        if values['push_swing_y'] != 0.0 and not bridge:
+            raise crane_params.ParameterError(f'push_swing_y {values["push_swing_y"]:g} m: a push along y needs the '
+                                              'bridge (joints): the crane without one swings in the x-z plane alone')
         return CraneParams.of(values)
+
+    @staticmethod
+    def _sensor_settings_of(values: dict) -> SensorSettings:
+        return SensorSettings(values['sensor_latency'], values['sensor_dropout'], values['noise'])
+
+    @staticmethod
+    def _disturbances_of(values: dict) -> Disturbances:
+        return Disturbances(tuple(values['wind']), values['gust'], values['gust_time'])
 
     @staticmethod
     def _fault_config_of(values: dict) -> FaultConfig:
@@ -259,8 +298,10 @@ class SimNode(Node):
         if {c.name for c in changes} & set(PARAMETER_NAMES):
             self._pending_params = params  # the loop applies it before its next step
         self._source, self._interpolation = values['reference_source'], values['interpolation']
-        if values['noise'] != self._noise.std:
-            self._noise = AngleNoise(values['noise'], self._noise.seed)
+        for name, settings in (('_sensor_settings', self._sensor_settings_of(values)),
+                               ('_disturbances', self._disturbances_of(values))):
+            if settings != getattr(self, name):
+                setattr(self, name, settings)  # the loop applies it before its next step
         self._playout_args = self._playout_args_of(values)  # the loop swaps its playout when this changes
         self._fault_config = self._fault_config_of(values)  # and hands this to the controller
         self._intake.configure(*self._intake_args_of(values))
@@ -310,16 +351,18 @@ class SimNode(Node):
                 inbox.append((bool(stamp), sample))  # (whether its sender stamped it: its gaps are judged)
 
     def _on_push(self, request, response):
-        push = float(self.get_parameter('push_swing').value)
+        push = tuple(float(self.get_parameter(name).value) for name in ('push_swing', 'push_swing_y'))
         length = self._sim.L1 + self._sim.params['L2']
-        if not abs(push) < length:
+        given = f'push_swing {push[0]:g} m' + (f', push_swing_y {push[1]:g} m' if push[1] else '')
+        if not math.hypot(*push) < length:
             response.success = False
-            response.message = f'push_swing {push:g} m: must be less than the cables\' length ({length:g} m)'
+            response.message = f'{given}: must be less than the cables\' length ({length:g} m)'
             return response
         self._applied.clear()
         self._push = push
         response.success = True
-        response.message = f'load pushed {push * 1e3:g} mm aside and released'
+        aside = f'{push[0] * 1e3:g} mm' if not push[1] else f'({push[0] * 1e3:g}, {push[1] * 1e3:g}) mm'
+        response.message = f'load pushed {aside} aside and released'
         self._applied.wait(APPLIED_WAIT)
         self.get_logger().info(response.message)
         return response
@@ -336,7 +379,8 @@ class SimNode(Node):
 
     def _loop(self):
         sim, ticker, counts, lateness = self._sim, self._ticker, self.counts, self._lateness
-        inbox, controller = self._inbox, self._controller
+        inbox, controller, sensor, gust = self._inbox, self._controller, self._sensor, self._gust
+        disturbances = None  # the settings applied last (``_disturbances`` hands new ones over)
         ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
         epoch_ros = ros_now + (epoch - time.monotonic_ns())  # ROS time of step 0
         ros_offset = epoch_ros - epoch  # ROS time (ns) minus monotonic time (ns)
@@ -366,11 +410,17 @@ class SimNode(Node):
                 self._plant_clock = (epoch_ros, round(playout.delay * 1e9))
             if self._fault_config is not controller.config:
                 controller.config = self._fault_config
+            if self._sensor_settings is not sensor.settings:
+                sensor.settings = self._sensor_settings
+            if self._disturbances is not disturbances:
+                disturbances = self._disturbances
+                gust.configure(disturbances.gust, disturbances.gust_time)
+                sim.disturbance = disturbances.wind
             applied = self._push is not None or self._reset_requested.is_set()
             if self._push is not None:
                 push, self._push = self._push, None
                 try:
-                    sim.push(push)
+                    sim.push(*push)
                 except SimulationError as exc:  # the rope shortened since the request was checked
                     self.get_logger().warn(f'push not applied: {exc}')
             if self._reset_requested.is_set():
@@ -400,6 +450,8 @@ class SimNode(Node):
                     continue
                 controller.played(((stamp - epoch_ros) * 1e-9, *sample), stamped)  # (a gap mid-motion: lost)
             t1 = t0 + dt
+            if gust.sd > 0.0:  # a new gust each step, held over it
+                sim.disturbance = disturbances.plus(gust.step(dt))
             if controller.state is tracking:
                 stall = allowance(late_ns * 1e-9, now * 1e-9)
                 for one in playouts:  # catching up after a stall: its samples may be on their way
@@ -420,21 +472,26 @@ class SimNode(Node):
             if playout.made_up + made_up > counts['made_up']:  # (every axis's playout has the same samples)
                 counts['made_up'] = made_up + playout.made_up
                 self.made_up_late = max(self.made_up_late, playout.made_up_late)
-            if ticker.tick % self._publish_every == 0 or applied:
+            measured = ticker.tick % self._publish_every == 0 or applied
+            if measured:  # a sample taken (the sensor: its noise, whether it is lost, when it is reported)
                 positions, velocities = sim.joint_state()
-                positions[angles] = self._noise(*positions[angles])
+                true_angles = positions[angles]
                 plant_time = epoch_ros + (ticker.tick + 1) * dt_ns - round(playout.delay * 1e9)
-                fill_joint_state(self._joint_state, plant_time, positions, velocities)
-                # the crane as measured: the published angles, the live cable lengths (the hoist's now)
-                fill_crane_markers(self._markers, plant_time, sim.suspension, *sim.mass_positions(positions[angles]))
-                try:
+                sensor.measure(t1, plant_time, true_angles, positions[:angles.start], velocities)
+                # the crane as it is: the true angles, the live cable lengths (the hoist's now)
+                fill_crane_markers(self._markers, plant_time, sim.suspension, *sim.mass_positions(true_angles))
+            try:
+                for sample in sensor.released(t1):  # (at any step: a latency need not be whole publish periods)
+                    axes_positions, velocities = sample.values
+                    fill_joint_state(self._joint_state, sample.stamp, [*axes_positions, *sample.angles], velocities)
                     self._joint_states.publish(self._joint_state)
+                    counts['published'] += 1
+                if measured:
                     self._markers_pub.publish(self._markers)
-                except Exception:  # the context is shut down (SIGINT): end quietly
-                    return
-                counts['published'] += 1
-                if applied:
-                    self._applied.set()
+            except Exception:  # the context is shut down (SIGINT): end quietly
+                return
+            if applied:
+                self._applied.set()
             counts['skipped'] += ticker.advance(time.monotonic_ns())
 
     def _await_samples(self, newest: int, needed: int, ros_offset: int) -> None:
@@ -518,6 +575,8 @@ class SimNode(Node):
             playout_delay=self._playout_args[0],
             interpolation=self._interpolation, y=state.y, theta1=state.theta1, theta2=state.theta2,
             load_excursion=self._sim.load_excursion, **self._sim.params,
+            sensor_dropped=self._sensor.dropped, sensor_pending=self._sensor.pending,
+            disturbance_x=self._sim.disturbance[0], disturbance_y=self._sim.disturbance[1],
             **({'hoist_L1': self._sim.L1} if self._sim.hoist else {}))
 
     def _axes_values(self, controller: AxisController, axes) -> dict:
