@@ -19,6 +19,7 @@ from crane_planner.streaming.source import Setpoint
 from crane_planner.streaming.sway_estimator import SwayEstimator
 from crane_planner.streaming.sway_feedback import FeedbackState, SwayFeedback
 from crane_planner.tools import closed_loop as cl
+from crane_sim.sensor import SensorSettings
 
 P = CraneParams()
 TICK = 1e-3
@@ -81,7 +82,7 @@ def test_a_push_at_rest_is_damped_below_5_percent_within_one_period_and_the_cart
     swings on; closed loop (within the streamer's default limits) below 5 % of the push one slow period after it,
     the cart back within 1 mm."""
     push = cl.Push(0.5, 0.03)
-    sensor = cl.Sensor(latency=0.05)
+    sensor = SensorSettings(latency=0.05)
     open_loop = cl.closed_loop(cl.holding(0.2), 8.0, P, P, feedback=False, sensor=sensor, pushes=[push]).arrays()
     closed = cl.closed_loop(cl.holding(0.2), 8.0, P, P, feedback=True, sensor=sensor, pushes=[push],
                             limits=LIMITS).arrays()
@@ -104,7 +105,7 @@ def test_the_perturbed_crane_settles_with_feedback_where_open_loop_swings_on(met
     closed = cl.closed_loop(cl.of_plan(p), 6.0, P, plant, feedback=True, limits=LIMITS)
     assert cl.residual(open_loop, 4.0) > 7e-3
     assert cl.residual(closed, 4.0) < 2e-4
-    assert closed.arrays()['cart'][-1] == pytest.approx(0.3, abs=1e-4)
+    assert closed.arrays()['cart'][-1] == pytest.approx(0.3, abs=5e-4)  # (the correction returning: AT_GOAL)
 
 
 def test_with_nothing_to_correct_the_reference_stays_within_half_a_millimetre_of_the_plan():
@@ -113,7 +114,7 @@ def test_with_nothing_to_correct_the_reference_stays_within_half_a_millimetre_of
     from crane_planner.planning.dispatch import plan
     p = plan('nvf', 0.3, 2.5, P)
     for seed in range(4):
-        closed = cl.closed_loop(cl.of_plan(p), 5.0, P, P, feedback=True, sensor=cl.Sensor(noise=1e-3), seed=seed,
+        closed = cl.closed_loop(cl.of_plan(p), 5.0, P, P, feedback=True, sensor=SensorSettings(noise=1e-3), seed=seed,
                                 limits=LIMITS)
         assert np.abs(closed.arrays()['correction']).max() <= 5e-4, seed
 
@@ -185,3 +186,29 @@ def test_switched_off_a_correction_fades_within_the_limits_and_then_setpoints_pa
     assert out[6999][0] is hold  # faded: untouched
     # on again: measurements stamped before its fresh estimate began (0.1 s late here) are not placed; then active
     assert out[7000][1] is FeedbackState.WAITING and out[7200][1] is FeedbackState.ACTIVE
+
+
+@pytest.mark.parametrize('push', [cl.Push(0.5, 0.03, 0.0), cl.Push(0.5, 0.0, 0.03), cl.Push(0.5, 0.02, 0.02)])
+def test_on_the_spatial_crane_a_push_in_x_and_y_is_damped_in_both_planes(push):
+    """The cart and the bridge each correct their plane (the bridge's angles phi towards +y, its model's sign
+    the other way): a push along x, along y and diagonally is below 5 % one period later, both axes back."""
+    joints = ('cart', 'bridge')
+    closed = cl.closed_loop(cl.holding((0.0, 0.0)), 8.0, P, P, pushes=[push], limits=LIMITS, joints=joints).arrays()
+    assert np.abs(closed['load'][closed['t'] >= push.t + PERIOD]).max() < 0.05 * math.hypot(push.dx, push.dy)
+    assert np.abs(closed['axes'][-1]).max() < 1e-3
+
+
+def test_wind_and_gusts_at_rest_the_swing_about_its_mean_is_a_third_of_open_loops_or_less():
+    """A wind of 0.3 m/s^2 with gusts of 0.2 m/s^2 (1 s correlation), 20 s at rest, the same seeds: the load's swing
+    about its mean (RMS, after the first 5 s) at most 0.35 of open loop's. (What is left is mostly the load
+    leaning into each gust, about 18 mm here: damping the pendulum cannot remove it, only an axis following the
+    gusts, which the law's position weight forbids.)"""
+    from crane_sim.disturbances import Disturbances
+    wind = Disturbances(wind=(0.3, 0.0), gust=0.2, gust_time=1.0)
+    for seed in (0, 1):
+        open_loop = cl.closed_loop(cl.holding(), 20.0, P, P, feedback=False, disturbances=wind, seed=seed).arrays()
+        closed = cl.closed_loop(cl.holding(), 20.0, P, P, disturbances=wind, seed=seed, limits=LIMITS).arrays()
+        after = open_loop['t'] > 5.0
+        ratio = np.std(closed['load'][after]) / np.std(open_loop['load'][after])
+        assert ratio <= 0.35, (seed, ratio)
+        assert np.abs(closed['correction']).max() < 0.2  # the axis stays within decimetres of its hold

@@ -39,8 +39,10 @@ from .source import Setpoint
 from .sway_estimator import SwayEstimator
 from .sway_law import HISTORY, Schedule
 
-#: The measured angles of each travel axis's plane, by the joint_states names.
-PLANE_ANGLES = {CART_JOINT: ('theta1', 'theta2'), BRIDGE_JOINT: ('phi1', 'phi2')}
+#: The measured angles of each travel axis's plane, by the joint_states names, and the sign that makes them the
+#: plane's model's (``sway_model``: positive when the load lags a positive acceleration of the axis): theta is
+#: (towards -x), phi is not (``crane_msgs_py.crane.geometry``: towards +y).
+PLANE_ANGLES = {CART_JOINT: (('theta1', 'theta2'), 1.0), BRIDGE_JOINT: (('phi1', 'phi2'), -1.0)}
 #: The fade's law: the correction's (position, velocity, acceleration) brought to zero with a triple pole at
 #: -FADE_RATE (1/s): a few seconds, smooth, well within any axis's limits for a correction of centimetres.
 FADE_RATE = 3.0
@@ -70,11 +72,13 @@ FADED = (1e-7, 1e-6, 1e-5)
 
 @dataclass
 class PlaneCorrection:
-    """One travel axis's correction: its position, velocity and acceleration (m, m/s, m/s^2), and its estimator."""
+    """One travel axis's correction: its position, velocity and acceleration (m, m/s, m/s^2), the measured angles
+    of its plane (and the sign that makes them its model's), its limits and its estimator."""
 
     joint: str
     index: int
     angles: tuple
+    sign: float
     limits: AxisLimits
     estimator: SwayEstimator
     p: float = 0.0
@@ -110,7 +114,7 @@ class SwayFeedback:
         shortest, longest = lengths or (params.L1, params.L1)
         self.schedule = Schedule(params, tick, noise, shortest, longest)
         capacity = int(round(HISTORY / tick)) + 1
-        self.planes = [PlaneCorrection(j, self.joints.index(j), PLANE_ANGLES[j], (limits or {}).get(j, AxisLimits()),
+        self.planes = [PlaneCorrection(j, self.joints.index(j), *PLANE_ANGLES[j], (limits or {}).get(j, AxisLimits()),
                                        SwayEstimator(capacity)) for j in PLANE_ANGLES if j in self.joints]
         self._hoist = self.joints.index(HOIST_JOINT) if HOIST_JOINT in self.joints else None
         self._inbox: deque = deque()
@@ -236,7 +240,7 @@ class SwayFeedback:
     def _take(self, design, stamp_ns: int) -> None:
         while self._inbox:
             measured_ns, angles = self._inbox.popleft()
-            values = [[angles.get(name, math.nan) for name in plane.angles] for plane in self.planes]
+            values = [[plane.sign * angles.get(name, math.nan) for name in plane.angles] for plane in self.planes]
             if not all(math.isfinite(x) for pair in values for x in pair):
                 self.ignored += 1
                 continue

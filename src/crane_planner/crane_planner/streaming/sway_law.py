@@ -58,7 +58,7 @@ QUIET_CAMERA = 1e-4
 #: The estimator's model of the disturbance: a random walk of this intensity (m/s^2 per sqrt(s)), slow, so that
 #: it follows a steady wind but not the camera's noise; and of the swing's own rates (rad/s per sqrt(s)): what
 #: the model does not know of the plant (gusts, a cable of another length).
-DISTURBANCE_RATE = 0.02
+DISTURBANCE_RATE = 0.1
 SWING_RATE = 0.3
 #: The camera's sample period (s) the estimator's gain is designed for (the sim's joint_states: 50 Hz).
 MEASUREMENT_PERIOD = 0.02

@@ -3,18 +3,19 @@ over ROS, step by step on one clock, with no process, no network and no real tim
 
 Each tick (the streamer's period) the reference's setpoint goes through the
 feedback (``streaming.sway_feedback.SwayFeedback``, as the streamer applies
-it), the plant (``crane_sim.simulator.CraneSimulator``, its own parameters)
-plays it at its stamp as the sim does (the playout delay shifts the plant's
-clock, not the plant), and every camera period the plant's angles are
-measured: with ``Sensor`` noise and dropout, and delivered to the feedback
-``Sensor.latency`` plus the playout delay after their stamp, as they reach the
-streamer. ``simulate`` runs it open and closed loop from the same seed.
-Needs crane_sim (the planner's ``sim`` extra). No ROS import.
+it), and the plant (``crane_sim.simulator.CraneSimulator``, its own
+parameters) plays it at its stamp as the sim does: the playout delay shifts
+the plant's clock, not the plant. Disturbances act on the load as the sim's
+do (``crane_sim.disturbances``: pushes, a steady wind, seeded gusts); every
+camera period the plant's angles are measured by the sim's own sensor
+(``crane_sim.sensor.Sensor``: noise, dropout, latency) and reach the feedback
+its latency plus the playout delay after their stamp, as they reach the
+streamer. Open loop is the same run with the feedback left out. Needs
+crane_sim (the planner's ``sim`` extra). No ROS import.
 """
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -22,90 +23,110 @@ import numpy as np
 
 from crane_msgs_py.crane.axes import AxisLimits
 from crane_msgs_py.crane.params import CraneParams
-from crane_msgs_py.messages.names import CART_JOINT
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT
 
 from ..streaming.source import Setpoint
 from ..streaming.sway_feedback import SwayFeedback
 
-
-@dataclass(frozen=True)
-class Sensor:
-    """The camera: its sample period, latency (s after the stamp, beyond the playout delay), angle noise (rad,
-    standard deviation) and the share of samples it drops."""
-
-    period: float = 0.02
-    latency: float = 0.0
-    noise: float = 0.0
-    dropout: float = 0.0
+#: The camera's sample period (s): the sim's joint_states rate.
+CAMERA_PERIOD = 0.02
 
 
 @dataclass(frozen=True)
 class Push:
-    """The load displaced ``dx`` (m) at ``t`` (s), cables in line, released from rest."""
+    """The load displaced ``dx`` (and ``dy``, with a bridge) (m) at ``t`` (s), cables in line, released from rest."""
 
     t: float
     dx: float
+    dy: float = 0.0
 
 
 @dataclass
 class Trace:
-    """What a run did, per tick: time (s), the published reference's cart position (m), the correction (m), the
-    cart (m) and the load's horizontal offset from below the cart (m)."""
+    """What a run did, per tick: time (s), the published reference and the correction of each travel axis (m:
+    columns cart[, bridge]), the plant's axes (m) and the load's horizontal offset from below the suspension point
+    (m: x[, y])."""
 
     t: list = field(default_factory=list)
     reference: list = field(default_factory=list)
     correction: list = field(default_factory=list)
-    cart: list = field(default_factory=list)
-    load: list = field(default_factory=list)
+    axes: list = field(default_factory=list)
+    offset: list = field(default_factory=list)
 
     def arrays(self) -> dict:
-        return {name: np.asarray(value) for name, value in vars(self).items()}
+        """The columns as arrays, and ``load``: the swing (m), signed along x on the planar crane, the norm of the
+        offset with a bridge; ``cart``: the plant's cart."""
+        a = {name: np.asarray(value) for name, value in vars(self).items()}
+        offset = a['offset']
+        a['load'] = offset[:, 0] if offset.shape[1] == 1 else np.hypot(offset[:, 0], offset[:, 1])
+        a['cart'] = a['axes'][:, 0]
+        if a['reference'].shape[1] == 1:  # (one travel axis: its columns as plain arrays)
+            a['reference'], a['correction'] = a['reference'][:, 0], a['correction'][:, 0]
+        return a
 
 
 def closed_loop(reference: Callable[[float], Setpoint], duration: float, model: CraneParams, plant: CraneParams,
-                feedback: bool = True, sensor: Sensor = Sensor(), pushes=(), delay: float = 0.1, tick: float = 1e-3,
-                limits: AxisLimits = AxisLimits(), seed: int = 0, timeout: float = 0.2) -> Trace:
-    """Run ``reference`` (its setpoint at t s) for ``duration`` s on ``plant``, corrected by a feedback designed on
-    ``model`` (``feedback``), measured by ``sensor``; ``pushes`` as they come; ``delay`` the playout delay (s)."""
-    from crane_msgs_py.crane.geometry import load_swing
+                feedback: bool = True, sensor=None, pushes=(), disturbances=None, delay: float = 0.1,
+                tick: float = 1e-3, limits: AxisLimits | None = None, seed: int = 0, timeout: float = 0.2,
+                joints=(CART_JOINT,)) -> Trace:
+    """Run ``reference`` (its setpoint of ``joints`` at t s) for ``duration`` s on ``plant``, corrected by a
+    feedback designed on ``model`` (``feedback``), measured by a ``crane_sim.sensor.SensorSettings``
+    (``sensor``; None: ideal), disturbed by ``pushes`` and ``crane_sim.disturbances.Disturbances``; ``delay``
+    the playout delay (s); ``limits`` of each travel axis."""
+    from crane_msgs_py.crane.geometry import load_offset
+    from crane_sim.disturbances import Disturbances, Gust
+    from crane_sim.sensor import Sensor, SensorSettings
     from crane_sim.simulator import CraneSimulator, CraneState
-    sim = CraneSimulator(plant, dt=tick, state=CraneState(y=float(reference(0.0).position)))
-    fb = SwayFeedback((CART_JOINT,), model, tick, {CART_JOINT: limits}, timeout, max(sensor.noise, 1e-4)) \
-        if feedback else None
-    rng = np.random.default_rng(seed)
-    every = max(1, round(sensor.period / tick))
-    in_flight: deque = deque()  # (due stamp ns, stamp ns, theta1, theta2)
+    joints = tuple(joints)
+    spatial = BRIDGE_JOINT in joints
+    sensor = sensor or SensorSettings()
+    disturbances = (disturbances or Disturbances()).check_planes(spatial)
+    start = reference(0.0).position
+    starts = start if isinstance(start, tuple) else (start,)
+    sim = CraneSimulator(plant, dt=tick, state=CraneState(y=float(starts[0])), axes=joints)
+    fb = SwayFeedback(joints, model, tick, {j: limits for j in joints if limits is not None}, timeout,
+                      max(sensor.noise, 1e-4)) if feedback else None
+    camera = Sensor(sensor, seed)
+    gust = Gust(disturbances.gust, disturbances.gust_time, 2 if spatial else 1, [seed, 2])
+    every = max(1, round(CAMERA_PERIOD / tick))
     pending = sorted(pushes, key=lambda p: p.t)
+    travel = [k for k, j in enumerate(joints) if j in (CART_JOINT, BRIDGE_JOINT)]
     trace = Trace()
-    steps = int(round(duration / tick))
-    for k in range(steps):
+    for k in range(int(round(duration / tick))):
         t = k * tick
         stamp = round(t * 1e9)
         while pending and pending[0].t <= t + 1e-12:
-            sim.push(pending.pop(0).dx)
+            push = pending.pop(0)
+            if spatial:
+                sim.push(push.dx, push.dy)
+            else:
+                sim.push(push.dx)
+        if disturbances.active:
+            ax, ay = disturbances.plus(gust.step(tick))
+            sim.disturbance = (ax, ay if spatial else 0.0)
+        w = sim.swing
+        angles = (w.theta1, w.theta2, w.phi1, w.phi2) if spatial else (w.theta1, w.theta2)
         if k % every == 0:  # the camera's sample of the plant now
-            w = sim.swing
-            noisy = (w.theta1 + sensor.noise * rng.standard_normal(), w.theta2 + sensor.noise * rng.standard_normal())
-            if rng.random() >= sensor.dropout:
-                in_flight.append((stamp + round((delay + sensor.latency) * 1e9), stamp, *noisy))
-        while in_flight and in_flight[0][0] <= stamp:
-            _, measured, theta1, theta2 = in_flight.popleft()
+            camera.measure(t, stamp, angles)
+        for sample in camera.released(t - delay):  # (the plant plays delay behind the streamer's clock)
             if fb is not None:
-                fb.measure(measured, {'theta1': theta1, 'theta2': theta2})
+                fb.measure(sample.stamp, dict(zip(('theta1', 'theta2', 'phi1', 'phi2'), sample.angles)))
         setpoint = reference(t)
         out = fb.correct(k, stamp, setpoint) if fb is not None else setpoint
-        w, y = sim.swing, sim.axis_state(CART_JOINT)[0]
+        positions = out.position if isinstance(out.position, tuple) else (out.position,)
+        sources = setpoint.position if isinstance(setpoint.position, tuple) else (setpoint.position,)
         trace.t.append(t)
-        trace.reference.append(out.position)
-        trace.correction.append(out.position - setpoint.position)
-        trace.cart.append(y)
-        trace.load.append(float(load_swing(w.theta1, w.theta2, sim.L1, plant.L2)))
+        trace.reference.append([positions[i] for i in travel])
+        trace.correction.append([positions[i] - sources[i] for i in travel])
+        trace.axes.append([sim.axis_state(j)[0] for j in joints])
+        dx, dy = load_offset(w.theta1, w.theta2, w.phi1, w.phi2, sim.L1, plant.L2)
+        trace.offset.append([-dx, -dy] if spatial else [-dx])
         sim.step(out.acceleration)
     return trace
 
 
 def of_plan(plan, start: float = 0.0) -> Callable[[float], Setpoint]:
-    """The setpoint of a ``Plan`` (relative, from ``start`` m) at t s, held at its end."""
+    """The setpoint of a ``Plan`` of the cart (relative, from ``start`` m) at t s, held at its end."""
     def setpoint(t: float) -> Setpoint:
         s = plan.evaluate([min(t, plan.duration)])
         if t >= plan.duration:
@@ -114,12 +135,16 @@ def of_plan(plan, start: float = 0.0) -> Callable[[float], Setpoint]:
     return setpoint
 
 
-def holding(at: float = 0.0) -> Callable[[float], Setpoint]:
-    """The hold at ``at`` m."""
+def holding(at=0.0) -> Callable[[float], Setpoint]:
+    """The hold at ``at`` (m; a tuple: one per joint)."""
+    if isinstance(at, tuple):
+        zeros = tuple(0.0 for _ in at)
+        return lambda t: Setpoint(at, zeros, zeros)
     return lambda t: Setpoint(at, 0.0, 0.0)
 
 
-def residual(trace: Trace, after: float) -> float:
-    """The largest |load offset| (m) after ``after`` s."""
+def residual(trace: Trace, after: float, until: float = math.inf) -> float:
+    """The largest swing (m) in [after, until] s."""
     a = trace.arrays()
-    return float(np.max(np.abs(a['load'][a['t'] >= after]))) if math.isfinite(after) else math.nan
+    inside = (a['t'] >= after) & (a['t'] <= until)
+    return float(np.max(np.abs(a['load'][inside])))
