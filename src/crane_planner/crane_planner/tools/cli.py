@@ -267,8 +267,8 @@ def _add_task_options(p: argparse.ArgumentParser, fastest: bool = False):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=PROG, description=__doc__.splitlines()[0].split(': ', 1)[1])
-    sub = parser.add_subparsers(dest='command', required=True, metavar='{plan,compare,sweep,choose,identify,report}',
-                                parser_class=_Parser)
+    sub = parser.add_subparsers(dest='command', required=True,
+                                metavar='{plan,compare,sweep,choose,identify,report,simulate}', parser_class=_Parser)
 
     p = sub.add_parser('plan', help='make one plan and evaluate it on the plant')
     p.add_argument('--method', choices=METHODS, required=True)
@@ -283,6 +283,15 @@ def build_parser() -> argparse.ArgumentParser:
                         'then phi1, phi2')
     p.add_argument('--plot', metavar='FILE',
                    help='write a PNG of the plan profiles and the swing (with --bridge a top view of the load\'s path)')
+
+    from .simulate_cli import add_options as add_simulate_options
+    p = sub.add_parser('simulate', help='run one plan on the plant with the sway feedback, open and closed loop, '
+                                        'with pushes, wind, gusts and a camera\'s latency, noise and dropout')
+    p.add_argument('--method', choices=METHODS, required=True)
+    _add_task_options(p)
+    _add_model_options(p)
+    _add_plant_options(p)
+    add_simulate_options(p)
 
     p = sub.add_parser('compare', help='make and evaluate plans of several methods')
     _add_task_options(p)
@@ -663,8 +672,18 @@ def cmd_report(args) -> int:
     return 0
 
 
+def cmd_simulate(args) -> int:
+    from .simulate_cli import cmd_simulate as simulate
+
+    def make_plan(args):
+        model, options = _model_and_options(args)
+        plan, _ = _timed_plan(Planner(), args.method, args, model, options)
+        return plan, model, _plant(args, model)
+    return simulate(args, make_plan)
+
+
 COMMANDS = {'plan': cmd_plan, 'compare': cmd_compare, 'sweep': cmd_sweep, 'choose': cmd_choose,
-            'identify': cmd_identify, 'report': cmd_report}
+            'identify': cmd_identify, 'report': cmd_report, 'simulate': cmd_simulate}
 
 
 def main(argv=None) -> int:
