@@ -302,7 +302,9 @@ class SimNode(Node):
                                ('_disturbances', self._disturbances_of(values))):
             if settings != getattr(self, name):
                 setattr(self, name, settings)  # the loop applies it before its next step
-        self._playout_args = self._playout_args_of(values)  # the loop swaps its playout when this changes
+        playout_args = self._playout_args_of(values)
+        if playout_args != self._playout_args:  # the loop swaps its playouts (losing what they hold) on a change
+            self._playout_args = playout_args
         self._fault_config = self._fault_config_of(values)  # and hands this to the controller
         self._intake.configure(*self._intake_args_of(values))
 
