@@ -166,3 +166,28 @@ def test_an_nvf_goal_while_the_load_swings_starts_at_its_start_time_sent_publish
     assert outcome.success and 'from a swing of 8.6 mm' in outcome.message
     assert trajectory.stamp_ns == start_ns
     assert start_ns - round(crane.config.publish_lead * 1e9) <= sent_ns < start_ns
+
+
+def test_an_nvf_goal_whose_plan_from_the_swing_fails_has_the_swing_damped_first_then_runs_from_rest(planner):
+    """The solver makes no plan from the swing (here: a planner whose retarget fails): the goal is not lost,
+    a settle damps the swing, then it is planned from rest."""
+    from crane_planner.planning.plan import PlanError
+    from crane_planner.serving import transitions
+    crane = Crane(planner=planner, method='nvf')
+    crane.at(T0 + 300 * MS, measuring(crane, SWUNG))
+    crane.clock.sleep(0.05)
+    original = transitions.retarget
+
+    def failing(*args, **kwargs):
+        raise PlanError('nvf: no plan within max_solve_time 1 s (IPOPT stopped after 49 iterations)')
+    transitions.retarget = failing
+    try:
+        goal = crane.goal('a', move(0.3, 2.5, method='nvf'))
+        outcome, _ = crane.execute(goal, move(0.3, 2.5, method='nvf'), settle=0.2)
+    finally:
+        transitions.retarget = original
+    assert outcome.success and len(crane.published) == 2, (outcome.message, crane.log.lines)
+    (_, settle), (_, goal_trajectory) = crane.published
+    assert settle.samples[0].position[-1] == pytest.approx(0.0, abs=1e-9)  # the settle ends where it started
+    assert outcome.plan.plan.method == 'nvf' and crane.hold == pytest.approx(0.3)
+    assert any('no plan from the swing was made' in line for _, line in crane.log.lines)

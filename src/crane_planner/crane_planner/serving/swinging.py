@@ -11,7 +11,8 @@ measured by the newest joint_states, predicted to now: ``swing_now``) is not pla
   straight to its goal (no ``via``) and needs a duration (the fastest plan is from rest).
 - A shaper cannot damp a swing it did not cause: its goal first damps it by a settle motion
   (``settling.settle`` with ``settle_method``) that ends where the axes are held, then is planned from
-  rest once the streamer holds after it.
+  rest once the streamer holds after it. So does an NVF/RVF goal whose plan from the swing the solver did
+  not make within its budget (a fast move from a large swing on a busy host): nothing accepted is lost.
 
 ``start`` dispatches a goal that starts with the crane held. Pure Python, no ROS import.
 """
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import math
 
+from crane_msgs_py.crane.errors import PlanError
 from crane_msgs_py.messages.names import CART_JOINT
 
 from ..planning.methods import Family, family_of
@@ -85,6 +87,13 @@ def from_swing(serving: Serving, goal: Goal, move: Move, settle: float, feedback
         return unsent(serving, goal, None)
     try:
         planned = _planned(serving, move, swing, values)
+    except MoveError as exc:  # the move refused (a field of it, a keep-out box, the timing)
+        serving.report({**values, **getattr(exc, 'values', {})}, None, t0, t0, error=str(exc))
+        return end(serving, goal, 'abort', str(exc))
+    except PlanError as exc:  # the solver's: no plan within its budget from this state
+        serving.log.warn(f'execute_move: the load swings {1e3 * swing:.1f} mm and no plan from the swing was made '
+                         f'({exc}): damping it first, then planning from rest')
+        return (yield from damped_first(serving, goal, move, settle, feedback, canceled, t0, swing))
     except ValueError as exc:
         serving.report({**values, **getattr(exc, 'values', {})}, None, t0, t0, error=str(exc))
         return end(serving, goal, 'abort', str(exc))
@@ -146,7 +155,8 @@ def _planned(serving: Serving, move: Move, swing: float, values: dict) -> Planne
 
 def damped_first(serving: Serving, goal: Goal, move: Move, settle: float, feedback, canceled, t0: float,
                  swing: float) -> Steps:
-    """A shaper's goal while the load swings: a settle motion damps the swing, then it is planned from rest."""
+    """A goal while the load swings that cannot plan from the swing (a shaper; an NVF/RVF plan the solver did not
+    make in time from that state): a settle motion damps the swing, then it is planned from rest."""
     method = move.method or serving.config().method
     try:
         settled = damp(serving)
