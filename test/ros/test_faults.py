@@ -557,6 +557,38 @@ def test_the_whole_crane_paused_mid_move_longer_than_the_streamer_catches_up_sto
     crane.reset_sim()  # the swing gone for the next test
 
 
+def test_a_sim_resumed_before_the_streamer_after_a_host_pause_waits_for_its_samples_instead_of_running_on(crane):
+    """The whole crane paused 1.3 s mid-move, then the sim continued 0.1 s before the streamer (processes resume
+    in no set order): catching its own stall up, the sim waits for the samples the streamer will send rather than
+    play steps without them (its buffer dry, each axis holding its velocity, the stall forgiven for a second: the
+    cart ran 0.11 m past the goal). It brakes at the gap as when all resume together, short of the goal."""
+    crane, recorder = crane
+    here = streamed_hold(crane)
+    count = len(recorder.status_list())
+    start, _, _ = crane.move('nvf', None, here + 0.3, 3.0, settle=1.0)
+    crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.0))
+    processes = list(crane.nodes.processes)
+    for proc in processes:
+        os.kill(proc.popen.pid, signal.SIGSTOP)
+    try:
+        time.sleep(1.3)
+        for proc in (p for p in processes if p.name.startswith('sim')):
+            os.kill(proc.popen.pid, signal.SIGCONT)
+        time.sleep(0.1)
+    finally:
+        for proc in processes:
+            os.kill(proc.popen.pid, signal.SIGCONT)
+    status, result = crane.outcome(start, timeout=60.0)
+    assert status == STATUS_ABORTED, result.message
+    statuses = states_after(crane, recorder, lambda s: 'fault_hold' in [x[1] for x in s[count:]], 30.0,
+                            'fault_hold')
+    held = next(x for x in statuses[count:] if x[1] == 'fault_hold')[2][0]
+    assert here < held < here + 0.15, held - here  # (all resumed together: about 0.08 m)
+    crane.wait_until(lambda: crane.stream_hold() is not None and abs(crane.stream_hold() - held) < 1e-3, 30.0,
+                     'the streamer never held where the axes stopped')
+    crane.reset_sim()
+
+
 def test_joint_states_lost_during_a_goal_end_it_saying_the_residual_was_not_measured(crane):
     crane, _ = crane
     here = streamed_hold(crane)
