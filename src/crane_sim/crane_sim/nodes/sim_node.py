@@ -222,7 +222,8 @@ class SimNode(Node):
         self._pending_params: CraneParams | None = None
         self._reset_requested = threading.Event()
         self._push: tuple[float, float] | None = None  # a push for the loop to apply (m, along x and y)
-        # Set by the loop once a reset or push it applied is in a joint_states sample taken: the service answers
+        # Set by the loop once a reset or push it applied is in the next joint_states sample taken (at the regular
+        # publish_rate: a camera's frames, none added): the service answers
         # then, so a caller that acts on its answer (a goal sent at once) finds the crane measured as it is
         # (published at once without sensor_latency; with it as soon as a camera would report it).
         self._applied = threading.Event()
@@ -387,6 +388,7 @@ class SimNode(Node):
         sim, ticker, counts, lateness = self._sim, self._ticker, self.counts, self._lateness
         inbox, controller, sensor, gust = self._inbox, self._controller, self._sensor, self._gust
         disturbances = None  # the settings applied last (``_disturbances`` hands new ones over)
+        answer = False  # a ~/reset or ~/push applied whose service waits for the next sample taken
         ros_now, epoch = self.get_clock().now().nanoseconds, ticker.restart()
         epoch_ros = ros_now + (epoch - time.monotonic_ns())  # ROS time of step 0
         ros_offset = epoch_ros - epoch  # ROS time (ns) minus monotonic time (ns)
@@ -422,7 +424,7 @@ class SimNode(Node):
                 disturbances = self._disturbances
                 gust.configure(disturbances.gust, disturbances.gust_time)
                 sim.disturbance = disturbances.wind
-            applied = self._push is not None or self._reset_requested.is_set()
+            answer = answer or self._push is not None or self._reset_requested.is_set()
             if self._push is not None:
                 push, self._push = self._push, None
                 try:
@@ -478,7 +480,7 @@ class SimNode(Node):
             if playout.made_up + made_up > counts['made_up']:  # (every axis's playout has the same samples)
                 counts['made_up'] = made_up + playout.made_up
                 self.made_up_late = max(self.made_up_late, playout.made_up_late)
-            measured = ticker.tick % self._publish_every == 0 or applied
+            measured = ticker.tick % self._publish_every == 0  # (every publish period: a camera's frames)
             if measured:  # a sample taken (the sensor: its noise, whether it is lost, when it is reported)
                 positions, velocities = sim.joint_state()
                 true_angles = positions[angles]
@@ -496,8 +498,9 @@ class SimNode(Node):
                     self._markers_pub.publish(self._markers)
             except Exception:  # the context is shut down (SIGINT): end quietly
                 return
-            if applied:
+            if answer and measured:  # the reset or push in a sample taken: its service answers
                 self._applied.set()
+                answer = False
             counts['skipped'] += ticker.advance(time.monotonic_ns())
 
     def _await_samples(self, newest: int, needed: int, ros_offset: int) -> None:
