@@ -211,31 +211,21 @@ def progress(text: str):
     print(f'[{PROG}] {text}', file=sys.stderr, flush=True)
 
 
-def request_back(driver: CraneHarness, motion_end_ns: int, back_start_ns: int):
-    """Sleep until the move back (to start at ``back_start_ns``) is due: :meth:`CraneHarness.lead` before
-    its start, but never before the motion ending at ``motion_end_ns`` has ended (a long lead, after a
-    slow plan, would ask for it mid-motion, which the planner refuses: one motion at a time)."""
-    due_ns = max(back_start_ns - round(driver.lead() * 1e9), motion_end_ns + 50_000_000)
-    driver.sleep((due_ns - driver.now_ns()) * 1e-9)
-
-
 def run_case_method(driver: CraneHarness, case: Case, method: str, args, name: str | None = None) -> Run:
     D, T = args.displacement, (HOIST_DURATION if case.hoist else args.duration)
     back_hoist = None if case.hoist is None else case.hoist[::-1]
     start_ns, plan_time, _ = driver.move(method, 0.0, D, T, settle=args.settle, hoist=case.hoist)
     end_ns = start_ns + round((T + args.settle) * 1e9)
-    back_start_ns = end_ns + 50_000_000  # after the window and the 50 Hz sample past it (_window_residual)
-    # The move back is requested during the observation and starts as it ends: the streamer
-    # holds the goal until then, and the sim, playing the stream out by its stamps, shows the
-    # window untouched.
-    request_back(driver, start_ns + round(T * 1e9), back_start_ns)
-    back_duration = args.return_duration if case.hoist is None else max(args.return_duration, HOIST_RETURN)
-    # (its result after a brief watch: nothing is measured of it, and none is left pending at the end)
-    back_ns, _, _ = driver.move('nvf', D, 0.0, back_duration, start_ns=back_start_ns, hoist=back_hoist, settle=0.05)
     t, load, rope, residual = _window_residual(driver, case, start_ns, start_ns, start_ns + round(T * 1e9), end_ns)
     action_residual = driver.move_result(start_ns).residual_swing  # what the caller of the action is told
     plan_t, plan_v, plan_a, peak = _served(driver, start_ns)
-    # After the move back, zero the swing: the simulated crane has no damping to wait for.
+    # The swing zeroed before the move back (the simulated crane has no damping to wait for), so that it starts
+    # from rest: sent while the load swings, it would be planned from the swing, a harder problem than this
+    # housekeeping needs.
+    driver.reset_sim()
+    back_duration = args.return_duration if case.hoist is None else max(args.return_duration, HOIST_RETURN)
+    # (its result after a brief watch: nothing is measured of it, and none is left pending at the end)
+    back_ns, _, _ = driver.move('nvf', D, 0.0, back_duration, hoist=back_hoist, settle=0.05)
     back_end_ns = back_ns + round((back_duration + 0.05) * 1e9)
     driver.sleep((back_end_ns - driver.now_ns()) * 1e-9)
     driver.move_result(back_ns)
@@ -379,10 +369,10 @@ def commission(driver: CraneHarness, args, model: CraneParams):
     driver.set_parameters('sim', {'noise': COMMISSION_NOISE})
     start_ns = driver.send(samples, 0.0, 'the excitation')
     end_ns = start_ns + round((T + EXCITATION_RECORD) * 1e9)
-    request_back(driver, start_ns + round(T * 1e9), end_ns)
-    back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, start_ns=end_ns, settle=0.05)
-    c = state_columns(driver.states_between(start_ns, end_ns))
+    c = state_columns(driver.states_between(start_ns, end_ns, timeout=T + EXCITATION_RECORD + 10.0))
     driver.set_parameters('sim', {'noise': 0.0})
+    driver.reset_sim()  # the swing the excitation left zeroed: the move back starts from rest
+    back_ns, _, _ = driver.move('nvf', D, 0.0, args.return_duration, settle=0.05)
     t_rec = (c['stamp'] - start_ns) * 1e-9
     recording = Recording(t_rec, c[CART_JOINT], c['theta1'], c['theta2'], quintic(t_rec, D, T)[0])
     result = identify(recording, model)
