@@ -105,7 +105,7 @@ demo: install
 # the other the pure tests and the ROS tests that time nothing meanwhile, at a lower CPU priority
 # (test/conftest.py).
 test: lint
-	$(PY) -m pytest -q -n 2 --dist loadgroup test
+	$(PY) -m pytest -q -n 2 --dist loadgroup --durations=30 test
 
 # Every test that starts no ROS node (pytest marker ros, see test/conftest.py); docs/testing.md has its time.
 test-pure: install
