@@ -68,11 +68,12 @@ class Trace:
 def closed_loop(reference: Callable[[float], Setpoint], duration: float, model: CraneParams, plant: CraneParams,
                 feedback: bool = True, sensor=None, pushes=(), disturbances=None, delay: float = 0.1,
                 tick: float = 1e-3, limits: AxisLimits | None = None, seed: int = 0, timeout: float = 0.2,
-                joints=(CART_JOINT,)) -> Trace:
+                joints=(CART_JOINT,), calm_after: float = math.inf) -> Trace:
     """Run ``reference`` (its setpoint of ``joints`` at t s) for ``duration`` s on ``plant``, corrected by a
     feedback designed on ``model`` (``feedback``), measured by a ``crane_sim.sensor.SensorSettings``
     (``sensor``; None: ideal), disturbed by ``pushes`` and ``crane_sim.disturbances.Disturbances``; ``delay``
-    the playout delay (s); ``limits`` of each travel axis."""
+    the playout delay (s); ``limits`` of each travel axis; the wind and gusts stop at ``calm_after`` s (whether a
+    swing left then decays is the closed loop's stability, which a gust still blowing would hide)."""
     from crane_msgs_py.crane.geometry import load_offset
     from crane_sim.disturbances import Disturbances, Gust
     from crane_sim.sensor import Sensor, SensorSettings
@@ -102,7 +103,7 @@ def closed_loop(reference: Callable[[float], Setpoint], duration: float, model: 
             else:
                 sim.push(push.dx)
         if disturbances.active:
-            ax, ay = disturbances.plus(gust.step(tick))
+            ax, ay = disturbances.plus(gust.step(tick)) if t < calm_after else (0.0, 0.0)
             sim.disturbance = (ax, ay if spatial else 0.0)
         w = sim.swing
         angles = (w.theta1, w.theta2, w.phi1, w.phi2) if spatial else (w.theta1, w.theta2)
