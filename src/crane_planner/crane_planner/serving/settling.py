@@ -80,16 +80,15 @@ def settle(serving: Serving) -> Settled:
     if measured is None or now - measured.stamp_ns > transitions.MEASUREMENT_AGE * 1e9:
         raise MoveError('settle', f'no joint_states within {transitions.MEASUREMENT_AGE:g} s: the swing to '
                                   'damp is not measured')
-    joints = tuple(j for j in config.joints if j in hold)
-    holding = Running.holding(joints, [hold[j] for j in joints], now)
+    holding = Running.held(hold, config.joints, now)
 
     def make(handover_ns, state):
         return transitions.settle(serving.planner.variational, state, config.params, config.options,
                                   config.settle_method)
 
     done = plan_from_running(serving, holding, config.handover_lead, make,
-                             kind=('settle', config.settle_method, joints))
-    trajectory = trajectory_from(serving, done.plan, done.state, joints, done.handover_ns)
+                             kind=('settle', config.settle_method, holding.joints))
+    trajectory = trajectory_from(serving, done.plan, done.state, holding.joints, done.handover_ns)
     running = trajectory.running(done.handover_ns, done.plan)
     serving.timeline.send(running)
     serving.publish(trajectory)

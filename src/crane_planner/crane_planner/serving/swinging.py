@@ -53,9 +53,8 @@ def swing_now(serving: Serving) -> float | None:
     now = serving.clock()
     if hold is None or measured is None or now - measured.stamp_ns > transitions.MEASUREMENT_AGE * 1e9:
         return None
-    joints = tuple(j for j in config.joints if j in hold)
     now = max(now, measured.stamp_ns)
-    holding = Running.holding(joints, [hold[j] for j in joints], now)
+    holding = Running.held(hold, config.joints, now)
     return transitions.swing_of(transitions.handover_state(holding, now, measured, config.params), config.params)
 
 
@@ -134,9 +133,8 @@ def _planned(serving: Serving, move: Move, swing: float, values: dict) -> Planne
         raise MoveError('duration', f'{swinging}: the fastest plan is planned from a load at rest: give a '
                                     'duration, or call ~/settle first')
     check_rests_keep_out(checked, config.params, config.keep_out)
-    joints = tuple(j for j in checked.joints if j in hold)
     now = serving.clock()
-    holding = Running.holding(joints, [hold[j] for j in joints], now)
+    holding = Running.held(hold, checked.joints, now)
     make = retargeting(serving, holding, checked)
     if checked.start_ns > now + round(config.handover_lead * 1e9):  # at its start_time exactly
         with serving.handing_over:
@@ -144,13 +142,13 @@ def _planned(serving: Serving, move: Move, swing: float, values: dict) -> Planne
             plan, handover = make(checked.start_ns, state), checked.start_ns
     else:
         done = plan_from_running(serving, holding, config.handover_lead, make,
-                                 kind=('goal', checked.method, joints))
+                                 kind=('goal', checked.method, holding.joints))
         plan, handover, state = done.plan, done.handover_ns, done.state
     checked = checked.starting({name: s.position for name, s in state.axes.items()}, handover)
     cart = checked.axes[CART_JOINT]
     values = {**values, 'method': checked.method, 'start': cart.start, 'goal': cart.goal,
               'duration': plan.duration, 'displacement': checked.displacement}
-    return Planned(checked, plan, trajectory_from(serving, plan, state, joints, handover), values)
+    return Planned(checked, plan, trajectory_from(serving, plan, state, holding.joints, handover), values)
 
 
 def damped_first(serving: Serving, goal: Goal, move: Move, settle: float, feedback, canceled, t0: float,

@@ -178,6 +178,13 @@ class Running:
         p = np.array([positions, positions], dtype=float)
         return cls(joints, [0.0, 3600.0], p, np.zeros((2, n)), np.zeros((2, n)), now_ns)
 
+    @classmethod
+    def held(cls, hold: dict, joints, now_ns: int) -> 'Running':
+        """The streamer's ``hold`` (positions by joint name) of those of ``joints`` it holds, at rest from
+        ``now_ns`` on."""
+        held = tuple(j for j in joints if j in hold)
+        return cls.holding(held, [hold[j] for j in held], now_ns)
+
     @property
     def duration(self) -> float:
         t = self.interps[0].t
