@@ -20,7 +20,12 @@ tick, streamer CPU <= 40 % of a core, joint_states 50 Hz +- 1 %, the sim's
 1 ms stepping keeps up. Prints one JSON object; ``--histogram FILE`` writes
 the window's tick lateness samples (us) as JSON.
 
-    .venv/bin/python bench/streamer_timing.py [--duration 30] [--histogram out/lateness.json]
+``--feedback`` then measures a second window of the same length on the same
+nodes with the streamer's ``feedback`` switched on (the sway feedback
+correcting the hold from the sim's joint_states): its lateness beside the
+first window's, and their ratio of p99 (target: at most 1.2), in one run.
+
+    .venv/bin/python bench/streamer_timing.py [--duration 30] [--histogram out/lateness.json] [--feedback]
 """
 import argparse
 import json
@@ -41,6 +46,8 @@ def main() -> int:
     ap.add_argument('--duration', type=float, default=30.0, help='measured seconds (default 30)')
     ap.add_argument('--settle', type=float, default=3.0, help='seconds before measuring (default 3)')
     ap.add_argument('--histogram', help='write the tick lateness samples (us) of the window here, JSON')
+    ap.add_argument('--feedback', action='store_true',
+                    help='then a second window with the streamer\'s feedback on: the lateness ratio')
     args = ap.parse_args()
 
     from crane_planner.tools.processes import isolated_graph
@@ -99,6 +106,8 @@ def measure(args, env: dict) -> int:
             time.sleep(1.5)  # the statuses covering the end of the window
             stream = [status_values(s) for s in diagnostics.statuses('crane_streamer: stream', after=mark)]
             sim = [status_values(s) for s in diagnostics.statuses('crane_sim: sim', after=mark)]
+            if args.feedback:
+                corrected = feedback_window(node, ns, diagnostics, args)
             nodes.check_alive()
         # the nodes are stopped: the streamer has written its timing log
         log = json.loads(timing_log.read_text())
@@ -148,6 +157,16 @@ def measure(args, env: dict) -> int:
             'sim_keeps_up': m['skipped'] == 0 and m['step_rate_hz'] is not None
             and abs(m['step_rate_hz'] - RATE) <= 1e-2 * RATE,
         }.items()}
+        if args.feedback:
+            start, end, states = corrected
+            on = lateness[(start - log['first_tick_ns']) // 1_000_000:(end - log['first_tick_ns']) // 1_000_000]
+            on_p50, on_p99 = np.percentile(on, [50, 99])
+            result['feedback'] = {
+                'off_lateness_us': result['streamer']['lateness_us'],
+                'on_lateness_us': {'p50': round(float(on_p50), 1), 'p99': round(float(on_p99), 1),
+                                   'max': round(float(on.max()), 1)},
+                'p99_ratio': round(float(on_p99 / p99), 3), 'states': sorted(states)}
+            result['pass']['feedback_lateness'] = bool(on_p99 <= 1.2 * p99 and states == {'active'})
         if args.histogram:
             Path(args.histogram).parent.mkdir(parents=True, exist_ok=True)
             Path(args.histogram).write_text(json.dumps({'rate_hz': RATE, 'lateness_us': window.tolist()}))
@@ -156,6 +175,35 @@ def measure(args, env: dict) -> int:
         rclpy.try_shutdown()
     print(json.dumps(result))
     return 0 if all(result['pass'].values()) else 1
+
+
+def feedback_window(node, ns: str, diagnostics, args) -> tuple:
+    """Switch the streamer's ``feedback`` on, let it settle, and keep a window of ``args.duration`` s: its start
+    and end (ns, wall clock as the timing log's) and the feedback's states its diagnostics gave meanwhile."""
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+
+    from crane_msgs_py.messages.names import STREAMER_NODE
+    from crane_msgs_py.runtime.diagnostics import status_values
+    client = AsyncParameterClient(node, f'{ns}/{STREAMER_NODE}')
+    if not client.wait_for_services(10.0):
+        raise TimeoutError('the streamer\'s parameter service did not come')
+    future = client.set_parameters([Parameter('feedback', value=True)])
+    deadline = time.monotonic() + 10.0
+    while not future.done():
+        if time.monotonic() > deadline:
+            raise TimeoutError('the streamer did not answer setting feedback')
+        time.sleep(0.02)
+    if not all(r.successful for r in future.result().results):
+        raise RuntimeError(f'the streamer refused feedback: {future.result().results}')
+    time.sleep(args.settle)
+    mark = diagnostics.mark()
+    start = time.time_ns()
+    time.sleep(args.duration)
+    end = time.time_ns()
+    time.sleep(1.5)
+    states = {status_values(s).get('feedback') for s in diagnostics.statuses('crane_streamer: stream', after=mark)}
+    return start, end, states
 
 
 def bare_loop(duration: float):

@@ -91,6 +91,10 @@ class PlaneCorrection:
     def state(self) -> np.ndarray:
         return np.array([self.p, self.v, self.a])
 
+    def zero(self) -> None:
+        """No correction left."""
+        self.p = self.v = self.a = self.applied = 0.0
+
 
 class SwayFeedback:
     """The correction (see the module docstring).
@@ -170,7 +174,7 @@ class SwayFeedback:
     def _reset_now(self) -> None:
         self._reset = False
         for plane in self.planes:
-            plane.p = plane.v = plane.a = plane.applied = 0.0
+            plane.zero()
             plane.last_plan_accel = math.nan
             plane.estimator.reset()
         if self.state in (S.ACTIVE, S.LOST):
@@ -187,7 +191,7 @@ class SwayFeedback:
             self._inbox.clear()
             if self.faded:
                 for plane in self.planes:
-                    plane.p = plane.v = plane.a = plane.applied = 0.0
+                    plane.zero()
                 return setpoint
         design = self.schedule.at(self._rope(setpoint))
         self._take(design, stamp_ns)
