@@ -1,0 +1,93 @@
+"""Planning around the other cranes in time: the least delay of a goal that keeps its occupancy
+``min_distance`` from every other crane's at every instant (``runway_policy: wait``), or the crane that
+forbids it (``refuse``, or no delay helps).
+
+First published, first served: the occupancies already published are fixed; the goal being planned moves
+around them. A delay is tried in steps of ``DELAY_STEP`` from 0 up to when every other occupancy has ended and
+a ``DELAY_STEP`` more: past that the others stand still, so a later start changes nothing. The distance is
+checked at the samples of both occupancies (each held linear between its samples), with a margin added to the
+distance required for what lies between (``required``). Pure numpy, no ROS import.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .occupancy import Closest, Occupancy, closest
+
+#: The resolution (s) of the delay a goal is given.
+DELAY_STEP = 0.05
+
+
+@dataclass(frozen=True)
+class Scheduled:
+    """A goal's place among the others: its ``delay`` (s, from the start it asked for; 0 if it conflicts with
+    none), the crane it waits for ('' if none), and where it then comes closest to another (None: no other)."""
+
+    delay: float
+    waited_for: str
+    closest: Closest | None
+
+
+class Conflict(Exception):
+    """No start keeps the goal ``min_distance`` from ``crane``: where it comes closest at the best start."""
+
+    def __init__(self, crane: str, closest: Closest, message: str):
+        super().__init__(message)
+        self.crane, self.closest = crane, closest
+
+
+def required(mine: Occupancy, other: Occupancy, min_distance: float) -> float:
+    """The distance (m) the samples must keep for the paths to keep ``min_distance`` between them: the gaps
+    along y are linear between the union of both crane's samples, so least at one, but each path lies up to an
+    eighth of its largest bend off its straight lines (``Occupancy.largest_bend``), and two masses moving
+    straight may pass closest between samples, closer by at most (s_a + s_b)^2 / (8 d), s their largest steps
+    (``Occupancy.largest_step``), d the distance."""
+    steps, bends = mine.largest_step() + other.largest_step(), mine.largest_bend() + other.largest_bend()
+    return min_distance + bends / 8.0 + steps ** 2 / (8.0 * max(min_distance, 0.01))
+
+
+def nearest(mine: Occupancy, others) -> Closest | None:
+    """Where ``mine`` comes closest to any of ``others`` (None: no other)."""
+    found = [closest(mine, other) for other in others]
+    return min(found, key=lambda c: c.distance) if found else None
+
+
+def conflicts(mine: Occupancy, others, min_distance: float) -> list[Closest]:
+    """The others ``mine`` comes within ``min_distance`` of (each where closest), nearest first."""
+    found = [(c, other) for other in others if (c := closest(mine, other)).distance < required(mine, other,
+                                                                                                 min_distance)]
+    return sorted((c for c, _ in found), key=lambda c: c.distance)
+
+
+def schedule(mine: Occupancy, others, min_distance: float, policy: str = 'wait',
+             max_delay: float | None = None) -> Scheduled:
+    """``mine``'s least delay among ``others`` (see the module docstring); ``policy`` 'refuse' tries no delay.
+    Raises ``Conflict`` naming the crane in the way when no delay up to ``max_delay`` (s; default: until the
+    others stand still) keeps them apart."""
+    others = [o for o in others if o.crane != mine.crane]
+    found = conflicts(mine, others, min_distance)
+    if not found:
+        return Scheduled(0.0, '', nearest(mine, others))
+    first = found[0]
+    if policy == 'refuse':
+        raise Conflict(first.crane, first, _message(first, min_distance, 'refused'))
+    last_end = max(o.end_ns for o in others)
+    horizon = max(0.0, (last_end - mine.start_ns) * 1e-9) + DELAY_STEP
+    if max_delay is not None:
+        horizon = min(horizon, max_delay)
+    steps = int(math.ceil(horizon / DELAY_STEP - 1e-9))
+    for k in range(1, steps + 1):
+        moved = mine.delayed(k * DELAY_STEP)
+        found = conflicts(moved, others, min_distance)
+        if not found:
+            return Scheduled(k * DELAY_STEP, first.crane, nearest(moved, others))
+        last = found[0]
+    worst = last if steps else first
+    raise Conflict(worst.crane, worst, _message(worst, min_distance, 'no start within '
+                                                f'{horizon:.2f} s keeps it clear'))
+
+
+def _message(c: Closest, min_distance: float, why: str) -> str:
+    return (f'the move would come within {max(c.distance, 0.0):.3f} m of crane {c.crane!r} '
+            f'(runway_min_distance {min_distance:g} m): {why}')

@@ -1,0 +1,131 @@
+"""Cranes sharing a runway, the pure core (runway.occupancy, prediction, schedule, guard): distances against
+closed forms, a plan's occupancy against crane_sim's independent simulation of the same plan, the least delay
+against a brute-force dense check, the stopping envelope against the braking's closed form."""
+import math
+
+import numpy as np
+import pytest
+
+from crane_msgs_py.crane.braking import stopping_distance
+from crane_msgs_py.crane.params import CraneParams
+from crane_planner.planning.dispatch import plan
+from crane_planner.runway import guard as G
+from crane_planner.runway.occupancy import Footprint, Occupancy, Shape, holding, separation
+from crane_planner.runway.prediction import plan_occupancy
+from crane_planner.runway.schedule import DELAY_STEP, Conflict, schedule
+
+P = CraneParams()
+SHAPE = Shape(girder_half_width=0.05, load_half_size=0.05)
+
+
+def footprint(girder, masses):
+    return Footprint(np.array([girder], dtype=float), np.array([masses], dtype=float))
+
+
+def test_separation_is_the_least_of_girder_girder_girder_load_and_load_load_by_closed_forms():
+    # girders 2 m apart, loads below their trolleys: the girders' gap less both half-widths
+    a = footprint(0.0, [[1.0, 0.0], [1.0, 0.0]])
+    b = footprint(2.0, [[3.0, 2.0], [3.0, 2.0]])
+    assert separation(a, SHAPE, b, SHAPE)[0] == pytest.approx(2.0 - 0.1)
+    # a's load swung 1.7 m towards b (under b's girder's strip nearly): girder b to load a = 0.3 - 0.05 - 0.05
+    a = footprint(0.0, [[1.0, 0.5], [1.0, 1.7]])
+    assert separation(a, SHAPE, b, SHAPE)[0] == pytest.approx(0.2)
+    # both loads swung towards each other at the same x: load to load
+    a = footprint(0.0, [[1.0, 0.0], [1.0, 0.9]])
+    b = footprint(2.0, [[1.0, 2.0], [1.0, 1.2]])
+    assert separation(a, SHAPE, b, SHAPE)[0] == pytest.approx(min(0.3 - 0.1, 2.0 - 0.9 - 0.1, 1.2 - 0.1))
+    # symmetric
+    assert separation(b, SHAPE, a, SHAPE)[0] == pytest.approx(separation(a, SHAPE, b, SHAPE)[0])
+
+
+def test_an_occupancy_interpolates_between_its_samples_and_holds_outside_them():
+    f = Footprint(np.array([0.0, 1.0]), np.array([[[0.0, 0.0], [0.0, 0.0]], [[2.0, 1.0], [2.0, 1.0]]]))
+    o = Occupancy('a', 0, 1_000_000_000, np.array([0.0, 2.0]), f, SHAPE)
+    at = o.at(np.array([0, 1_000_000_000, 2_000_000_000, 3_000_000_000, 9_000_000_000]))
+    assert at.girder.tolist() == pytest.approx([0.0, 0.0, 0.5, 1.0, 1.0])
+    assert at.masses[2, 1].tolist() == pytest.approx([1.0, 0.5])
+    assert o.end_ns == 3_000_000_000 and o.delayed(0.5).end_ns == 3_500_000_000
+    with pytest.raises(ValueError, match='increase'):
+        Occupancy('a', 0, 0, np.array([0.0, 0.0]), f, SHAPE)
+    with pytest.raises(ValueError, match='finite'):
+        Occupancy('a', 0, 0, np.array([0.0, 1.0]), Footprint(np.array([0.0, math.nan]), f.masses), SHAPE)
+
+
+@pytest.mark.parametrize('method', ['zv', 'nvf'])
+def test_a_plans_occupancy_follows_its_bridge_and_its_masses_as_crane_sim_simulates_them(method):
+    """The occupancy's masses against crane_sim's batch simulation of the same reference (its own numpy model):
+    within a few millimetres at every sample; the girder on the bridge's reference, offset into the runway."""
+    from crane_msgs_py.crane.geometry import load_offset
+    from crane_sim.simulator import simulate
+    p = plan(method, 0.0, 3.0, P, bridge=0.6)
+    offset = (1.5, 4.0)
+    occ = plan_occupancy('a', p, P, {'cart': 0.5, 'bridge': 0.2}, offset, 0, 0, SHAPE)
+    assert occ.footprint.girder[0] == pytest.approx(4.2) and occ.footprint.girder[-1] == pytest.approx(4.8)
+    t = np.arange(0.0, p.duration + 1e-9, 1e-3)
+    refs = {name: p.evaluate_axis(name, t).acceleration for name in ('cart', 'bridge')}
+    sim = simulate(t, refs, P, dt=1e-3, t_end=float(occ.t[-1]))
+    s = {k: v[0] for k, v in sim.states.items()}
+    _, dy = load_offset(s['theta1'], s['theta2'], s['phi1'], s['phi2'], P.L1, P.L2)
+    y = s['yb'] + dy + 0.2 + offset[1]
+    assert np.abs(np.interp(occ.t, sim.t, y) - occ.footprint.masses[:, 1, 1]).max() < 3e-3
+    # (the girder where its reference is: the servo lags it by v tau, 3 mm here)
+    assert np.abs(np.interp(occ.t, sim.t, s['yb']) + 4.2 - occ.footprint.girder).max() < 5e-3
+    assert np.abs(dy).max() > 0.01  # the load swings on the way: the comparison is not vacuous
+    assert occ.footprint.masses[-1, 1].tolist() == pytest.approx([2.0, 4.8], abs=1e-4)  # at rest below the trolley
+
+
+def moving(crane: str, distance: float, at: float, method: str = 'zv', duration: float = 3.0) -> Occupancy:
+    p = plan(method, 0.0, duration, P, bridge=distance)
+    return plan_occupancy(crane, p, P, {'cart': 0.5, 'bridge': 0.0}, (0.0, at), 0, 0, SHAPE)
+
+
+def dense_min_distance(a: Occupancy, b: Occupancy) -> float:
+    stamps = np.arange(min(a.start_ns, b.start_ns), max(a.end_ns, b.end_ns) + 1, 1_000_000)
+    return float(separation(a.at(stamps), a.shape, b.at(stamps), b.shape).min())
+
+
+def test_a_goal_that_would_come_too_close_waits_the_least_that_keeps_it_clear_by_a_dense_check():
+    """Crane a leaves slowly (1 m in 4 s) where crane b, 1.5 m away, goes quickly (1.8 m in 2 s), sent
+    together: b would catch up with a; b waits. Checked every millisecond (independent of the samples the
+    schedule used): clear by the minimum with the delay given, not with one step less."""
+    a = moving('a', -1.0, 1.0, 'nvf', 4.0)
+    b = moving('b', -1.8, 2.5, 'nvf', 2.0)
+    assert dense_min_distance(a, b) < 0.2  # the conflict is real
+    scheduled = schedule(b, [a], 0.2)
+    assert scheduled.delay > 0 and scheduled.waited_for == 'a'
+    assert dense_min_distance(a, b.delayed(scheduled.delay)) >= 0.2
+    assert dense_min_distance(a, b.delayed(scheduled.delay - DELAY_STEP)) < 0.2 + 1e-3
+    with pytest.raises(Conflict, match="crane 'a'") as refused:
+        schedule(b, [a], 0.2, policy='refuse')
+    assert refused.value.crane == 'a'
+
+
+def test_a_goal_into_a_crane_that_stays_is_refused_naming_it_whatever_the_delay():
+    a = holding('a', 0, footprint(1.0, [[0.5, 1.0], [0.5, 1.0]]), SHAPE)
+    b = moving('b', -1.0, 2.0)  # ends with its girder at 1.0: on a's
+    with pytest.raises(Conflict, match="crane 'a'"):
+        schedule(b, [a], 0.2)
+
+
+def test_the_stopping_envelope_widens_towards_the_motion_by_the_braking_distance_and_covers_the_load():
+    shape = Shape(0.05, 0.05)
+    r = G.reach(1.0, 0.3, 0.0, [1.02, 1.08], shape, 0.5, 5.0)
+    d = stopping_distance(0.3, 0.0, 0.5, 5.0)
+    assert d == pytest.approx(0.3 ** 2 / (2 * 0.5) + 0.3 * 0.5 / (2 * 5.0), rel=1e-9)  # trapezoid + jerk ramps
+    assert r.low == pytest.approx(0.95) and r.high == pytest.approx(1.08 + 0.05 + d)
+    at_rest = G.reach(1.0, 0.0, 0.0, [0.9, 1.0], shape, 0.5, 5.0)
+    assert (at_rest.low, at_rest.high) == pytest.approx((0.85, 1.05))
+
+
+def test_the_guard_says_info_warning_stop_as_the_gap_closes_and_blocks_only_towards_that_crane():
+    g = G.Guard(0.2, 0.5, reach=1.0)
+    g.heard('b', G.Reach(2.0, 2.1), 0)
+    for high, level in ((0.9, G.Level.CLEAR), (1.3, G.Level.INFO), (1.7, G.Level.WARNING), (1.85, G.Level.STOP)):
+        verdict = g.check(G.Reach(0.0, high), 1)
+        assert verdict.level is level, (high, verdict)
+    assert verdict.crane == 'b' and verdict.refuses(+0.1) and not verdict.refuses(-0.1)
+    # silent past the timeout within reach: lost (a stop); out of reach it is no reason to stop
+    assert g.check(G.Reach(0.0, 1.5), 600_000_000).level is G.Level.LOST
+    assert g.check(G.Reach(-2.0, -1.0), 600_000_000).level is G.Level.CLEAR
+    g.heard('b', G.Reach(2.0, 2.1), 600_000_000)
+    assert g.check(G.Reach(0.0, 1.5), 600_000_001).level is G.Level.INFO  # heard again: its gap 0.5 m
