@@ -80,7 +80,8 @@ class Case:
     hoist: tuple | None = None  # (L1 start, L1 goal) m: the rope moves during the motion (nodes with a hoist)
     #: what is measured: 'move' (a planned move from rest), or motion from any state: 'retarget', 'stop',
     #: 'settle', 'operator'; 'spatial': the cart and the bridge, offline (``spatial_demo``, no nodes); 'route':
-    #: moves past protected areas and through a via point, offline (``route_demo``, no nodes)
+    #: moves past protected areas and through a via point, offline (``route_demo``, no nodes); 'feedback': the
+    #: streamer's sway feedback off and on, each on nodes of its own (``feedback_demo``)
     kind: str = 'move'
     #: the methods this case runs by default (of --methods; every one of them with --cases all), None = all;
     #: the operator case's are operator_shaper values
@@ -93,8 +94,9 @@ class Case:
 
     @property
     def on_nodes(self) -> bool:
-        """Whether the case runs over the nodes (all but the offline spatial and route cases)."""
-        return self.kind not in ('spatial', 'route')
+        """Whether the case runs on the demo's nodes (all but the offline spatial and route cases, and the feedback
+        case on nodes of its own)."""
+        return self.kind not in ('spatial', 'route', 'feedback')
 
 
 CASES = {
@@ -120,6 +122,9 @@ CASES = {
     # protected areas, offline: a wall the load is lifted over, a column it goes around, a via point
     # (``route_demo``); the shapers go straight, so the planner refuses them here (NVF and RVF route)
     'route': Case('route', CraneParams(), False, kind='route', methods=('nvf', 'rvf', 'zv')),
+    # closed-loop sway control: the perturbed crane (NVF, ZV), a push during an NVF move, wind and gusts at rest,
+    # each with the streamer's feedback off and on (``feedback_demo``: the situations, the table, the figure)
+    'feedback': Case('feedback', CraneParams(), False, kind='feedback', methods=('nvf', 'zv')),
 }
 #: What runs without --cases: every case but perturbed+net (nothing perturbed and nominal+net do not show
 #: between them), so that make demo, hoisting, motion from any state and the spatial case included, stays
@@ -386,12 +391,12 @@ def commission(driver: CraneHarness, args, model: CraneParams):
 
 def columns(cases) -> list[str]:
     """Table columns: one per case, two for the commission case (before and after identification), three for
-    the spatial case (``spatial_demo.COLUMNS``)."""
+    the spatial case (``spatial_demo.COLUMNS``); none for the feedback case (a table of its own)."""
     from .route_demo import COLUMNS as ROUTE_COLUMNS
     from .spatial_demo import COLUMNS
     return [name for c in cases
             for name in ((BEFORE, AFTER) if c.commission else COLUMNS if c.kind == 'spatial'
-                         else ROUTE_COLUMNS if c.kind == 'route' else (c.name,))]
+                         else ROUTE_COLUMNS if c.kind == 'route' else () if c.kind == 'feedback' else (c.name,))]
 
 
 def _describe(identified) -> str:
@@ -558,6 +563,16 @@ def run_route_case(args) -> tuple[list[Run], list]:
                 r.load_mm, empty, empty, empty) for r in records], records
 
 
+def run_feedback_case(args, env: dict, log_dir: Path) -> list:
+    """The feedback case on nodes of its own (``feedback_demo.run_feedback``: open loop, then closed loop), after
+    the demo's nodes have stopped: its ``FeedbackRun`` records."""
+    from .feedback_demo import Settings, run_feedback
+    progress('feedback case: the streamer\'s sway feedback off, then on, each on nodes of its own')
+    methods = tuple(case_methods(CASES['feedback'], args.methods, args.every))
+    return run_feedback(env, log_dir, Settings(args.namespace, methods, args.displacement, args.duration, args.settle,
+                                               startup_timeout=args.startup_timeout), progress)
+
+
 def print_routes(records: list) -> None:
     """The route case's own figures: each method's route and the smallest distance of a mass to the box."""
     from .route_demo import COLUMNS, MARGIN
@@ -689,6 +704,7 @@ def _run(args, env: dict, t_start: float) -> int:
                     written_bag, recorder = stop_recorder(recorder), None
                 driver.close()
                 driver = None
+        feedback = run_feedback_case(args, env, log_dir) if any(c.kind == 'feedback' for c in args.cases) else []
         # The nodes are stopped here, so the streamer has written its timing log.
         spatial = None
         if any(c.kind == 'spatial' for c in args.cases):
@@ -698,10 +714,14 @@ def _run(args, env: dict, t_start: float) -> int:
         if any(c.kind == 'route' for c in args.cases):
             route_runs, routes = run_route_case(args)
             runs += route_runs
-        print_table(runs, args.cases, args.methods)
+        if columns(args.cases):  # (not the feedback case alone: a table of its own)
+            print_table(runs, args.cases, args.methods)
         if routes:
             print_routes(routes)
-        (out / 'results.json').write_text(json.dumps([r.row() for r in runs], indent=1) + '\n')
+        if feedback:
+            from .feedback_demo import print_feedback
+            print_feedback(feedback)
+        (out / 'results.json').write_text(json.dumps([r.row() for r in runs + feedback], indent=1) + '\n')
         written = [out / 'results.json'] + ([written_bag] if written_bag is not None else [])
         if identification is not None:
             recording, identified = identification
@@ -718,6 +738,9 @@ def _run(args, env: dict, t_start: float) -> int:
             if routes:
                 from .route_demo import plot_routes
                 written.append(plot_routes(routes, out / 'demo_route.png'))
+            if feedback:
+                from .feedback_demo import plot_feedback
+                written.append(plot_feedback(feedback, out / 'demo_feedback.png'))
             sweep = run_sweep(args)
             if sweep:
                 written.append(sweep)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections import deque
 from typing import Callable
 
 import numpy as np
@@ -105,6 +106,11 @@ def start_crane_nodes(nodes: NodeGroup, namespace: str, streamer_params: dict | 
     nodes.start(*SIM, namespace=namespace, params=joints or None)
 
 
+#: How many stream_state corrections the harness keeps (``corrections_between``): 2 minutes at 50 Hz.
+CORRECTIONS_KEPT = 6000
+#: A load this still (m) with the sway feedback's correction this small (m) is quiet (``wait_until_quiet``).
+QUIET_SWING, QUIET_CORRECTION = 2e-4, 5e-5
+
 #: A mode set on the streamer counts as heard by the planner once a stream_state this long (ns) after the change
 #: says so (three of them at 50 Hz: the planner gets them as this harness does, on a thread of its own).
 MODE_HEARD_AFTER_NS = 60_000_000
@@ -152,6 +158,7 @@ class CraneHarness:
         self._inputs.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_state,
                                          recording(JOINT_STATES_QOS, 10.0, 50.0))
         self._stream_state: tuple | None = None  # (received ns, read_stream_state of the newest)
+        self._corrections: deque = deque(maxlen=CORRECTIONS_KEPT)  # (stamp ns, {joint: correction}) of stream_state
         self._inputs.create_subscription(StreamState, STREAM_STATE_TOPIC, self._on_stream_state, STREAM_STATE_QOS)
         self.node.create_subscription(JointTrajectory, TRAJECTORY_TOPIC, self._on_trajectory, TRAJECTORY_QOS,
                                       callback_group=group)
@@ -177,7 +184,10 @@ class CraneHarness:
         self.axis_state = msg.state
 
     def _on_stream_state(self, msg):
-        self._stream_state = (self.now_ns(), read_stream_state(msg))
+        state = read_stream_state(msg)
+        self._stream_state = (self.now_ns(), state)
+        with self._lock:
+            self._corrections.append((state[0], state[6]))
 
     def stream_hold(self, joint: str = 'cart', fresh: float = 0.5) -> float | None:
         """Where the streamer holds (or streams) ``joint`` now (m), from a ``stream_state`` received within
@@ -191,6 +201,28 @@ class CraneHarness:
         if state is None or self.now_ns() - state[0] > fresh * 1e9:
             return None
         return state[1]
+
+    def corrections_between(self, begin_ns: int, end_ns: int, joint: str = CART_JOINT) -> np.ndarray:
+        """The sway feedback's correction of ``joint`` (m) in the stream_state stamped in [begin, end] (the newest
+        ``CORRECTIONS_KEPT``): rows of (stamp ns, correction); 0 where the streamer corrects nothing."""
+        with self._lock:
+            rows = [(stamp, c.get(joint, 0.0)) for stamp, c in self._corrections if begin_ns <= stamp <= end_ns]
+        return np.array(rows, dtype=float).reshape(-1, 2)
+
+    def wait_until_quiet(self, L1: float, L2: float, timeout: float = 20.0):
+        """Wait until the load hangs still (within ``QUIET_SWING`` by the newest joint_states, with the cable
+        lengths ``L1``, ``L2``) and the sway feedback's correction of the cart is back to nothing: the cart where
+        the streamer holds it. (Not the sim's ~/reset while a correction moves the cart: the plant set at rest
+        under a moving reference, the sim would keep that velocity's offset.)"""
+        from crane_msgs_py.crane.geometry import load_excursion
+
+        def still():
+            state, last = self._fresh_stream_state(0.5), self.last_state()
+            if state is None or last is None:
+                return False
+            swing = abs(load_excursion(last[1], last[2], L1, L2))
+            return abs(state[6].get(CART_JOINT, 0.0)) < QUIET_CORRECTION and swing < QUIET_SWING
+        self.wait_until(still, timeout, f'the load not quiet with the correction back to nothing within {timeout:g} s')
 
     def trajectories_end_ns(self) -> int:
         """When the newest trajectory seen on the ``trajectory`` topic ends (ns; 0 if none): a motion queued
