@@ -88,7 +88,7 @@ def closed_loop(reference: Callable[[float], Setpoint], duration: float, model: 
     fb = SwayFeedback(joints, model, tick, {j: limits for j in joints if limits is not None}, timeout,
                       max(sensor.noise, 1e-4)) if feedback else None
     camera = Sensor(sensor, seed)
-    gust = Gust(disturbances.gust, disturbances.gust_time, 2 if spatial else 1, [seed, 2])
+    gust = Gust(disturbances.gust, disturbances.gust_time, 2 if spatial else 1, seed)  # (the sim's gusts of seed)
     every = max(1, round(CAMERA_PERIOD / tick))
     pending = sorted(pushes, key=lambda p: p.t)
     travel = [k for k, j in enumerate(joints) if j in (CART_JOINT, BRIDGE_JOINT)]
