@@ -143,11 +143,44 @@ def test_the_refuse_policy_refuses_naming_the_crane_as_a_preview_and_as_a_goal()
     assert crane.claims() == []
 
 
-def test_a_goal_no_delay_keeps_clear_of_a_crane_that_stays_is_refused_naming_it():
+def crane_b_leaving(start_ns, published_ns):
+    """Crane b from 0.25 m beyond a's goal (a's girder would come within 0.15 m of it), 0.8 m away in 4 s."""
+    return plan_occupancy('crane_b', plan('zv', 0.0, 4.0, P, bridge=0.8), P, {'cart': 0.0, 'bridge': 0.0},
+                          (0.0, D + 0.25), start_ns, published_ns, SHAPE, settle=1.0)
+
+
+def test_a_goal_that_a_crane_holding_still_blocks_waits_for_its_motion_a_while_then_is_refused_naming_it():
+    """b holds where a's goal would end: a preview is refused at once; a goal is placed again for as long as a
+    planner may plan and a claim window (b may be sending a motion out of the way), then refused naming b, nothing
+    published nor sent."""
     crane = BridgeCrane()
-    crane.step.book.heard(holding('crane_b', T0 - SECOND, Footprint.at_rest(1.0, 0.0), SHAPE))  # 1 m away
+    crane.step.book.heard(holding('crane_b', T0 - SECOND, Footprint.at_rest(D + 0.25, 0.0), SHAPE))
     with pytest.raises(RunwayConflict, match="crane 'crane_b'.*no start within"):
         crane.service.plan(towards_b(T0 + SECOND), 'plan_move')
+    goal = crane.goal('a', towards_b(T0 + SECOND))
+    outcome, _ = crane.execute(goal, towards_b(T0 + SECOND))
+    assert outcome.how == 'abort' and "crane 'crane_b'" in outcome.message and 'no start within' in outcome.message
+    waited = crane.config.options.max_solve_time + crane.config.publish_lead  # (a planner's planning, a claim)
+    assert crane.clock() - T0 == pytest.approx(waited * 1e9, abs=60 * MS)
+    assert crane.claims() == [] and crane.published == []
+
+
+def test_a_goal_that_a_crane_holding_still_blocks_follows_it_once_its_motion_out_of_the_way_is_heard():
+    """Sent together, a's goal into the space b leaves: placed against b's hold it is blocked; b's motion, heard
+    100 ms later, makes room: a waits behind it, the least delay, and says so."""
+    crane = BridgeCrane()
+    crane.step.book.heard(holding('crane_b', T0 - SECOND, Footprint.at_rest(D + 0.25, 0.0), SHAPE))
+    start = T0 + SECOND
+    b = crane_b_leaving(start, T0 + 50 * MS)
+    crane.at(T0 + 100 * MS, lambda: crane.step.book.heard(b))
+    goal = crane.goal('a', towards_b(start))
+    outcome, _ = crane.execute(goal, towards_b(start))
+    assert outcome.success, outcome.message
+    [claim] = crane.claims()
+    info = summarize(outcome.plan.plan, outcome.plan.checked.joints)
+    assert info.runway_waited_for == 'crane_b' and info.runway_delay >= 0.1
+    assert crane.published[0][1].stamp_ns == claim.start_ns == start + round(info.runway_delay * 1e9)
+    assert dense_min_distance(claim, b) >= 0.2 and dense_min_distance(claim.delayed(-info.runway_delay), b) < 0.2
 
 
 def test_a_motion_published_before_the_claim_heard_in_its_window_moves_the_goal_later_one_published_after_not():

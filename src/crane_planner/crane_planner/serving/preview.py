@@ -56,9 +56,9 @@ def plan_status(values: dict, planned: Planned | None, t0: float, solved: float,
 
 
 def plan_move(serving: Serving, move: Move, service: str, execute: bool = False,
-              settle: float = DEFAULT_SETTLE) -> Planned:
-    """The move checked and planned, and placed on a shared runway (observed ``settle`` s after it: its
-    occupancy's settle window); MoveError/ValueError says why not (its ``values``: the status)."""
+              settle: float = DEFAULT_SETTLE, place: bool = True) -> Planned:
+    """The move checked and planned, and (``place``) placed on a shared runway (observed ``settle`` s after it:
+    its occupancy's settle window); MoveError/ValueError says why not (its ``values``: the status)."""
     config, t0 = serving.config(), serving.timer()
     values = {'service': service, 'method': move.method or config.method,
               'start': move.start[0] if move.start else math.nan,
@@ -80,7 +80,7 @@ def plan_move(serving: Serving, move: Move, service: str, execute: bool = False,
         clearance = plan.info.get('min_clearance', math.inf)
         if execute:  # after planning: a preview and a goal of the same bad move give the same reason
             check_executable(checked, hold, heard is not None and heard.operator, serving.view.foreign_motion())
-        placement = serving.runway.place(checked, plan, settle)  # (None: no runway)
+        placement = serving.runway.place(checked, plan, settle) if place else None  # (None: no runway)
     except ValueError as exc:
         exc.values = values
         raise

@@ -10,7 +10,9 @@ goal from rest started late enough to keep clear of them (contract "Cranes shari
 - **Placed** (``RunwayStep.place``, for a preview and a goal alike): the motion starts no earlier than the
   claim window and ``publish_lead`` allow (``earliest``), then ``runway.schedule`` delays it by the least that
   keeps it ``runway_min_distance`` from every other's occupancy (``wait``), or refuses it naming the crane
-  (``refuse``, or no delay helps): ``RunwayConflict``.
+  (``refuse``, or no delay helps): ``RunwayConflict``. A goal (not a preview) refused because of a crane that
+  holds is placed again for up to a claim window first (``starting``): that crane may be sending a motion out
+  of the way.
 - **First published, first served**: between its claim and its trajectory's sending (at least the claim
   window), a goal is checked again (``RunwayStep.recheck``): if it conflicts with an occupancy published
   before its own (ties by crane name) or with a crane that holds, it is placed again, later, among all the
@@ -127,6 +129,12 @@ class Neighbours:
     def others(self) -> list[Occupancy]:
         with self._lock:
             return list(self._latest.values())
+
+    def holding(self, crane: str) -> bool:
+        """Whether ``crane``'s newest occupancy is a hold."""
+        with self._lock:
+            latest = self._latest.get(crane)
+        return latest is not None and is_hold(latest)
 
 
 class Published(enum.Enum):
