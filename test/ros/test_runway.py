@@ -3,13 +3,16 @@ participants) in its own namespace of one private graph, their planners on the r
 runway"; docs/runway.md).
 
 Crane a's ``crane_base`` is at [0, 0] of the runway, crane b's at [0, 2] (bridges 2 m apart), both with the
-joints [cart, bridge] and loads on the default 0.47 + 0.391 m cables, runway_min_distance 0.2 m. Goals that bring
-them towards each other end 0.28-0.38 m apart (beyond the minimum and the girders' half-widths), but the loads
-lead by over 0.1 m as they brake (offline: runway.prediction and runway.schedule): sent together, one waits and
-neither stops. The test measures both loads (hook and load, from each sim's joint_states, placed in the runway
-by crane_sim's own cable geometry) and both girders itself, and the residual swing over each settle window.
-Also: an unusable occupancy published by the test is ignored and counted, ``refuse`` names the crane, and a
-planner whose runway_offset puts its girder on another's exits at start-up naming both.
+joints [cart, bridge] and loads on the default 0.47 + 0.391 m cables, runway_min_distance 0.2 m. Both goals sent
+at the same moment bring the cranes closer, one into the space the other leaves, their goals far enough apart
+but not where the follower would be while the other is still there, its load leading as it brakes (numbers
+found offline with runway.prediction and runway.schedule, checked on crane_sim): the follower waits, names the
+other, neither stops. (Anti-sway moves towards each other whose goals clear the minimum never conflict on the
+way: each load stays between its start and its goal; docs/runway.md.) The test measures both loads (hook and
+load, from each sim's joint_states, placed in the runway by crane_sim's own cable geometry) and both girders
+itself, and the residual swing after each motion. Also: an unusable occupancy published by the test is ignored
+and counted, ``refuse`` names the crane, and a planner whose runway_offset puts its girder on another's exits at
+start-up naming both.
 """
 import math
 import threading
@@ -31,10 +34,6 @@ SETTLE = 1.0  # s of residual window: more than half the slow mode's period (1.7
 #: within 0.15 m; a waits 0.45 s, then 0.206 m at the closest).
 ZV_FOLLOW, ZV_LEAVE = 1.87, 0.3
 STATUS_SUCCEEDED = 4  # action_msgs/GoalStatus
-#: Two node sets at 1 kHz on this host: each sim's jitter buffer and watchdog a little longer than their 0.1 s, so
-#: a streamer stalled for a moment by the other set does not look like a lost stream (what is measured here is
-#: where the cranes go, not the stream's timing).
-SIM = {'playout_delay': 0.2, 'reference_timeout': 0.2}
 
 
 @pytest.fixture(scope='module')
@@ -51,7 +50,7 @@ def cranes(ros_domain, tmp_path_factory):
     drivers = {}
     try:
         for name, nodes in groups.items():
-            start_crane_nodes(nodes, f'/{name}', joints=JOINTS, sim_params=SIM,
+            start_crane_nodes(nodes, f'/{name}', joints=JOINTS,
                               planner_params={**PLANNER, 'runway_offset': list(OFFSETS[name])})
         for name, nodes in groups.items():
             drivers[name] = CraneHarness(f'/{name}', nodes)

@@ -22,12 +22,13 @@ from crane_msgs_py.runtime.runner import spinning
 from crane_planner.nodes.occupancy_messages import OccupancyRefused, from_message, to_message
 from crane_planner.runway.config import OCCUPANCY_TOPIC
 from crane_planner.serving.config import Config
+from crane_planner.serving.crane_view import DISCOVERY_WAIT
 from crane_planner.serving.runway_step import Neighbours, RunwayStep, startup_conflict
 
 #: How long (s) the planner listens on /runway/occupancy at start-up before it checks its runway_offset: the
-#: other cranes' newest occupancies (transient local) arrive once discovery has matched them, which took up to
-#: 1 s on a loaded 2-core host. (Not until the publishers discovered so far are heard: that many may still be 0.)
-STARTUP_WAIT = 2.5
+#: other cranes' newest occupancies (transient local) arrive once discovery has matched them, within a participant
+#: announcement period of Fast DDS (3 s) if its first announcements were missed (as ``crane_view.DISCOVERY_WAIT``).
+STARTUP_WAIT = DISCOVERY_WAIT
 
 
 class RunwayPort:

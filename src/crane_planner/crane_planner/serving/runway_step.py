@@ -43,11 +43,12 @@ MIN_CLAIM_WINDOW = 0.1
 
 
 class RunwayConflict(PlanError):
-    """A goal that no start keeps clear of another crane, or refused by ``runway_policy``; ``crane`` names it."""
+    """A goal that no start keeps clear of another crane, or refused by ``runway_policy``; ``crane`` names it,
+    ``holding``: whether that crane's occupancy it was placed against was a hold."""
 
-    def __init__(self, crane: str, message: str):
+    def __init__(self, crane: str, message: str, holding: bool = False):
         super().__init__(f'runway: {message}')
-        self.crane = crane
+        self.crane, self.holding = crane, holding
 
 
 def claim_window(config: Config) -> float:
@@ -130,12 +131,6 @@ class Neighbours:
         with self._lock:
             return list(self._latest.values())
 
-    def holding(self, crane: str) -> bool:
-        """Whether ``crane``'s newest occupancy is a hold."""
-        with self._lock:
-            latest = self._latest.get(crane)
-        return latest is not None and is_hold(latest)
-
 
 class Published(enum.Enum):
     """What this crane last published on the runway."""
@@ -211,7 +206,8 @@ class RunwayStep:
         try:
             return schedule(base, others, r.min_distance, r.policy)
         except Conflict as exc:
-            raise RunwayConflict(exc.crane, str(exc)) from None
+            holds = any(o.crane == exc.crane and is_hold(o) for o in others)
+            raise RunwayConflict(exc.crane, str(exc), holds) from None
 
     def claim(self, key, placement: Placement) -> Placement:
         """A goal's motion claimed: its occupancy published, stamped now (first published, first served)."""

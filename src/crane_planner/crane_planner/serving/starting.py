@@ -87,7 +87,7 @@ def _placed(serving: Serving, goal: Goal, planned: Planned, settle: float, cance
             return planned if placement is None else placed(planned, placement)
         except RunwayConflict as exc:
             now, config = serving.clock(), serving.config()
-            if until is None and serving.runway.book.holding(exc.crane):
+            if until is None and exc.holding:  # (placed against a hold: not against that crane's motion)
                 until = now + round((config.options.max_solve_time + claim_window(config)) * 1e9)
             if until is None or now >= until:
                 exc.values = planned.values

@@ -96,15 +96,14 @@ class HarnessError(RuntimeError):
 
 
 def start_crane_nodes(nodes: NodeGroup, namespace: str, streamer_params: dict | None = None,
-                      hoist: bool = False, joints=None, planner_params: dict | None = None,
-                      sim_params: dict | None = None):
+                      hoist: bool = False, joints=None, planner_params: dict | None = None):
     """Start the planner, streamer and sim executables in ``namespace`` (``hoist``: all three with the joints
-    [cart, hoist]; ``joints``: with these, e.g. [cart, bridge]; ``planner_params``, ``streamer_params`` and
-    ``sim_params`` besides)."""
+    [cart, hoist]; ``joints``: with these, e.g. [cart, bridge]; ``planner_params`` and ``streamer_params``
+    besides)."""
     joints = {'joints': list(joints)} if joints else {'joints': ['cart', 'hoist']} if hoist else {}
     nodes.start(*PLANNER, namespace=namespace, params={**joints, **(planner_params or {})} or None)
     nodes.start(*STREAMER, namespace=namespace, params={**joints, **(streamer_params or {})} or None)
-    nodes.start(*SIM, namespace=namespace, params={**joints, **(sim_params or {})} or None)
+    nodes.start(*SIM, namespace=namespace, params=joints or None)
 
 
 #: How many stream_state corrections the harness keeps (``corrections_between``): 2 minutes at 50 Hz.
