@@ -211,6 +211,8 @@ def test_unusable_occupancies_are_ignored_and_counted_on_diagnostics(cranes):
 def test_a_runway_offset_on_another_crane_s_girder_is_refused_at_start_up_naming_both(cranes):
     from crane_planner.tools.processes import PLANNER as PLANNER_EXE
     from crane_planner.tools.processes import NodeGroup
+    cranes.a.wait_until(lambda: any(len(m.t) == 1 and m.girder[0] == 0.0 for m in heard_occupancies(cranes, A)),
+                        5.0, 'crane a\'s hold at y 0 never heard')
     nodes = NodeGroup(cranes.a.nodes.env, cranes.tmp.mktemp('crane_c-node-logs'))
     try:
         proc = nodes.start(*PLANNER_EXE, namespace='/crane_c', params={**PLANNER, 'runway_offset': [0.0, 0.25]})
