@@ -57,6 +57,12 @@ CMD_VEL_QOS = _keep_last(1)
 #: once, as ``trajectory`` is latched.
 AXIS_STATUS_QOS = _keep_last(1, reliable=True, latched=True)
 
+#: ``/runway/occupancy``: every crane's planner publishes the space its crane will occupy when it sends a motion
+#: and when it holds. Reliable (a lost one would let another crane plan into it) and transient local, so a crane
+#: that starts late hears every other's newest; a depth of several per writer and per reader, so that the
+#: cranes' publications close together (a claim, then a hold) are all kept until read.
+RUNWAY_OCCUPANCY_QOS = _keep_last(10, reliable=True, latched=True)
+
 #: ``crane_markers``: reliable (RViz2's MarkerArray display subscribes reliable; a best-effort
 #: publisher would not match it), volatile, a short queue: a late frame is worth nothing.
 MARKERS_QOS = _keep_last(5, reliable=True)

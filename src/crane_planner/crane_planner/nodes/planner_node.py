@@ -1,10 +1,9 @@
 """Planner node: ``~/plan_move`` (a preview), ``~/execute_move`` (an action), ``~/settle`` (contract: planner).
 
-The ROS side only: entities, threads, messages <-> records. What is served is ``serving.service`` (a
-preview; a goal planned, held until ``publish_lead`` before its start, sent on ``trajectory``, followed to
-its result on the goal runner, feedback every ``following.FEEDBACK_PERIOD``; a goal during a motion takes
-it over, a cancel stops it), the goals' states ``serving.goals``, the parameters ``serving.config``; one
-status per request on /diagnostics.
+The ROS side only: entities, threads, messages <-> records. What is served is ``serving.service`` (a preview; a
+goal planned, held until ``publish_lead`` before its start, sent on ``trajectory``, followed to its result on the
+goal runner, feedback every ``following.FEEDBACK_PERIOD``; a goal during a motion takes it over, a cancel stops it),
+the goals' states ``serving.goals``, the parameters ``serving.config``, a shared runway ``runway_port``; /diagnostics.
 """
 from __future__ import annotations
 
@@ -33,6 +32,7 @@ from crane_msgs_py.runtime.diagnostics import ERROR, OK, WARN, DiagnosticsPublis
 from crane_msgs_py.runtime.node_parameters import Guard, declare
 from crane_msgs_py.runtime.realtime import fix_mmap_threshold, set_threads_fifo
 from crane_msgs_py.runtime.runner import run, spinning
+from crane_planner.nodes.runway_port import RunwayPort
 from crane_planner.planning.methods import METHODS, Family, methods_of
 from crane_planner.serving import Planner, service
 from crane_planner.serving.config import PARAMETERS, Config
@@ -50,13 +50,13 @@ class PlannerNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(names.PLANNER_NODE, **kwargs)
-        warning = fix_mmap_threshold()  # before any solver allocates: keeps the node's size flat
-        if warning:
+        if warning := fix_mmap_threshold():  # before any solver allocates: keeps the node's size flat
             self.get_logger().warn(warning)
         values = declare(self, PARAMETERS)
         self._diagnostics = DiagnosticsPublisher(self)
-        self._config = Config.from_values(values)  # bad overrides: ParameterError, see main()
-        Guard(self, PARAMETERS, Config.from_values, self._apply, self._diagnostics)
+        self._config = Config.from_values(values, self.get_namespace())  # bad overrides: ParameterError, see main()
+        Guard(self, PARAMETERS, lambda v: Config.from_values(v, self.get_namespace()), self._apply, self._diagnostics)
+        self._runway = RunwayPort(self, lambda: self._config, self._diagnostics)  # /runway/occupancy (runway on)
         # a solver process that died (what was done) and its replacement: on /diagnostics (serving.planner.WorkerEvent)
         self._planner = Planner(self._config.solver_pool_size, processes=self._config.solver_processes,
                                 on_event=lambda e: self._diagnostics.report('solver_processes', e.level, e.message,
@@ -72,7 +72,7 @@ class PlannerNode(Node):
         self._service = service.MoveService(  # the goals' steps on its worker thread (worker=True)
             self._planner, lambda: self._config, stamp, lambda t: self._trajectory.publish(self._message(t)),
             self._report, self.get_logger(), worker=True, draw=lambda points, life: markers.publish(
-                conversions.route_markers(points, self._config.frame_id, stamp(), life)))
+                conversions.route_markers(points, self._config.frame_id, stamp(), life)), runway=self._runway.step)
         # The inputs on a node and executor thread of their own: the services' MultiThreadedExecutor costs far more
         # CPU on the two at 50 Hz; the EventsExecutor fell behind on them after many requests (goals found no stream).
         self._inputs, self._inputs_spinning = self._spun('inputs', lambda node: [node.create_subscription(*t) for t in (
@@ -87,11 +87,10 @@ class PlannerNode(Node):
                                     goal_callback=self._on_goal, handle_accepted_callback=self._on_accepted,
                                     cancel_callback=self._on_cancel, callback_group=group)
         # The action's requests (goal, cancel, result) are waited for on a thread of their own: through the
-        # MultiThreadedExecutor a goal reached its callback only after its wait set was rebuilt for every entity,
-        # which can take a shaper's whole handover budget. The server stays this node's (`ros2 action info` names
-        # it): only its waiting moves; its callbacks return at once or within a shaper's handover (_on_goal), the
-        # goals execute on this node's executor. The same thread keeps a shaper's handover warm (_warm_handover),
-        # at handover_priority: at normal priority beside the 1 kHz nodes it may wait for a core as long as it works.
+        # MultiThreadedExecutor a goal reached its callback only after its wait set was rebuilt for every entity, which
+        # can take a shaper's whole handover budget. The server stays this node's (`ros2 action info` names it); its
+        # callbacks return at once or within a shaper's handover (_on_goal); goals execute on this node's executor. The
+        # thread keeps a shaper's handover warm (_warm_handover), at handover_priority (beside the 1 kHz nodes).
         self.remove_waitable(self._action)
         self._goals_node, self._goals_spinning = self._spun('goals', self._add_goals, refused=self._priority_refused,
                                                             priority=lambda: self._config.handover_priority)
@@ -293,6 +292,7 @@ class PlannerNode(Node):
             self._warmup.join()
         self._service.close()
         self._planner.close()
+        self._runway.close()
         super().destroy_node()
 
 

@@ -20,7 +20,8 @@ def plan_occupancy(crane: str, plan: Plan, params: CraneParams, origin: dict, of
     puts it (at the origin's ``bridge``, or 0, without one)."""
     path = solved_mass_path(plan, params, origin, settle) or predict_mass_path(plan, params, origin, settle)
     end = float(path.t[-1])
-    t = np.append(np.arange(0.0, end, OCCUPANCY_STEP), end)
+    grid = np.arange(0.0, end, OCCUPANCY_STEP)
+    t = np.append(grid[grid < end - 1e-9], end)  # (arange may reach ``end`` itself by rounding: 2.3 / 0.02)
     masses = np.stack([np.stack([np.interp(t, path.t, m[:, c]) for c in range(2)], axis=-1)
                        for m in (path.m1, path.m2)], axis=1)
     masses = masses + np.asarray(offset, dtype=float)[None, None, :2]

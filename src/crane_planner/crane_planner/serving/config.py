@@ -30,6 +30,8 @@ from ..planning.methods import Family, methods_of, methods_supporting
 from ..planning.profiles import BASES
 from ..planning.routing import Route
 from ..planning.signals import Swing
+from ..runway.config import PARAMETERS as RUNWAY_PARAMETERS
+from ..runway.config import RunwayConfig
 from .execution import STREAM_TIMEOUT
 from .moves import MoveBounds
 from .transitions import stop_options
@@ -141,6 +143,7 @@ PARAMETERS = {
                             '(tens of MB each beyond what they share); 0 = solve in threads of the node process '
                             "only, where solves take turns at IPOPT's linear solver (read-only)",
                          dict(parameter_range(0, 16), read_only=True)),
+    **RUNWAY_PARAMETERS,  # (the streamer declares the same: the same values on both)
 }
 
 
@@ -168,14 +171,16 @@ class Config:
     keep_out: KeepOut = KeepOut()
     via_tolerance: float = 0.01
     residual_tolerance: float = 0.002
+    runway: RunwayConfig = RunwayConfig()
 
     @property
     def bounds(self) -> MoveBounds:
         return MoveBounds(self.joints, self.method, self.max_displacement, self.max_duration, self.via_tolerance)
 
     @classmethod
-    def from_values(cls, v: dict) -> 'Config':
-        """From parameter values by name; ParameterError names the bad one."""
+    def from_values(cls, v: dict, namespace: str = '') -> 'Config':
+        """From parameter values by name (``namespace`` names the crane on a runway when ``crane_name`` is
+        empty); ParameterError names the bad one."""
         params = CraneParams.of(v)
         check_choice('method', v['method'], METHODS)
         intervals = int(v['intervals'])
@@ -202,7 +207,8 @@ class Config:
                    check_positive('stream_timeout', v['stream_timeout']),
                    KeepOut.from_values(v['keep_out'], v['keep_out_margin']),
                    check_nonnegative('via_tolerance', v['via_tolerance']),
-                   check_positive('residual_tolerance', v['residual_tolerance']))
+                   check_positive('residual_tolerance', v['residual_tolerance']),
+                   RunwayConfig.from_values(v, namespace))
 
     def warmups(self) -> list[VariationalRequest]:
         """Requests that build the NVF/RVF solvers of this configuration.

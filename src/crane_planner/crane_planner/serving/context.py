@@ -1,7 +1,7 @@
 """What every part of serving a request shares: the planner, the clocks, the outputs, the goals, the timeline.
 
 The parts (``preview``, ``admission``, ``starting``, ``takeover``,
-``following``, ``settling``) are functions of this record and of records
+``following``, ``settling``, and ``runway_step`` on a shared runway) are functions of this record and of records
 they pass on (``preview.Planned``, ``handover.HandoverResult``,
 ``following.Outcome``); ``service.MoveService`` builds it. Every time comes
 from the clocks in it (ROS time ``clock``, ``timer`` and ``sleep`` for
@@ -19,6 +19,7 @@ from .config import Config
 from .crane_view import CraneView
 from .goals import Goals
 from .handover import PlanningTimes
+from .runway_step import RunwayStep
 from .timeline import Timeline
 from .transitions import Trajectory
 
@@ -41,9 +42,12 @@ class Serving:
     view: CraneView | None = None  # (None: a view of its own over the goals and the timeline)
     handing_over: threading.Lock = field(default_factory=threading.Lock)  # one handover (goal, stop, settle) at a time
     planning_times: PlanningTimes = field(default_factory=PlanningTimes)  # of NVF/RVF handovers, by kind
+    runway: RunwayStep | None = None  # (None: no runway, nothing published)
 
     def __post_init__(self):
         if self.goals is None:
             self.goals = Goals(self.clock)
         if self.view is None:
             self.view = CraneView(self.clock, self.goals, self.timeline, sleep=self.sleep, monotonic=self.timer)
+        if self.runway is None:
+            self.runway = RunwayStep(self.config, self.clock)

@@ -56,8 +56,10 @@ class Outcome:
 
 def end(serving: Serving, goal: Goal, how: str, message: str, planned: Planned | None = None,
         residual: float = math.nan) -> Outcome:
-    """``goal`` ended as ``how`` says (its state ``ENDED``), with its outcome."""
+    """``goal`` ended as ``how`` says (its state ``ENDED``), with its outcome; on a runway its motion's
+    claim released (a hold is published once the streamer holds)."""
     serving.goals.end(goal)
+    serving.runway.release(goal)
     correction = goal.execution.correction if goal.execution is not None else 0.0
     return Outcome(how, message, residual, planned, goal.warmups, goal.warmup_s, correction)
 

@@ -455,11 +455,14 @@ class PlanSummary:
     predicted_residual: float = math.nan
     min_clearance: float = math.inf
     route: str = ''  # how the plan gets past the keep-out boxes: '' direct, over, around
+    runway_delay: float = 0.0  # s later than asked, to keep clear of another crane on a shared runway
+    runway_waited_for: str = ''  # the crane it waited for
 
 
 def summarize(plan: Plan, joint_names=(CART_JOINT,), solve_time: float | None = None) -> PlanSummary:
     """The ``PlanInfo`` of a plan; ``solve_time`` defaults to the solver's own figure (0 for shapers); the
-    smallest predicted distance of a mass to a keep-out box if it was checked (``keep_out_clearance``).
+    smallest predicted distance of a mass to a keep-out box if it was checked (``keep_out_clearance``); on a
+    shared runway its delay and the crane it waited for (``preview.placed``).
 
     Peaks per joint of ``joint_names`` (an ``AxesPlan``'s axes by name).
     """
@@ -470,4 +473,6 @@ def summarize(plan: Plan, joint_names=(CART_JOINT,), solve_time: float | None = 
                        float(info.get('solve_time_s', 0.0) if solve_time is None else solve_time),
                        int(info.get('iterations', 0)), tuple(joint_names), *(tuple(p[k] for p in peaks)
                                                                             for k in range(3)),
-                       min_clearance=float(info.get('min_clearance', math.inf)), route=str(info.get('route', '')))
+                       min_clearance=float(info.get('min_clearance', math.inf)), route=str(info.get('route', '')),
+                       runway_delay=float(info.get('runway_delay', 0.0)),
+                       runway_waited_for=str(info.get('runway_waited_for', '')))

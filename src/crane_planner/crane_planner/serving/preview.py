@@ -4,35 +4,41 @@
 the streamer holds the axes, plans it (keeping out of the keep-out boxes)
 and samples its trajectory; a goal's (``execute``) is also refused for what
 the streamer would refuse (``check_executable``), after planning, so that a
-preview and a goal of the same bad move give the same reason. Pure Python,
-no ROS import.
+preview and a goal of the same bad move give the same reason. On a shared
+runway, both are then placed among the other cranes (``runway_step``): started
+later by the delay that keeps them clear, or refused naming the crane. Pure
+Python, no ROS import.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 from crane_msgs_py.messages.names import CART_JOINT, STREAM_STATE_TOPIC
 
+from ..planning.mass_path import DEFAULT_SETTLE
 from ..planning.plan import Plan, time_grid
 from ..streaming.knots import knot_times
 from .config import Config
 from .context import Serving
 from .crane_view import DISCOVERY_WAIT
 from .moves import CheckedMove, Move, MoveError, axis_samples, check_move, check_rests_keep_out, plan_keeping_out
+from .runway_step import Placement
 from .transitions import Trajectory
 
 
 @dataclass(frozen=True)
 class Planned:
-    """A move planned: checked, its plan, its trajectory, its status values (/diagnostics) and how long
-    its planning took (s; for a handover from the goal's arrival)."""
+    """A move planned: checked, its plan, its trajectory, its status values (/diagnostics), how long
+    its planning took (s; for a handover from the goal's arrival) and its place on a shared runway (None: none)."""
 
     checked: CheckedMove
     plan: Plan
     trajectory: Trajectory
     values: dict
     planning_s: float = 0.0
+    placement: Placement | None = None
 
 
 def plan_status(values: dict, planned: Planned | None, t0: float, solved: float, now: float,
@@ -49,8 +55,10 @@ def plan_status(values: dict, planned: Planned | None, t0: float, solved: float,
         error='')
 
 
-def plan_move(serving: Serving, move: Move, service: str, execute: bool = False) -> Planned:
-    """The move checked and planned; MoveError/ValueError says why not (its ``values``: the status)."""
+def plan_move(serving: Serving, move: Move, service: str, execute: bool = False,
+              settle: float = DEFAULT_SETTLE, place: bool = True) -> Planned:
+    """The move checked and planned, and (``place``) placed on a shared runway (observed ``settle`` s after it:
+    its occupancy's settle window); MoveError/ValueError says why not (its ``values``: the status)."""
     config, t0 = serving.config(), serving.timer()
     values = {'service': service, 'method': move.method or config.method,
               'start': move.start[0] if move.start else math.nan,
@@ -72,6 +80,7 @@ def plan_move(serving: Serving, move: Move, service: str, execute: bool = False)
         clearance = plan.info.get('min_clearance', math.inf)
         if execute:  # after planning: a preview and a goal of the same bad move give the same reason
             check_executable(checked, hold, heard is not None and heard.operator, serving.view.foreign_motion())
+        placement = serving.runway.place(checked, plan, settle) if place else None  # (None: no runway)
     except ValueError as exc:
         exc.values = values
         raise
@@ -80,7 +89,19 @@ def plan_move(serving: Serving, move: Move, service: str, execute: bool = False)
                             checked.start_ns)
     if math.isfinite(clearance):
         values['min_clearance'] = clearance
-    return Planned(checked, plan, trajectory, values, serving.timer() - t0)
+    planned = Planned(checked, plan, trajectory, values, serving.timer() - t0)
+    return planned if placement is None else placed(planned, placement)
+
+
+def placed(planned: Planned, placement: Placement) -> Planned:
+    """``planned`` started where its runway ``placement`` says (its checked move's start and its trajectory's
+    stamp), the delay and the crane it waited for in its status values and its plan's ``info`` (PlanInfo)."""
+    start = placement.start_ns
+    delay = {'runway_delay': placement.runway_delay, 'runway_waited_for': placement.waited_for}
+    planned.plan.info.update(delay)
+    return dataclasses.replace(planned, checked=dataclasses.replace(planned.checked, start_ns=start),
+                               trajectory=dataclasses.replace(planned.trajectory, stamp_ns=start),
+                               values={**planned.values, **delay}, placement=placement)
 
 
 def knots_of(plan: Plan, config: Config):

@@ -38,6 +38,7 @@ from .goals import Goal
 from .moves import Move
 from .preview import Planned, plan_move, plan_status
 from .runner import GoalRunner, RunnerStopped
+from .runway_step import RunwayStep
 from .settling import Settled
 from .transitions import JointReading, Measurement, Running, Trajectory
 
@@ -71,13 +72,17 @@ class MoveService:
             ((n, 3), m, ``crane_base``), to be shown for ``lifetime`` s (its motion and settle window).
         worker: execute goals on the runner's thread (the node); else each ``execute`` drives the runner
             on its caller's thread (the tests, on a fake clock).
+        runway: this crane's side of a shared runway (``runway_step.RunwayStep``: the others' occupancies, its
+            own published); None: none, nothing is published.
     """
 
     def __init__(self, planner, config: Callable[[], Config], clock: Callable[[], int],
                  publish: Callable[[Trajectory], Any], report: Callable[..., Any], log,
                  sleep: Callable[[float], None] = time.sleep, timer: Callable[[], float] = time.perf_counter,
-                 draw: Callable[[Any, float], Any] | None = None, worker: bool = False):
-        self.serving = Serving(planner, config, clock, publish, report, log, sleep, timer, draw)
+                 draw: Callable[[Any, float], Any] | None = None, worker: bool = False,
+                 runway: RunwayStep | None = None):
+        self.serving = Serving(planner, config, clock, publish, report, log, sleep, timer, draw, runway=runway)
+        self.runway = self.serving.runway
         self.planner, self.config, self.clock, self.log = planner, config, clock, log
         self.goals, self.view, self.timeline = self.serving.goals, self.serving.view, self.serving.timeline
         self.handing_over = self.serving.handing_over  # one handover (goal, stop, settle) planned at a time
@@ -94,6 +99,7 @@ class MoveService:
 
     def on_stream_state(self, sample: StreamSample) -> None:
         self.view.on_stream_state(sample)
+        self.runway.on_stream_state(sample.state, sample.hold)  # (a hold published on a runway)
         for execution in self.goals.executions():
             execution.on_stream_state(sample.stamp_ns, sample.motion_start_ns, sample.motion_duration,
                                       sample.motion_origin_ns, sample.state != HOLDING, sample.correction)

@@ -131,7 +131,9 @@ class CraneHarness:
         self.nodes = nodes
         self._log = log or (lambda text: None)
         self._namespace = '/' + namespace.strip('/') if namespace.strip('/') else ''
-        rclpy.init()
+        self._owns_context = not rclpy.ok()  # (a second harness in this process, another crane's, shares it)
+        if self._owns_context:
+            rclpy.init()
         self.node = rclpy.create_node(node_name, namespace=namespace)
         group = ReentrantCallbackGroup()
         self.planner = PlannerClient(self.node, PLANNER_NODE, callback_group=group)
@@ -632,4 +634,5 @@ class CraneHarness:
             spun.__exit__(None, None, None)
         self._inputs.destroy_node()
         self.node.destroy_node()
-        rclpy.try_shutdown()
+        if self._owns_context:
+            rclpy.try_shutdown()
