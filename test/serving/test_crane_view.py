@@ -54,6 +54,18 @@ def test_joint_states_become_a_measurement_with_the_hoist_if_there_is_one():
     assert m.joints == {'cart': JointReading(0.1, 0.2), 'hoist': JointReading(0.55, 0.0)}
 
 
+def test_joint_states_whose_positions_are_not_finite_are_no_measurement():
+    """A camera that has lost the load sends NaN angles: no measurement (ValueError naming the joint, which the
+    planner node drops), never a swing the planner would plan from or a dead executor."""
+    with pytest.raises(ValueError, match='theta1 is nan'):
+        joint_sample(T0, [0.1, math.nan, math.nan], [0.2, math.nan, math.nan])
+    with pytest.raises(ValueError, match='cart is inf'):
+        joint_sample(T0, [math.inf, 0.01, -0.02], [0.2, 0.0, 0.0])
+    with pytest.raises(ValueError, match='hoist is nan'):
+        joint_sample(T0, [0.1, 0.01, -0.02], [0.2, 0.0, 0.3], ['cart', 'hoist', 'theta1', 'theta2'],
+                     [0.1, math.nan, 0.01, -0.02], [0.2])
+
+
 def test_a_motion_with_a_stamp_is_in_motion_until_its_end(crane):
     clock, _, timeline, view = crane
     running = motion(T0 + 100 * MS)

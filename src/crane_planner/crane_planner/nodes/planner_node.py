@@ -163,11 +163,11 @@ class PlannerNode(Node):
 
     def _on_joint_state(self, msg: JointState):
         try:
-            position, velocity = conversions.joint_state_to_arrays(msg, names.SIM_JOINTS)
-        except ValueError:  # not the crane's joints: nothing to measure the swing with
+            pv = conversions.joint_state_to_arrays(msg, names.SIM_JOINTS)  # (position, velocity)
+            measured = joint_sample(conversions.stamp_ns(msg.header.stamp), *pv, msg.name, msg.position, msg.velocity)
+        except ValueError:  # not the crane's joints, or not finite (a camera that lost the load): no measurement
             return
-        self._service.on_joint_state(joint_sample(conversions.stamp_ns(msg.header.stamp), position, velocity,
-                                                  msg.name, msg.position, msg.velocity))
+        self._service.on_joint_state(measured)
 
     def _message(self, trajectory) -> JointTrajectory:
         return conversions.samples_to_joint_trajectory(trajectory.samples, trajectory.starts, trajectory.stamp_ns,

@@ -60,19 +60,26 @@ def joint_sample(stamp_ns: int, position, velocity, names=(), joint_positions=()
     """A ``joint_states`` message as a ``Measurement``: the sim's joints' ``position`` and ``velocity`` (cart,
     theta1, theta2; a NaN velocity as 0), and each other axis among ``names`` (its ``sim_joint``) from
     ``joint_positions`` and ``joint_velocities`` (the hoist's: its rope length and rate); with ``phi1`` and
-    ``phi2`` among them (a crane with a bridge), the spatial ``Swing`` (phi too)."""
+    ``phi2`` among them (a crane with a bridge), the spatial ``Swing`` (phi too). ValueError if a position it
+    takes is not finite: a message that measures nothing (a camera that has lost the load sends NaN angles)."""
+    def finite(value, name: str) -> float:
+        value = float(value)
+        if not math.isfinite(value):
+            raise ValueError(f'joint_states: {name} is {value}, not a measurement')
+        return value
+
     velocity = [0.0 if math.isnan(v) else float(v) for v in velocity]
-    joints = {CART.name: JointReading(float(position[0]), velocity[0])}
+    joints = {CART.name: JointReading(finite(position[0], CART.name), velocity[0])}
     names = list(names)
 
     def reading(k: int) -> tuple[float, float]:
         rate = float(joint_velocities[k]) if len(joint_velocities) > k else 0.0
-        return float(joint_positions[k]), 0.0 if math.isnan(rate) else rate
+        return finite(joint_positions[k], names[k]), 0.0 if math.isnan(rate) else rate
 
     for other in AXES[1:]:
         if other.sim_joint in names:
             joints[other.name] = JointReading(*reading(names.index(other.sim_joint)))
-    swing = Swing(float(position[1]), float(position[2]), velocity[1], velocity[2])
+    swing = Swing(finite(position[1], 'theta1'), finite(position[2], 'theta2'), velocity[1], velocity[2])
     if 'phi1' in names and 'phi2' in names:
         (phi1, dphi1), (phi2, dphi2) = (reading(names.index(n)) for n in ('phi1', 'phi2'))
         swing = dataclasses.replace(swing, phi1=phi1, phi2=phi2, dphi1=dphi1, dphi2=dphi2)
