@@ -14,6 +14,7 @@ from crane_msgs_py.crane.params import CraneParams
 
 NS = '/crane_bridge'
 T = 3.0
+PERIOD = 1.73  # s, the first mode's period of Table 1's crane
 SETTLE = 1.0  # s of residual window: more than half the slow mode's period, so its peak shows
 NOMINAL = CraneParams()  # the planner's model and the sim's plant
 JOINTS = ['cart', 'bridge']
@@ -124,6 +125,46 @@ def test_a_diagonal_stick_released_leaves_no_swing(crane):
     finally:  # the stick played out, at rest (one a failed test left moving: braking and the shaper, 2.3 s)
         driver.wait_until_still(('cart', 'bridge'))
         driver.set_parameters('streamer', {'mode': 'trajectory'})
+
+
+def test_with_the_sway_feedback_a_push_in_x_and_y_at_rest_is_damped_within_one_period_in_both_planes(crane):
+    """The streamer's feedback switched on at rest corrects the cart in the x plane and the bridge in the y plane
+    (whose angles phi its model reads the other way round): a push of 20 mm along x and 20 mm along y at once
+    (the sim's push_swing, push_swing_y) swings the load in both; from one slow period (1.73 s) after it each
+    plane swings less than 5 % of its push (offline 4.2 %), and the correction returns: both axes back within
+    1 mm of their hold."""
+    from crane_msgs_py.crane.geometry import load_offset
+    driver = crane
+    push = (0.02, 0.02)
+    driver.set_parameters('sim', {'push_swing': push[0], 'push_swing_y': push[1]})
+    driver.set_parameters('streamer', {'feedback': True})
+    try:
+        # its law is designed once it is first switched on: then stream_state carries both axes' corrections
+        driver.wait_until(lambda: set(driver.correction()) == set(JOINTS), 20.0, 'the feedback never came on')
+        held = [driver.stream_hold(joint) for joint in JOINTS]
+        before = driver.now_ns() - 300_000_000  # (plant time runs the playout delay, 0.1 s, behind)
+        driver.push_sim()
+        rec = record(driver, before, before + round((PERIOD + 1.7) * 1e9))
+        offset = 1e3 * np.array(load_offset(rec['theta1'], rec['theta2'], rec['phi1'], rec['phi2'], NOMINAL.L1,
+                                            NOMINAL.L2))  # mm: x plane, y plane
+        jumps = np.hypot(*np.diff(offset, axis=1)) > 10.0  # (a swing left before moves the load by < 1 mm a sample)
+        hit = int(np.argmax(jumps)) + 1  # the first sample after the push
+        assert jumps.any() and np.abs(offset[:, hit]) == pytest.approx(1e3 * np.array(push), rel=0.1), offset[:, hit]
+        offset = np.abs(offset)
+        later = offset[:, (rec['stamp'] - rec['stamp'][hit - 1]) * 1e-9 >= PERIOD].max(axis=1)
+        print(f'\npushed {1e3 * push[0]:g} mm along x and y: one period later x {later[0]:.2f} mm, y {later[1]:.2f} mm')
+        assert np.all(later < 0.05 * 1e3 * np.array(push)), later
+        assert max(np.abs(rec['cart'] - held[0]).max(), np.abs(rec['bridge'] - held[1]).max()) < 0.05  # centimetres
+
+        def back() -> bool:
+            last = driver.last_state()
+            return abs(last[3] - held[0]) < 1e-3 and abs(last[4] - held[1]) < 1e-3
+        driver.wait_until(back, 15.0, 'the axes did not come back within 1 mm of their hold')
+    finally:  # off: what is left of the correction fades to nothing (the crane fixture then finds it at home)
+        driver.set_parameters('streamer', {'feedback': False})
+        driver.set_parameters('sim', {'push_swing': 0.03, 'push_swing_y': 0.0})
+        driver.wait_until(lambda: not any(driver.correction().values()), 15.0, 'the correction did not fade')
+        driver.reset_sim()  # (a swing left, by a test that failed, is no move home's to damp)
 
 
 def recording(recorder, timeout: float = 60.0):

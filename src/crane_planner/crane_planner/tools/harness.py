@@ -197,6 +197,20 @@ class CraneHarness:
         state = self._fresh_stream_state(fresh)
         return None if state is None else state[2].get(joint)
 
+    def correction(self, timeout: float = 1.0, fresh: float = 0.5) -> dict:
+        """What the streamer's sway feedback adds to the reference now (m, by joint; empty before the feedback was
+        ever on), from the newest ``stream_state``: one received within ``fresh`` s, waited for up to ``timeout``
+        s (HarnessError if none comes)."""
+        found = []
+
+        def heard():
+            state = self._fresh_stream_state(fresh)
+            if state is not None:
+                found.append(state)
+            return bool(found)
+        self.wait_until(heard, timeout, f'no stream_state from the streamer within {timeout:g} s')
+        return dict(found[0][6])
+
     def _fresh_stream_state(self, fresh: float):
         """``read_stream_state`` of the newest ``stream_state`` if it was received within ``fresh`` s, else None."""
         state = self._stream_state
@@ -372,8 +386,10 @@ class CraneHarness:
         for what, ready in waits:
             self.wait_until(ready, deadline - time.monotonic(), f'{what} not up within {timeout:g} s')
 
-    def set_parameters(self, target: str, values: dict):
+    def set_parameters(self, target: str, values: dict, atomically: bool = False):
         """Set parameters on the ``planner``, ``sim`` or ``streamer`` node; HarnessError names any refused.
+        ``atomically``: all in one change (else one after the other, as ``ros2 param set`` would: a node's loop
+        may run a step between them, e.g. the sim's with the wind on and its gusts not yet).
 
         An empty list is an empty double array (rclpy would take it for a byte array). The streamer's
         ``mode`` returns once its stream_state has said so for a few messages: the planner, which refuses a
@@ -382,8 +398,12 @@ class CraneHarness:
         changed = self.now_ns()
         params = [Parameter(k, Parameter.Type.DOUBLE_ARRAY, []) if isinstance(v, list) and not v
                   else Parameter(k, value=v) for k, v in values.items()]
-        result = self._wait(client.set_parameters(params), 5.0, f'{target} parameter service')
-        refused = [f'{p.name}: {r.reason}' for p, r in zip(params, result.results) if not r.successful]
+        if atomically:
+            outcome = self._wait(client.set_parameters_atomically(params), 5.0, f'{target} parameter service').result
+            refused = [] if outcome.successful else [f'{", ".join(values)}: {outcome.reason}']
+        else:
+            result = self._wait(client.set_parameters(params), 5.0, f'{target} parameter service')
+            refused = [f'{p.name}: {r.reason}' for p, r in zip(params, result.results) if not r.successful]
         if refused:
             raise HarnessError(f'{target} refused parameters: {"; ".join(refused)}')
         if target == 'streamer' and 'mode' in values:
