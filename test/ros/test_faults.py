@@ -664,10 +664,12 @@ def test_a_noisy_camera_with_the_feedback_on_and_nothing_to_correct_keeps_the_re
     """The nominal crane, the sim's swing angles noisy by 1 mrad (its noise), the streamer's feedback on with its
     feedback_noise the same (this module's STREAMER_PARAMS): NVF 0.3 m in 2.5 s. There is nothing to correct but the
     noise: from the move's start to its result the published reference is within 0.5 mm of the plan (offline
-    at most 0.45 mm in 12 seeded runs), and the load's true swing after the motion (the sim's crane_markers) is
-    at most 0.3 mm. Open loop leaves 0.00 mm here (offline); with the noise moving the axes, 0.06-0.16 mm offline
-    (six seeds): a third of a millimetre or less is below what the camera itself tells (its noise is 0.95 mm on
-    the load's offset, sample by sample), so no goal measured through it could tell the two apart. (A goal's
+    at most 0.45 mm in 12 seeded runs), and the load's true swing over 2 s after the motion (the sim's
+    crane_markers) is at most 0.3 mm more than the served plan leaves open loop (replayed on crane_sim from rest).
+    From rest the plan leaves nothing, and the feedback 0.03-0.12 mm (offline 0.06-0.16 mm, six seeds): a third of
+    a millimetre is below what the camera itself tells (0.95 mm of noise on the load's offset, sample by sample).
+    The planner plans from its newest sample, so a goal now and then starts "from a swing" of about 1 mm that is
+    the camera's noise; its plan then leaves about that much open loop, which is what the replay says. (A goal's
     residual through that camera is its noise: a peak of 2-3 mm over a second's samples, with or without the
     feedback.)"""
     from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays
@@ -691,15 +693,20 @@ def test_a_noisy_camera_with_the_feedback_on_and_nothing_to_correct_keeps_the_re
         driver.set_parameters('sim', {'noise': 0.0})
         driver.set_parameters('streamer', {'feedback': False})
         driver.wait_until(lambda: not any(driver.correction().values()), 15.0, 'the correction did not fade')
-    t, p, v, a = joint_trajectory_to_arrays(trajectory)
+    from crane_sim.simulator import simulate
+    plan = QuinticHermite(*joint_trajectory_to_arrays(trajectory))
     rows = references[references[:, 0] >= start]
-    off = rows[:, 1] - QuinticHermite(t, p, v, a)(np.clip((rows[:, 0] - start) * 1e-9, 0.0, t[-1]))[0]
+    off = rows[:, 1] - plan(np.clip((rows[:, 0] - start) * 1e-9, 0.0, plan.t[-1]))[0]
     residual = float(np.max(np.abs(recorder.load(end, end + 2_000_000_000))))
+    t = np.arange(0.0, plan.t[-1] + 2.0, 1e-3)  # the plan streamed open loop, and 2 s after it
+    replay = simulate(t, plan(t)[2] * (t <= plan.t[-1]), PLANT)
+    open_loop = float(np.max(np.abs(replay.load_excursion[0][replay.t >= plan.t[-1]])))
     print(f'\ncamera noise 1 mrad, feedback on: the reference {1e3 * np.max(np.abs(off)):.3f} mm off the plan at '
-          f'most, the true residual {1e3 * residual:.3f} mm; the goal: {result.message}')
+          f'most, the true residual {1e3 * residual:.3f} mm (the plan open loop: {1e3 * open_loop:.3f} mm); the '
+          f'goal: {result.message}')
     assert np.max(np.abs(off)) <= 5e-4
     assert np.max(np.abs(off)) > 1e-6  # (the feedback was on: the noise moved it)
-    assert residual <= 3e-4
+    assert residual <= open_loop + 3e-4
     driver.reset_sim()
 
 

@@ -35,17 +35,8 @@ def perturbed(crane):
 
 def quiet(crane, timeout: float = 20.0):
     """Wait until the feedback has the load quiet and its correction back to nothing, the cart where the
-    streamer holds it. (Not the sim's ~/reset: it sets the plant at rest under a reference that may be moving by
-    its correction, and the sim, taking the next reference as from rest, would keep that velocity's offset.)"""
-    from crane_msgs_py.crane.geometry import load_excursion
-
-    def still():
-        last = crane.last_state()
-        if last is None:
-            return False
-        swing = abs(load_excursion(last[1], last[2], NOMINAL.L1, NOMINAL.L2))
-        return abs(crane.correction().get('cart', 0.0)) < 5e-5 and swing < 2e-4
-    crane.wait_until(still, timeout, 'the feedback never had the load quiet')
+    streamer holds it (``CraneHarness.wait_until_quiet``: not the sim's ~/reset under a correction moving the cart)."""
+    crane.wait_until_quiet(NOMINAL.L1, NOMINAL.L2, timeout)
 
 
 def corrected_mm(message: str) -> float:
@@ -250,10 +241,11 @@ OPEN, CLOSED, DAMPED = 2.0, 12.0, 2.5  # s: open loop, then closed loop, of whic
 STEP_NS = 1_000_000  # the sim's step
 
 
-def open_loop_replay(steps: int, seed: int = 0) -> np.ndarray:
+def open_loop_replay(steps: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """The load's excursion (m) after each of ``steps`` 1 ms steps of crane_sim's own plant from rest under a held
     cart, with the wind and the gusts the sim blows from the moment they are first set: the same stream of its
-    ``seed`` (``crane_sim.disturbances.Gust``: drawn stationary then, one draw per step, held over it)."""
+    ``seed`` (``crane_sim.disturbances.Gust``: drawn stationary then, one draw per step, held over it); and the
+    gust (m/s^2) over each step."""
     from crane_msgs_py.crane.geometry import load_excursion
     from crane_sim.disturbances import Gust
     from crane_sim.simulator import CraneSimulator
@@ -265,7 +257,7 @@ def open_loop_replay(steps: int, seed: int = 0) -> np.ndarray:
         sim.step(0.0)
         swing = sim.swing
         out[k] = load_excursion(swing.theta1, swing.theta2, NOMINAL.L1, NOMINAL.L2)
-    return out
+    return out, gusts[1:]
 
 
 def onset_fit(stamps: np.ndarray, measured: np.ndarray, replay: np.ndarray, earliest: int, latest: int):
@@ -286,16 +278,18 @@ def onset_fit(stamps: np.ndarray, measured: np.ndarray, replay: np.ndarray, earl
 def test_wind_and_gusts_at_rest_the_feedback_keeps_the_swing_about_its_mean_well_below_open_loops(crane):
     """Wind 0.3 m/s^2 with gusts of 0.2 m/s^2 (1 s) on the load at rest: 2 s open loop, then the feedback switched
     on for 12 s. The open loop is replayed on crane_sim's own plant with the sim's gust stream (its seed 0, drawn
-    from the moment the gusts are first set): the first 2 s match what joint_states measured to 10 um, so the
-    replay is this run's open loop, gust for gust. Over the closed loop's last 9.5 s (its first 2.5 s damp the
-    swing the open loop built) the swing about its mean is at most half the replay's over the same stamps, and
-    the streamed reference keeps within the cart's limits (0.3 m/s, 0.5 m/s^2, 5 m/s^3), decimetres from its hold.
+    from the moment the gusts are first set, the wind and the gusts set together): the first 2 s match what
+    joint_states measured to 1 um, so the replay is this run's open loop, gust for gust. Over the closed loop's last
+    9.5 s (its first 2.5 s damp the swing the open loop built) the swing about its mean is at most half the
+    replay's over the same stamps and within 1.6 times the lean into the same gusts ((L1 + L2) w / g, the floor no
+    damping passes: the offline bound), and the streamed reference keeps within the cart's limits (0.3 m/s,
+    0.5 m/s^2, 5 m/s^3), decimetres from its hold.
 
-    Why half: the ratio depends on the gusts' path. Offline (tools.closed_loop, 20 s) it is 0.24-0.44 over six
-    seeds and 0.9 in one whose open loop stayed quiet: what is left is mostly the load leaning into each gust,
-    which damping cannot remove. Measured against the same path it is a property of the run, not a draw: on this
-    seed's path the open loop swings 87 mm RMS, the closed loop 18.7 mm (0.22, as offline on the same path); 0.5
-    leaves room for the real-time run's timing, and fails at once with the feedback left off (1.00)."""
+    Why half: the ratio depends on the gusts' path. Offline (20 s, the sim's gusts of seeds 0-3) it is 0.17 with
+    seed 0 and up to 0.58 where open loop stayed quiet: what is left is mostly the lean, which damping cannot
+    remove. Measured against the same path it is a property of the run, not a draw: on this seed's path the open
+    loop swings 87 mm RMS, the closed loop 18.7 mm (0.22; the lean 14.1 mm); 0.5 leaves room for the real-time
+    run's timing, and fails at once with the feedback left off (1.00)."""
     from crane_msgs_py.crane.geometry import load_excursion
     from crane_planner.tools.harness import state_columns
     quiet(crane)
@@ -326,18 +320,20 @@ def test_wind_and_gusts_at_rest_the_feedback_keeps_the_swing_about_its_mean_well
     stamps = rows['stamp'].astype(np.int64)
     measured = load_excursion(rows['theta1'], rows['theta2'], NOMINAL.L1, NOMINAL.L2)
     earliest, latest = asked - delay - 50_000_000, applied - delay + 50_000_000  # (the wind's onset, plant time)
-    replay = open_loop_replay(int((stamps[-1] - earliest) // STEP_NS) + 2)
+    replay, gusts = open_loop_replay(int((stamps[-1] - earliest) // STEP_NS) + 2)
     opened = stamps < switched - delay
     onset, misfit = onset_fit(stamps[opened], measured[opened], replay, earliest, latest)
     assert misfit < 1e-6, f'open loop is not the replay of the sim\'s gusts: {1e3 * misfit:.3f} mm off'
     assert np.count_nonzero(stamps < onset) >= 2  # (at rest before it: the onset is pinned to the step)
     judged = stamps >= switched - delay + round(DAMPED * 1e9)
     assert judged.sum() > 40 * (CLOSED - DAMPED - 0.5), judged.sum()
-    closed = float(np.std(measured[judged]))
-    open_loop = float(np.std(replay[(stamps[judged] - onset) // STEP_NS - 1]))
+    steps = (stamps[judged] - onset) // STEP_NS - 1
+    closed, open_loop = float(np.std(measured[judged])), float(np.std(replay[steps]))
+    lean = float(np.std((NOMINAL.L1 + NOMINAL.L2) / NOMINAL.g * gusts[steps]))  # the floor: leaning into the gusts
     print(f'\nwind {WIND} m/s^2, gusts {GUST} m/s^2: the swing about its mean {1e3 * closed:.1f} mm RMS with the '
-          f'feedback, {1e3 * open_loop:.1f} mm open loop on the same gusts: {closed / open_loop:.2f}')
-    assert closed <= 0.5 * open_loop, (closed, open_loop)
+          f'feedback, {1e3 * open_loop:.1f} mm open loop on the same gusts ({closed / open_loop:.2f}), the lean into '
+          f'them {1e3 * lean:.1f} mm ({closed / lean:.2f})')
+    assert closed <= 0.5 * open_loop and closed <= 1.6 * lean, (closed, open_loop, lean)
     # within the cart's limits, every tick of the run (a sample the recording missed spans two)
     ticks = np.maximum(np.round(np.diff(references[:, 0]) * 1e-6), 1.0)
     assert np.abs(references[:, 2]).max() <= 0.3 + 1e-9 and np.abs(references[:, 3]).max() <= 0.5 + 1e-9
