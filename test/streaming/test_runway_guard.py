@@ -4,6 +4,7 @@ Crane ``a`` drives its bridge (+y) towards crane ``b``, whose stopping envelope 
 minimum distance is 0.2 m, so ``a``'s girder (half-width 0.05 m) may come to 1.70 m at most. Where ``a`` ends is
 judged from the reference it streams, tick by tick, as the streamer's loop runs it (``streamer.Streamer``).
 """
+import dataclasses
 import math
 import threading
 import time
@@ -15,11 +16,17 @@ from crane_msgs_py.crane.axes import AxisLimits
 from crane_msgs_py.crane.params import CraneParams
 from crane_planner.runway.config import RunwayConfig
 from crane_planner.runway.guard import Level, Reach
-from crane_planner.streaming.braking_stop import brake
+from crane_planner.streaming.braking_stop import brake, braking_stop
 from crane_planner.streaming.operator import OperatorStream
 from crane_planner.streaming.reference_stream import ReferenceStream
-from crane_planner.streaming.runway_guard import STOP_REACH, GuardStops, PlannedStop, RunwayGuard, first_period
-from crane_planner.streaming.stop_request import stop_motion
+from crane_planner.streaming.runway_guard import (
+    GUARD_LEAD,
+    STOP_REACH,
+    GuardStops,
+    PlannedStop,
+    RunwayGuard,
+    first_period,
+)
 from crane_planner.streaming.streamer import Streamer
 from crane_planner.streaming.streamer_state import Mode
 
@@ -36,10 +43,10 @@ FARTHEST = B_LOW - MIN - 0.05
 S = 1_000_000_000
 
 
-def guard(offset=(0.0, 0.0), joints=JOINTS, wake=lambda: None, lead=0.1) -> RunwayGuard:
+def guard(offset=(0.0, 0.0), joints=JOINTS, wake=lambda: None) -> RunwayGuard:
     config = RunwayConfig(True, 'a', offset, MIN, 'wait', 0.5)
-    return RunwayGuard(config, joints, PERIOD * 1e-9, PlannedStop(first_period(PARAMS), D, J), lambda: lead,
-                       LIMITS.max_velocity, LIMITS.max_acceleration, LIMITS.max_jerk, wake)
+    return RunwayGuard(config, joints, PERIOD * 1e-9, PlannedStop(first_period(PARAMS), D, J), LIMITS.max_velocity,
+                       LIMITS.max_acceleration, LIMITS.max_jerk, wake)
 
 
 class Clock:
@@ -113,6 +120,7 @@ def test_without_the_guard_the_same_stick_would_have_gone_through_the_other_cran
 
 def test_a_crane_gone_silent_within_reach_stops_this_one_until_it_is_heard_again():
     crane = Crane()
+    crane.guard.offset = (0.0, 0.8)  # a's crane_base 0.8 m along the runway: b within reach (1.73 m)
     crane.drive(2.0, 0.1)  # creeping towards b, far from the minimum
     assert crane.guard.verdict.level is Level.CLEAR
     crane.b_heard = 1.98  # b dies: its state of tick 1980 is its last
@@ -124,8 +132,8 @@ def test_a_crane_gone_silent_within_reach_stops_this_one_until_it_is_heard_again
     # it went on at 0.1 m/s until then, and stopped from there as the operator's stop does (braked, shaped):
     # where the envelope of that tick said, never further
     assert y[lost] - y[0] == pytest.approx(0.1 * lost * 1e-3, abs=1e-6)
-    assert y[-1] == pytest.approx(crane.highs[lost] - 0.05 - 0.1e-3, abs=1e-9)
-    assert np.ptp(y[-500:]) < 1e-12 and y[-1] < FARTHEST - 0.2  # at rest, far from b: for silence, not distance
+    assert y[-1] + 0.8 == pytest.approx(crane.highs[lost] - 0.05 - 0.1e-3, abs=1e-9)
+    assert np.ptp(y[-500:]) < 1e-12 and y[-1] + 0.8 < FARTHEST - 0.2  # at rest, far from b: silence, not distance
     # heard again: it moves on
     crane.b_heard = math.inf
     assert crane.drive(1.0, 0.1)[-1] > y[-1] + 0.02
@@ -134,8 +142,11 @@ def test_a_crane_gone_silent_within_reach_stops_this_one_until_it_is_heard_again
 
 def test_a_crane_gone_silent_out_of_reach_is_no_reason_to_stop():
     crane = Crane()
+    # reach: both cranes at 0.3 m/s through the timeout and the longest stop lag (0.41 s + 0.75 T1), then braking
+    one = 0.3 * (0.5 + 0.41 + STOP_REACH * first_period(PARAMS)) + 0.3 ** 2 / (2 * 0.5) + 0.3 * 0.5 / (2 * 5.0)
+    assert crane.guard.guard.reach == pytest.approx(MIN + 2 * one) and 1.7 < MIN + 2 * one < 1.8
     crane.drive(0.1, 0.0)
-    crane.guard.offset = (0.0, -3.0)  # a stands 3 m further back: b is out of the silent crane's reach (1.8 m)
+    crane.guard.offset = (0.0, -3.0)  # a stands 3 m further back: b is out of reach
     crane.b_heard = crane.clock.t
     y = crane.drive(3.0, 0.1)
     assert crane.guard.verdict.level is Level.CLEAR and y[-1] > y[0] + 0.2
@@ -158,8 +169,8 @@ def test_a_crane_without_a_bridge_stands_at_its_offset_and_its_masses_widen_its_
 
 
 class Trajectory:
-    """Crane a's streamer on explicit ticks in trajectory mode, the guard watching and its stops run in place
-    of the stop worker (``stop(stream)``: returns a ``MotionStop``)."""
+    """Crane a's streamer on explicit ticks in trajectory mode, the guard watching and its stop (``take_over``:
+    what ``GuardStops`` would hand the stream, a ``StopTrajectory``) taken over as soon as it is asked."""
 
     def __init__(self, take_over):
         self.stream = ReferenceStream(PERIOD, (0.0, 0.0))
@@ -180,8 +191,7 @@ class Trajectory:
                 self.guard.heard('b', B_LOW, B_HIGH, self.now())
             ys.append(self.streamer.tick(self.tick, self.now()).position[1])
             if len(self.woken) and self.woken[-1] == self.tick:  # the guard's thread, at once
-                stopped = stop_motion(self.stream, lambda: self.take_over(self), self.now, D, J)
-                assert stopped.stop is not None
+                assert self.take_over(self) is not None
             self.tick += 1
         return np.array(ys)
 
@@ -195,8 +205,9 @@ def bridge_move(goal, duration):
 
 def soft_stop(crane):
     """A stop that travels about as far as an NVF stop may from that speed (0.59 m/s): a braking ramp at 0.25
-    m/s^2 (0.72 m, the bound 0.83 m)."""
-    return brake(crane.stream, crane.now, 0.25, J)
+    m/s^2 (0.72 m, within the bound), taken over at the guard's latest."""
+    now = crane.now() + round((GUARD_LEAD - 0.005) * S)
+    return brake(crane.stream, lambda: now, 0.25, J)
 
 
 def test_a_motion_towards_a_crane_is_stopped_once_and_ends_short_of_the_minimum_and_the_next_is_refused():
@@ -249,22 +260,46 @@ def test_the_planned_bound_covers_the_stop_the_stop_worker_plans(at):
     assert bound == pytest.approx(STOP_REACH * v * first_period(PARAMS))  # (the NVF stop's, not the ramp's)
 
 
-def test_the_guards_stops_run_on_a_thread_of_their_own_and_say_what_they_did():
-    g = guard()
-    said = []
+def stop_of(method):
+    """A stop's trajectory as the stream would take it (a braking from 0.3 m/s), named ``method``."""
+    return dataclasses.replace(braking_stop(np.array([[0.0, 1.0], [0.0, 0.3], [0.0, 0.0]]), 0, D, J), method=method)
 
-    class Stopped:
-        warning = ''
 
-        def text(self):
-            return 'without swing at (0, 1.7) m in 1.3 s (nvf)'
-
+def guard_stops(planned, ready=True):
+    """``GuardStops`` woken once: what it said (warning, text) and whether it ran the ramp."""
+    g, said, ramps = guard(), [], []
     g.reason = 'the runway guard stopped it: b'
-    stops = GuardStops(g, lambda: Stopped(), lambda warning, text: said.append((warning, text)))
-    assert stops._thread.name == 'runway-guard-stops' and stops._thread is not threading.current_thread()
+
+    def ramp():
+        ramps.append(threading.current_thread().name)
+        return stop_of('braking ramp')
+    stops = GuardStops(g, planned, ramp, lambda: ready, lambda warning, text: said.append((warning, text)))
+    g.stopping = True
     g.wake()
     deadline = time.monotonic() + 5.0
     while not said and time.monotonic() < deadline:
         time.sleep(0.01)
     stops.close()
-    assert said == [(False, 'the runway guard stopped it: b: stopping without swing at (0, 1.7) m in 1.3 s (nvf)')]
+    assert g.stopping  # (the loop asks no other stop until the stream is at rest)
+    return said, ramps
+
+
+def test_the_guards_stop_is_the_planned_one_when_the_stop_worker_has_it_in_time():
+    said, ramps = guard_stops(lambda: stop_of('nvf'))
+    assert ramps == [] and said == [(False, 'the runway guard stopped it: b: stopping without swing at (0, 1.105) m '
+                                           'in 0.7 s (nvf)')]
+
+
+def test_without_the_planned_stop_in_time_the_guards_stop_is_the_braking_ramp_before_its_lead_has_passed():
+    def slow():
+        time.sleep(GUARD_LEAD + 0.2)
+        return stop_of('nvf')
+    asked = time.monotonic()
+    said, ramps = guard_stops(slow)
+    assert ramps == ['runway-guard-stops'] and time.monotonic() - asked < GUARD_LEAD + 0.15
+    assert said == [(True, 'the runway guard stopped it: b: stopping along the axes\' braking ramp (no stop without '
+                           'swing within 0.4 s) at (0, 1.105) m in 0.7 s (braking ramp)')]
+    refused, ramps = guard_stops(lambda: (_ for _ in ()).throw(ValueError('the stop planner process is not ready')))
+    assert ramps and 'braking ramp (the stop planner process is not ready)' in refused[0][1]
+    not_ready, ramps = guard_stops(lambda: pytest.fail('asked'), ready=False)
+    assert ramps and 'braking ramp (the stop planner cannot have it in time)' in not_ready[0][1]

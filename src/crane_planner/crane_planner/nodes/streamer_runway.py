@@ -16,9 +16,16 @@ from crane_msgs_py.runtime.diagnostics import ERROR, OK, WARN
 from crane_planner.runway.config import STATE_TOPIC
 from crane_planner.runway.guard import Level
 from crane_planner.runway.occupancy import RUNWAY_FRAME
+from crane_planner.streaming.braking_stop import brake
 from crane_planner.streaming.config import StreamerConfig
-from crane_planner.streaming.runway_guard import GuardStops, PlannedStop, RunwayGuard, first_period
-from crane_planner.streaming.stop_request import stop_motion
+from crane_planner.streaming.runway_guard import (
+    GUARD_LEAD,
+    RAMP_MARGIN,
+    GuardStops,
+    PlannedStop,
+    RunwayGuard,
+    first_period,
+)
 
 TASK = 'runway guard'
 #: The guard's levels on /diagnostics: information is OK, a warning a warning, a stop (or a lost crane) an error.
@@ -48,21 +55,25 @@ class RunwayPort:
         limits = config.operator.limits[AXIS_NAMES.index(BRIDGE.name)]
         planned = PlannedStop(first_period(config.model), config.fault_deceleration, config.fault_jerk)
         period = streamer.stream.period_ns * 1e-9
-        self.core = core = RunwayGuard(config.runway, joints, period, planned, lambda: stops.lead,
-                                       limits.max_velocity, limits.max_acceleration, limits.max_jerk or 1e9)
+        self.core = core = RunwayGuard(config.runway, joints, period, planned, limits.max_velocity,
+                                       limits.max_acceleration, limits.max_jerk or 1e9)
         streamer.watches = (core,)
         stream = streamer.stream
 
         def now() -> int:
             return node.get_clock().now().nanoseconds
 
-        def stop():
-            current = self._config
-            return stop_motion(stream, lambda: stops.take_over(stream, now, current.model), now,
-                               current.fault_deceleration, current.fault_jerk)
+        def planned():  # (the stop ~/stop runs, planned in the stop worker)
+            return stops.take_over(stream, now, self._config.model)
+
+        def ramp():
+            return brake(stream, now, self._config.fault_deceleration, self._config.fault_jerk)
+
+        def ready() -> bool:  # the stop worker up, and its stop taken over in time
+            return stops.ready and stops.lead <= GUARD_LEAD - RAMP_MARGIN
 
         self._now = now
-        self._stops = GuardStops(core, stop, self._log)
+        self._stops = GuardStops(core, planned, ramp, ready, self._log)
         self._msg = conversions.crane_state_message(core.crane, RUNWAY_FRAME)
         self._masses = ((0.0, 0.0), (0.0, 0.0))  # the hook's and the load's (x, y) in runway, measured
         self._pub = node.create_publisher(CraneState, STATE_TOPIC, qos.RUNWAY_STATE_QOS)

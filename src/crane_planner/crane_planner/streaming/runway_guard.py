@@ -15,29 +15,32 @@ widened by how far the stop it would run now travels:
   bridge held at zero: braked by ruckig within the bridge's operator limits,
   then played out by the shaper), exactly (``OperatorStream.stopping_travel``);
 - in trajectory mode the planned stop (``serving.stops`` in the stop worker,
-  ``PlannedStop``): the motion goes on for the stop's lead, then an NVF stop
-  to rest anywhere travels at most ``STOP_REACH`` times the velocity then
-  times the first mode's period (the largest measured over NVF, RVF and ZV
-  motions stopped at 20-70 %: 0.72), or the fallback braking ramp within
-  ``fault_deceleration`` and ``fault_jerk``, whichever goes further.
+  ``PlannedStop``): the motion goes on for ``GUARD_LEAD`` (and ``WAKE``),
+  then an NVF stop to rest anywhere travels at most ``STOP_REACH`` times the
+  velocity then times the first mode's period (the largest measured over NVF,
+  RVF and ZV motions stopped at 20-70 %: 0.72), or the fallback braking ramp
+  within ``fault_deceleration`` and ``fault_jerk``, whichever goes further.
 
 Then ``runway.guard.Guard.check``. At ``STOP`` or ``LOST`` it stops what
 moves the crane towards that crane and refuses motions towards it until the
 way is clear: in operator mode the bridge's command towards it is held at zero
 from the next tick (``OperatorStream.refuse``: the operator's own shaped stop,
 without swing); in trajectory mode a motion whose bridge moves towards it is
-stopped by the planned stop without swing (``stop_request.stop_motion``, run by
-``GuardStops`` on a thread of its own: it is planned in the stop worker, never
-in the loop), and a trajectory moving the bridge towards it is refused
-(``refusal``). Motions away are taken. The streamer keeps streaming (it holds
-where the stop ends); ``reason`` says which crane and why, for
-``stream_state`` (the goal's result) until the next trajectory is taken.
+stopped by ``GuardStops`` on a thread of its own: the planned stop without
+swing if the stop worker has it taken over within ``GUARD_LEAD`` of the
+decision (it is planned there, never in the loop), else the braking ramp
+(``braking_stop``: it swings, and stops where the envelope said), and a
+trajectory moving the bridge towards it is refused (``refusal``). Motions
+away are taken. The streamer keeps streaming (it holds where the stop ends);
+``reason`` says which crane and why, for ``stream_state`` (the goal's result)
+until the next trajectory is taken.
 Pure Python, no ROS import.
 """
 from __future__ import annotations
 
 import math
 import threading
+import time
 from collections import deque
 from typing import Callable
 
@@ -49,14 +52,18 @@ from ..runway.config import RunwayConfig
 from ..runway.guard import Guard, Level, Reach, Verdict, envelope, within_reach
 from .operator import OperatorStream
 from .source import Setpoint, Source
+from .stop_request import MotionStop
 
 #: The planned stop's travel (trajectory mode) in units of the velocity at its handover times the first mode's
 #: period: the largest measured over NVF, RVF and ZV motions of the bridge stopped at 20-70 % of them was 0.72.
 STOP_REACH = 0.75
-#: How long (s) the guard's stop takes to be asked of the stop worker after the tick that decided it.
+#: How long (s) the guard's stop takes to be asked after the tick that decided it.
 WAKE = 0.01
-#: The stop worker's lead (s) when it says none (``serving.stops.STOP_LEAD``).
-STOP_LEAD = 0.1
+#: How far ahead (s) of that the guard's stop in trajectory mode takes over at the latest: the planned stop if
+#: the stop worker answers in time (its lead, 0.1 s, or 1.5 times as long as its last stop took to plan: the
+#: spatial crane's take 50-150 ms on a quiet host), else the braking ramp, ``RAMP_MARGIN`` before it.
+GUARD_LEAD = 0.4
+RAMP_MARGIN = 0.03
 
 
 class PlannedStop:
@@ -93,17 +100,15 @@ class RunwayGuard:
             offset).
         period: the loop's tick (s).
         planned: trajectory mode's stop (``PlannedStop``).
-        lead: the stop worker's lead now (s), asked each tick in trajectory mode.
         max_velocity, deceleration, jerk: the bridge's operator limits: how fast a crane is taken to travel and
             brake when judging whether a silent one is within reach (``runway.guard.within_reach``).
         wake: called (in the loop) when a motion towards a crane it stops for must be stopped.
     """
 
-    def __init__(self, config: RunwayConfig, joints, period: float, planned: PlannedStop,
-                 lead: Callable[[], float], max_velocity: float, deceleration: float, jerk: float,
-                 wake: Callable[[], None] = lambda: None):
+    def __init__(self, config: RunwayConfig, joints, period: float, planned: PlannedStop, max_velocity: float,
+                 deceleration: float, jerk: float, wake: Callable[[], None] = lambda: None):
         joints = tuple(joints)
-        self.crane, self.period, self.planned, self.lead, self.wake = config.crane, period, planned, lead, wake
+        self.crane, self.period, self.planned, self.wake = config.crane, period, planned, wake
         self.bridge = joints.index(BRIDGE_JOINT) if BRIDGE_JOINT in joints else None
         self.cart = joints.index(CART_JOINT)
         self.limits = (max_velocity, deceleration, jerk)
@@ -126,8 +131,9 @@ class RunwayGuard:
         g = self.guard
         g.min_distance, g.timeout_ns = config.min_distance, round(config.timeout * 1e9)
         self.offset, self.shape, self.timeout = config.offset, config.shape, config.timeout
-        lag = STOP_LEAD + STOP_REACH * self.planned.first_period  # (longer than any operator shaper's mean delay)
-        g.reach = within_reach(config.min_distance, *self.limits, config.timeout, lag=lag) if all(
+        lag = GUARD_LEAD + WAKE + STOP_REACH * self.planned.first_period  # (longer than any operator shaper's lag)
+        max_velocity, deceleration, jerk = self.limits
+        g.reach = within_reach(config.min_distance, max_velocity, config.timeout, deceleration, jerk, lag) if all(
             x > 0.0 for x in self.limits) else math.inf
 
     # -- the executor's side -----------------------------------------------------------------
@@ -186,7 +192,7 @@ class RunwayGuard:
             if self._operator:  # (the stick's zero taken from the next tick: one tick more)
                 travel = source.stopping_travel(b) + v * self.period
             else:
-                travel = self.planned.travel(v, a, self.lead() + WAKE) if (v or a) else 0.0
+                travel = self.planned.travel(v, a, GUARD_LEAD + WAKE) if (v or a) else 0.0
         _, dy1, _, dy2 = self._measured
         mine = self.mine = envelope(y, (y + dy1, y + dy2), self.shape, travel)
         self.last = (y, v, setpoint)
@@ -226,19 +232,25 @@ class RunwayGuard:
 
 
 class GuardStops:
-    """The guard's stops of a motion towards a crane, run on a thread of their own: the loop wakes it, it plans
-    the stop (``stop``: ``stop_request.stop_motion``, a stop without swing planned in the stop worker, else the
-    braking ramp) and tells ``log(warning, text)`` what it did; the loop asks no other until the stream is at
-    rest.
+    """The guard's stops of a motion towards a crane (trajectory mode), run on a thread of their own: the loop
+    wakes it; it asks the planned stop (``planned``: the stop worker's stop without swing taken over by the
+    stream, on a helper thread) if the stop worker can have it in time (``ready``), and waits for it until
+    ``GUARD_LEAD - RAMP_MARGIN`` after it woke; without it by then, the braking ramp (``ramp``) takes over. A
+    planned stop answered later is refused by the stream (it no longer continues what streams) or, handed
+    over before the ramp, replaces it. ``log(warning, text)`` says what it did; the loop asks no other until
+    the stream is at rest.
 
     Args:
         guard: the loop's guard.
-        stop: stops the motion streaming now; returns a ``stop_request.MotionStop`` (ValueError: nothing to stop).
+        planned, ramp: each stops the motion streaming now: its ``StopTrajectory`` (None: the motion ends
+            first), or ValueError saying why not.
+        ready: whether the stop worker can have a stop taken over within ``GUARD_LEAD``.
         log: ``log(warning: bool, text)``.
     """
 
-    def __init__(self, guard: RunwayGuard, stop: Callable, log: Callable[[bool, str], None]):
-        self.guard, self.stop, self.log = guard, stop, log
+    def __init__(self, guard: RunwayGuard, planned: Callable, ramp: Callable, ready: Callable[[], bool],
+                 log: Callable[[bool, str], None], lead: float = GUARD_LEAD):
+        self.guard, self.planned, self.ramp, self.ready, self.log, self.lead = guard, planned, ramp, ready, log, lead
         self._event = threading.Event()
         self._closed = False
         guard.wake = self._event.set
@@ -251,15 +263,37 @@ class GuardStops:
             self._event.clear()
             if self._closed:
                 return
-            why = self.guard.reason
+            woken, why = time.monotonic(), self.guard.reason
             try:
-                stopped = self.stop()
-                self.log(bool(stopped.warning), f'{why}: stopping {stopped.text()}')
+                stopped = self._stop(woken)
+                self.guard.reason = f'{why}: stopping {stopped.text()}'  # (how it stopped, for the goal's result)
+                self.log(bool(stopped.warning), self.guard.reason)
             except ValueError as exc:  # (the motion ended meanwhile: at rest, the loop asks no more)
                 self.log(False, f'{why}: nothing to stop ({exc})')
             except Exception as exc:  # (a bug: said, and the loop asks again)
                 self.log(True, f'{why}: the stop failed: {exc!r}')
                 self.guard.stopping = False
+
+    def _stop(self, woken: float) -> MotionStop:
+        """The planned stop if it is taken over in time, else the ramp (ValueError: nothing to stop)."""
+        if not self.ready():
+            late = 'the stop planner cannot have it in time'
+        else:
+            answer: list = []
+
+            def ask():
+                try:
+                    answer.append(self.planned())
+                except ValueError as exc:
+                    answer.append(exc)
+            helper = threading.Thread(target=ask, name='runway-guard-planned-stop', daemon=True)
+            helper.start()
+            helper.join(max(0.0, woken + self.lead - RAMP_MARGIN - time.monotonic()))
+            if answer and not isinstance(answer[0], ValueError):
+                return MotionStop(answer[0], 'without swing')
+            late = str(answer[0]) if answer else f'no stop without swing within {self.lead:g} s'
+        how = f'along the axes\' braking ramp ({late})'
+        return MotionStop(self.ramp(), how, how)
 
     def close(self) -> None:
         self._closed = True
