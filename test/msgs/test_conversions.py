@@ -35,7 +35,7 @@ def test_stream_state_fill_in_place_and_read_back():
     cv.fill_stream_state(msg, START_NS, True, 0.25, 0.1, -0.2, START_NS - 10**9, 3.0, motion_origin_ns=START_NS - 2)
     back = deserialize_message(serialize_message(msg), StreamState)
     assert cv.read_stream_state(back) == (START_NS, 'streaming', {'cart': 0.25}, START_NS - 10**9, 3.0, START_NS - 2,
-                                          {'cart': 0.0})
+                                          {'cart': 0.0}, '')
     assert (back.header.frame_id, list(back.velocity), list(back.acceleration)) == ('crane_base', [0.1], [-0.2])
     cv.fill_stream_state(msg, START_NS + 1, False, 0.3, 0.0, 0.0, 7, 0.0)
     assert cv.read_stream_state(msg)[5] == 7  # the origin is the first tick unless given
@@ -46,8 +46,25 @@ def test_stream_state_fill_in_place_and_read_back():
     cv.fill_stream_state(msg, START_NS + 3, False, 0.302, 0.0, 0.0, 0, 0.0, correction=(0.002,))
     back = deserialize_message(serialize_message(msg), StreamState)
     assert list(back.position) == [0.302] and list(back.correction) == [0.002]
-    _, _, source, _, _, _, correction = cv.read_stream_state(back)
+    _, _, source, _, _, _, correction, _ = cv.read_stream_state(back)
     assert source == {'cart': pytest.approx(0.3, abs=1e-15)} and correction == {'cart': 0.002}
+    # why the streamer itself stopped the motion (its runway guard), kept until it says otherwise
+    cv.fill_stream_state(msg, START_NS + 4, False, 0.3, 0.0, 0.0, 0, 0.0, reason='the runway guard stopped it')
+    back = deserialize_message(serialize_message(msg), StreamState)
+    assert cv.read_stream_state(back)[7] == 'the runway guard stopped it'
+    cv.fill_stream_state(msg, START_NS + 5, False, 0.3, 0.0, 0.0, 0, 0.0)
+    assert cv.read_stream_state(msg)[7] == ''
+
+
+def test_crane_state_fill_in_place_and_survive_serialization():
+    from crane_interfaces.msg import CraneState
+    msg = cv.crane_state_message('crane_a', 'runway')
+    cv.fill_crane_state(msg, START_NS, 1.25, 0.3, 0.5, (0.49, 1.24), (0.48, 1.23), (1.1, 1.6), 'warning', 'crane_b')
+    back = deserialize_message(serialize_message(msg), CraneState)
+    assert (back.header.frame_id, back.crane, cv.stamp_ns(back.header.stamp)) == ('runway', 'crane_a', START_NS)
+    assert (back.girder, back.girder_velocity, back.trolley) == (1.25, 0.3, 0.5)
+    assert (back.hook_x, back.hook_y, back.load_x, back.load_y) == (0.49, 1.24, 0.48, 1.23)
+    assert (back.reach_low, back.reach_high, back.guard, back.guard_crane) == (1.1, 1.6, 'warning', 'crane_b')
 
 
 def test_joint_trajectory_round_trip():

@@ -129,3 +129,26 @@ def test_the_guard_says_info_warning_stop_as_the_gap_closes_and_blocks_only_towa
     assert g.check(G.Reach(-2.0, -1.0), 600_000_000).level is G.Level.CLEAR
     g.heard('b', G.Reach(2.0, 2.1), 600_000_000)
     assert g.check(G.Reach(0.0, 1.5), 600_000_001).level is G.Level.INFO  # heard again: its gap 0.5 m
+
+
+def test_a_stop_holds_until_the_way_is_clear_so_a_crane_stopped_at_the_minimum_does_not_creep_on():
+    g = G.Guard(0.2, 0.5, reach=1.0)
+    g.heard('b', G.Reach(2.0, 2.1), 0)
+    assert g.check(G.Reach(0.0, 1.85), 1).level is G.Level.STOP  # 0.15 m: under the minimum
+    at_rest = g.check(G.Reach(0.0, 1.78), 2)  # stopped 0.22 m away: over the minimum, yet not clear
+    assert at_rest.level is G.Level.STOP and at_rest.refuses(+1.0) and not at_rest.refuses(-1.0)
+    assert g.check(G.Reach(0.0, 1.61), 3).level is G.Level.STOP  # 0.39 m
+    clear = g.check(G.Reach(0.0, 1.59), 4)  # past twice the minimum: the way is clear
+    assert clear.level is G.Level.INFO and not clear.blocked
+    assert g.check(G.Reach(0.0, 1.7), 5).level is G.Level.WARNING  # (no longer held: 0.3 m is a warning again)
+
+
+def test_the_envelope_takes_its_callers_stopping_travel_on_the_side_it_moves_to():
+    shape = Shape(0.05, 0.05)
+    assert G.envelope(1.0, [1.0, 1.0], shape, 0.3) == G.Reach(0.95, 1.35)
+    assert G.envelope(1.0, [0.9, 1.08], shape, -0.2) == G.Reach(pytest.approx(0.65), pytest.approx(1.13))
+    d = stopping_distance(0.3, 0.1, 0.5, 5.0)
+    assert G.reach(1.0, 0.3, 0.1, [1.0], shape, 0.5, 5.0) == G.envelope(1.0, [1.0], shape, d)
+    # a silent crane within reach: both cranes' travel at full speed through the timeout and a lag, and their stops
+    lagging = G.within_reach(0.2, 0.3, 0.5, 0.5, 5.0, lag=1.0)
+    assert lagging == pytest.approx(G.within_reach(0.2, 0.3, 0.5, 0.5, 5.0) + 2 * 0.3 * 1.0)

@@ -180,6 +180,19 @@ def test_a_streamer_holding_before_the_motions_end_has_dropped_it():
     assert not done.failure
 
 
+def test_a_motion_the_streamers_runway_guard_stopped_or_refused_fails_saying_which_crane_and_why():
+    why = 'the runway guard stopped it: crane_b, 0.190 m between the stopping envelopes'
+    ex = execution()
+    ex.on_stream_state(START + 1200 * 1_000_000, START, 3.0)
+    ex.on_stream_state(START + 1220 * 1_000_000, START, 3.0, streaming=False, reason=why)
+    assert ex.phase(START + 1221 * 1_000_000) == FAILED
+    assert ex.failure == f'the streamer stopped streaming the motion at 41 %: it holds ({why})'
+    refused = execution()
+    refused.on_stream_state(START + 2 * S, START - 5 * S, 1.0, reason='the runway guard refuses motions towards b')
+    assert refused.phase(START + 2 * S) == FAILED
+    assert refused.failure.endswith('(refused: the runway guard refuses motions towards b)')
+
+
 def test_the_axes_fault_reaction_in_the_motion_fails_it_once_the_motion_has_streamed():
     """The sim braked at a gap mid-motion (axis_status fault_stopping stamped then) while the streamer streamed
     on to the motion's end, holding only after it: nothing was dropped, yet the crane stands elsewhere than the

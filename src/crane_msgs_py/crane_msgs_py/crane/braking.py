@@ -147,5 +147,12 @@ class Braking:
 
 def stopping_distance(v0: float, a0: float, D: float, J: float) -> float:
     """The signed distance (m) the fastest jerk-limited stop from (``v0`` m/s, ``a0`` m/s^2) within
-    ``|a| <= D`` m/s^2, ``|jerk| <= J`` m/s^3 travels (``Braking``)."""
-    return Braking(v0, a0, D, J).distance
+    ``|a| <= D`` m/s^2, ``|jerk| <= J`` m/s^3 travels: ``Braking(v0, a0, D, J).distance`` to the last bit, with
+    the same arithmetic and no records (a few microseconds: the runway guard asks it every tick)."""
+    if not (math.isfinite(v0) and math.isfinite(a0) and 0.0 < D < math.inf and 0.0 < J < math.inf):
+        return Braking(v0, a0, D, J).distance  # (raises ParameterError naming what is wrong)
+    p, v, a = 0.0, float(v0), float(a0)
+    for t, j in _phases(v, a, D, J):
+        if t > 0.0:  # (as Phase.at, phase after phase)
+            p, v, a = p + t * (v + t * (a / 2.0 + t * j / 6.0)), v + t * (a + t * j / 2.0), a + t * j
+    return p

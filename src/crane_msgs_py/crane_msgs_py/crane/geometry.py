@@ -32,11 +32,19 @@ def load_excursion(theta1, theta2, L1, L2):
     return L1 * np.sin(theta1) + L2 * np.sin(theta1 + theta2)
 
 
+def mass_offsets(theta1, theta2, phi1, phi2, L1, L2) -> tuple:
+    """((dx1, dy1), (dx2, dy2)): both masses' horizontal positions relative to the suspension point, the hook m1
+    at the end of the upper cable and the load m2 at the end of the lower (what a crane on a shared runway
+    publishes of them)."""
+    u1, u2 = cable_direction(theta1, phi1), cable_direction(theta1 + theta2, phi1 + phi2)
+    hook = (L1 * u1[0], L1 * u1[1])
+    return hook, (hook[0] + L2 * u2[0], hook[1] + L2 * u2[1])
+
+
 def load_offset(theta1, theta2, phi1, phi2, L1, L2) -> tuple:
     """(dx, dy): the load m2's horizontal position relative to the suspension point; its norm is the spatial
     crane's swing (contract)."""
-    u1, u2 = cable_direction(theta1, phi1), cable_direction(theta1 + theta2, phi1 + phi2)
-    return L1 * u1[0] + L2 * u2[0], L1 * u1[1] + L2 * u2[1]
+    return mass_offsets(theta1, theta2, phi1, phi2, L1, L2)[1]
 
 
 def load_swing(theta1, theta2, L1, L2, phi1=None, phi2=None):

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
-from crane_interfaces.msg import Move, StreamState
+from crane_interfaces.msg import CraneState, Move, StreamState
 from geometry_msgs.msg import Point
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
@@ -416,11 +416,12 @@ OPERATOR = 'operator'
 
 def fill_stream_state(msg: StreamState, stamp: int, streaming: bool, position, velocity,
                       acceleration, motion_start_ns: int, motion_duration: float, operator: bool = False,
-                      motion_origin_ns: int | None = None, correction=None):
+                      motion_origin_ns: int | None = None, correction=None, reason: str = ''):
     """One tick's state of a stream into a message from ``stream_state_message``, in place (floats for one
     joint, tuples for several); ``operator``: the state is ``operator`` (the streamer follows cmd_vel);
     ``motion_origin_ns``: when the motion's first knot is streamed (default: its first tick); ``correction``:
-    the sway feedback's share of ``position`` per joint (a sequence; None: none)."""
+    the sway feedback's share of ``position`` per joint (a sequence; None: none); ``reason``: why the streamer
+    itself stopped or refused the newest motion (its runway guard; '' if nothing did)."""
     s = msg.header.stamp
     s.sec, s.nanosec = divmod(stamp, NS)
     msg.state = OPERATOR if operator else STREAMING if streaming else HOLDING
@@ -437,13 +438,39 @@ def fill_stream_state(msg: StreamState, stamp: int, streaming: bool, position, v
     o.sec, o.nanosec = divmod(motion_start_ns if motion_origin_ns is None else motion_origin_ns, NS)
     if correction is not None:
         msg.correction[:] = array.array('d', correction)
+    if msg.reason != reason:
+        msg.reason = reason
 
 
-def read_stream_state(msg: StreamState) -> tuple[int, str, dict, int, float, int, dict]:
+def read_stream_state(msg: StreamState) -> tuple[int, str, dict, int, float, int, dict, str]:
     """(stamp ns, state: streaming/holding/operator, {joint: the source's position}, motion start ns, motion
-    duration s, motion origin ns, {joint: the sway feedback's correction}) of a ``StreamState``: the position
-    the source streams (the hold, the motion's) is the published one less the correction."""
+    duration s, motion origin ns, {joint: the sway feedback's correction}, reason: why the streamer stopped or
+    refused the newest motion itself) of a ``StreamState``: the position the source streams (the hold, the
+    motion's) is the published one less the correction."""
     correction = dict(zip(msg.joint_names, msg.correction)) if len(msg.correction) else {}
     source = {name: p - correction.get(name, 0.0) for name, p in zip(msg.joint_names, msg.position)}
     return (stamp_ns(msg.header.stamp), msg.state, source, stamp_ns(msg.motion_start), msg.motion_duration,
-            stamp_ns(msg.motion_origin), correction)
+            stamp_ns(msg.motion_origin), correction, msg.reason)
+
+
+def crane_state_message(crane: str, frame_id: str) -> CraneState:
+    """A reusable ``CraneState`` of the crane named ``crane`` in ``frame_id`` (the runway's; filled in place by
+    ``fill_crane_state``)."""
+    msg = CraneState(crane=crane)
+    msg.header.frame_id = frame_id
+    return msg
+
+
+def fill_crane_state(msg: CraneState, stamp: int, girder: float, girder_velocity: float, trolley: float,
+                     hook: tuple, load: tuple, reach: tuple, guard: str, guard_crane: str) -> None:
+    """One tick's live state of a crane on the runway into a message from ``crane_state_message``, in place:
+    the girder's y (m) and velocity (m/s), the trolley's x, the hook's and the load's (x, y), its stopping
+    envelope (low, high) along y, and its guard's level and the crane that level is for."""
+    s = msg.header.stamp
+    s.sec, s.nanosec = divmod(stamp, NS)
+    msg.girder, msg.girder_velocity, msg.trolley = girder, girder_velocity, trolley
+    msg.hook_x, msg.hook_y = hook
+    msg.load_x, msg.load_y = load
+    msg.reach_low, msg.reach_high = reach
+    if msg.guard != guard or msg.guard_crane != guard_crane:
+        msg.guard, msg.guard_crane = guard, guard_crane

@@ -43,6 +43,11 @@ REFERENCE_EVERY_SAMPLE_QOS = _keep_last(1000)
 #: effort, volatile): the next one supersedes a lost one within 20 ms.
 STREAM_STATE_QOS = _keep_last(10)
 
+#: ``/runway/state``: each crane's live state at 50 Hz for the other cranes' guards, as ``stream_state`` (best
+#: effort, volatile: the next one supersedes a lost one), with a queue of 0.5 s of one crane's: several cranes
+#: publish into it.
+RUNWAY_STATE_QOS = _keep_last(25)
+
 #: ``joint_states``: measurements in the sensor data style (REP 2003: best
 #: effort, volatile) with a queue of 0.5 s at 50 Hz instead of the sensor data profile's 5, so a
 #: reader that stalls briefly still gets every sample of a 50 Hz stream.

@@ -1,19 +1,16 @@
 """Streamer node: the plan on ``trajectory`` as a 1 kHz ``reference`` (contract: ROS 2 nodes, streamer).
 
-The rules are the pure cores': what streams each tick, its corrections, the
-state and mode (``streaming.streamer``: the active source is a
-``reference_stream.ReferenceStream`` or an ``operator.OperatorStream``), the
-parameters ``streaming.config``'s; this node translates messages, keeps time
-and reports. It streams nothing before it knows where the axes stand
-(``start_position``: ``joint_states`` at rest, at start-up and every
-``~/start``). The loop runs on its own thread at absolute deadlines of the monotonic clock,
-never waits on the executor, fills one pre-allocated message per tick (with
-network impairment on, through an ``impairment.Link``) and every ``rate /
-state_rate`` ticks publishes ``stream_state``. Modes (switched only at rest):
-``trajectory`` streams what the planner sends, ``operator`` follows
-``cmd_vel`` (``streaming.operator``). ``~/stop`` stops without swing (``streaming.stop_request``), a
-motion's stop planned by ``serving.stops`` in a worker process (this process never loads CasADi). With
-``feedback`` the measured swing corrects what streams (``streaming.feedback_port``)."""
+The rules are the pure cores': what streams each tick, its corrections and watches, the state and mode
+(``streaming.streamer``: the active source is a ``reference_stream.ReferenceStream`` or an
+``operator.OperatorStream``), the parameters ``streaming.config``'s; this node translates messages, keeps time and
+reports. It streams nothing before it knows where the axes stand (``start_position``: ``joint_states`` at rest, at
+start-up and every ``~/start``). The loop runs on its own thread at absolute deadlines of the monotonic clock, never
+waits on the executor, fills one pre-allocated message per tick (with network impairment on, through an
+``impairment.Link``) and every ``rate / state_rate`` ticks publishes ``stream_state``. Modes (switched only at
+rest): ``trajectory`` streams what the planner sends, ``operator`` follows ``cmd_vel`` (``streaming.operator``).
+``~/stop`` stops without swing (``streaming.stop_request``), a motion's stop planned by ``serving.stops`` in a
+worker process (this process never loads CasADi). With ``feedback`` the measured swing corrects what streams
+(``streaming.feedback_port``); with ``runway`` a guard keeps it clear of other cranes (``streamer_runway``)."""
 from __future__ import annotations
 
 import time
@@ -32,6 +29,7 @@ from crane_msgs_py.runtime.diagnostics import ERROR, OK, DiagnosticsPublisher
 from crane_msgs_py.runtime.node_parameters import Guard, declare
 from crane_msgs_py.runtime.realtime import Lateness, Ticker, lateness_summary_us, sleep_until
 from crane_msgs_py.runtime.runner import LoopThread, run
+from crane_planner.nodes.streamer_runway import RunwayPort
 from crane_planner.serving.stops import StopWorker
 from crane_planner.streaming.config import INITIAL_POSITIONS, PARAMETERS, StreamerConfig
 from crane_planner.streaming.feedback_port import FeedbackPort
@@ -46,8 +44,7 @@ from crane_planner.streaming.streamer import Streamer
 from crane_planner.streaming.streamer_state import Mode, State
 from crane_planner.streaming.trajectory_intake import trajectory_refusal
 
-STREAM_TASK = 'stream'
-TRAJECTORY_TASK = 'trajectory'
+STREAM_TASK, TRAJECTORY_TASK = 'stream', 'trajectory'
 
 
 class StreamerNode(Node):
@@ -71,10 +68,8 @@ class StreamerNode(Node):
         self._state_pub = self.create_publisher(StreamState, names.STREAM_STATE_TOPIC, qos.STREAM_STATE_QOS)
         self._state_every = max(1, round(p['rate'] / p['state_rate']))
 
-        # Shared with the loop thread (the cores are thread-safe); the loop owns the ticker. The streamer's
-        # state wakes the loop; the stream's decides what trajectories it takes. Nothing streams before the
-        # hold is known (start_position: the axes measured at rest, by default). Operator mode's stream is
-        # made at a start, from the hold then.
+        # Shared with the loop thread (thread-safe cores); the loop owns the ticker. The streamer's state wakes the
+        # loop; nothing streams before the hold is known (start_position). Operator mode's is made at a start.
         initial = tuple(p[INITIAL_POSITIONS[joint]] for joint in self._joints)
         self._start = StartPosition(self._joints, p['hold_source'], initial, p['initial_fallback_after'])
         self._stream = ReferenceStream(self._period_ns, initial if len(initial) > 1 else initial[0],
@@ -85,8 +80,7 @@ class StreamerNode(Node):
         self._created_ns = self._synced_ns = self.get_clock().now().nanoseconds
         self._lateness, self._first_tick_ns = Lateness(keep_all=bool(self._timing_log)), None
         self.ticks = self.sent = self.skipped = self.accepted = self.refused = self.commands = self._ticks_window = 0
-        self._window_start = time.monotonic()
-        self._link = Link()  # the loop's, with the impairment of the moment
+        self._link, self._window_start = Link(), time.monotonic()  # (the loop's link, the impairment of the moment)
         self.create_subscription(JointTrajectory, names.TRAJECTORY_TOPIC, self._on_trajectory, qos.TRAJECTORY_QOS)
         self.create_subscription(Twist, names.CMD_VEL_TOPIC, self._on_cmd_vel, qos.CMD_VEL_QOS)
         self.create_subscription(JointState, names.JOINT_STATES_TOPIC, self._on_joint_state, qos.JOINT_STATES_QOS)
@@ -96,6 +90,7 @@ class StreamerNode(Node):
         self.create_timer(1.0, self._report)
         self._loop_thread = LoopThread(self, self._loop, 'reference-loop', p['sched_priority'])
         self._stops = StopWorker(self._joints, config.model)  # ~/stop's planner: a process started in the background
+        self._runway = RunwayPort(self, config, self._joints, self._streamer, self._stops, self._diagnostics)
         self.get_logger().info(f'{p["output"]} on {self.resolve_topic_name(names.REFERENCE_TOPIC)} at '
                                f'{p["rate"]:g} Hz, joints {", ".join(self._joints)}: '
                                + (self._begin() if p['auto_start'] else 'waiting for ~/start'))
@@ -105,7 +100,7 @@ class StreamerNode(Node):
     def _config_of(self, values: dict) -> StreamerConfig:
         """The parameters checked together; a mode or operator setting changes only at rest."""
         at_rest = hasattr(self, '_streamer') and self._streamer.source.at_rest
-        return StreamerConfig.of(values, getattr(self, '_config', None), at_rest)
+        return StreamerConfig.of(values, getattr(self, '_config', None), at_rest, self.get_namespace())
 
     def _source(self, config: StreamerConfig, hold):  # operator mode's fresh: a stick held before does not move it
         operating = Mode(config.mode) is Mode.OPERATOR
@@ -118,6 +113,7 @@ class StreamerNode(Node):
             self._impairment = config.impairment  # the loop picks it up at its next tick
             self.get_logger().info(f'network impairment: {config.impairment}')
         self._feedback.configure(config, self.get_logger().info)
+        self._runway.configure(config)
         if config.changes_mode(self._config):  # (at rest: the new source starts where the old left the axes)
             self._streamer.use(Mode(config.mode), self._source(config, self._streamer.settle()))
             following = f': following {self.resolve_topic_name(names.CMD_VEL_TOPIC)}, shaper {config.operator.shaper}'
@@ -144,6 +140,8 @@ class StreamerNode(Node):
                 raise ValueError(refusal)
             holds = (None, *self._stream.hold[1:]) if len(self._joints) > 1 else None  # a hoist left out: held
             columns = conversions.joint_trajectory_columns(msg, self._joints, holds)
+            if refusal := self._runway.refusal(columns[1]):  # (towards a crane its guard stops for)
+                raise ValueError(refusal)
             motion = self._stream.accept(*columns, start_ns, now_ns, sampled)
         except ValueError as exc:
             self.refused += 1
@@ -157,6 +155,7 @@ class StreamerNode(Node):
 
     def _on_joint_state(self, msg: JointState):
         self._feedback.measure(conversions.stamp_ns(msg.header.stamp), msg.name, msg.position)
+        self._runway.measure(msg.name, msg.position)
         hold = self._start.on_joint_state(msg.name, msg.position, msg.velocity)
         if hold is not None:
             self._go(hold)
@@ -249,7 +248,8 @@ class StreamerNode(Node):
         motion, streamer, m = self._stream.last_motion, self._streamer, self._stream.last_motion is not None
         conversions.fill_stream_state(self._state_msg, stamp, streamer.moving, *setpoint, motion.start_ns if m else 0,
                                       motion.duration if m else 0.0, streamer.mode is Mode.OPERATOR,
-                                      motion.origin_ns if m else 0, self._feedback.corrections())
+                                      motion.origin_ns if m else 0, self._feedback.corrections(), self._runway.reason)
+        self._runway.publish(stamp, setpoint)
         try:
             self._state_pub.publish(self._state_msg)
         except Exception:  # the context is shut down (SIGINT): the reference's publish ends the loop
@@ -290,7 +290,7 @@ class StreamerNode(Node):
 
     def destroy_node(self):
         self._loop_thread.stop()
-        self._stops.close()
+        self._stops.close(), self._runway.close()
         if self._timing_log:
             self._lateness.dump(self._timing_log, 1e9 / self._period_ns, self._first_tick_ns)
         super().destroy_node()

@@ -13,14 +13,19 @@ them):
 
 - ``STOP``: the gap would fall under ``runway_min_distance``: stop now (the
   streamer's planned stop, swing-free), and refuse motions towards that crane
-  until the gap is over the minimum again with this crane at rest;
+  until the way is clear: the gap back over ``WARNING_FACTOR`` times the
+  minimum (the level stays ``STOP`` until then; without that margin a crane
+  stopped at the minimum would creep on towards the other, stop after stop);
 - ``WARNING`` under ``WARNING_FACTOR`` times the minimum, ``INFO`` under
   ``INFO_FACTOR`` times: said on ``/diagnostics``, nothing done;
 - ``LOST``: a crane within reach (its last gap under ``reach``) not heard for
   ``runway_timeout``: treated as ``STOP`` until it is heard again.
 
 Levels as the anti-collision anchors use them (warning and stop radii around
-the braking distance); pure Python, no ROS import, a few microseconds a tick.
+the braking distance). ``envelope`` takes the stopping distance as its caller's
+stop travels it (the streamer's operator mode knows it exactly, its planned
+stop bounds it); ``reach`` is the envelope of the fastest jerk-limited stop.
+Pure Python, no ROS import, a few microseconds a tick.
 """
 from __future__ import annotations
 
@@ -59,30 +64,41 @@ class Reach:
         return max(other.low - self.high, self.low - other.high)
 
 
+def envelope(girder: float, masses_y, shape: Shape, travel: float) -> Reach:
+    """The stopping envelope (see the module docstring) of a crane whose girder is at ``girder`` (m, y in
+    ``runway``) with its masses at ``masses_y``, whose stop travels ``travel`` (m, signed along y) before it
+    stands still."""
+    g, h = shape.girder_half_width, shape.load_half_size
+    low, high = girder - g, girder + g
+    for y in masses_y:
+        if y - h < low:
+            low = y - h
+        if y + h > high:
+            high = y + h
+    return Reach(low + travel, high) if travel < 0.0 else Reach(low, high + travel)
+
+
 def reach(girder: float, velocity: float, acceleration: float, masses_y, shape: Shape, deceleration: float,
           jerk: float) -> Reach:
-    """The stopping envelope (see the module docstring) of a crane whose girder is at ``girder`` (m, y in
-    ``runway``) moving at ``velocity`` (m/s) and ``acceleration`` (m/s^2) along y, its masses at ``masses_y``,
-    stopped within ``deceleration`` (m/s^2) and ``jerk`` (m/s^3)."""
+    """The stopping envelope of a crane whose girder is at ``girder`` (m, y in ``runway``) moving at
+    ``velocity`` (m/s) and ``acceleration`` (m/s^2) along y, its masses at ``masses_y``, stopped as fast as
+    ``deceleration`` (m/s^2) and ``jerk`` (m/s^3) allow (``crane_msgs_py.crane.braking``)."""
     d = stopping_distance(velocity, acceleration, deceleration, jerk) if (velocity or acceleration) else 0.0
-    g = shape.girder_half_width
-    low, high = girder - g, girder + g
-    h = shape.load_half_size
-    for y in masses_y:
-        low, high = min(low, y - h), max(high, y + h)
-    return Reach(low + min(d, 0.0), high + max(d, 0.0))
+    return envelope(girder, masses_y, shape, d)
 
 
 @dataclass
 class Neighbour:
     """What the guard knows of another crane: its last envelope, when it was heard (ns, receipt on this
-    crane's clock) and its level."""
+    crane's clock), its level and gap, and whether a stop for it still holds (``held``: until the way is
+    clear)."""
 
     crane: str
     reach: Reach
     heard_ns: int
     level: Level = Level.CLEAR
     gap: float = math.inf
+    held: bool = False
 
 
 @dataclass(frozen=True)
@@ -100,6 +116,10 @@ class Verdict:
         return direction != 0.0 and math.copysign(1.0, direction) in self.blocked
 
 
+#: The directions refused, by a bit mask (1: +y, 2: -y): made once, the guard hands them out every tick.
+_BLOCKED = (frozenset(), frozenset({1.0}), frozenset({-1.0}), frozenset({1.0, -1.0}))
+
+
 class Guard:
     """The guard (see the module docstring).
 
@@ -112,6 +132,7 @@ class Guard:
     def __init__(self, min_distance: float, timeout: float, reach: float):
         self.min_distance, self.timeout_ns, self.reach = float(min_distance), round(timeout * 1e9), float(reach)
         self.neighbours: dict[str, Neighbour] = {}
+        self._verdict = Verdict(Level.CLEAR, '', math.inf, _BLOCKED[0])
 
     def heard(self, crane: str, envelope: Reach, now_ns: int) -> None:
         """Another crane's state, received now."""
@@ -122,32 +143,43 @@ class Guard:
             known.reach, known.heard_ns = envelope, now_ns
 
     def check(self, mine: Reach, now_ns: int) -> Verdict:
-        """This tick's verdict for this crane's envelope ``mine``."""
-        worst, blocked = None, set()
+        """This tick's verdict for this crane's envelope ``mine`` (the last one again if nothing changed)."""
+        worst, blocked = None, 0
+        low, high, middle = mine.low, mine.high, mine.low + mine.high
+        stop, timeout = self.min_distance, self.timeout_ns
         for n in self.neighbours.values():
-            n.gap = mine.gap(n.reach)
-            if now_ns - n.heard_ns > self.timeout_ns and n.gap < self.reach:
-                n.level = Level.LOST
-            elif n.gap < self.min_distance:
-                n.level = Level.STOP
-            elif n.gap < WARNING_FACTOR * self.min_distance:
-                n.level = Level.WARNING
-            elif n.gap < INFO_FACTOR * self.min_distance:
-                n.level = Level.INFO
+            other = n.reach
+            gap = n.gap = max(other.low - high, low - other.high)
+            if now_ns - n.heard_ns > timeout and gap < self.reach:
+                level = Level.LOST
+            elif gap < stop or (n.held and gap < WARNING_FACTOR * stop):
+                level, n.held = Level.STOP, True
             else:
-                n.level = Level.CLEAR
-            if n.level >= Level.STOP:
-                blocked.add(1.0 if n.reach.low + n.reach.high > mine.low + mine.high else -1.0)
-            if worst is None or (n.level, -n.gap) > (worst.level, -worst.gap):
+                n.held = False
+                level = (Level.WARNING if gap < WARNING_FACTOR * stop else Level.INFO if gap < INFO_FACTOR * stop
+                         else Level.CLEAR)
+            n.level = level
+            if level >= Level.STOP:
+                blocked |= 1 if other.low + other.high > middle else 2
+            if worst is None or level > worst.level or (level == worst.level and gap < worst.gap):
                 worst = n
+        last = self._verdict
         if worst is None or worst.level is Level.CLEAR:
-            return Verdict(Level.CLEAR, '', math.inf if worst is None else worst.gap, frozenset())
-        return Verdict(worst.level, worst.crane, worst.gap, frozenset(blocked))
+            gap = math.inf if worst is None else worst.gap
+            if last.level is Level.CLEAR and last.gap == gap:
+                return last
+            verdict = Verdict(Level.CLEAR, '', gap, _BLOCKED[0])
+        else:
+            verdict = Verdict(worst.level, worst.crane, worst.gap, _BLOCKED[blocked])
+        self._verdict = verdict
+        return verdict
 
 
 def within_reach(min_distance: float, max_velocity: float, timeout: float, deceleration: float,
-                 jerk: float) -> float:
+                 jerk: float, lag: float = 0.0) -> float:
     """The gap (m) within which a neighbour gone silent stops this crane: the minimum distance and, for each of
-    the two cranes, how far it may travel at ``max_velocity`` in ``timeout`` and then brake."""
-    one = max_velocity * timeout + stopping_distance(max_velocity, 0.0, deceleration, jerk)
+    the two cranes, how far it may travel at ``max_velocity`` in ``timeout`` and then stop: ``lag`` (s) at that
+    velocity before braking (a shaper's delay, a stop's lead) and the braking within ``deceleration`` and
+    ``jerk``."""
+    one = max_velocity * (timeout + lag) + stopping_distance(max_velocity, 0.0, deceleration, jerk)
     return min_distance + 2.0 * one

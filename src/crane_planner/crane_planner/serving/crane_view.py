@@ -49,6 +49,7 @@ class StreamSample:
     motion_duration: float
     motion_origin_ns: int  # when its first knot is streamed
     correction: dict = field(default_factory=dict)  # joint -> the sway feedback's correction (m), not in hold
+    reason: str = ''  # why the streamer itself stopped or refused the newest motion (its runway guard)
 
     @property
     def operator(self) -> bool:

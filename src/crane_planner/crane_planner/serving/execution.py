@@ -95,6 +95,7 @@ class Execution:
         self.motion_start_ns: int | None = None  # the streamer's first tick of this motion
         self.motion_origin_ns: int | None = None  # when the streamer streams its first knot
         self.stream_ns: int | None = None  # the newest stream_state stamp
+        self.stream_reason = ''  # the newest stream_state's reason: why the streamer stopped or refused a motion
         self.swing = math.nan  # m, the newest load excursion
         self._state_ns: int | None = None  # the newest joint_states stamp
         self._failure = ''
@@ -112,18 +113,21 @@ class Execution:
 
     def on_stream_state(self, stamp_ns: int, motion_start_ns: int, motion_duration: float,
                         motion_origin_ns: int | None = None, streaming: bool = True,
-                        correction: dict | None = None) -> None:
+                        correction: dict | None = None, reason: str = '') -> None:
         """A ``stream_state``: its tick's stamp and the current (or last) motion's start, duration and origin
         (when its first knot is streamed; default its start), and whether it streams a motion: one that holds
-        before this motion's end has dropped it (its ~/stop, or the axes' fault reaction); ``correction``: what its
-        sway feedback added to the reference then, by joint (m)."""
+        before this motion's end has dropped it (its ~/stop, its runway guard, or the axes' fault reaction);
+        ``correction``: what its sway feedback added to the reference then, by joint (m); ``reason``: why the
+        streamer itself stopped or refused the newest motion (its runway guard, naming the crane)."""
         if self.stream_ns is None or stamp_ns > self.stream_ns:  # the silence counts from the next check
             self._silent_ns, self._looked_ns = 0, None
         self.stream_ns = stamp_ns
+        self.stream_reason = reason
         end = self.end_ns
         if end is not None and not streaming and stamp_ns < end - DROPPED_BEFORE_END_NS and not self._failure:
-            self._failure = (f'the streamer stopped streaming the motion at {100 * self.progress:.0f} %: it holds '
-                             '(a ~/stop, or the axes braked to rest by their fault reaction: see its log)')
+            self._failure = (f'the streamer stopped streaming the motion at {100 * self.progress:.0f} %: it holds ('
+                             + (reason or 'a ~/stop, or the axes braked to rest by their fault reaction: see its log')
+                             + ')')
         if (self.motion_start_ns is None and motion_start_ns >= self.start_ns - 1_000_000
                 and abs(motion_duration - self.duration) < 1e-6):
             self.motion_start_ns = motion_start_ns  # ours: started at or after its start, as long as planned
@@ -247,6 +251,7 @@ class Execution:
                 self._failure = ('the streamer did not stream the motion within '
                                  f'{self.start_timeout:g} s of its start'
                                  + (' (no stream_state: is the streamer running?)' if self.stream_ns is None else
+                                    f' (refused: {self.stream_reason})' if self.stream_reason else
                                     ' (refused: see its /diagnostics, e.g. not at the hold position or busy)'))
                 return FAILED
             return WAITING

@@ -102,7 +102,8 @@ class MoveService:
         self.runway.on_stream_state(sample.state, sample.hold)  # (a hold published on a runway)
         for execution in self.goals.executions():
             execution.on_stream_state(sample.stamp_ns, sample.motion_start_ns, sample.motion_duration,
-                                      sample.motion_origin_ns, sample.state != HOLDING, sample.correction)
+                                      sample.motion_origin_ns, sample.state != HOLDING, sample.correction,
+                                      sample.reason)
 
     def on_axis_status(self, stamp_ns: int, state: str, message: str) -> None:
         """The sim's (the axes') ``axis_status``: a fault reaction fails the goal it happens in."""

@@ -33,7 +33,8 @@ API (kept stable: both nodes build on it):
   ``StopWarmup(joints, params)``: the stop worker's lighter warm-up (``warmups`` and the prediction, at
   ``workers.WARM_NICE``).
 - ``StopWorker(joints, params)``: the streamer's stop planner, a ``workers.SolverProcess`` started in the
-  background: ``status``, ``ready``, ``stop(interps, origin_ns, now, params) -> StopTrajectory | None``
+  background: ``status``, ``ready``, ``lead`` (s: how far ahead the next stop takes over at first),
+  ``stop(interps, origin_ns, now, params) -> StopTrajectory | None``
   (None: the motion ends before a stop could take over; PlanError: why there is no stop, the worker's state
   included), ``take_over(stream, now, params) -> StopTrajectory | None`` (the stop of what a
   ``ReferenceStream`` streams, accepted by it), ``close()``.
@@ -241,6 +242,12 @@ class StopWorker:
     @property
     def ready(self) -> bool:
         return self.status == 'ready'
+
+    @property
+    def lead(self) -> float:
+        """How far ahead (s) of its request the next stop takes over at first (``stop``'s default lead, or 1.5
+        times as long as the last stop took to plan): what the runway guard counts on."""
+        return max(STOP_LEAD, 1.5 * self._took + ANSWER_MARGIN)
 
     def stop(self, interps, origin_ns: int, now, params: CraneParams,
              lead: float = STOP_LEAD) -> StopTrajectory | None:

@@ -20,6 +20,8 @@ from crane_msgs_py.crane.params import (
 )
 from crane_msgs_py.messages.names import OUTPUT_JOINT_TRAJECTORY, OUTPUTS
 
+from ..runway.config import PARAMETERS as RUNWAY_PARAMETERS
+from ..runway.config import RunwayConfig
 from .impairment import DISTRIBUTIONS, Impairment
 from .operator import OPERATOR_SHAPERS, OperatorStream
 from .start_position import HOLD_SOURCES
@@ -124,6 +126,7 @@ PARAMETERS = {
                   {'additional_constraints': '[shortest, longest], 0 < shortest < longest',
                    **renamed_from('operator.hoist_range')}),
     **model_parameters(lambda description: f'crane model of the operator shaper and of a ~/stop: {description}'),
+    **RUNWAY_PARAMETERS,  # (the runway guard: streaming.runway_guard)
 }
 
 
@@ -151,8 +154,8 @@ class OperatorConfig:
 class StreamerConfig:
     """The streamer's parameters checked together: the link's impairment, the crane model (of the operator's
     shaper, of a ~/stop and of the sway feedback), the mode and operator mode's settings, the axes' braking ramp
-    (m/s^2, m/s^3) of a ~/stop that cannot be one without swing, and whether the sway feedback is on (and its
-    timeout, s)."""
+    (m/s^2, m/s^3) of a ~/stop that cannot be one without swing, whether the sway feedback is on (and its
+    timeout, s), and the runway's parameters (its guard)."""
 
     impairment: Impairment
     model: CraneParams
@@ -162,11 +165,14 @@ class StreamerConfig:
     fault_jerk: float = 5.0
     feedback: bool = False
     feedback_timeout: float = 0.2
+    runway: RunwayConfig = RunwayConfig()
 
     @classmethod
-    def of(cls, values: dict, current: 'StreamerConfig | None' = None, at_rest: bool = True) -> 'StreamerConfig':
+    def of(cls, values: dict, current: 'StreamerConfig | None' = None, at_rest: bool = True,
+           namespace: str = '') -> 'StreamerConfig':
         """The parameters by name checked together, a change of ``current`` (the mode or operator mode's
-        settings only ``at_rest``); ParameterError (or ValueError) names the problem."""
+        settings only ``at_rest``); ``namespace`` names the crane on the runway when ``crane_name`` is empty.
+        ParameterError (or ValueError) names the problem."""
         impairment = Impairment(delay=values['network.delay'], jitter=values['network.jitter'],
                                 distribution=values['network.distribution'], loss=values['network.loss'],
                                 reorder=values['network.reorder'], seed=values['network.seed'])
@@ -180,7 +186,8 @@ class StreamerConfig:
         limits = tuple(a.limits(*(values[name] for name in a.limit_parameters('operator'))) for a in AXES)
         operator = OperatorConfig(values['operator_shaper'], values['cmd_timeout'], limits, (shortest, longest), model)
         config = cls(impairment, model, values['mode'], operator, values['fault_deceleration'], values['fault_jerk'],
-                     bool(values['feedback']), values['feedback_timeout'])
+                     bool(values['feedback']), values['feedback_timeout'],
+                     RunwayConfig.from_values(values, namespace))
         if current is not None and config.changes_mode(current) and not at_rest:
             raise ParameterError('mode and the operator settings change only with the crane at rest (no motion '
                                  'streaming, the operator\'s command played out)')

@@ -18,7 +18,11 @@ command arrives.
 
 ``OperatorStream`` is the operator mode's ``source.Source``: ``sample`` is
 called by the streamer's loop; ``command`` and ``stop`` from its executor
-(a tuple assignment: no lock). Pure Python, no ROS import.
+(a tuple assignment: no lock). The runway guard, in the loop, asks how far an
+axis would travel were the stick released now (``stopping_travel``: the base's
+braking within the axis's limits plus what the shaper still owes, exactly)
+and holds the command of an axis at zero towards a crane it refuses
+(``refuse``). Pure Python, no ROS import.
 """
 from __future__ import annotations
 
@@ -29,6 +33,7 @@ from operator import attrgetter
 import numpy as np
 
 from crane_msgs_py.crane.axes import CART, HOIST, axis, check_axes
+from crane_msgs_py.crane.braking import stopping_distance
 from crane_msgs_py.crane.params import CraneParams
 
 from ..planning.model import modal_properties
@@ -107,6 +112,8 @@ class OperatorStream:
         self._impulses = (np.ones(1), np.zeros(1))  # amplitudes, delays (ticks)
         self._blocked = 0  # the direction the hoist is stopped in at a bound of its range (-1, 0, 1)
         self._moved = -(10 ** 9)  # the last tick a travel axis's base moved (never yet)
+        self._now = (list(start), [0.0] * self.axes, [0.0] * self.axes)  # the base's (p, v, a) at the last tick
+        self._refused: tuple = ()  # (axis, directions) whose command is held at zero (``refuse``)
         self.position = start
 
     # -- inputs (the executor) ---------------------------------------------------------------
@@ -120,6 +127,23 @@ class OperatorStream:
         """Zero velocity from now on (until the next command)."""
         self._command = (self.clock(), (0.0,) * self.axes)
 
+    # -- the runway guard (the loop) -------------------------------------------------------------
+
+    def refuse(self, index: int, directions) -> None:
+        """Hold axis ``index``'s command at zero while it points along one of ``directions`` (+1.0, -1.0: the
+        signs of its velocity), from the next tick on; none: every command taken again."""
+        self._refused = (index, directions) if directions else ()
+
+    def stopping_travel(self, index: int) -> float:
+        """How far (m, signed) axis ``index``'s reference travels from its last tick if the command of that
+        axis became zero now: what the shaper still owes of the base (the base less the shaped reference: the
+        shaper's amplitudes sum to 1) and the base's braking within the axis's limits, the time-optimal
+        jerk-limited stop ruckig runs (``crane_msgs_py.crane.braking``)."""
+        p, v, a = self._now
+        limit = self.limits[index]
+        jerk = limit.max_jerk or 1e9  # (ruckig without a jerk limit: a step of the acceleration)
+        return p[index] - self.position[index] + stopping_distance(v[index], a[index], limit.max_acceleration, jerk)
+
     # -- the loop ---------------------------------------------------------------------------------
 
     def target(self, now: float) -> list:
@@ -128,6 +152,10 @@ class OperatorStream:
         if now - stamp > self.cmd_timeout:
             return [0.0] * self.axes
         target = [max(-lim.max_velocity, min(lim.max_velocity, v)) for v, lim in zip(velocity, self.limits)]
+        if self._refused:
+            index, directions = self._refused
+            if target[index] and math.copysign(1.0, target[index]) in directions:
+                target[index] = 0.0
         h = self._hoist
         if h is not None:  # stop the rope where braking from its rate ends at the range's bound
             inp = self._input
@@ -155,6 +183,7 @@ class OperatorStream:
         self._otg.update(inp, out)
         out.pass_to_input(inp)
         p, v, a = out.new_position, out.new_velocity, out.new_acceleration
+        self._now = (p, v, a)
         k = self._k = self._k + 1
         ring = self._base[k % self._n]
         for i, j in enumerate(self._travel):

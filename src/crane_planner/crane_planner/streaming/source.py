@@ -8,7 +8,10 @@ it has left the axes, so the loop streams whichever is active without
 naming it. A *correction* changes a source's setpoint after the source, in
 the order of the chain (a feedback on the measured swing is one): it gets
 the tick, its stamp and the setpoint and returns the corrected one. With no
-corrections the source's setpoint is published as it is.
+corrections the source's setpoint is published as it is. A *watch* sees
+every setpoint as it is published and the source that made it, changes
+none, and may hold the source back (the runway guard refuses motions
+towards another crane).
 
 Pure Python, no ROS import.
 """
@@ -54,6 +57,14 @@ class Correction(Protocol):
 
     def correct(self, tick: int, stamp_ns: int, setpoint: Setpoint) -> Setpoint:
         """The corrected setpoint of ``tick``, published with the stamp ``stamp_ns`` (ROS time)."""
+
+
+@runtime_checkable
+class Watch(Protocol):
+    """A rule that sees every published setpoint (see the module docstring)."""
+
+    def watch(self, stamp_ns: int, setpoint: Setpoint, source: Source) -> None:
+        """The setpoint published with the stamp ``stamp_ns`` (ROS time), made by ``source``."""
 
 
 def corrected(corrections: tuple, tick: int, stamp_ns: int, setpoint: Setpoint) -> Setpoint:

@@ -54,20 +54,43 @@ def request_stop(streamer: Streamer, take_over: Callable[[], StopTrajectory | No
     return StopAnswer('stopped')
 
 
-def _stop_motion(streamer: Streamer, take_over, now, deceleration: float, jerk: float) -> StopAnswer:
-    warning = ''
+@dataclass(frozen=True)
+class MotionStop:
+    """A running motion's stop taken over by the stream: its trajectory (None: the motion ends first, at rest by
+    itself), how it stops in words, and a warning to log when it is the braking ramp."""
+
+    stop: StopTrajectory | None
+    how: str
+    warning: str = ''
+
+    def text(self) -> str:
+        if self.stop is None:
+            return 'the motion ends before a stop could take over (at rest)'
+        return f'{self.how} at {position_text(self.stop.end)} m in {self.stop.duration:.3g} s ({self.stop.method})'
+
+
+def stop_motion(stream, take_over: Callable[[], StopTrajectory | None], now: Callable[[], int], deceleration: float,
+                jerk: float) -> MotionStop:
+    """The motion ``stream`` (a ``reference_stream.ReferenceStream``) streams, stopped without swing
+    (``take_over``, see ``request_stop``) or, if none can be had in time, along the axes' braking ramp; the
+    streamer's state is the caller's (a ``~/stop`` stops streaming after it, the runway guard holds).
+    ValueError if nothing is left to brake (the motion ended meanwhile)."""
     try:
-        stop, how = take_over(), 'without swing'
+        return MotionStop(take_over(), 'without swing')
     except ValueError as exc:
-        try:
-            stop = brake(streamer.stream, now, deceleration, jerk)
-        except ValueError as again:  # (the motion ended meanwhile: nothing to brake)
-            streamer.halt()
-            return StopAnswer(f'stopped ({again})')
+        stop = brake(stream, now, deceleration, jerk)  # (ValueError: nothing to brake)
         how = f'along the axes\' braking ramp (no stop without swing in time: {exc})'
-        warning = f'~/stop {how}'
+        return MotionStop(stop, how, how)
+
+
+def _stop_motion(streamer: Streamer, take_over, now, deceleration: float, jerk: float) -> StopAnswer:
+    try:
+        stopped = stop_motion(streamer.stream, take_over, now, deceleration, jerk)
+    except ValueError as again:  # (the motion ended meanwhile: nothing to brake)
+        streamer.halt()
+        return StopAnswer(f'stopped ({again})')
     streamer.stopping()
-    if stop is None:
+    warning = f'~/stop {stopped.warning}' if stopped.warning else ''
+    if stopped.stop is None:
         return StopAnswer('stopping: the motion ends before a stop could take over (at rest), then stopped', warning)
-    return StopAnswer(f'stopping {how} at {position_text(stop.end)} m in {stop.duration:.3g} s ({stop.method}), '
-                      'then stopped', warning)
+    return StopAnswer(f'stopping {stopped.text()}, then stopped', warning)

@@ -6,8 +6,9 @@ and the loop takes it at its next tick, so the executor never swaps what the
 loop is streaming under it. A request names the mode and its source
 (``source.Source``): a mode change at rest, or a fresh operator stream at a
 start. ``tick`` takes the inbox, samples the active source, applies the
-corrections in order (``source.corrected``) and ends a ``~/stop`` once the
-source is at rest; it names no source.
+corrections in order (``source.corrected``), shows the result to the watches
+(the runway guard) and ends a ``~/stop`` once the source is at rest; it
+names no source.
 
 What the trajectory source already hands over thread-safely stays its own:
 ``ReferenceStream.accept`` (a motion, a handover, a stop's trajectory),
@@ -22,7 +23,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from .reference_stream import ReferenceStream
-from .source import Correction, Setpoint, Source, corrected
+from .source import Correction, Setpoint, Source, Watch, corrected
 from .streamer_state import Mode, State, StreamerState
 
 _STOPPING = State.STOPPING  # (the loop asks every tick: a global, not the enum's attribute)
@@ -69,11 +70,13 @@ class Streamer:
         stream: the trajectory mode's source, the one at start-up; it also keeps the hold between sources
             and at a stop.
         corrections: applied after the source every tick, in order.
+        watches: shown every published setpoint, after the corrections.
     """
 
-    def __init__(self, stream: ReferenceStream, corrections: tuple = ()):
+    def __init__(self, stream: ReferenceStream, corrections: tuple = (), watches: tuple = ()):
         self.stream = stream
         self.corrections: tuple[Correction, ...] = tuple(corrections)
+        self.watches: tuple[Watch, ...] = tuple(watches)
         self._state = StreamerState()
         self._inbox = Inbox(Request(Mode.TRAJECTORY, stream))
         self._active: Source = stream  # the loop's
@@ -158,6 +161,8 @@ class Streamer:
         setpoint = source.sample(tick)
         if self.corrections:
             setpoint = corrected(self.corrections, tick, stamp_ns, setpoint)
+        for watch in self.watches:
+            watch.watch(stamp_ns, setpoint, source)
         if self._state.state is _STOPPING and source.at_rest:
             self._stopped(source)
         return setpoint

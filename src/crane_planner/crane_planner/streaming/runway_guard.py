@@ -1,0 +1,301 @@
+"""The runway guard as a rule of the streamer's loop: each tick, this crane's stopping envelope against the other
+cranes' (contract "Cranes sharing a runway"; the levels and envelopes are ``runway.guard``'s).
+
+The executor hands in the other cranes' states as they arrive (``heard``:
+their envelope and the time it came, into one realtime inbox the loop drains,
+as the sway feedback's measurements) and the masses' offsets from the newest
+``joint_states`` (``measured``). Each tick the loop's ``watch`` (a
+``source.Watch``, after the source and its corrections) places this crane in
+the runway frame: its girder where the bridge's published reference is (plus
+``runway_offset``'s y; at the offset without a bridge joint), its masses by
+their measured offsets from below the trolley, and its stopping envelope
+widened by how far the stop it would run now travels:
+
+- in operator mode the operator's own stop (the stick's command of the
+  bridge held at zero: braked by ruckig within the bridge's operator limits,
+  then played out by the shaper), exactly (``OperatorStream.stopping_travel``);
+- in trajectory mode the planned stop (``serving.stops`` in the stop worker,
+  ``PlannedStop``): the motion goes on for ``GUARD_LEAD`` (and ``WAKE``),
+  then an NVF stop to rest anywhere travels at most ``STOP_REACH`` times the
+  velocity then times the first mode's period (the largest measured over NVF,
+  RVF and ZV motions stopped at 20-70 %: 0.72), or the fallback braking ramp
+  within ``fault_deceleration`` and ``fault_jerk``, whichever goes further.
+
+Then ``runway.guard.Guard.check``. At ``STOP`` or ``LOST`` it stops what
+moves the crane towards that crane and refuses motions towards it until the
+way is clear: in operator mode the bridge's command towards it is held at zero
+from the next tick (``OperatorStream.refuse``: the operator's own shaped stop,
+without swing); in trajectory mode a motion whose bridge moves towards it is
+stopped by ``GuardStops`` on a thread of its own: the planned stop without
+swing if the stop worker has it taken over within ``GUARD_LEAD`` of the
+decision (it is planned there, never in the loop), else the braking ramp
+(``braking_stop``: it swings, and stops where the envelope said), and a
+trajectory moving the bridge towards it is refused (``refusal``). Motions
+away are taken. The streamer keeps streaming (it holds where the stop ends);
+``reason`` says which crane and why, for ``stream_state`` (the goal's result)
+until the next trajectory is taken.
+Pure Python, no ROS import.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import deque
+from typing import Callable
+
+from crane_msgs_py.crane.braking import stopping_distance
+from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT
+
+from ..planning.model import modal_frequencies
+from ..runway.config import RunwayConfig
+from ..runway.guard import Guard, Level, Reach, Verdict, envelope, within_reach
+from .operator import OperatorStream
+from .source import Setpoint, Source
+from .stop_request import MotionStop
+
+#: The planned stop's travel (trajectory mode) in units of the velocity at its handover times the first mode's
+#: period: the largest measured over NVF, RVF and ZV motions of the bridge stopped at 20-70 % of them was 0.72.
+STOP_REACH = 0.75
+#: How long (s) the guard's stop takes to be asked after the tick that decided it.
+WAKE = 0.01
+#: How far ahead (s) of that the guard's stop in trajectory mode takes over at the latest: the planned stop if
+#: the stop worker answers in time (its lead, 0.1 s, or 1.5 times as long as its last stop took to plan: the
+#: spatial crane's take 50-150 ms on a quiet host), else the braking ramp, ``RAMP_MARGIN`` before it.
+GUARD_LEAD = 0.4
+RAMP_MARGIN = 0.03
+
+
+class PlannedStop:
+    """How far (m) trajectory mode's stop may travel (see the module docstring).
+
+    Args:
+        first_period: the first mode's period (s) of the streamer's crane model.
+        deceleration, jerk: the fallback braking ramp's (``fault_deceleration``, ``fault_jerk``).
+    """
+
+    def __init__(self, first_period: float, deceleration: float, jerk: float):
+        self.first_period, self.deceleration, self.jerk = first_period, deceleration, jerk
+
+    def travel(self, v: float, a: float, lead: float) -> float:
+        """The signed travel from a reference at ``v`` (m/s), ``a`` (m/s^2) whose stop takes over ``lead`` s
+        later (the motion goes on meanwhile, at that acceleration)."""
+        v_h = v + a * lead
+        stop = STOP_REACH * abs(v_h) * self.first_period
+        ramp = abs(stopping_distance(v_h, a, self.deceleration, self.jerk))
+        return v * lead + a * lead * lead / 2.0 + math.copysign(max(stop, ramp), v_h if v_h else a)
+
+
+def first_period(model) -> float:
+    """The first mode's period (s) of the crane ``model`` (``planning.model``)."""
+    return 2.0 * math.pi / modal_frequencies(model)[0]
+
+
+class RunwayGuard:
+    """The guard in the loop (see the module docstring).
+
+    Args:
+        config: the runway parameters.
+        joints: the streamed joints (the bridge's column is the girder; without one the girder stands at the
+            offset).
+        period: the loop's tick (s).
+        planned: trajectory mode's stop (``PlannedStop``).
+        max_velocity, deceleration, jerk: the bridge's operator limits: how fast a crane is taken to travel and
+            brake when judging whether a silent one is within reach (``runway.guard.within_reach``).
+        wake: called (in the loop) when a motion towards a crane it stops for must be stopped.
+    """
+
+    def __init__(self, config: RunwayConfig, joints, period: float, planned: PlannedStop, max_velocity: float,
+                 deceleration: float, jerk: float, wake: Callable[[], None] = lambda: None):
+        joints = tuple(joints)
+        self.crane, self.period, self.planned, self.wake = config.crane, period, planned, wake
+        self.bridge = joints.index(BRIDGE_JOINT) if BRIDGE_JOINT in joints else None
+        self.cart = joints.index(CART_JOINT)
+        self.limits = (max_velocity, deceleration, jerk)
+        self.guard = Guard(config.min_distance, config.timeout, 0.0)
+        self.configure(config)
+        self._inbox: deque = deque()
+        self._measured = (0.0, 0.0, 0.0, 0.0)  # the hook's and the load's offsets (dx1, dy1, dx2, dy2), measured
+        self._source: Source | None = None
+        self._operator = False
+        self.verdict: Verdict = Verdict(Level.CLEAR, '', math.inf, frozenset())
+        self.mine = Reach(-math.inf, math.inf)
+        self.last = (0.0, 0.0, None)  # the girder's y and velocity, and the setpoint, at the last tick
+        self.changes = 0  # verdicts that changed level, crane or refusal (the port reports each)
+        self.stopping = False  # a stop of a motion towards a crane was asked, and the stream is not at rest yet
+        self.reason = ''  # what the guard last stopped or refused, until a trajectory is taken
+        self.ignored = 0  # states not taken (non-finite, another frame, this crane's own name)
+
+    def configure(self, config: RunwayConfig) -> None:
+        """The parameters that may change while running: the minimum distance, the timeout, the shape."""
+        g = self.guard
+        g.min_distance, g.timeout_ns = config.min_distance, round(config.timeout * 1e9)
+        self.offset, self.shape, self.timeout = config.offset, config.shape, config.timeout
+        lag = GUARD_LEAD + WAKE + STOP_REACH * self.planned.first_period  # (longer than any operator shaper's lag)
+        max_velocity, deceleration, jerk = self.limits
+        g.reach = within_reach(config.min_distance, max_velocity, config.timeout, deceleration, jerk, lag) if all(
+            x > 0.0 for x in self.limits) else math.inf
+
+    # -- the executor's side -----------------------------------------------------------------
+
+    def heard(self, crane: str, low: float, high: float, now_ns: int) -> bool:
+        """Another crane's state on the runway, received at ``now_ns`` (this crane's ROS time): its envelope.
+        False (counted in ``ignored``) if it is this crane's own or not finite."""
+        if crane == self.crane or not (math.isfinite(low) and math.isfinite(high) and low <= high):
+            self.ignored += 1
+            return False
+        self._inbox.append((crane, Reach(low, high), now_ns))
+        return True
+
+    def measured(self, hook: tuple, load: tuple) -> None:
+        """The masses' horizontal offsets (m) from the suspension point, (dx, dy) each, from joint_states."""
+        self._measured = (*hook, *load)
+
+    @property
+    def masses(self) -> tuple:
+        """(dx1, dy1, dx2, dy2): the newest measured offsets of the hook and the load."""
+        return self._measured
+
+    def refusal(self, position) -> str:
+        """Why a trajectory (``position``: its knots' positions, a row per knot, a column per joint; one joint:
+        1-D) is refused: it moves the bridge towards a crane the guard stops for; '' if it is taken."""
+        blocked, b = self.verdict.blocked, self.bridge
+        if blocked and b is not None:
+            y = [row[b] for row in position]
+            for direction in blocked:
+                towards = max(direction * (p - y[0]) for p in y)
+                if towards > 1e-9:
+                    why = f'the runway guard refuses motions towards {self.describe(self.verdict)}: this one ' \
+                          f'moves the bridge {towards:.3g} m towards it (away is taken)'
+                    self.reason = why
+                    return why
+        self.reason = ''
+        return ''
+
+    # -- the loop -----------------------------------------------------------------------------
+
+    def watch(self, stamp_ns: int, setpoint: Setpoint, source: Source) -> None:
+        """This tick's check (``source.Watch``): the states heard taken, this crane's envelope from the
+        published ``setpoint`` and how ``source`` would stop, the verdict acted upon."""
+        inbox, guard = self._inbox, self.guard
+        while inbox:
+            guard.heard(*inbox.popleft())
+        if source is not self._source:
+            self._source, self._operator = source, isinstance(source, OperatorStream)
+            self._refuse(self.verdict.blocked)
+        b = self.bridge
+        y0 = self.offset[1]
+        if b is None:
+            y, v, travel = y0, 0.0, 0.0
+        else:
+            y, v, a = setpoint.position[b] + y0, setpoint.velocity[b], setpoint.acceleration[b]
+            if self._operator:  # (the stick's zero taken from the next tick: one tick more)
+                travel = source.stopping_travel(b) + v * self.period
+            else:
+                travel = self.planned.travel(v, a, GUARD_LEAD + WAKE) if (v or a) else 0.0
+        _, dy1, _, dy2 = self._measured
+        mine = self.mine = envelope(y, (y + dy1, y + dy2), self.shape, travel)
+        self.last = (y, v, setpoint)
+        verdict = guard.check(mine, stamp_ns)
+        if verdict is not self.verdict:
+            last, self.verdict = self.verdict, verdict
+            if (verdict.level, verdict.crane, verdict.blocked) != (last.level, last.crane, last.blocked):
+                self.changes += 1
+                if verdict.blocked != last.blocked:
+                    self._refuse(verdict.blocked)
+        if self.stopping:  # (one stop at a time: its own braking moves towards the crane until it is at rest)
+            if source.at_rest:
+                self.stopping = False
+        elif verdict.blocked and v and not self._operator and math.copysign(1.0, v) in verdict.blocked:
+            self.stopping = True
+            self.reason = f'the runway guard stopped it: {self.describe(verdict)}'
+            self.wake()
+
+    def _refuse(self, blocked) -> None:
+        if self._operator and self.bridge is not None:
+            self._source.refuse(self.bridge, blocked)
+
+    # -- words --------------------------------------------------------------------------------
+
+    def describe(self, verdict: Verdict) -> str:
+        """The verdict in words: which crane, and why."""
+        min_distance = self.guard.min_distance
+        if verdict.level is Level.LOST:
+            return (f'{verdict.crane}, not heard for runway_timeout {self.timeout:g} s within reach '
+                    f'({verdict.gap:.3f} m)')
+        if verdict.level is Level.STOP:
+            return (f'{verdict.crane}, {verdict.gap:.3f} m between the stopping envelopes (runway_min_distance '
+                    f'{min_distance:g} m; clear again at {2.0 * min_distance:g} m)')
+        if verdict.level is Level.CLEAR:
+            return 'no crane near'
+        return f'{verdict.crane}, {verdict.gap:.3f} m between the stopping envelopes'
+
+
+class GuardStops:
+    """The guard's stops of a motion towards a crane (trajectory mode), run on a thread of their own: the loop
+    wakes it; it asks the planned stop (``planned``: the stop worker's stop without swing taken over by the
+    stream, on a helper thread) if the stop worker can have it in time (``ready``), and waits for it until
+    ``GUARD_LEAD - RAMP_MARGIN`` after it woke; without it by then, the braking ramp (``ramp``) takes over. A
+    planned stop answered later is refused by the stream (it no longer continues what streams) or, handed
+    over before the ramp, replaces it. ``log(warning, text)`` says what it did; the loop asks no other until
+    the stream is at rest.
+
+    Args:
+        guard: the loop's guard.
+        planned, ramp: each stops the motion streaming now: its ``StopTrajectory`` (None: the motion ends
+            first), or ValueError saying why not.
+        ready: whether the stop worker can have a stop taken over within ``GUARD_LEAD``.
+        log: ``log(warning: bool, text)``.
+    """
+
+    def __init__(self, guard: RunwayGuard, planned: Callable, ramp: Callable, ready: Callable[[], bool],
+                 log: Callable[[bool, str], None], lead: float = GUARD_LEAD):
+        self.guard, self.planned, self.ramp, self.ready, self.log, self.lead = guard, planned, ramp, ready, log, lead
+        self._event = threading.Event()
+        self._closed = False
+        guard.wake = self._event.set
+        self._thread = threading.Thread(target=self._run, name='runway-guard-stops', daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            self._event.wait()
+            self._event.clear()
+            if self._closed:
+                return
+            woken, why = time.monotonic(), self.guard.reason
+            try:
+                stopped = self._stop(woken)
+                self.guard.reason = f'{why}: stopping {stopped.text()}'  # (how it stopped, for the goal's result)
+                self.log(bool(stopped.warning), self.guard.reason)
+            except ValueError as exc:  # (the motion ended meanwhile: at rest, the loop asks no more)
+                self.log(False, f'{why}: nothing to stop ({exc})')
+            except Exception as exc:  # (a bug: said, and the loop asks again)
+                self.log(True, f'{why}: the stop failed: {exc!r}')
+                self.guard.stopping = False
+
+    def _stop(self, woken: float) -> MotionStop:
+        """The planned stop if it is taken over in time, else the ramp (ValueError: nothing to stop)."""
+        if not self.ready():
+            late = 'the stop planner cannot have it in time'
+        else:
+            answer: list = []
+
+            def ask():
+                try:
+                    answer.append(self.planned())
+                except ValueError as exc:
+                    answer.append(exc)
+            helper = threading.Thread(target=ask, name='runway-guard-planned-stop', daemon=True)
+            helper.start()
+            helper.join(max(0.0, woken + self.lead - RAMP_MARGIN - time.monotonic()))
+            if answer and not isinstance(answer[0], ValueError):
+                return MotionStop(answer[0], 'without swing')
+            late = str(answer[0]) if answer else f'no stop without swing within {self.lead:g} s'
+        how = f'along the axes\' braking ramp ({late})'
+        return MotionStop(self.ramp(), how, how)
+
+    def close(self) -> None:
+        self._closed = True
+        self._event.set()
+        self._thread.join(timeout=2.0)
