@@ -55,9 +55,42 @@ def nearest(mine: Occupancy, others) -> Closest | None:
 
 def conflicts(mine: Occupancy, others, min_distance: float) -> list[Closest]:
     """The others ``mine`` comes within ``min_distance`` of (each where closest), nearest first."""
-    found = [(c, other) for other in others if (c := closest(mine, other)).distance < required(mine, other,
-                                                                                                 min_distance)]
-    return sorted((c for c, _ in found), key=lambda c: c.distance)
+    return _conflicts(mine, _within_reach(mine, others, min_distance))
+
+
+def _extent(o: Occupancy) -> tuple[float, float]:
+    """The span of y (m) ``o``'s girder strip and load discs cover at any time."""
+    f, g, h = o.footprint, o.shape.girder_half_width, o.shape.load_half_size
+    ys = f.masses[:, :, 1]
+    return min(float(f.girder.min()) - g, float(ys.min()) - h), max(float(f.girder.max()) + g, float(ys.max()) + h)
+
+
+def _within_reach(mine: Occupancy, others, min_distance: float) -> list[tuple[Occupancy, float]]:
+    """(other, the distance the samples must keep from it) for each of ``others`` that ``mine`` could come
+    within that distance of at some delay: every distance ``separation`` takes is at least the gap between
+    the two cranes' spans of y over all time, which no delay changes."""
+    lo, hi = _extent(mine)
+    near = []
+    for other in others:
+        need = required(mine, other, min_distance)
+        olo, ohi = _extent(other)
+        if max(olo - hi, lo - ohi) < need:
+            near.append((other, need))
+    return near
+
+
+def _conflicts(mine: Occupancy, near) -> list[Closest]:
+    found = [c for other, need in near if (c := closest(mine, other)).distance < need]
+    return sorted(found, key=lambda c: c.distance)
+
+
+def _blocker(mine: Occupancy, near, first: str) -> str:
+    """The crane of ``near`` (other, distance) ``mine`` comes within its distance of ('' if none): crane
+    ``first`` looked at first (the one in the way at the delay before), the rest only while none is."""
+    for other, need in sorted(near, key=lambda n: n[0].crane != first):
+        if closest(mine, other).distance < need:
+            return other.crane
+    return ''
 
 
 def schedule(mine: Occupancy, others, min_distance: float, policy: str = 'wait',
@@ -66,7 +99,8 @@ def schedule(mine: Occupancy, others, min_distance: float, policy: str = 'wait',
     Raises ``Conflict`` naming the crane in the way when no delay up to ``max_delay`` (s; default: until the
     others stand still) keeps them apart."""
     others = [o for o in others if o.crane != mine.crane]
-    found = conflicts(mine, others, min_distance)
+    near = _within_reach(mine, others, min_distance)
+    found = _conflicts(mine, near)
     if not found:
         return Scheduled(0.0, '', nearest(mine, others))
     first = found[0]
@@ -77,13 +111,13 @@ def schedule(mine: Occupancy, others, min_distance: float, policy: str = 'wait',
     if max_delay is not None:
         horizon = min(horizon, max_delay)
     steps = int(math.ceil(horizon / DELAY_STEP - 1e-9))
+    blocker = first.crane
     for k in range(1, steps + 1):
         moved = mine.delayed(k * DELAY_STEP)
-        found = conflicts(moved, others, min_distance)
-        if not found:
+        blocker = _blocker(moved, near, blocker)
+        if not blocker:
             return Scheduled(k * DELAY_STEP, first.crane, nearest(moved, others))
-        last = found[0]
-    worst = last if steps else first
+    worst = _conflicts(moved, near)[0] if steps else first
     raise Conflict(worst.crane, worst, _message(worst, min_distance, 'no start within '
                                                 f'{horizon:.2f} s keeps it clear'))
 
