@@ -13,7 +13,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
     ],
-    install_requires=['setuptools', 'numpy', 'scipy', 'casadi', 'matplotlib', 'crane_msgs_py'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'casadi', 'matplotlib', 'pyyaml', 'crane_msgs_py'],
     # The nodes never need the simulator; the offline tools that simulate a plan (crane-plan, crane-demo) do.
     extras_require={'sim': ['crane_sim']},
     zip_safe=True,

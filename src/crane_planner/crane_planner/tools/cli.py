@@ -267,8 +267,8 @@ def _add_task_options(p: argparse.ArgumentParser, fastest: bool = False):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=PROG, description=__doc__.splitlines()[0].split(': ', 1)[1])
-    sub = parser.add_subparsers(dest='command', required=True,
-                                metavar='{plan,compare,sweep,choose,identify,report,simulate}', parser_class=_Parser)
+    sub = parser.add_subparsers(dest='command', required=True, parser_class=_Parser,
+                                metavar='{plan,compare,sweep,choose,identify,report,simulate,runway}')
 
     p = sub.add_parser('plan', help='make one plan and evaluate it on the plant')
     p.add_argument('--method', choices=METHODS, required=True)
@@ -351,6 +351,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--json', action='store_true', help='print the estimates as one JSON object')
     p.add_argument('--params-out', metavar='FILE', help='write a ROS 2 params file for the planner node')
     p.add_argument('--plot', metavar='FILE', help='write a PNG of the measured and fitted swing')
+
+    from .runway_cli import add_options as add_runway_options
+    p = sub.add_parser('runway', help='plan several cranes\' moves on one runway together, first published, first '
+                                      'served, and draw a runway view')
+    add_runway_options(p)
     return parser
 
 
@@ -682,8 +687,13 @@ def cmd_simulate(args) -> int:
     return simulate(args, make_plan)
 
 
+def cmd_runway(args) -> int:
+    from .runway_cli import cmd_runway as runway
+    return runway(args, lambda text: _say(args, text))
+
+
 COMMANDS = {'plan': cmd_plan, 'compare': cmd_compare, 'sweep': cmd_sweep, 'choose': cmd_choose,
-            'identify': cmd_identify, 'report': cmd_report, 'simulate': cmd_simulate}
+            'identify': cmd_identify, 'report': cmd_report, 'simulate': cmd_simulate, 'runway': cmd_runway}
 
 
 def main(argv=None) -> int:
