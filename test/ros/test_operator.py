@@ -4,10 +4,11 @@ import signal
 
 import numpy as np
 import pytest
+from shared_crane import CART_NAMESPACE
 
 from crane_msgs_py.crane.params import CraneParams
 
-NS = '/crane_operator'
+NS = CART_NAMESPACE
 NOMINAL = CraneParams()
 PLAYOUT = 0.2  # s: the sim's joint_states are stamped with plant time, this far behind the clock
 
@@ -24,10 +25,11 @@ def crane(operator_crane):
 
 
 @pytest.fixture(scope='module')
-def operator_crane(start_crane):
-    # one solver process: the requests come one at a time (and none builds NLPs beside the first goal)
-    with start_crane(NS, streamer_params={'mode': 'operator'}, planner_params={'solver_processes': 1}) as driver:
-        yield driver
+def operator_crane(cart_crane):
+    """The nodes (conftest's ``cart_crane``), the streamer in operator mode for the module (set at rest)."""
+    cart_crane.set_parameters('streamer', {'mode': 'operator', 'operator_shaper': 'zv'})
+    yield cart_crane
+    cart_crane.set_parameters('streamer', {'mode': 'trajectory'})  # (the tests leave it at rest)
 
 
 def teleop(driver, script: str):
