@@ -175,7 +175,7 @@ def test_with_the_sway_feedback_a_push_in_x_and_y_at_rest_is_damped_within_one_p
             last = driver.last_state()
             return abs(last[3] - held[0]) < 1e-3 and abs(last[4] - held[1]) < 1e-3
         driver.wait_until(back, 15.0, 'the axes did not come back within 1 mm of their hold')
-    finally:  # off: what is left of the correction fades to nothing (the crane fixture then finds it at home)
+    finally:  # off: what is left of the correction fades to nothing (the crane fixture then finds it at rest)
         driver.set_parameters('streamer', {'feedback': False})
         driver.set_parameters('sim', {'push_swing': 0.03, 'push_swing_y': 0.0})
         driver.wait_until(lambda: not any(driver.correction().values()), 15.0, 'the correction did not fade')
