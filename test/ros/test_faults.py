@@ -21,17 +21,20 @@ import time
 
 import numpy as np
 import pytest
+from shared_crane import CART_NAMESPACE, CART_STREAMER_PARAMS
 
 from crane_msgs_py.crane.braking import stopping_distance
 from crane_msgs_py.crane.params import CraneParams
 from crane_planner.serving.execution import STREAM_TIMEOUT  # the planner's default (config/planner.yaml)
 
-NS = '/crane_faults'
+NS = CART_NAMESPACE
+#: a planner started again: one solver process (goals come one at a time here, and each start builds a third as
+#: much as with the default three)
 PLANNER_PARAMS = {'solver_processes': 1}
-#: The streamer's, every time it starts: the camera noise its sway feedback expects (read-only, so at start-up; it does
-#: nothing while the feedback is off, as it is here but in the tests that switch it on), that of the sim's noise in
-#: the test with a noisy camera: a node set of its own would cost a start-up.
-STREAMER_PARAMS = {'feedback_noise': 1e-3}
+#: The streamer's, every time it starts (the shared node set's): the camera noise its sway feedback expects
+#: (read-only, so at start-up; it does nothing while the feedback is off, as it is here but in the tests that switch
+#: it on), that of the sim's noise in the test with a noisy camera: a node set of its own would cost a start-up.
+STREAMER_PARAMS = CART_STREAMER_PARAMS
 STATUS_ABORTED = 6  # action_msgs/GoalStatus
 LOST_STREAM = 'lost the reference stream'
 T = 4.0          # s of the move
@@ -118,14 +121,13 @@ class Recorder:
 
 
 @pytest.fixture(scope='module')
-def crane(start_crane):
-    # one solver process: goals come one at a time here, and each planner (re)start builds a third as much
-    with start_crane(NS, planner_params=PLANNER_PARAMS, streamer_params=STREAMER_PARAMS) as driver:
-        recorder = Recorder()
-        try:
-            yield driver, recorder
-        finally:
-            recorder.close()
+def crane(cart_crane):
+    """The nodes (conftest's ``cart_crane``: this module runs last of those sharing them) and a Recorder."""
+    recorder = Recorder()
+    try:
+        yield cart_crane, recorder
+    finally:
+        recorder.close()
 
 
 @pytest.fixture(autouse=True)
@@ -165,17 +167,35 @@ def kill_streamer(driver) -> tuple[int, int]:
     return before, after
 
 
-def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new_one_start_where_it_stands(crane):
+#: (method, the part of its move at which the streamer is killed): each method and each point once on real
+#: processes (every pair of them offline: test/sim/test_axis_controller.py); NVF at 40 % is the requirement
+KILLS = [('nvf', 0.4), ('rvf', 0.9), ('zv', 0.1)]
+
+
+@pytest.mark.parametrize('method, at', KILLS)
+def test_a_streamer_killed_mid_move_makes_the_sim_brake_and_hold_within_the_formula_and_the_next_goal_start_there(
+        crane, method, at):
+    """Every node at its defaults: the streamer SIGKILLed during a move of 0.6 m in 4 s. The goal aborts naming
+    the lost stream (by the planner's stream_timeout); the sim, on axis_status and /diagnostics, brakes
+    (fault_stopping, along the closed form from the reference's state then) and holds (fault_hold); the cart
+    comes to rest within 3 s, within docs/faults.md's distance of the last sample sent, and at 40 % of NVF (the
+    requirement) no further than 0.15 m past where it was at the kill, never beyond the goal. A streamer started
+    again holds where the cart stands and the sim resumes from it without a jump. The braking leaves the load
+    swinging; the next goal of the same method (back to the start in 3 s) is planned from that swing (a
+    shaper's after a settle damps it) and ends quiet: within residual_tolerance, and within 1 mm after a swing of
+    50 mm or more."""
     from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays
     from crane_msgs_py.runtime.diagnostics import WARN, level_of, status_values
-    from crane_planner.tools.processes import STREAMER
+    from crane_planner.streaming.hermite import QuinticHermite
     driver, recorder = crane
     states_after(driver, recorder, lambda s: bool(s) and s[-1][1] == 'tracking', 60.0, 'tracking')
-
-    start, _, trajectory = driver.move('zv', None, GOAL, T)
-    _, _, _, acceleration = joint_trajectory_to_arrays(trajectory)
-    a_cap = float(np.max(np.abs(acceleration)))  # the plan's largest: what the stream's last sample can hold
-    driver.sleep(max(0.0, (start + round(KILL_AT * T * 1e9) - driver.now_ns()) * 1e-9))
+    here = streamed_hold(driver)
+    goal = here + GOAL  # the move is 0.6 m from wherever the cart stands (the dynamics do not depend on where)
+    count = len(recorder.status_list())
+    start, _, trajectory = driver.move(method, None, goal, T)
+    t, p, v, a = joint_trajectory_to_arrays(trajectory)
+    a_cap = float(np.max(np.abs(a)))  # the plan's largest acceleration: what the stream's last sample can hold
+    driver.sleep(max(0.0, (start + round(at * T * 1e9) - driver.now_ns()) * 1e-9))
     mark = driver.planner.diagnostics.mark()
     kill_before, kill_after = kill_streamer(driver)
     # the planner: the goal aborted, naming the lost stream (its stream_timeout, 2 s, after the last word)
@@ -184,7 +204,8 @@ def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new
     assert 'no stream_state for' in result.message  # by the planner's stream_timeout, not a hang guard
 
     # the fault reaction, in order: stopping, then holding
-    statuses = states_after(driver, recorder, lambda s: any(x[1] == 'fault_hold' for x in s), 30.0, 'fault_hold')
+    statuses = states_after(driver, recorder, lambda s: any(x[1] == 'fault_hold' for x in s[count:]), 30.0,
+                            'fault_hold')[count:]
     states = [x[1] for x in statuses]
     stopping, holding = states.index('fault_stopping'), states.index('fault_hold')
     assert stopping < holding and set(states[:stopping]) <= {'idle', 'tracking'}, states
@@ -205,20 +226,24 @@ def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new
     # stood still judges the stream lost that much later (crane_sim.playout.StallAllowance), the host's doing
     stall = sim_stall(driver, mark)
 
-    # at rest within 3 s of the kill (plant time: the stamps of joint_states, the references' clock)
+    # at rest within 3 s of the kill (plant time: the stamps of joint_states, the references' clock), where the
+    # sim holds: the servo (Eq. 6) brings the cart exactly onto the held reference
     rest_ns = kill_after + 3_000_000_000 + round(stall * 1e9)
     driver.wait_until(lambda: len(recorder.rows(rest_ns + 500_000_000)) > 0, 30.0, 'no joint_states past the stop')
-    rows = recorder.rows(kill_before - round(DELAY * 1e9))
+    rows = recorder.rows(start)
     after_rest = rows[rows[:, 0] >= rest_ns]
     assert len(after_rest) >= 20 and np.all(np.abs(after_rest[:, 2]) < 1e-3), (stall, after_rest[:5])
-    # where the sim holds: the servo (Eq. 6) brings the cart exactly onto the held reference
-    y_rest = after_rest[-1, 1]
+    held_ns = statuses[holding][0]
+    at_rest = rows[rows[:, 0] >= held_ns + 100_000_000]  # ten servo time constants after the reference stopped
+    assert len(at_rest) >= 20 and np.all(np.abs(at_rest[:, 2]) < 1e-3), at_rest[:5]
+    y_rest = at_rest[-1, 1]
     assert y_rest == pytest.approx(held, abs=1e-6)
 
     # the braking: the closed form from the reference's state when the stream was declared lost, which was
     # no later than the timeout after the last sample (stamped before the kill returned)
     assert fault_ns <= kill_after + round((TIMEOUT + stall) * 1e9) + 2_000_000, (fault_ns - kill_after, stall)
-    assert values['cart_braking_from'] == pytest.approx(origin, abs=1e-9)
+    # (/diagnostics' values have 9 significant digits: 1e-9 m below 1 m, a digit less from there)
+    assert values['cart_braking_from'] == pytest.approx(origin, abs=1e-9 * max(1.0, abs(origin)))
     assert held - origin == pytest.approx(stopping_distance(v_b, a_b, D, J), abs=1e-6)
     measured = np.interp(fault_ns, rows[:, 0], rows[:, 2])  # the cart's, a servo lag behind the reference
     assert measured == pytest.approx(v_b, abs=PLANT.tau * a_cap + 0.02 * a_cap + 1e-3)
@@ -229,16 +254,36 @@ def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new
     # none), so the speed grows only along the plan: the bound takes the largest measured, plus the servo's
     # lag (Eq. 6: the reference leads the cart by tau * a) and a sample's worth.
     assert a_b == 0.0
-    y_kill = np.interp(kill_before - DELAY * 1e9, rows[:, 0], rows[:, 1])
-    v_bound = float(np.max(np.abs(rows[:, 2]))) + PLANT.tau * a_cap + 1e-3
+    # Where the cart was at the kill: joint_states carry plant time, which the sim's loop runs playout_delay
+    # behind the clock (a message published at ROS time t is stamped t - playout_delay): the cart the kill
+    # found is the one stamped kill_before - DELAY (the earliest: the distance measured is the longest)
+    y_kill = float(np.interp(kill_before - DELAY * 1e9, rows[:, 0], rows[:, 1]))
+    since = rows[rows[:, 0] >= kill_before - DELAY * 1e9]
+    v_bound = float(np.max(np.abs(since[:, 2]))) + PLANT.tau * a_cap + 1e-3
     window = DELAY + TIMEOUT + stall + (kill_after - kill_before) * 1e-9 + 1e-3
     bound = v_bound * window + stopping_distance(v_bound, 0.0, D, J) + PLANT.tau * v_bound
-    travelled = y_rest - y_kill
-    assert 0.0 < travelled <= bound, (travelled, bound)
+    assert 0.0 < y_rest - y_kill <= bound, (y_rest - y_kill, bound)
+
+    # docs/faults.md: at most |v| T + S(|v|) + tau |v| past the last sample's position, v its velocity (the
+    # plan's: the streamer's last tick lies between the two stamps of the kill), T the watchdog stretched by the
+    # sim's own stalls meanwhile (they delay its judgement: playout.StallAllowance), a millimetre for the last
+    # acceleration's steps and the servo's transient
+    plan = QuinticHermite(t, p, v, a)
+    last = np.linspace((kill_before - start) * 1e-9 - 0.002, (kill_after - start) * 1e-9, 50)
+    x_last = float(np.min(plan(last)[0]))
+    v_last = float(np.max(np.abs(plan(last)[1])))
+    bound = v_last * (TIMEOUT + stall) + stopping_distance(v_last, 0.0, D, J) + PLANT.tau * v_last + 1e-3
+    assert 0.0 < y_rest - x_last <= bound, (y_rest - x_last, bound)
+    if at <= KILL_AT:
+        assert np.max(rows[:, 1]) <= goal, (np.max(rows[:, 1]), goal)  # never beyond the goal
+    if (method, at) == ('nvf', KILL_AT):
+        print(f'\nNVF {GOAL} m in {T} s killed at {KILL_AT:.0%}: the cart at {y_kill - here:.4f} m at the kill, at '
+              f'rest at {y_rest - here:.4f} m: {y_rest - y_kill:.4f} m past where it was at the kill')
+        assert 0.0 < y_rest - y_kill <= PAST_THE_KILL, (y_kill, y_rest)
 
     # a streamer started again holds where the cart stands (joint_states at rest): the sim resumes from it
     count = len(recorder.status_list())
-    driver.nodes.start(*STREAMER, namespace=NS, params=STREAMER_PARAMS)
+    restart(driver, 'streamer')
     statuses = states_after(driver, recorder, lambda s: any(x[1] == 'tracking' for x in s[count:]), 90.0,
                             'tracking again')
     resumed = next(x for x in statuses[count:] if x[1] == 'tracking')
@@ -246,76 +291,7 @@ def test_a_killed_streamer_makes_the_sim_brake_and_hold_the_goal_abort_and_a_new
     driver.wait_until(lambda: len(recorder.rows(resumed[0])) >= 10, 30.0, 'no joint_states after the resume')
     later = recorder.rows(resumed[0])
     assert np.all(np.abs(later[:, 1] - held) < 1e-6)  # the new stream holds it there
-    # the planner finds the new streamer by itself and serves the next goal from where the crane stands
-    assert streamed_hold(driver) == pytest.approx(y_rest, abs=1e-3)
-    result = driver.planner.result(driver.planner.send_execute('nvf', None, 0.2, 3.0, settle=0.5), timeout=30.0)
-    assert result.success, result.message  # (planned from the swing the braking left: it ends quiet)
-    assert streamed_hold(driver) == pytest.approx(0.2, abs=1e-9)
-    driver.reset_sim()  # the swing gone for the next test: the plant at rest where the cart is
-
-
-#: (method, the part of its move at which the streamer is killed): each method and each point once on real
-#: processes (every pair of them offline: test/sim/test_axis_controller.py); NVF at 40 % is the requirement
-KILLS = [('nvf', 0.4), ('rvf', 0.9), ('zv', 0.1)]
-
-
-@pytest.mark.parametrize('method, at', KILLS)
-def test_a_streamer_killed_mid_move_stops_the_cart_within_the_formula_and_the_next_goal_leaves_the_load_quiet(
-        crane, method, at):
-    """Every node at its defaults: the streamer SIGKILLed during a move of 0.6 m in 4 s. The goal aborts naming
-    the lost stream; the cart comes to rest within docs/faults.md's distance of the last sample sent, and at 40 %
-    of NVF (the requirement) no further than 0.15 m past where it was at the kill, never beyond the goal. The
-    braking leaves the load swinging; with the streamer started again, the next goal of the same method (back to
-    the start in 3 s) is planned from that swing (a shaper's after a settle damps it) and ends quiet: within
-    residual_tolerance, and within 1 mm after a swing of 50 mm or more."""
-    from crane_msgs_py.messages.conversions import joint_trajectory_to_arrays
-    from crane_planner.streaming.hermite import QuinticHermite
-    driver, recorder = crane
-    here = streamed_hold(driver)
-    goal = here + GOAL  # the move is 0.6 m from wherever the cart stands (the dynamics do not depend on where)
-    count = len(recorder.status_list())
-    start, _, trajectory = driver.move(method, None, goal, T)
-    driver.sleep(max(0.0, (start + round(at * T * 1e9) - driver.now_ns()) * 1e-9))
-    mark = driver.planner.diagnostics.mark()
-    kill_before, kill_after = kill_streamer(driver)
-    status, result = driver.outcome(start, timeout=20.0)
-    assert status == STATUS_ABORTED and LOST_STREAM in result.message, result.message
-
-    statuses = states_after(driver, recorder, lambda s: any(x[1] == 'fault_hold' for x in s[count:]), 30.0,
-                            'fault_hold')
-    held_ns, _, (held, *_) = next(x for x in statuses[count:] if x[1] == 'fault_hold')[:3]
-    driver.wait_until(lambda: len(recorder.rows(held_ns + 600_000_000)) > 0, 30.0, 'no joint_states past the hold')
-    rows = recorder.rows(start)
-    at_rest = rows[rows[:, 0] >= held_ns + 100_000_000]  # ten servo time constants after the reference stopped
-    assert len(at_rest) >= 20 and np.all(np.abs(at_rest[:, 2]) < 1e-3), at_rest[:5]
-    y_rest = at_rest[-1, 1]
-    assert y_rest == pytest.approx(held, abs=1e-6)
-
-    # docs/faults.md: at most |v| T + S(|v|) + tau |v| past the last sample's position, v its velocity (the
-    # plan's: the streamer's last tick lies between the two stamps of the kill), T the watchdog stretched by the
-    # sim's own stalls meanwhile (they delay its judgement: playout.StallAllowance), a millimetre for the last
-    # acceleration's steps and the servo's transient
-    t, p, v, a = joint_trajectory_to_arrays(trajectory)
-    plan = QuinticHermite(t, p, v, a)
-    last = np.linspace((kill_before - start) * 1e-9 - 0.002, (kill_after - start) * 1e-9, 50)
-    x_last = float(np.min(plan(last)[0]))
-    v_last = float(np.max(np.abs(plan(last)[1])))
-    window = TIMEOUT + sim_stall(driver, mark)
-    bound = v_last * window + stopping_distance(v_last, 0.0, D, J) + PLANT.tau * v_last + 1e-3
-    assert 0.0 < y_rest - x_last <= bound, (y_rest - x_last, bound)
-    if at <= KILL_AT:
-        assert np.max(rows[:, 1]) <= goal, (np.max(rows[:, 1]), goal)  # never beyond the goal
-    if (method, at) == ('nvf', KILL_AT):
-        # Where the cart was at the kill: joint_states carry plant time, which the sim's loop runs playout_delay
-        # behind the clock (a message published at ROS time t is stamped t - playout_delay): the cart the kill
-        # found is the one stamped kill_before - DELAY (the earliest: the distance measured is the longest)
-        y_kill = float(np.interp(kill_before - DELAY * 1e9, rows[:, 0], rows[:, 1]))
-        print(f'\nNVF {GOAL} m in {T} s killed at {KILL_AT:.0%}: the cart at {y_kill - here:.4f} m at the kill, at '
-              f'rest at {y_rest - here:.4f} m: {y_rest - y_kill:.4f} m past where it was at the kill')
-        assert 0.0 < y_rest - y_kill <= PAST_THE_KILL, (y_kill, y_rest)
-
-    # the streamer started again holds where the cart stands; the next goal starts from the swing the braking left
-    restart(driver, 'streamer')
+    # the planner finds the new streamer by itself; the next goal starts from the swing the braking left
     assert streamed_hold(driver) == pytest.approx(y_rest, abs=1e-3)
     now = driver.now_ns() - round(DELAY * 1e9)  # (joint_states' plant time)
     swing = recorder.swing(now - 2_000_000_000, now)  # over more than a period of the swing
@@ -434,10 +410,10 @@ def test_a_planner_killed_mid_move_lets_the_motion_finish_and_a_restarted_one_se
     crane.sleep(max(0.0, (start - crane.now_ns()) * 1e-9 + 1.0))
     kill(crane, 'planner')
     end = start + 3_000_000_000
-    crane.sleep(max(0.0, (end - crane.now_ns()) * 1e-9 + 2.5))
     from crane_planner.tools.harness import state_columns
     from crane_sim.metrics import residual_load_mm
-    rows = state_columns(crane.states_between(end, end + 2_000_000_000, timeout=10.0))
+    # a second after the motion: more than half the slow mode's period, so the peak of a swing left shows
+    rows = state_columns(crane.states_between(end, end + 1_000_000_000, timeout=10.0))
     t = (rows['stamp'] - end) * 1e-9
     residual = residual_load_mm(t, rows['theta1'], rows['theta2'], PLANT.L1, PLANT.L2, after=t[0])
     assert residual <= 0.5, f'residual {residual:.3f} mm after the planner died mid-move'
@@ -446,7 +422,7 @@ def test_a_planner_killed_mid_move_lets_the_motion_finish_and_a_restarted_one_se
     mark = crane.planner.diagnostics.mark()
     restart(crane, 'planner')
     wait_planner_up(crane, mark)
-    result = crane.planner.result(crane.planner.send_execute('zv', None, here, 3.0, settle=1.0), timeout=30.0)
+    result = crane.planner.result(crane.planner.send_execute('zv', None, here, 2.0, settle=1.0), timeout=30.0)
     assert result.success, result.message
     assert streamed_hold(crane) == pytest.approx(here, abs=1e-9)
 
@@ -564,15 +540,14 @@ def pause(driver, seconds: float, name: str | None = None) -> None:
 def test_a_sim_paused_longer_than_its_reference_timeout_resumes_tracking_without_a_fault(crane):
     """The sim's process stopped (SIGSTOP) for 1.5 s, far longer than its reference_timeout (0.1 s), while the stream
     holds, then continued: its own stall is not the stream's silence (``ReferencePlayout.behind``), so the axes
-    run no fault reaction and the next goal is served."""
+    run no fault reaction (none by the end of the next goal) and the next goal is served."""
     crane, recorder = crane
     here = streamed_hold(crane)
     count = len(recorder.status_list())
     pause(crane, 1.5, 'sim')
-    crane.sleep(1.5)
+    result = crane.planner.result(crane.planner.send_execute('zv', None, here - 0.2, 2.0, settle=0.5), timeout=30.0)
     seen = [x[1] for x in recorder.status_list()[count:]]
     assert not {'fault_stopping', 'fault_hold'} & set(seen), f'the sim ran its fault reaction: {seen}'
-    result = crane.planner.result(crane.planner.send_execute('zv', None, here - 0.2, 2.0, settle=0.5), timeout=30.0)
     assert result.success, result.message
 
 

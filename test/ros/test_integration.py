@@ -1,9 +1,8 @@
 """ROS integration: the real planner, streamer and sim executables in one namespace of a private graph.
 
-One set of nodes serves the whole module (``crane`` fixture); it is always
-stopped (SIGINT, then kill) however the tests end. The test process talks to
-the nodes over their ROS surface only: services, topics, parameters and
-/diagnostics (contract: ROS 2 nodes).
+One set of nodes serves the whole module (``crane`` fixture: the set the cart-only modules share, conftest's
+``cart_crane``); it is always stopped (SIGINT, then kill) however the tests end. The test process talks to
+the nodes over their ROS surface only: services, topics, parameters and /diagnostics (contract: ROS 2 nodes).
 """
 import math
 import time
@@ -13,6 +12,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from shared_crane import CART_NAMESPACE
 
 from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning import METHODS, SHAPER_METHODS
@@ -20,7 +20,7 @@ from crane_planner.planning.model import modal_frequencies
 from crane_planner.planning.plan import PlanError
 from crane_planner.planning.shapers import design
 
-NS = '/crane_it'
+NS = CART_NAMESPACE
 D = 0.3              # m, the paper's displacement
 SETTLE = 1.0         # s observed after each motion: more than half the slow mode's 1.73 s period, so its peak shows
 LEAD = 1.0           # s between the example client's request and its motion start
@@ -177,12 +177,12 @@ class Crane:
 
 
 @pytest.fixture(scope='module')
-def crane(start_crane):
-    with start_crane(NS, startup=120.0) as driver:
-        crane = Crane(driver)
-        # warm: first requests are not slowed down, and the solver processes' background builds are over
-        crane.status('crane_planner', 'solvers', timeout=180.0)
-        yield crane
+def crane(cart_crane):
+    """The nodes (warm: the harness waited for the planner's solvers), the cart at 0 m: the tests' moves
+    alternate between 0 and ``D``."""
+    driver = cart_crane
+    driver.home(lambda: driver.move('nvf', None, 0.0, 1.5, settle=0.05)[0], lambda last: abs(last[3]) <= 1e-6)
+    yield Crane(driver)
 
 
 def quintic_trajectory(start: float, goal: float, duration: float, stamp_ns: int = 0):

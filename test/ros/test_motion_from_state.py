@@ -6,7 +6,6 @@ import pytest
 
 from crane_msgs_py.crane.params import CraneParams
 
-NS = '/crane_any_state'
 T = 3.0
 T_PREEMPTED = 5.0  # s, the motion a new goal takes over at 40 %
 SETTLE = 1.0  # s of residual window: more than half the slow mode's 1.73 s period, so its peak shows
@@ -15,19 +14,12 @@ STATUS_ABORTED, STATUS_CANCELED = 6, 5  # action_msgs/GoalStatus
 
 
 @pytest.fixture
-def crane(crane_nodes):
-    """The nodes, the crane brought home after the test (whatever its outcome)."""
-    yield crane_nodes
-    crane_nodes.keep_references(False)
-    home(crane_nodes)
-
-
-@pytest.fixture(scope='module')
-def crane_nodes(start_crane):
-    # one solver process: the requests come one at a time, and the two more building their NLPs in the
-    # background at start-up took the cores from the first goal's handover (planned 3 times, too late)
-    with start_crane(NS, planner_params={'solver_processes': 1}) as driver:
-        yield driver
+def crane(cart_crane):
+    """The nodes (conftest's ``cart_crane``), the crane at rest after the test (whatever its outcome): the tests
+    move from wherever the streamer holds the cart (``hold``), so none needs a move home."""
+    yield cart_crane
+    cart_crane.keep_references(False)
+    at_rest(cart_crane)
 
 
 def residual_mm(driver, begin_ns: int, end_ns: int) -> tuple[float, np.ndarray]:
@@ -40,11 +32,21 @@ def residual_mm(driver, begin_ns: int, end_ns: int) -> tuple[float, np.ndarray]:
     return float(residual_load_mm(t, rec[:, 1], rec[:, 2], NOMINAL.L1, NOMINAL.L2, after=t[0])), rec
 
 
-def home(driver):
-    """Back to 0 m at rest, the sim reset (no swing left from a test), once a motion a failed test left
-    running has ended."""
-    driver.home(lambda: driver.move('nvf', None, 0.0, 1.5, settle=0.05)[0],  # from where the streamer holds it
-                lambda last: abs(last[3]) <= 1e-6)
+def at_rest(driver):
+    """Once a motion a failed test left running or queued has ended and the streamer holds, the sim reset: the
+    plant at rest where the cart is, no swing left from a test."""
+    driver.sleep(max(0.0, (driver.trajectories_end_ns() - driver.now_ns()) * 1e-9))
+    driver.wait_until_holding()
+    driver.reset_sim()
+
+
+def hold(driver) -> tuple[float, float]:
+    """Where the streamer holds the cart (m), from its stream_state: where the test's motion starts; and the
+    direction (+1 or -1) of the test's moves, towards 0 m and past it, so that the cart stays near 0 whatever
+    ran before."""
+    driver.wait_until(lambda: driver.stream_hold() is not None, 10.0, 'no stream_state from the streamer')
+    here = driver.stream_hold()
+    return here, (1.0 if here <= 0.0 else -1.0)
 
 
 def steps_at(references: np.ndarray, stamp_ns: int) -> tuple:
@@ -61,18 +63,19 @@ def test_a_new_goal_at_40_percent_takes_over_without_a_step_and_leaves_no_swing(
     """The running motion lasts 5 s, so at 40 % 3 s are left: on a loaded host a handover planned again further
     ahead twice (a solve 20 times slower than alone) still falls within it."""
     driver = crane
+    here, way = hold(driver)
     driver.keep_references()
-    start, _, _ = driver.move(method, 0.0, 0.3, T_PREEMPTED, settle=SETTLE)
+    start, _, _ = driver.move(method, None, here + way * 0.3, T_PREEMPTED, settle=SETTLE)
     driver.sleep(max(0.0, (start + round(0.4 * T_PREEMPTED * 1e9) - driver.now_ns()) * 1e-9))
     sent = driver.now_ns()
-    handover = driver.retarget(method, 0.5, T, settle=SETTLE)
+    handover = driver.retarget(method, here + way * 0.5, T, settle=SETTLE)
     # the handover lies in the motion, after the goal was sent (how long after: bench/any_state.py)
     assert start + round(0.4 * T_PREEMPTED * 1e9) <= sent < handover < start + round(T_PREEMPTED * 1e9)
     end = handover + round(T * 1e9)
     residual, rec = residual_mm(driver, end, end + round(SETTLE * 1e9))
     references = driver.keep_references(False)
     assert residual <= 0.5, residual
-    assert rec[-1, 3] == pytest.approx(0.5, abs=1e-4)  # the cart at the new goal
+    assert rec[-1, 3] == pytest.approx(here + way * 0.5, abs=1e-4)  # the cart at the new goal
     step, own = steps_at(references, handover)
     # no step: the change over the handover tick is what the motion's own rates give over a tick
     assert step[0] <= own[0] * 1.1 + 1e-9 and step[1] <= own[1] * 1.1 + 1e-9, (step, own)
@@ -91,9 +94,10 @@ def test_the_handover_warm_up_rehearses_during_a_motion_and_sends_nothing(crane)
     went. 0 turns it off."""
     from crane_msgs_py.runtime.diagnostics import status_float
     driver = crane
+    here, way = hold(driver)
     mark = driver.planner.diagnostics.mark()
     before = driver.sent_trajectories()
-    start, _, _ = driver.move('zv', 0.0, 0.3, T, settle=0.2)
+    start, _, _ = driver.move('zv', None, here + way * 0.3, T, settle=0.2)
     assert driver.move_result(start).success
     assert driver.sent_trajectories()[len(before):] == [start]
     status = driver.planner.diagnostics.wait_for(after=mark, name='crane_planner: execute', timeout=3.0)
@@ -105,12 +109,12 @@ def test_the_handover_warm_up_rehearses_during_a_motion_and_sends_nothing(crane)
     assert 1 <= count <= motion / 0.02 + 1, count
     assert each > 0.0, each
     driver.wait_for_state_after(start + round((T + 0.3) * 1e9))
-    assert driver.last_state()[3] == pytest.approx(0.3, abs=1e-4)
+    assert driver.last_state()[3] == pytest.approx(here + way * 0.3, abs=1e-4)
     # 0 turns it off (at once: the next motion has none)
     driver.set_parameters('planner', {'handover_warmup': 0.0})
     try:
         mark = driver.planner.diagnostics.mark()
-        start, _, _ = driver.move('zv', 0.3, 0.0, T, settle=0.2)
+        start, _, _ = driver.move('zv', None, here, T, settle=0.2)
         assert driver.move_result(start).success
         status = driver.planner.diagnostics.wait_for(after=mark, name='crane_planner: execute', timeout=3.0)
         assert status_float(status, 'handover_warmups') == 0.0
@@ -121,7 +125,8 @@ def test_the_handover_warm_up_rehearses_during_a_motion_and_sends_nothing(crane)
 def test_cancel_at_half_way_stops_the_crane_without_swing(crane):
     from crane_sim.simulator import simulate
     driver = crane
-    start, _, traj = driver.move('rvf', 0.0, 0.3, T, settle=SETTLE)
+    here, way = hold(driver)
+    start, _, traj = driver.move('rvf', None, here + way * 0.3, T, settle=SETTLE)
     driver.sleep(max(0.0, (start + round(0.5 * T * 1e9) - driver.now_ns()) * 1e-9))
     status, result = driver.cancel(start)
     assert status == STATUS_CANCELED, result.message
@@ -141,11 +146,11 @@ def test_cancel_at_half_way_stops_the_crane_without_swing(crane):
     from crane_planner.streaming.hermite import QuinticHermite
     t_k, p, v, a = joint_trajectory_to_arrays(traj, 'cart')
     assert start < stop < start + round(T * 1e9)
-    assert where > QuinticHermite(t_k, p, v, a)(np.array([(stop - start) * 1e-9]))[0][0]
+    assert way * (where - QuinticHermite(t_k, p, v, a)(np.array([(stop - start) * 1e-9]))[0][0]) > 0.0
     # an unshaped hard stop of the same move at the same time (the reference held), on the same plant
     t = np.arange(0.0, 8.0, 1e-3)
     held = QuinticHermite(t_k, p, v, a)(np.minimum(t, (stop - start) * 1e-9))[0]
-    hard = simulate(t, held, NOMINAL, source='position')
+    hard = simulate(t, held - here, NOMINAL, source='position')  # (from the plant's rest at 0)
     assert np.abs(hard.load_excursion[0, t > 4.0]).max() * 1e3 > 10 * residual
 
 
@@ -171,10 +176,11 @@ def test_settle_is_refused_during_a_motion_and_a_goal_with_a_start_mid_move(cran
     from crane_msgs_py.crane.errors import PlanError
     from crane_planner.tools.harness import HarnessError
     driver = crane
-    start, _, _ = driver.move('zv', 0.0, 0.2, T, settle=0.5)
+    here, way = hold(driver)
+    start, _, _ = driver.move('zv', None, here + way * 0.2, T, settle=0.5)
     driver.sleep(max(0.0, (start + round(0.5e9) - driver.now_ns()) * 1e-9))
     with pytest.raises(HarnessError, match='a motion is streaming: settle once it has ended'):
         driver.settle()
     with pytest.raises(PlanError, match='a goal during a motion needs a duration'):
-        driver.retarget('nvf', 0.4, 0.0)
+        driver.retarget('nvf', here + way * 0.4, 0.0)
     assert driver.move_result(start).success  # the motion went on to its goal

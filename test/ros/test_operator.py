@@ -4,10 +4,11 @@ import signal
 
 import numpy as np
 import pytest
+from shared_crane import CART_NAMESPACE
 
 from crane_msgs_py.crane.params import CraneParams
 
-NS = '/crane_operator'
+NS = CART_NAMESPACE
 NOMINAL = CraneParams()
 PLAYOUT = 0.2  # s: the sim's joint_states are stamped with plant time, this far behind the clock
 
@@ -24,10 +25,11 @@ def crane(operator_crane):
 
 
 @pytest.fixture(scope='module')
-def operator_crane(start_crane):
-    # one solver process: the requests come one at a time (and none builds NLPs beside the first goal)
-    with start_crane(NS, streamer_params={'mode': 'operator'}, planner_params={'solver_processes': 1}) as driver:
-        yield driver
+def operator_crane(cart_crane):
+    """The nodes (conftest's ``cart_crane``), the streamer in operator mode for the module (set at rest)."""
+    cart_crane.set_parameters('streamer', {'mode': 'operator', 'operator_shaper': 'zv'})
+    yield cart_crane
+    cart_crane.set_parameters('streamer', {'mode': 'trajectory'})  # (the tests leave it at rest)
 
 
 def teleop(driver, script: str):
@@ -50,13 +52,14 @@ def residual_mm(rec: np.ndarray, after: float) -> float:
 
 
 def stick_run(driver, speed: float) -> tuple[float, np.ndarray]:
-    """The stick at ``speed`` for 3 s, released: the residual (mm) from 2.5 s after the release on (braking
-    0.5 s and the shaper 1.2 s), and the record from the start."""
+    """The stick at ``speed`` for 3 s, released: the residual (mm) over a second from 2.5 s after the release on
+    (braking 0.5 s and the shaper 1.2 s before; a second is over half the slow mode's period, so its peak
+    shows), and the record from the start."""
     begin = driver.now_ns()
     tool = teleop(driver, f'{speed}:3')
     assert tool.wait(timeout=20.0) == 0, tool.stderr.read()
     released = driver.now_ns()
-    end = released + round(5.0e9)
+    end = released + round(3.5e9)
     driver.sleep(max(0.0, (end - driver.now_ns()) * 1e-9 + PLAYOUT))
     rec = driver.states_between(begin, end, timeout=10.0)
     return residual_mm(rec, (released - begin) * 1e-9 + 2.5), rec
@@ -88,7 +91,7 @@ def test_a_lost_stick_stops_the_crane_within_the_timeout_and_the_stop(crane):
     lost = driver.now_ns()
     tool.send_signal(signal.SIGKILL)  # the joystick's messages stop, no zero command sent
     tool.wait(timeout=5.0)
-    rec = record(driver, 6.0)
+    rec = record(driver, 4.5)  # at rest within 2.31 s (below), then over a second of it
     t = (rec[:, 0] - lost) * 1e-9  # plant time since the messages stopped
     away = np.nonzero(np.abs(rec[:, 3] - rec[-1, 3]) > 1e-5)[0]  # farther than 10 um from where it stops
     stopped = t[away[-1] + 1]
