@@ -22,8 +22,8 @@ EXECUTABLES = {'crane_planner': ('planner', 'streamer', 'crane-plan'), 'crane_si
 TYPESUPPORT_LIBRARIES = ('rosidl_generator_c', 'rosidl_generator_py', 'rosidl_typesupport_c',
                          'rosidl_typesupport_cpp', 'rosidl_typesupport_fastrtps_c', 'rosidl_typesupport_fastrtps_cpp',
                          'rosidl_typesupport_introspection_c', 'rosidl_typesupport_introspection_cpp')
-INTERFACE_FILES = ('msg/AxisStatus.msg', 'msg/Move.msg', 'msg/PlanInfo.msg', 'msg/StreamState.msg',
-                   'srv/PlanMove.srv', 'action/ExecuteMove.action')
+INTERFACE_FILES = ('msg/AxisStatus.msg', 'msg/CraneState.msg', 'msg/Move.msg', 'msg/Occupancy.msg',
+                   'msg/PlanInfo.msg', 'msg/StreamState.msg', 'srv/PlanMove.srv', 'action/ExecuteMove.action')
 
 
 @pytest.mark.parametrize('pkg', PACKAGES)
