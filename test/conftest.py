@@ -8,9 +8,11 @@ from shared_crane import CART_CRANE_MODULES, CART_NAMESPACE, CART_STREAMER_PARAM
 ROS_TESTS = Path(__file__).resolve().parent / 'ros'
 #: Modules of test/ros/ that start ROS processes but time nothing real-time: they check files, parameters,
 #: messages and exit statuses, with hang guards only, long enough for a start-up at that niceness beside a
-#: CPU-bound process. ``make test`` runs them beside the real-time ROS tests, at the pure tests' niceness,
-#: instead of after them (``pytest_xdist_make_scheduler``).
-UNTIMED_ROS_MODULES = ('test_workspace.py', 'test_params_files.py', 'test_demo_failures.py', 'test_without_sim.py')
+#: CPU-bound process (none runs the 1 kHz streamer and sim with a motion to judge: a planner alone whose solver
+#: processes are killed, a made-up server of the interfaces). ``make test`` runs them beside the real-time ROS
+#: tests, at the pure tests' niceness, instead of after them (``pytest_xdist_make_scheduler``).
+UNTIMED_ROS_MODULES = ('test_workspace.py', 'test_params_files.py', 'test_demo_failures.py', 'test_without_sim.py',
+                       'test_faults_solver.py', 'test_interfaces.py')
 
 
 def untimed(path: str) -> bool:

@@ -110,11 +110,11 @@ def test_the_handover_warm_up_rehearses_during_a_motion_and_sends_nothing(crane)
     assert each > 0.0, each
     driver.wait_for_state_after(start + round((T + 0.3) * 1e9))
     assert driver.last_state()[3] == pytest.approx(here + way * 0.3, abs=1e-4)
-    # 0 turns it off (at once: the next motion has none)
+    # 0 turns it off (at once: the next motion, of 1.5 s, has none of its 90 periods)
     driver.set_parameters('planner', {'handover_warmup': 0.0})
     try:
         mark = driver.planner.diagnostics.mark()
-        start, _, _ = driver.move('zv', None, here, T, settle=0.2)
+        start, _, _ = driver.move('zv', None, here, 1.5, settle=0.2)
         assert driver.move_result(start).success
         status = driver.planner.diagnostics.wait_for(after=mark, name='crane_planner: execute', timeout=3.0)
         assert status_float(status, 'handover_warmups') == 0.0
