@@ -28,7 +28,7 @@ NOMINAL = CraneParams()
 
 
 def duration_for(method: str) -> float:
-    """3 s (the paper's T), longer where the shaper alone is close to that (ZVDD, ...).
+    """2.5 s (the paper's §5, the demo's), longer where the shaper alone is close to that (ZVD, ZVDD).
 
     EI tolerates 5 % of the unshaped swing at its design frequency by design,
     and its quintic gets only T minus two periods: at 3 s that leaves 11 mm
@@ -37,9 +37,9 @@ def duration_for(method: str) -> float:
     if method == 'ei':
         return 6.0
     if method not in SHAPER_METHODS:
-        return 3.0
+        return 2.5
     shaper = design(method, modal_frequencies(NOMINAL), 0.0)
-    return max(3.0, math.ceil(2.0 * (shaper.duration + 0.5)) / 2.0)
+    return max(2.5, math.ceil(2.0 * (shaper.duration + 0.5)) / 2.0)
 
 
 _OFFLINE = {}
