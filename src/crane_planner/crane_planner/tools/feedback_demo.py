@@ -159,7 +159,7 @@ class _Situations:
     def _move(self, situation: str, method: str, duration: float, L1: float, push_at: float | None = None):
         """A move there and back (to ``displacement`` from near 0, else to 0), pushed ``push_at`` s into it."""
         driver = self.driver
-        here = driver.stream_hold()
+        here = driver.held()
         displacement, settle = self.settings.displacement, self.settings.settle
         goal = displacement if abs(here) < displacement / 2 else 0.0
         start, _, _ = driver.move(method, None, goal, duration, settle=settle)

@@ -197,6 +197,13 @@ class CraneHarness:
         state = self._fresh_stream_state(fresh)
         return None if state is None else state[2].get(joint)
 
+    def held(self, joint: str = 'cart', timeout: float = 10.0) -> float:
+        """Where the streamer holds ``joint`` (m), from the next fresh ``stream_state`` (``stream_hold``): a host
+        that paused this process may leave the newest one stale for a moment."""
+        self.wait_until(lambda: self.stream_hold(joint) is not None, timeout,
+                        f'no fresh stream_state saying where the streamer holds {joint} within {timeout:g} s')
+        return self.stream_hold(joint, fresh=math.inf)
+
     def correction(self, timeout: float = 1.0, fresh: float = 0.5) -> dict:
         """What the streamer's sway feedback adds to the reference now (m, by joint; empty before the feedback was
         ever on), from the newest ``stream_state``: one received within ``fresh`` s, waited for up to ``timeout``
