@@ -152,3 +152,27 @@ def test_the_envelope_takes_its_callers_stopping_travel_on_the_side_it_moves_to(
     # a silent crane within reach: both cranes' travel at full speed through the timeout and a lag, and their stops
     lagging = G.within_reach(0.2, 0.3, 0.5, 0.5, 5.0, lag=1.0)
     assert lagging == pytest.approx(G.within_reach(0.2, 0.3, 0.5, 0.5, 5.0) + 2 * 0.3 * 1.0)
+
+
+def test_two_cranes_that_both_follow_their_plans_are_judged_on_their_footprints_either_deviating_on_envelopes():
+    """A follows b into the space b leaves: a's stopping envelope already reaches where b still is (gap 0.05 m),
+    their footprints are 0.3 m apart. Both on their plans: a warning, no stop (their planners placed them
+    apart in time); b not on its plan (an operator, a stop), or a not: the envelopes count, a stop."""
+    g = G.Guard(0.2, 0.5, reach=1.0)
+    b_envelope, b_footprint = G.Reach(1.95, 2.3), G.Reach(1.95, 2.05)
+    a_envelope, a_footprint = G.Reach(1.4, 1.9), G.Reach(1.4, 1.65)
+    g.heard('b', b_envelope, 0, b_footprint, planned=True)
+    verdict = g.check(a_envelope, 1, a_footprint, planned=True)
+    assert verdict.level is G.Level.WARNING and verdict.gap == pytest.approx(0.3)
+    assert g.check(a_envelope, 2, a_footprint, planned=False).level is G.Level.STOP
+    g.heard('b', b_envelope, 3, b_footprint, planned=False)
+    stop = g.check(a_envelope, 4, a_footprint, planned=True)
+    assert stop.level is G.Level.STOP and stop.gap == pytest.approx(0.05) and stop.refuses(+1.0)
+    # on their plans again, the footprints 0.3 m apart: the stop holds until the way is clear (2x the minimum)
+    g.heard('b', b_envelope, 5, b_footprint, planned=True)
+    assert g.check(a_envelope, 6, a_footprint, planned=True).level is G.Level.STOP
+    g.heard('b', b_envelope, 7, G.Reach(2.1, 2.2), planned=True)
+    assert g.check(a_envelope, 8, a_footprint, planned=True).level is G.Level.INFO  # 0.45 m: clear of the stop
+    # footprints within the minimum stop planned cranes too: the guard is the last word
+    g.heard('b', b_envelope, 9, G.Reach(1.8, 1.9), planned=True)
+    assert g.check(a_envelope, 10, a_footprint, planned=True).level is G.Level.STOP

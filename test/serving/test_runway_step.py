@@ -11,8 +11,10 @@ import pytest
 
 from crane_msgs_py.crane.params import CraneParams
 from crane_planner.planning.dispatch import plan
-from crane_planner.runway.occupancy import Footprint, Shape, holding, separation
+from crane_planner.runway.guard import PLAN_MARGIN
+from crane_planner.runway.occupancy import Footprint, Shape, closest, holding, separation
 from crane_planner.runway.prediction import plan_occupancy
+from crane_planner.runway.schedule import DELAY_STEP, required
 from crane_planner.serving.config import PARAMETERS, Config
 from crane_planner.serving.crane_view import StreamSample
 from crane_planner.serving.goals import GoalState
@@ -34,7 +36,7 @@ SECOND = 1_000_000_000
 #: the girders' half-widths) clears 0.2 m, but the loads lead by up to 0.2 m as they brake (offline numbers).
 #: (ZV this fast leaves the loads swinging by 5 cm on the planning model, which the occupancies' discs grow by:
 #: in 1.3 s, 12 cm each, and the two loads would meet for good.)
-D, T = 0.76, 1.4
+D, T = 0.755, 1.4
 
 
 class BridgePlanner(FakePlanner):
@@ -80,7 +82,7 @@ def towards_b(start_ns=0, method='zv'):
 
 
 def crane_b_moving(start_ns, published_ns):
-    """Crane b, 2 m along the runway, going 0.76 m towards a by ZV in 1.3 s from ``start_ns``."""
+    """Crane b, 2 m along the runway, going 0.755 m towards a by ZV in 1.4 s from ``start_ns``."""
     return plan_occupancy('crane_b', plan('zv', 0.0, T, P, bridge=-D), P, {'cart': 0.0, 'bridge': 0.0}, (0.0, 2.0),
                           start_ns, published_ns, SHAPE, settle=1.0)
 
@@ -123,8 +125,12 @@ def test_a_goal_that_would_meet_another_crane_s_motion_waits_the_least_delay_its
     assert trajectory.stamp_ns == claim.start_ns == preview.trajectory.stamp_ns  # the same delay as previewed
     assert summarize(outcome.plan.plan, outcome.plan.checked.joints).runway_delay == pytest.approx(info.runway_delay)
     assert trajectory.stamp_ns - sent_at == pytest.approx(300 * MS, abs=25 * MS)  # sent publish_lead ahead
-    assert dense_min_distance(claim, b) >= 0.2  # clear every millisecond
-    assert dense_min_distance(claim.delayed(-0.1), b) < 0.2  # and 0.1 s earlier it would not be
+    # clear every millisecond by the minimum and the planner's margin (the guard's, for its live estimates)
+    assert dense_min_distance(claim, b) >= 0.2 + PLAN_MARGIN
+    # and a step earlier it would not be, by the samples' check the planner makes (which leaves room for what lies
+    # between them: runway.schedule.required)
+    earlier = claim.delayed(-DELAY_STEP)
+    assert closest(earlier, b).distance < required(earlier, b, 0.2 + PLAN_MARGIN)
     assert dense_min_distance(claim.delayed(-info.runway_delay), b) < 0.19  # as asked: the loads would meet
     # ended: a hold where the streamer holds, at the goal, published after the claim
     crane.clock.sleep(0.05)
@@ -136,7 +142,8 @@ def test_the_refuse_policy_refuses_naming_the_crane_as_a_preview_and_as_a_goal()
     crane = BridgeCrane(runway_policy='refuse')
     crane.step.book.heard(crane_b_moving(T0 + SECOND, T0 - MS))
     with pytest.raises(RunwayConflict, match=r"^runway: the move would come within 0\.\d+ m of crane 'crane_b' "
-                                             r'\(runway_min_distance 0\.2 m\): refused$') as refused:
+                                             r'\(runway_min_distance 0\.2 m and a margin of 0\.02 m\): '
+                                             r'refused$') as refused:
         crane.service.plan(towards_b(T0 + SECOND), 'plan_move')
     assert refused.value.crane == 'crane_b'
     goal = crane.goal('a', towards_b(T0 + SECOND))

@@ -15,7 +15,7 @@ import pytest
 from crane_msgs_py.crane.axes import AxisLimits
 from crane_msgs_py.crane.params import CraneParams
 from crane_planner.runway.config import RunwayConfig
-from crane_planner.runway.guard import Level, Reach
+from crane_planner.runway.guard import STOP_MARGIN, Level, Reach
 from crane_planner.streaming.braking_stop import brake, braking_stop
 from crane_planner.streaming.operator import OperatorStream
 from crane_planner.streaming.reference_stream import ReferenceStream
@@ -38,8 +38,9 @@ LIMITS = AxisLimits(0.3, 0.5, 5.0)  # the operator's defaults: the bridge at ful
 D, J = 0.5, 5.0  # fault_deceleration, fault_jerk
 B_LOW, B_HIGH = 1.95, 2.05  # crane b's envelope
 MIN = 0.2
-#: The farthest a's girder may come: b's envelope less the minimum distance and a's girder's half-width.
-FARTHEST = B_LOW - MIN - 0.05
+#: The farthest a's girder may come: b's envelope less the minimum distance (and the guard's margin before it)
+#: and a's girder's half-width.
+FARTHEST = B_LOW - MIN - STOP_MARGIN - 0.05
 S = 1_000_000_000
 
 
@@ -308,3 +309,24 @@ def test_without_the_planned_stop_in_time_the_guards_stop_is_the_braking_ramp_be
     assert ramps and 'braking ramp (the stop planner process is not ready)' in refused[0][1]
     not_ready, ramps = guard_stops(lambda: pytest.fail('asked'), ready=False)
     assert ramps and 'braking ramp (the stop planner cannot have it in time)' in not_ready[0][1]
+
+
+def test_the_crane_follows_its_plan_while_its_girder_is_where_its_own_published_occupancy_puts_it():
+    """``follows_plan`` (said on /runway/state; two such cranes are judged on their footprints): the streamed
+    girder within 2 mm of its own occupancy at that instant (interpolated between its samples, held after its
+    last); nothing published, or another place, is not following it."""
+    g = guard()
+    stream = ReferenceStream(PERIOD, (0.3, 1.0))
+    start = EPOCH + S
+    g.watch(start, stream.sample(0), stream)
+    assert not g.follows_plan  # nothing of its own heard
+    g.own(start, [0.0], [1.0])  # a hold where it stands
+    g.watch(start, stream.sample(1), stream)
+    assert g.follows_plan and (g.footprint.low, g.footprint.high) == pytest.approx((0.95, 1.05))
+    g.own(start, [0.0, 0.5, 1.0], [0.5, 1.0, 1.5])  # a motion through 1.0 m at 0.5 s
+    for at, follows in ((0.5, True), (0.4985, True), (0.497, False), (0.0, False), (2.0, False)):
+        g.watch(start + round(at * S), stream.sample(2), stream)
+        assert g.follows_plan is follows, at
+    g.own(start, [0.0, 1.0], [1.5, 1.0])  # ended at 1.0 m: held there after its last sample
+    g.watch(start + 5 * S, stream.sample(3), stream)
+    assert g.follows_plan

@@ -462,15 +462,19 @@ def crane_state_message(crane: str, frame_id: str) -> CraneState:
 
 
 def fill_crane_state(msg: CraneState, stamp: int, girder: float, girder_velocity: float, trolley: float,
-                     hook: tuple, load: tuple, reach: tuple, guard: str, guard_crane: str) -> None:
+                     hook: tuple, load: tuple, reach: tuple, guard: str, guard_crane: str,
+                     footprint: tuple = (0.0, 0.0), planned: bool = False) -> None:
     """One tick's live state of a crane on the runway into a message from ``crane_state_message``, in place:
     the girder's y (m) and velocity (m/s), the trolley's x, the hook's and the load's (x, y), its stopping
-    envelope (low, high) along y, and its guard's level and the crane that level is for."""
+    envelope (low, high) along y, its guard's level and the crane that level is for, its footprint (low, high)
+    along y and whether it follows its published occupancy."""
     s = msg.header.stamp
     s.sec, s.nanosec = divmod(stamp, NS)
     msg.girder, msg.girder_velocity, msg.trolley = girder, girder_velocity, trolley
     msg.hook_x, msg.hook_y = hook
     msg.load_x, msg.load_y = load
     msg.reach_low, msg.reach_high = reach
+    msg.footprint_low, msg.footprint_high = footprint
+    msg.planned = planned
     if msg.guard != guard or msg.guard_crane != guard_crane:
         msg.guard, msg.guard_crane = guard, guard_crane

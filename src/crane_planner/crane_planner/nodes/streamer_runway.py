@@ -6,14 +6,15 @@ from __future__ import annotations
 
 import math
 
-from crane_interfaces.msg import CraneState
+from crane_interfaces.msg import CraneState, Occupancy
 
 from crane_msgs_py.crane.axes import AXIS_NAMES, BRIDGE, CART, HOIST
 from crane_msgs_py.crane.geometry import mass_offsets
 from crane_msgs_py.messages import conversions
 from crane_msgs_py.runtime import qos
 from crane_msgs_py.runtime.diagnostics import ERROR, OK, WARN
-from crane_planner.runway.config import STATE_TOPIC
+from crane_planner.nodes.occupancy_messages import OccupancyRefused, from_message
+from crane_planner.runway.config import OCCUPANCY_TOPIC, STATE_TOPIC
 from crane_planner.runway.guard import Level
 from crane_planner.runway.occupancy import RUNWAY_FRAME
 from crane_planner.streaming.braking_stop import brake
@@ -78,6 +79,8 @@ class RunwayPort:
         self._masses = ((0.0, 0.0), (0.0, 0.0))  # the hook's and the load's (x, y) in runway, measured
         self._pub = node.create_publisher(CraneState, STATE_TOPIC, qos.RUNWAY_STATE_QOS)
         node.create_subscription(CraneState, STATE_TOPIC, self._on_state, qos.RUNWAY_STATE_QOS)
+        # this crane's own occupancy, as its planner publishes it: whether the crane follows its plan
+        node.create_subscription(Occupancy, OCCUPANCY_TOPIC, self._on_occupancy, qos.RUNWAY_OCCUPANCY_QOS)
         self._told, self._checks = -1, 0
         node.create_timer(CHECK, self._report)
         node.get_logger().info(f'runway: crane {core.crane} at {list(config.runway.offset)} m in {RUNWAY_FRAME}, '
@@ -103,16 +106,26 @@ class RunwayPort:
         if not all(math.isfinite(x) for x in angles):
             return
         hook, load = mass_offsets(*angles, values.get(HOIST.sim_joint, model.L1), model.L2)
-        core.measured(hook, load)
         ox, oy = self._config.runway.offset
         x, y = values.get(CART.sim_joint, 0.0) + ox, values.get(BRIDGE.sim_joint, 0.0) + oy
+        core.measured(hook, load, y if math.isfinite(y) else None)
         self._masses = ((x + hook[0], y + hook[1]), (x + load[0], y + load[1]))
 
     def _on_state(self, msg: CraneState) -> None:
         if msg.header.frame_id != RUNWAY_FRAME:
             self.core.ignored += 1
             return
-        self.core.heard(msg.crane, msg.reach_low, msg.reach_high, self._now())
+        self.core.heard(msg.crane, msg.reach_low, msg.reach_high, self._now(), (msg.footprint_low, msg.footprint_high),
+                        msg.planned)
+
+    def _on_occupancy(self, msg: Occupancy) -> None:
+        if msg.crane != self.core.crane:
+            return
+        try:
+            own = from_message(msg)
+        except OccupancyRefused:  # (its planner counts and reports what it cannot use)
+            return
+        self.core.own(own.start_ns, own.t, own.footprint.girder)
 
     def refusal(self, position) -> str:
         """Why a trajectory (its knots' positions, a column per joint) is refused by the guard; '' if taken."""
@@ -133,9 +146,10 @@ class RunwayPort:
         y, v, _ = core.last
         position = setpoint.position
         x = (position[core.cart] if type(position) is tuple else position) + self._config.runway.offset[0]
-        verdict, mine = core.verdict, core.mine
+        verdict, mine, footprint = core.verdict, core.mine, core.footprint
         conversions.fill_crane_state(self._msg, stamp, y, v, x, *self._masses, (mine.low, mine.high),
-                                     verdict.level.name.lower(), verdict.crane)
+                                     verdict.level.name.lower(), verdict.crane, (footprint.low, footprint.high),
+                                     core.follows_plan)
         try:
             self._pub.publish(self._msg)
         except Exception:  # the context is shut down (SIGINT): the reference's publish ends the loop
@@ -159,7 +173,8 @@ class RunwayPort:
         self._diagnostics.report(
             TASK, DIAGNOSTIC_LEVELS[level], message, guard=level.name.lower(), crane=verdict.crane, gap=verdict.gap,
             refusing=' '.join(f'{d:+g}' for d in sorted(verdict.blocked)) or 'none', reach_low=mine.low,
-            reach_high=mine.high, neighbours=' '.join(sorted(core.guard.neighbours)) or 'none',
+            reach_high=mine.high, planned=core.follows_plan,
+            neighbours=' '.join(sorted(core.guard.neighbours)) or 'none',
             states_ignored=core.ignored, reason=core.reason)
         if changed:
             self._log(level >= Level.WARNING, f'runway guard: {message}')

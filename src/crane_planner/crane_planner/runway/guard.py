@@ -11,7 +11,8 @@ swing-free stop brings back in, no further). Every crane publishes its own on
 between the two spans (the girders span the runway, so y is what separates
 them):
 
-- ``STOP``: the gap would fall under ``runway_min_distance``: stop now (the
+- ``STOP``: the gap would fall under ``runway_min_distance`` (and
+  ``STOP_MARGIN``): stop now (the
   streamer's planned stop, swing-free), and refuse motions towards that crane
   until the way is clear: the gap back over ``WARNING_FACTOR`` times the
   minimum (the level stays ``STOP`` until then; without that margin a crane
@@ -20,6 +21,17 @@ them):
   ``INFO_FACTOR`` times: said on ``/diagnostics``, nothing done;
 - ``LOST``: a crane within reach (its last gap under ``reach``) not heard for
   ``runway_timeout``: treated as ``STOP`` until it is heard again.
+
+Two cranes that both follow what their planners published (``planned``: each
+girder where its own occupancy puts it now) are kept apart by those plans,
+which were placed against each other in time: one following another into the
+space it leaves comes, by design, within its stopping envelope of where the
+other still is. Between two such cranes the levels are judged on their
+footprints now (the same spans without the travel), so the guard stops
+neither while both keep to their plans and still stops a crane before it
+touches the minimum; as soon as either deviates (an operator, a stop, a
+fault, a goal its planner did not place) it says so and the envelopes count
+again.
 
 Levels as the anti-collision anchors use them (warning and stop radii around
 the braking distance). ``envelope`` takes the stopping distance as its caller's
@@ -40,6 +52,16 @@ from .occupancy import Shape
 #: Gaps (in units of runway_min_distance) under which the guard says ``WARNING`` and ``INFO``.
 WARNING_FACTOR = 2.0
 INFO_FACTOR = 4.0
+#: How far (m) the guard's live estimate of a crane's footprint may be off where it matters: the masses placed by
+#: joint_states some tens of milliseconds old while a braking load swings ahead of its trolley (two cranes over
+#: ROS, one following the other into the space it leaves: 7-9 mm at the closest). Planners keep their plans this
+#: much further than runway_min_distance from the others' (``schedule.schedule``'s ``margin``), so that the guard
+#: stops no crane that keeps to its plan.
+PLAN_MARGIN = 0.02
+#: How far (m) before the minimum distance the guard stops: what a swing-free stop leaves of swing on either
+#: crane (a few tenths of a millimetre) and one tick's travel, so that a crane stopped for another rests at the
+#: minimum or beyond, not a fraction of a millimetre within it.
+STOP_MARGIN = 0.002
 
 
 class Level(enum.IntEnum):
@@ -89,13 +111,15 @@ def reach(girder: float, velocity: float, acceleration: float, masses_y, shape: 
 
 @dataclass
 class Neighbour:
-    """What the guard knows of another crane: its last envelope, when it was heard (ns, receipt on this
-    crane's clock), its level and gap, and whether a stop for it still holds (``held``: until the way is
-    clear)."""
+    """What the guard knows of another crane: its last envelope and footprint, whether it follows its
+    published plan, when it was heard (ns, receipt on this crane's clock), its level and gap, and whether a stop
+    for it still holds (``held``: until the way is clear)."""
 
     crane: str
     reach: Reach
     heard_ns: int
+    footprint: Reach | None = None
+    planned: bool = False
     level: Level = Level.CLEAR
     gap: float = math.inf
     held: bool = False
@@ -134,35 +158,47 @@ class Guard:
         self.neighbours: dict[str, Neighbour] = {}
         self._verdict = Verdict(Level.CLEAR, '', math.inf, _BLOCKED[0])
 
-    def heard(self, crane: str, envelope: Reach, now_ns: int) -> None:
-        """Another crane's state, received now."""
+    def heard(self, crane: str, envelope: Reach, now_ns: int, footprint: Reach | None = None,
+              planned: bool = False) -> None:
+        """Another crane's state, received now: its envelope, its footprint and whether it follows its plan."""
         known = self.neighbours.get(crane)
         if known is None:
-            self.neighbours[crane] = Neighbour(crane, envelope, now_ns)
+            self.neighbours[crane] = Neighbour(crane, envelope, now_ns, footprint, planned)
         else:
-            known.reach, known.heard_ns = envelope, now_ns
+            known.reach, known.heard_ns, known.footprint, known.planned = envelope, now_ns, footprint, planned
 
-    def check(self, mine: Reach, now_ns: int) -> Verdict:
-        """This tick's verdict for this crane's envelope ``mine`` (the last one again if nothing changed)."""
+    def check(self, mine: Reach, now_ns: int, footprint: Reach | None = None, planned: bool = False) -> Verdict:
+        """This tick's verdict for this crane's envelope ``mine`` (and ``footprint``, with ``planned``: it follows
+        its published plan); the last one again if nothing changed."""
         worst, blocked = None, 0
         low, high, middle = mine.low, mine.high, mine.low + mine.high
-        stop, timeout = self.min_distance, self.timeout_ns
+        timeout = self.timeout_ns
         for n in self.neighbours.values():
             other = n.reach
-            gap = n.gap = max(other.low - high, low - other.high)
+            gap = max(other.low - high, low - other.high)
             if now_ns - n.heard_ns > timeout and gap < self.reach:
-                level = Level.LOST
-            elif gap < stop or (n.held and gap < WARNING_FACTOR * stop):
-                level, n.held = Level.STOP, True
+                n.gap, level = gap, Level.LOST
             else:
-                n.held = False
-                level = (Level.WARNING if gap < WARNING_FACTOR * stop else Level.INFO if gap < INFO_FACTOR * stop
-                         else Level.CLEAR)
+                if planned and n.planned and footprint is not None and n.footprint is not None:
+                    gap = max(n.footprint.low - footprint.high, footprint.low - n.footprint.high)
+                n.gap = gap
+                level = self._level(n, gap)
             n.level = level
             if level >= Level.STOP:
                 blocked |= 1 if other.low + other.high > middle else 2
-            if worst is None or level > worst.level or (level == worst.level and gap < worst.gap):
+            if worst is None or level > worst.level or (level == worst.level and n.gap < worst.gap):
                 worst = n
+        return self._decided(worst, blocked)
+
+    def _level(self, n: Neighbour, gap: float) -> Level:
+        stop = self.min_distance
+        if gap < stop + STOP_MARGIN or (n.held and gap < WARNING_FACTOR * stop):
+            n.held = True
+            return Level.STOP
+        n.held = False
+        return Level.WARNING if gap < WARNING_FACTOR * stop else Level.INFO if gap < INFO_FACTOR * stop else Level.CLEAR
+
+    def _decided(self, worst: Neighbour | None, blocked: int) -> Verdict:
         last = self._verdict
         if worst is None or worst.level is Level.CLEAR:
             gap = math.inf if worst is None else worst.gap

@@ -53,9 +53,9 @@ def nearest(mine: Occupancy, others) -> Closest | None:
     return min(found, key=lambda c: c.distance) if found else None
 
 
-def conflicts(mine: Occupancy, others, min_distance: float) -> list[Closest]:
-    """The others ``mine`` comes within ``min_distance`` of (each where closest), nearest first."""
-    return _conflicts(mine, _within_reach(mine, others, min_distance))
+def conflicts(mine: Occupancy, others, min_distance: float, margin: float = 0.0) -> list[Closest]:
+    """The others ``mine`` comes within ``min_distance`` and ``margin`` of (each where closest), nearest first."""
+    return _conflicts(mine, _within_reach(mine, others, min_distance + margin))
 
 
 def _extent(o: Occupancy) -> tuple[float, float]:
@@ -94,18 +94,19 @@ def _blocker(mine: Occupancy, near, first: str) -> str:
 
 
 def schedule(mine: Occupancy, others, min_distance: float, policy: str = 'wait',
-             max_delay: float | None = None) -> Scheduled:
-    """``mine``'s least delay among ``others`` (see the module docstring); ``policy`` 'refuse' tries no delay.
+             max_delay: float | None = None, margin: float = 0.0) -> Scheduled:
+    """``mine``'s least delay among ``others`` (see the module docstring) that keeps ``min_distance`` and
+    ``margin`` (m: the planner's, ``guard.PLAN_MARGIN``) from each; ``policy`` 'refuse' tries no delay.
     Raises ``Conflict`` naming the crane in the way when no delay up to ``max_delay`` (s; default: until the
     others stand still) keeps them apart."""
     others = [o for o in others if o.crane != mine.crane]
-    near = _within_reach(mine, others, min_distance)
+    near = _within_reach(mine, others, min_distance + margin)
     found = _conflicts(mine, near)
     if not found:
         return Scheduled(0.0, '', nearest(mine, others))
     first = found[0]
     if policy == 'refuse':
-        raise Conflict(first.crane, first, _message(first, min_distance, 'refused'))
+        raise Conflict(first.crane, first, _message(first, min_distance, margin, 'refused'))
     last_end = max(o.end_ns for o in others)
     horizon = max(0.0, (last_end - mine.start_ns) * 1e-9) + DELAY_STEP
     if max_delay is not None:
@@ -118,10 +119,10 @@ def schedule(mine: Occupancy, others, min_distance: float, policy: str = 'wait',
         if not blocker:
             return Scheduled(k * DELAY_STEP, first.crane, nearest(moved, others))
     worst = _conflicts(moved, near)[0] if steps else first
-    raise Conflict(worst.crane, worst, _message(worst, min_distance, 'no start within '
+    raise Conflict(worst.crane, worst, _message(worst, min_distance, margin, 'no start within '
                                                 f'{horizon:.2f} s keeps it clear'))
 
 
-def _message(c: Closest, min_distance: float, why: str) -> str:
-    return (f'the move would come within {max(c.distance, 0.0):.3f} m of crane {c.crane!r} '
-            f'(runway_min_distance {min_distance:g} m): {why}')
+def _message(c: Closest, min_distance: float, margin: float, why: str) -> str:
+    kept = f'runway_min_distance {min_distance:g} m' + (f' and a margin of {margin:g} m' if margin else '')
+    return f'the move would come within {max(c.distance, 0.0):.3f} m of crane {c.crane!r} ({kept}): {why}'

@@ -24,6 +24,7 @@ import numpy as np
 from crane_msgs_py.crane.params import CraneParams
 
 from ..planning.plan import Plan
+from .guard import PLAN_MARGIN
 from .occupancy import Closest, Footprint, Occupancy, Shape, closest
 from .prediction import plan_occupancy
 from .schedule import Conflict, schedule
@@ -203,7 +204,7 @@ def plan_together(scenario: Scenario, make_plan: MakePlan | None = None) -> Toge
                               crane.shape)
         others = [t for name, t in timelines.items() if name != crane.name]
         try:
-            s = schedule(mine, others, scenario.min_distance, scenario.policy)
+            s = schedule(mine, others, scenario.min_distance, scenario.policy, margin=PLAN_MARGIN)
         except Conflict as e:
             placed.append(Placed(i, move, origin, asked, refused=str(e), refused_by=e.crane))
             continue

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from ..planning.plan import Plan, PlanError
+from ..runway.guard import PLAN_MARGIN
 from ..runway.occupancy import Closest, Footprint, Occupancy, holding
 from ..runway.prediction import plan_occupancy
 from ..runway.schedule import Conflict, conflicts, schedule
@@ -204,7 +205,7 @@ class RunwayStep:
     def _scheduled(self, base: Occupancy, others: list[Occupancy]):
         r = self._config().runway
         try:
-            return schedule(base, others, r.min_distance, r.policy)
+            return schedule(base, others, r.min_distance, r.policy, margin=PLAN_MARGIN)
         except Conflict as exc:
             holds = any(o.crane == exc.crane and is_hold(o) for o in others)
             raise RunwayConflict(exc.crane, str(exc), holds) from None
@@ -226,7 +227,7 @@ class RunwayStep:
         config = self._config()
         mine, others = placement.occupancy, self.book.others()
         binding = [o for o in others if o.crane != mine.crane and (precedes(o, mine) or is_hold(o))]
-        found = conflicts(mine, binding, config.runway.min_distance)
+        found = conflicts(mine, binding, config.runway.min_distance, PLAN_MARGIN)
         if not found:
             return None
         soonest = self._clock() + round(config.publish_lead * 1e9)

@@ -21,6 +21,12 @@ widened by how far the stop it would run now travels:
   RVF and ZV motions stopped at 20-70 %: 0.72), or the fallback braking ramp
   within ``fault_deceleration`` and ``fault_jerk``, whichever goes further.
 
+The crane follows its plan (``follows_plan``, said on ``/runway/state``) while
+trajectory mode streams its girder within ``PLANNED_TOLERANCE`` of where its
+own newest occupancy on ``/runway/occupancy`` puts it now (``own``: the
+planner's claim of the motion or its hold); between two such cranes the guard
+judges their footprints (``runway.guard``).
+
 Then ``runway.guard.Guard.check``. At ``STOP`` or ``LOST`` it stops what
 moves the crane towards that crane and refuses motions towards it until the
 way is clear: in operator mode the bridge's command towards it is held at zero
@@ -38,6 +44,7 @@ Pure Python, no ROS import.
 """
 from __future__ import annotations
 
+import bisect
 import math
 import threading
 import time
@@ -64,6 +71,10 @@ WAKE = 0.01
 #: spatial crane's take 50-150 ms on a quiet host), else the braking ramp, ``RAMP_MARGIN`` before it.
 GUARD_LEAD = 0.4
 RAMP_MARGIN = 0.03
+#: How far (m) the streamed girder may be from where its own published occupancy puts it and still follow its
+#: plan: the occupancy's linear interpolation between 20 ms samples (a fraction of a millimetre), with room for
+#: a small correction of the sway feedback; a stop, a settle or a motion its planner did not place leaves it.
+PLANNED_TOLERANCE = 0.002
 
 
 class PlannedStop:
@@ -116,10 +127,14 @@ class RunwayGuard:
         self.configure(config)
         self._inbox: deque = deque()
         self._measured = (0.0, 0.0, 0.0, 0.0)  # the hook's and the load's offsets (dx1, dy1, dx2, dy2), measured
+        self._girder: float | None = None  # the girder's y in runway (m) as last measured (None: not yet)
         self._source: Source | None = None
         self._operator = False
         self.verdict: Verdict = Verdict(Level.CLEAR, '', math.inf, frozenset())
         self.mine = Reach(-math.inf, math.inf)
+        self.footprint = Reach(-math.inf, math.inf)  # what it covers now, no travel
+        self.follows_plan = False  # it follows its own published occupancy (``own``)
+        self._own: tuple | None = None  # (start ns, sample times s, girder y m) of its newest occupancy
         self.last = (0.0, 0.0, None)  # the girder's y and velocity, and the setpoint, at the last tick
         self.changes = 0  # verdicts that changed level, crane or refusal (the port reports each)
         self.stopping = False  # a stop of a motion towards a crane was asked, and the stream is not at rest yet
@@ -138,18 +153,47 @@ class RunwayGuard:
 
     # -- the executor's side -----------------------------------------------------------------
 
-    def heard(self, crane: str, low: float, high: float, now_ns: int) -> bool:
-        """Another crane's state on the runway, received at ``now_ns`` (this crane's ROS time): its envelope.
-        False (counted in ``ignored``) if it is this crane's own or not finite."""
+    def heard(self, crane: str, low: float, high: float, now_ns: int, footprint: tuple | None = None,
+              planned: bool = False) -> bool:
+        """Another crane's state on the runway, received at ``now_ns`` (this crane's ROS time): its envelope, its
+        footprint (low, high) and whether it follows its plan. False (counted in ``ignored``) if it is this crane's
+        own or not finite."""
         if crane == self.crane or not (math.isfinite(low) and math.isfinite(high) and low <= high):
             self.ignored += 1
             return False
-        self._inbox.append((crane, Reach(low, high), now_ns))
+        if footprint is not None and not (all(math.isfinite(x) for x in footprint) and footprint[0] <= footprint[1]):
+            footprint, planned = None, False
+        self._inbox.append((crane, Reach(low, high), now_ns, None if footprint is None else Reach(*footprint),
+                            bool(planned)))
         return True
 
-    def measured(self, hook: tuple, load: tuple) -> None:
-        """The masses' horizontal offsets (m) from the suspension point, (dx, dy) each, from joint_states."""
+    def own(self, start_ns: int, t, girder) -> None:
+        """This crane's newest occupancy as its planner published it: its start (ns), sample times (s from it)
+        and the girder's y (m, in ``runway``) at them; held at its last sample after."""
+        self._own = (int(start_ns), tuple(float(x) for x in t), tuple(float(y) for y in girder))
+
+    def _follows(self, stamp_ns: int, y: float) -> bool:
+        """Whether the girder at ``y`` (m) at ``stamp_ns`` is where this crane's own occupancy puts it."""
+        own = self._own
+        if own is None:
+            return False
+        start, t, girder = own
+        s = (stamp_ns - start) * 1e-9
+        if s <= t[0] or len(t) == 1:
+            planned = girder[0]
+        elif s >= t[-1]:
+            planned = girder[-1]
+        else:
+            k = bisect.bisect_right(t, s)
+            w = (s - t[k - 1]) / (t[k] - t[k - 1])
+            planned = girder[k - 1] + w * (girder[k] - girder[k - 1])
+        return abs(y - planned) <= PLANNED_TOLERANCE
+
+    def measured(self, hook: tuple, load: tuple, girder: float | None = None) -> None:
+        """The masses' horizontal offsets (m) from the suspension point, (dx, dy) each, and the girder's y in
+        ``runway`` (m; None: no bridge measured), from joint_states."""
         self._measured = (*hook, *load)
+        self._girder = girder
 
     @property
     def masses(self) -> tuple:
@@ -195,8 +239,13 @@ class RunwayGuard:
                 travel = self.planned.travel(v, a, GUARD_LEAD + WAKE) if (v or a) else 0.0
         _, dy1, _, dy2 = self._measured
         mine = self.mine = envelope(y, (y + dy1, y + dy2), self.shape, travel)
+        # what it covers now, as measured: the axes follow their reference late (the servo, Eq. 6, and the
+        # controller's playout), by a tenth of a second and centimetres at speed
+        at = y if self._girder is None else self._girder
+        footprint = self.footprint = envelope(at, (at + dy1, at + dy2), self.shape, 0.0)
+        planned = self.follows_plan = not self._operator and not self.stopping and self._follows(stamp_ns, y)
         self.last = (y, v, setpoint)
-        verdict = guard.check(mine, stamp_ns)
+        verdict = guard.check(mine, stamp_ns, footprint, planned)
         if verdict is not self.verdict:
             last, self.verdict = self.verdict, verdict
             if (verdict.level, verdict.crane, verdict.blocked) != (last.level, last.crane, last.blocked):
