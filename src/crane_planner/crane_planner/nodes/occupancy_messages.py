@@ -1,4 +1,5 @@
-"""``crane_interfaces/Occupancy`` <-> ``runway.occupancy.Occupancy`` (contract "Cranes sharing a runway").
+"""``crane_interfaces/Occupancy`` <-> ``runway.occupancy.Occupancy`` (contract "Cranes sharing a runway"), and the
+other cranes' occupancies drawn as markers (``runway_markers``).
 
 ROS only: the messages' fields to the record and back. An incoming message is checked field by field before it
 becomes a record, and refused (``OccupancyRefused``, its reason naming the field) if its frame is not
@@ -11,6 +12,8 @@ import math
 
 import numpy as np
 from crane_interfaces.msg import Occupancy as OccupancyMsg
+from geometry_msgs.msg import Point
+from visualization_msgs.msg import Marker, MarkerArray
 
 from crane_msgs_py.messages.conversions import set_stamp, stamp_ns
 from crane_planner.runway.occupancy import RUNWAY_FRAME, Footprint, Occupancy, Shape
@@ -66,3 +69,51 @@ def from_message(msg: OccupancyMsg) -> Occupancy:
                        np.stack([arrays['load_x'], arrays['load_y']], axis=-1)], axis=1)
     return Occupancy(msg.crane, stamp_ns(msg.header.stamp), stamp_ns(msg.start), t,
                      Footprint(arrays['girder'], masses), Shape(msg.girder_half_width, msg.load_half_size))
+
+
+#: How often (s) the planner draws the other cranes (``runway_markers``), and how long each drawing lasts (s): a
+#: crane no longer heard disappears by itself.
+MARKERS_PERIOD, MARKERS_LIFETIME = 0.2, 0.5
+#: The girder as drawn: its length along x (m), about the runway's x = 0 (a bridge spans the runway).
+GIRDER_DRAWN = 4.0
+
+
+def runway_markers(others, now_ns: int, offset, frame_id: str, lifetime: float = MARKERS_LIFETIME) -> MarkerArray:
+    """The other cranes' occupancies (``runway.occupancy.Occupancy``) as markers in this crane's ``frame_id``
+    (``offset``: where its origin lies in ``runway``), seen from above at z = 0 (an occupancy has no heights), one
+    namespace ``runway/<crane>`` each: where each stands at ``now_ns`` (its girder as a translucent box as wide as
+    its ``girder_half_width``, both masses as discs of ``load_half_size``) and the path its load takes from
+    there to the end of its occupancy (a line strip: a claimed motion; nothing for a hold)."""
+    dx, dy = offset
+    msg = MarkerArray()
+    for other in sorted(others, key=lambda o: o.crane):
+        here = other.at(np.array([now_ns]))
+        shape = other.shape
+
+        def marker(marker_id, kind, rgba):
+            m = Marker()
+            m.header.frame_id = frame_id
+            set_stamp(m.header.stamp, now_ns)
+            m.ns, m.id, m.type, m.action = f'runway/{other.crane}', marker_id, kind, Marker.ADD
+            m.pose.orientation.w = 1.0
+            m.color.r, m.color.g, m.color.b, m.color.a = rgba
+            m.lifetime.sec, m.lifetime.nanosec = int(lifetime), round((lifetime % 1.0) * 1e9)
+            msg.markers.append(m)
+            return m
+
+        girder = marker(0, Marker.CUBE, (0.9, 0.5, 0.1, 0.35))
+        girder.pose.position.x, girder.pose.position.y = -dx, float(here.girder[0]) - dy
+        girder.scale.x, girder.scale.y, girder.scale.z = GIRDER_DRAWN, max(2 * shape.girder_half_width, 1e-3), 0.01
+        for k in range(2):
+            disc = marker(1 + k, Marker.CYLINDER, (0.9, 0.2, 0.1, 0.5))
+            x, y = here.masses[0, k]
+            disc.pose.position.x, disc.pose.position.y = float(x) - dx, float(y) - dy
+            disc.scale.x = disc.scale.y = max(2 * shape.load_half_size, 1e-3)
+            disc.scale.z = 0.01
+        ahead = (other.start_ns + np.round(np.asarray(other.t) * 1e9)).astype(np.int64) > now_ns
+        if np.any(ahead):
+            path = marker(3, Marker.LINE_STRIP, (0.9, 0.2, 0.1, 0.8))
+            path.scale.x = 0.01
+            points = [here.masses[0, 1]] + list(other.footprint.masses[ahead, 1])
+            path.points = [Point(x=float(x) - dx, y=float(y) - dy, z=0.0) for x, y in points]
+    return msg

@@ -2,7 +2,8 @@
 
 ROS only, on a node and executor thread of its own beside the planner node (with ``runway`` false nothing is
 made: no topic). It hands every other crane's occupancy to ``serving.runway_step`` (``Neighbours``), counts an
-unusable one on /diagnostics (``runway``: its reason and the count), publishes this crane's, and at start-up
+unusable one on /diagnostics (``runway``: its reason and the count), publishes this crane's, draws the others on
+the planner's markers topic (``occupancy_messages.runway_markers``, every ``MARKERS_PERIOD``), and at start-up
 refuses a ``runway_offset`` that puts this crane's girder too near another's (``runway_step.startup_conflict``,
 after ``STARTUP_WAIT``): a ParameterError, so the planner exits with status 2 and that one line.
 """
@@ -14,12 +15,20 @@ from typing import Callable
 import rclpy
 from crane_interfaces.msg import Occupancy as OccupancyMsg
 from rclpy.executors import SingleThreadedExecutor
+from visualization_msgs.msg import MarkerArray
 
 from crane_msgs_py.crane.params import ParameterError
+from crane_msgs_py.messages import names
 from crane_msgs_py.runtime import qos
 from crane_msgs_py.runtime.diagnostics import WARN
 from crane_msgs_py.runtime.runner import spinning
-from crane_planner.nodes.occupancy_messages import OccupancyRefused, from_message, to_message
+from crane_planner.nodes.occupancy_messages import (
+    MARKERS_PERIOD,
+    OccupancyRefused,
+    from_message,
+    runway_markers,
+    to_message,
+)
 from crane_planner.runway.config import OCCUPANCY_TOPIC
 from crane_planner.serving.config import Config
 from crane_planner.serving.crane_view import DISCOVERY_WAIT
@@ -45,6 +54,10 @@ class RunwayPort:
                                        start_parameter_services=False)
         self._pub = self._node.create_publisher(OccupancyMsg, OCCUPANCY_TOPIC, qos.RUNWAY_OCCUPANCY_QOS)
         self._node.create_subscription(OccupancyMsg, OCCUPANCY_TOPIC, self._on_occupancy, qos.RUNWAY_OCCUPANCY_QOS)
+        # the other cranes drawn where their occupancies put them now, beside this planner's keep-out markers
+        markers = self._node.create_publisher(MarkerArray, names.MARKERS_TOPIC, qos.MARKERS_QOS)
+        self._node.create_timer(MARKERS_PERIOD, lambda: self.book.others() and markers.publish(runway_markers(
+            self.book.others(), clock(), config().runway.offset, config().frame_id)))
         executor = SingleThreadedExecutor()
         executor.add_node(self._node)
         self._spinning = spinning(executor)

@@ -36,10 +36,13 @@ from rclpy.type_support import check_for_type_support
 
 from crane_msgs_py.runtime.realtime import die_with_parent, set_threads_fifo
 from crane_msgs_py.runtime.taking import take_all
+from crane_planner.runway.config import OCCUPANCY_TOPIC, STATE_TOPIC
 
 PROG = 'crane-record'
 #: What ``crane-demo --record`` records (relative names resolve in the nodes' namespace).
 DEFAULT_TOPICS = ('reference', 'joint_states', 'trajectory', '/diagnostics', 'crane_markers')
+#: What ``--runway`` adds: every crane's occupancy and live state on a shared runway (global names).
+RUNWAY_TOPICS = (OCCUPANCY_TOPIC, STATE_TOPIC)
 #: Seconds between two drains of the subscriptions' queues: 10 messages of a 1 kHz topic per drain.
 DRAIN_PERIOD = 0.01
 #: SCHED_FIFO priority of the middleware's receive threads by default: they stamp each message's receive
@@ -138,6 +141,7 @@ class Recorder:
 
     def _subscribe(self, topic: str, type_name: str, cls):
         publishers = self._node.get_publishers_info_by_topic(topic)
+        register_type(self._typestore, type_name)
         with self._lock:
             self._connections[topic] = self._writer.add_connection(topic, type_name, typestore=self._typestore)
             self.counts[topic] = 0
@@ -189,10 +193,25 @@ class Recorder:
             self._writer.close()
 
 
+def register_type(typestore, type_name: str) -> None:
+    """Teach ``typestore`` a message type it lacks (rosbags knows the ROS 2 distribution's, not this project's
+    crane_interfaces): its definition from the package's installed ``.msg``, in the share folder of the prefix its
+    Python module lies in (``<prefix>/lib/pythonX.Y/site-packages/<package>``)."""
+    if type_name in typestore.fielddefs:
+        return
+    from rosbags.typesys import get_types_from_msg
+    package, _, name = type_name.split('/')
+    prefix = Path(importlib.import_module(package).__file__).resolve().parents[4]
+    typestore.register(get_types_from_msg((prefix / 'share' / package / 'msg' / f'{name}.msg').read_text(),
+                                          type_name))
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0].split(': ', 1)[1])
     p.add_argument('--topics', default=','.join(DEFAULT_TOPICS), metavar='T,T,...',
                    help=f'topics to record; relative names resolve in --namespace (default {",".join(DEFAULT_TOPICS)})')
+    p.add_argument('--runway', action='store_true',
+                   help=f'also record {" and ".join(RUNWAY_TOPICS)} (cranes sharing a runway: every crane\'s)')
     p.add_argument('--out', required=True, metavar='DIR', help='the recording folder to create')
     p.add_argument('--namespace', default='/', help='namespace relative topic names resolve in (default /)')
     p.add_argument('--duration', type=float, metavar='S', help='stop after S seconds (default: at Ctrl-C)')
@@ -207,6 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     topics = [t.strip() for t in args.topics.split(',') if t.strip()]
+    topics += [t for t in RUNWAY_TOPICS if args.runway and t not in topics]
     if not topics:
         print(f'{PROG}: error: --topics names no topic', file=sys.stderr)
         return 2
