@@ -81,7 +81,8 @@ class Case:
     #: what is measured: 'move' (a planned move from rest), or motion from any state: 'retarget', 'stop',
     #: 'settle', 'operator'; 'spatial': the cart and the bridge, offline (``spatial_demo``, no nodes); 'route':
     #: moves past protected areas and through a via point, offline (``route_demo``, no nodes); 'feedback': the
-    #: streamer's sway feedback off and on, each on nodes of its own (``feedback_demo``)
+    #: streamer's sway feedback off and on, each on nodes of its own (``feedback_demo``); 'runway': two cranes on
+    #: one runway, on nodes of their own (``runway_demo``)
     kind: str = 'move'
     #: the methods this case runs by default (of --methods; every one of them with --cases all), None = all;
     #: the operator case's are operator_shaper values
@@ -95,8 +96,8 @@ class Case:
     @property
     def on_nodes(self) -> bool:
         """Whether the case runs on the demo's nodes (all but the offline spatial and route cases, and the feedback
-        case on nodes of its own)."""
-        return self.kind not in ('spatial', 'route', 'feedback')
+        and runway cases on nodes of their own)."""
+        return self.kind not in ('spatial', 'route', 'feedback', 'runway')
 
 
 CASES = {
@@ -125,6 +126,9 @@ CASES = {
     # closed-loop sway control: the perturbed crane (NVF, ZV), a push during an NVF move, wind and gusts at rest,
     # each with the streamer's feedback off and on (``feedback_demo``: the situations, the table, the figure)
     'feedback': Case('feedback', CraneParams(), False, kind='feedback', methods=('nvf', 'zv')),
+    # cranes sharing a runway: two cranes' goals sent together (ZV, then NVF back), one waits for the other, then
+    # an operator drives one into the other's way and its guard stops it (``runway_demo``)
+    'runway': Case('runway', CraneParams(), False, kind='runway', methods=('zv', 'nvf')),
 }
 #: What runs without --cases: every case but perturbed+net (nothing perturbed and nominal+net do not show
 #: between them), so that make demo, hoisting, motion from any state and the spatial case included, stays
@@ -396,7 +400,8 @@ def columns(cases) -> list[str]:
     from .spatial_demo import COLUMNS
     return [name for c in cases
             for name in ((BEFORE, AFTER) if c.commission else COLUMNS if c.kind == 'spatial'
-                         else ROUTE_COLUMNS if c.kind == 'route' else () if c.kind == 'feedback' else (c.name,))]
+                         else ROUTE_COLUMNS if c.kind == 'route' else () if c.kind in ('feedback', 'runway')
+                         else (c.name,))]
 
 
 def _describe(identified) -> str:
@@ -573,6 +578,30 @@ def run_feedback_case(args, env: dict, log_dir: Path) -> list:
                                                startup_timeout=args.startup_timeout), progress)
 
 
+def run_runway_case(args, env: dict, log_dir: Path) -> list:
+    """The runway case on two cranes' nodes of their own (``runway_demo.run_runway``), after the demo's nodes have
+    stopped, recorded (both cranes' joint_states and trajectories, /runway/occupancy, /runway/state, /diagnostics)
+    into OUT/runway_recording unless --no-record: its ``RunwayRun`` records."""
+    from .runway_demo import CRANES, METHODS, Settings, run_runway
+    progress('runway case: two cranes on one runway, each its own process group')
+    asked = case_methods(CASES['runway'], args.methods, args.every)  # (ZV first: out, then NVF back)
+    methods = tuple(sorted(asked, key=lambda m: (METHODS.index(m) if m in METHODS else len(METHODS), m)))
+    topics = [f'/{name}/{topic}' for name in CRANES for topic in ('joint_states', 'trajectory')] + ['/diagnostics']
+    started = []
+
+    def record():
+        started.append(start_recorder(args, env, log_dir, None, topics=topics, runway=True,
+                                      bag=Path(args.out) / 'runway_recording'))
+        return started[-1]
+
+    try:
+        return run_runway(env, log_dir / 'runway', Settings(methods, startup_timeout=args.startup_timeout), progress,
+                          recorder=None if args.no_record else record)
+    finally:
+        for proc in started:
+            stop_recorder(proc)
+
+
 def print_routes(records: list) -> None:
     """The route case's own figures: each method's route and the smallest distance of a mass to the box."""
     from .route_demo import COLUMNS, MARGIN
@@ -604,20 +633,26 @@ def run_sweep(args) -> Path | None:
     return path
 
 
-def start_recorder(args, env: dict, log_dir: Path, nodes: NodeGroup):
-    """``crane-record`` of the demo's topics into ``--record`` (default OUT/recording), as a process."""
+def start_recorder(args, env: dict, log_dir: Path, nodes: NodeGroup | None, topics=None, runway: bool = False,
+                   bag: Path | None = None):
+    """``crane-record`` into ``bag`` (default ``--record``, else OUT/recording) as a process: the demo's topics, or
+    ``topics``, and with ``runway`` the runway's."""
     import shutil
-    bag = Path(args.record or Path(args.out) / 'recording')
-    if bag.exists() and args.record is None:
+    given = bag is None and args.record is not None
+    bag = Path(bag or args.record or Path(args.out) / 'recording')
+    if bag.exists() and not given:
         shutil.rmtree(bag)  # the demo's own recording of an earlier run
-    log = open(log_dir / 'crane-record.log', 'w')
+    log_path = log_dir / f'crane-record-{bag.name}.log'
+    log = open(log_path, 'w')
+    options = (['--topics', ','.join(topics)] if topics else []) + (['--runway'] if runway else [])
     proc = subprocess.Popen([find_executable('crane_planner', 'crane-record'), '--namespace', args.namespace,
-                             '--out', str(bag)], env={**env, DIE_WITH_PARENT: '1'}, stdout=log,
+                             '--out', str(bag), *options], env={**env, DIE_WITH_PARENT: '1'}, stdout=log,
                             stderr=subprocess.STDOUT, start_new_session=True)
-    proc.bag, proc.log_path = bag, log_dir / 'crane-record.log'
+    proc.bag, proc.log_path = bag, log_path
     deadline = time.monotonic() + 30.0
     while 'recording' not in proc.log_path.read_text():
-        nodes.check_alive()  # a node that dies meanwhile is the error to report, not the recorder
+        if nodes is not None:
+            nodes.check_alive()  # a node that dies meanwhile is the error to report, not the recorder
         if proc.poll() is not None or time.monotonic() > deadline:
             raise HarnessError(f'crane-record did not start: {proc.log_path.read_text().strip()[-300:]}')
         time.sleep(0.1)
@@ -705,6 +740,7 @@ def _run(args, env: dict, t_start: float) -> int:
                 driver.close()
                 driver = None
         feedback = run_feedback_case(args, env, log_dir) if any(c.kind == 'feedback' for c in args.cases) else []
+        runway = run_runway_case(args, env, log_dir) if any(c.kind == 'runway' for c in args.cases) else []
         # The nodes are stopped here, so the streamer has written its timing log.
         spatial = None
         if any(c.kind == 'spatial' for c in args.cases):
@@ -714,15 +750,19 @@ def _run(args, env: dict, t_start: float) -> int:
         if any(c.kind == 'route' for c in args.cases):
             route_runs, routes = run_route_case(args)
             runs += route_runs
-        if columns(args.cases):  # (not the feedback case alone: a table of its own)
+        if columns(args.cases):  # (not the feedback or runway case alone: tables of their own)
             print_table(runs, args.cases, args.methods)
         if routes:
             print_routes(routes)
         if feedback:
             from .feedback_demo import print_feedback
             print_feedback(feedback)
-        (out / 'results.json').write_text(json.dumps([r.row() for r in runs + feedback], indent=1) + '\n')
+        if runway:
+            from .runway_demo import print_runway
+            print_runway(runway)
+        (out / 'results.json').write_text(json.dumps([r.row() for r in runs + feedback + runway], indent=1) + '\n')
         written = [out / 'results.json'] + ([written_bag] if written_bag is not None else [])
+        written += [out / 'runway_recording'] if runway and not args.no_record else []
         if identification is not None:
             recording, identified = identification
             (out / 'commission.json').write_text(json.dumps(
@@ -741,6 +781,9 @@ def _run(args, env: dict, t_start: float) -> int:
             if feedback:
                 from .feedback_demo import plot_feedback
                 written.append(plot_feedback(feedback, out / 'demo_feedback.png'))
+            if runway:
+                from .runway_demo import plot_runway
+                written.append(plot_runway(runway, out / 'demo_runway.png'))
             sweep = run_sweep(args)
             if sweep:
                 written.append(sweep)
