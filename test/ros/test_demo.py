@@ -11,6 +11,9 @@ import numpy as np
 import pytest
 from crane_plan_cli import crane_plan
 
+from crane_msgs_py.crane.geometry import load_offset
+from crane_msgs_py.crane.params import CraneParams
+
 BIN = Path(sys.executable).parent
 BEFORE = 'commission:model'  # the commissioning case's runs planned with Table 1's model, before identification
 DURATION, SETTLE = 2.5, 1.0  # s observed after a motion: over half the slow mode's 1.73 s period, so its peak shows
@@ -220,3 +223,97 @@ def test_the_feedback_case_runs_open_and_closed_loop_on_nodes_of_their_own(ros_d
     table = out.getvalue()
     assert 'feedback:perturbed' in table and 'residual after the motion' in table, table
     assert plot_feedback(runs, tmp_path / 'demo_feedback.png').stat().st_size > 10_000
+
+
+def test_the_runway_case_two_cranes_sent_together_one_waits_none_stops_and_the_guard_stops_an_operator(tmp_path):
+    """crane-demo --cases runway: two cranes 2 m apart, each its own process group, their goals sent together
+    (ZV, then NVF back) where one must follow the other, then crane a's operator at full speed into b's way. Read
+    back from the runway recording with the mcap library and measured here (both sims' joint_states, each crane's
+    girder and masses placed in runway by crane_sim's cable geometry, the distance by closed forms): the cranes
+    never come within the minimum (0.2 m), and the operator's stop within 1 cm of it; every motion ends without
+    residual swing (NVF 0.1 mm, ZV 1 mm), the stopped crane too (1 mm); the follower waited for the crane it
+    names and no goal stopped; the occupancies each planner claimed are apart; a's guard said stop for b."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from crane_planner.nodes.occupancy_messages import from_message
+    from crane_planner.runway.occupancy import separation
+    from crane_planner.tools.harness import measured_masses
+    out = tmp_path / 'out'
+    r = subprocess.run([str(BIN / 'crane-demo'), '--cases', 'runway', '--out', str(out), '--sweep-points', '0'],
+                       capture_output=True, text=True, timeout=400)
+    assert r.returncode == 0, r.stderr[-2000:]
+    rows = {row['case']: row for row in json.loads((out / 'results.json').read_text())}
+    assert set(rows) == {'runway:zv', 'runway:nvf', 'runway:operator'}, rows
+    for case, (leader, follower) in (('runway:zv', ('crane_b', 'crane_a')), ('runway:nvf', ('crane_a', 'crane_b'))):
+        row = rows[case]
+        assert (row['follower'], row['waited_for'], row['stopped']) == (follower, leader, False), row
+        assert 0.1 <= row['delay_s'] <= 2.0, row
+    assert rows['runway:operator']['stopped'] and rows['runway:operator']['waited_for'] == 'crane_b'
+    assert 'runway (crane-demo --cases runway)' in r.stdout and (out / 'demo_runway.png').stat().st_size > 10_000
+
+    [mcap_file] = (out / 'runway_recording').glob('*.mcap')
+    states = {'crane_a': [], 'crane_b': []}
+    trajectories = {'crane_a': [], 'crane_b': []}
+    claims, guard = {'crane_a': [], 'crane_b': []}, set()
+    with open(mcap_file, 'rb') as f:
+        for _, channel, _, ros in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            stamp = ros.header.stamp.sec * 10**9 + ros.header.stamp.nanosec
+            crane = channel.topic.split('/')[1]
+            if channel.topic.endswith('/joint_states'):
+                names = list(ros.name)
+                states[crane].append([stamp] + [ros.position[names.index(j)] for j in
+                                                ('cart', 'bridge', 'theta1', 'theta2', 'phi1', 'phi2')])
+            elif channel.topic.endswith('/trajectory'):
+                end = ros.points[-1].time_from_start
+                trajectories[crane].append((stamp, stamp + end.sec * 10**9 + end.nanosec))
+            elif channel.topic == '/runway/occupancy' and len(ros.t) > 1:
+                claims[ros.crane].append(ros)
+            elif channel.topic == '/runway/state':
+                guard.add((ros.crane, ros.guard, ros.guard_crane))
+    P = CraneParams()
+    found = {}
+    for crane, y0 in (('crane_a', 0.0), ('crane_b', 2.0)):
+        s = np.array(states[crane])
+        rec = dict(zip(('stamp', 'cart', 'bridge', 'theta1', 'theta2', 'phi1', 'phi2'), s.T))
+        m1, m2 = measured_masses(rec, P.L1, P.L2)
+        found[crane] = (s[:, 0], rec['bridge'] + y0, m1[:, :2] + [0.0, y0], m2[:, :2] + [0.0, y0], rec)
+    # b at a's stamps (both sims stamp the plant's time on one clock)
+    ta, ga, a1, a2, rec_a = found['crane_a']
+    tb, gb, b1, b2, _ = found['crane_b']
+    inside = (ta >= tb[0]) & (ta <= tb[-1])
+    gb = np.interp(ta[inside], tb, gb)
+    b1, b2 = (np.stack([np.interp(ta[inside], tb, m[:, c]) for c in range(2)], -1) for m in (b1, b2))
+    ga, a1, a2 = ga[inside], a1[inside], a2[inside]
+    half = 0.05  # girder_half_width and load_half_size, their defaults
+    gap = np.min([np.abs(ga - gb) - 2 * half,  # girder to girder
+                  *(np.abs(m[:, 1] - g) - 2 * half for m, g in ((b1, ga), (b2, ga), (a1, gb), (a2, gb))),
+                  *(np.linalg.norm(p - q, axis=1) - 2 * half for p in (a1, a2) for q in (b1, b2))], axis=0)
+    closest = float(gap.min())
+    demo = ', '.join(f'{case} {row["closest_m"]:.4f}' for case, row in rows.items())
+    print(f'\nthe runway recording: closest {closest:.4f} m at y_a {ga[np.argmin(gap)]:.4f} m; the demo: {demo} m')
+    assert 0.2 <= closest <= 0.21  # never within the minimum; the operator stopped right at it
+    # every motion ended quiet: ZV first, then NVF, on each crane
+    for crane, (t, _, _, _, rec) in found.items():
+        swing = 1e3 * np.hypot(*load_offset(rec['theta1'], rec['theta2'], rec['phi1'], rec['phi2'], P.L1, P.L2))
+        ends = trajectories[crane]
+        assert len(ends) == 2, ends
+        for (_, end), limit in zip(ends, (1.0, 0.1)):
+            after = (t >= end) & (t <= end + 1_000_000_000)
+            assert after.sum() > 40 and swing[after].max() <= limit, (crane, swing[after].max())
+    # the operator's stop: where a stood furthest towards b, pushed on, without swing
+    a_swing = 1e3 * np.hypot(*load_offset(rec_a['theta1'], rec_a['theta2'], rec_a['phi1'], rec_a['phi2'], P.L1,
+                                          P.L2))
+    stood = rec_a['bridge'] >= rec_a['bridge'].max() - 1e-6
+    assert stood.sum() > 40 and a_swing[stood].max() <= 1.0, (stood.sum(), a_swing[stood].max())
+    # what each planner claimed of both convoys (the claim its streamed motion started at): the follower's kept
+    # clear of the leader's
+    def claim(crane, k):
+        start = trajectories[crane][k][0]
+        return from_message([m for m in claims[crane] if from_message(m).start_ns == start][-1])
+
+    for (follower, leader), k in ((('crane_a', 'crane_b'), 0), (('crane_b', 'crane_a'), 1)):
+        mine, theirs = claim(follower, k), claim(leader, k)
+        stamps = np.arange(min(mine.start_ns, theirs.start_ns), max(mine.end_ns, theirs.end_ns), 1_000_000)
+        assert separation(mine.at(stamps), mine.shape, theirs.at(stamps), theirs.shape).min() >= 0.2
+    assert ('crane_a', 'stop', 'crane_b') in guard and not [g for g in guard if g[1] == 'lost']

@@ -592,13 +592,13 @@ def run_runway_case(args, env: dict, log_dir: Path) -> list:
     def record():
         started.append(start_recorder(args, env, log_dir, None, topics=topics, runway=True,
                                       bag=Path(args.out) / 'runway_recording'))
-        return started[-1]
+        return lambda: stop_recorder(started.pop())
 
     try:
         return run_runway(env, log_dir / 'runway', Settings(methods, startup_timeout=args.startup_timeout), progress,
                           recorder=None if args.no_record else record)
     finally:
-        for proc in started:
+        for proc in started:  # (an error ended the case before the recording was stopped)
             stop_recorder(proc)
 
 

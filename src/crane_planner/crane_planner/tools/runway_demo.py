@@ -118,9 +118,9 @@ def run_runway(env: dict, log_dir: Path, settings: Settings, log: Callable[[str]
                recorder: Callable[[], object] | None = None) -> list[RunwayRun]:
     """Both cranes' nodes (a node group each: separate process groups and DDS participants) in the private graph
     ``env``, node logs in ``log_dir``; the convoys, then the operator (``recorder``: called once the nodes are up,
-    to start a recording). The runs in that order."""
+    starts a recording and returns what stops it, called before the nodes stop). The runs in that order."""
     groups = {name: NodeGroup(env, log_dir / name) for name in CRANES}
-    drivers, runs = {}, []
+    drivers, runs, stop_recording = {}, [], None
     try:
         for name, nodes in groups.items():
             offset = list(OFFSETS[name])
@@ -133,13 +133,15 @@ def run_runway(env: dict, log_dir: Path, settings: Settings, log: Callable[[str]
             driver.wait_until_up(settings.startup_timeout)
         situations = _Situations(drivers, settings, log)
         if recorder is not None:
-            recorder()
+            stop_recording = recorder()
         for k, method in enumerate(settings.methods):
             runs.append(situations.convoy(method, CONVOYS[k % 2]))
         if settings.operator:
             runs.append(situations.operator())
         return runs
     finally:
+        if stop_recording is not None:  # (before the nodes: their going is no part of the case)
+            stop_recording()
         for driver in reversed(list(drivers.values())):  # (a's harness owns the rclpy context: last)
             driver.close()
         for nodes in groups.values():
