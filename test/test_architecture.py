@@ -22,7 +22,7 @@ PACKAGES = ('crane_msgs_py', 'crane_sim', 'crane_planner')
 #: Modules allowed to import ROS, besides every module under a ``nodes`` subpackage.
 ROS_MODULES = {
     'crane_planner.tools.demo', 'crane_planner.tools.feedback_demo', 'crane_planner.tools.harness',
-    'crane_planner.tools.record', 'crane_planner.tools.teleop',
+    'crane_planner.tools.record', 'crane_planner.tools.runway_demo', 'crane_planner.tools.teleop',
     'crane_msgs_py.client', 'crane_msgs_py.messages.conversions',
     'crane_msgs_py.runtime.action_client', 'crane_msgs_py.runtime.action_server', 'crane_msgs_py.runtime.diagnostics',
     'crane_msgs_py.runtime.node_parameters', 'crane_msgs_py.runtime.qos', 'crane_msgs_py.runtime.runner',
