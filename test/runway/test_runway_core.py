@@ -12,7 +12,7 @@ from crane_planner.planning.dispatch import plan
 from crane_planner.runway import guard as G
 from crane_planner.runway.occupancy import Footprint, Occupancy, Shape, holding, separation
 from crane_planner.runway.prediction import plan_occupancy
-from crane_planner.runway.schedule import DELAY_STEP, Conflict, schedule
+from crane_planner.runway.schedule import DELAY_STEP, Conflict, conflicts, schedule
 
 P = CraneParams()
 SHAPE = Shape(girder_half_width=0.05, load_half_size=0.05)
@@ -176,3 +176,21 @@ def test_two_cranes_that_both_follow_their_plans_are_judged_on_their_footprints_
     # footprints within the minimum stop planned cranes too: the guard is the last word
     g.heard('b', b_envelope, 9, G.Reach(1.8, 1.9), planned=True)
     assert g.check(a_envelope, 10, a_footprint, planned=True).level is G.Level.STOP
+
+
+def test_the_crane_waited_for_is_the_one_that_set_the_delay_not_the_first_in_the_way():
+    """Two cranes ahead of a goal along y: p stands in its way only until 0.3 s, q, further on, leaves later;
+    the goal waits for q (in its way a step before the delay found), though p was the first in its way."""
+    t = np.linspace(0.0, 4.0, 201)
+
+    def crane(name, y):
+        g = np.asarray(y, dtype=float)
+        masses = np.stack([np.stack([np.zeros_like(g), g], -1)] * 2, axis=1)
+        return Occupancy(name, 0, 0, t, Footprint(g, masses), Shape())
+
+    mine = crane('mine', np.clip(t, 0.0, 1.0) * 1.0)  # 0 -> 1 m in 1 s
+    p = crane('p', 0.5 + 5.0 * np.clip(t - 0.3, 0.0, None))  # in the way at once, off at 5 m/s from 0.3 s
+    q = crane('q', 1.25 + 5.0 * np.clip(t - 1.5, 0.0, None))  # where mine ends, off from 1.5 s
+    assert [c.crane for c in conflicts(mine, [p, q], 0.2)][0] == 'p'
+    s = schedule(mine, [p, q], 0.2)
+    assert s.waited_for == 'q' and s.delay > 0.5, s

@@ -22,7 +22,8 @@ DELAY_STEP = 0.05
 @dataclass(frozen=True)
 class Scheduled:
     """A goal's place among the others: its ``delay`` (s, from the start it asked for; 0 if it conflicts with
-    none), the crane it waits for ('' if none), and where it then comes closest to another (None: no other)."""
+    none), the crane it waits for ('' if none: the one still in its way a step sooner, which set the delay), and
+    where it then comes closest to another (None: no other)."""
 
     delay: float
     waited_for: str
@@ -115,9 +116,10 @@ def schedule(mine: Occupancy, others, min_distance: float, policy: str = 'wait',
     blocker = first.crane
     for k in range(1, steps + 1):
         moved = mine.delayed(k * DELAY_STEP)
-        blocker = _blocker(moved, near, blocker)
-        if not blocker:
-            return Scheduled(k * DELAY_STEP, first.crane, nearest(moved, others))
+        still = _blocker(moved, near, blocker)
+        if not still:  # (waited for: the crane in the way a step sooner, which set the delay)
+            return Scheduled(k * DELAY_STEP, blocker, nearest(moved, others))
+        blocker = still
     worst = _conflicts(moved, near)[0] if steps else first
     raise Conflict(worst.crane, worst, _message(worst, min_distance, margin, 'no start within '
                                                 f'{horizon:.2f} s keeps it clear'))
