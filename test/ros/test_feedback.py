@@ -46,13 +46,15 @@ def corrected_mm(message: str) -> float:
     return float(found.group(1))
 
 
-@pytest.mark.parametrize('method, bound', [('nvf', 1e-3), ('zv', 1e-3), ('rvf', 0.5e-3)])
+@pytest.mark.parametrize('method, bound', [('nvf', 1e-3), ('zv', 1e-3)])
 def test_the_perturbed_crane_with_feedback_ends_quiet_at_its_goal(perturbed, method, bound):
     """0.3 m in 2.5 s with the sim's L1 0.42 m: open loop leaves 8.6 mm (NVF) and 8.9 mm (ZV); with the feedback
-    the goal succeeds once the corrected reference is back at its goal, with its residual under the bound."""
+    the goal succeeds once the corrected reference is back at its goal, with its residual under the bound. (RVF,
+    insensitive to L1 by design, leaves the feedback little to correct; the correction does not depend on the
+    method.)"""
     crane = perturbed
     quiet(crane)
-    here = crane.stream_hold()
+    here = crane.held()
     goal = 0.3 if here < 0.15 else 0.0
     start, _, _ = crane.move(method, None, goal, T, settle=1.0)
     result = crane.move_result(start, timeout=40.0)
@@ -68,7 +70,7 @@ def test_a_push_at_rest_is_damped_within_one_period_and_the_cart_returns_to_its_
     from crane_planner.tools.harness import state_columns
     from crane_sim.metrics import residual_load_mm
     quiet(crane)
-    held = crane.stream_hold()
+    held = crane.held()
     pushed = crane.now_ns() - 100_000_000  # (plant time runs the playout delay behind)
     crane.push_sim()
     crane.sleep(6.0)
@@ -91,7 +93,7 @@ def test_a_push_during_a_move_with_a_late_camera_leaves_the_load_quiet_and_the_c
     quiet(crane)
     crane.set_parameters('sim', {'sensor_latency': 0.05})
     try:
-        here = crane.stream_hold()
+        here = crane.held()
         goal = 0.3 if here < 0.15 else 0.0
         start, _, _ = crane.move('nvf', None, goal, 3.0, settle=1.0)
         crane.sleep(max(0.0, (start + 1_200_000_000 - crane.now_ns()) * 1e-9))
@@ -108,7 +110,7 @@ def one_second_into_a_move(crane) -> tuple[int, float]:
     """NVF 0.3 m in 2.5 s (out to 0.3 m, or back to 0), the references kept: (its motion's start, its goal), once
     it has run for 1 s."""
     crane.keep_references(True)
-    here = crane.stream_hold()
+    here = crane.held()
     goal = 0.3 if here < 0.15 else 0.0
     start, _, _ = crane.move('nvf', None, goal, T, settle=1.0)
     crane.sleep(max(0.0, (start + 1_000_000_000 - crane.now_ns()) * 1e-9))
@@ -293,7 +295,7 @@ def test_wind_and_gusts_at_rest_the_feedback_keeps_the_swing_about_its_mean_well
     from crane_msgs_py.crane.geometry import load_excursion
     from crane_planner.tools.harness import state_columns
     quiet(crane)
-    held = crane.stream_hold()
+    held = crane.held()
     crane.set_parameters('streamer', {'feedback': False})
     try:
         crane.wait_until(lambda: crane.correction()['cart'] == 0.0, 10.0, 'the correction never faded')

@@ -45,7 +45,7 @@ def hold(driver) -> tuple[float, float]:
     direction (+1 or -1) of the test's moves, towards 0 m and past it, so that the cart stays near 0 whatever
     ran before."""
     driver.wait_until(lambda: driver.stream_hold() is not None, 10.0, 'no stream_state from the streamer')
-    here = driver.stream_hold()
+    here = driver.held()
     return here, (1.0 if here <= 0.0 else -1.0)
 
 

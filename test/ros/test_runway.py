@@ -276,10 +276,7 @@ def test_a_goal_towards_the_other_crane_is_stopped_short_of_it_and_its_result_sa
         result.message
     if ': stopping without swing at ' in result.message:
         assert swing_mm(rows[after]).max() <= 1.0
-    # away from b is allowed: to 1.4 m, where the next test starts (from rest: the braking ramp leaves a swing)
-    driver.reset_sim()
-    start, _, _ = driver.move('nvf', cart, cart, 2.0, bridge=(driver.held('bridge'), 1.4), start_ns=driver.now_ns() + S)
-    assert driver.move_result(start, timeout=30.0).success
+    driver.reset_sim()  # (the next test from rest: the braking ramp leaves a swing)
 
 
 def test_the_other_crane_killed_within_reach_stops_this_one_until_it_is_heard_again(cranes):

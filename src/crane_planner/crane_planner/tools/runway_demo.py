@@ -7,7 +7,8 @@ and the streamers on the runway. The situations, in this order:
 
 - ``runway:<method>`` for each method asked (ZV and NVF by default), in turn out and back: both goals sent at
   the same moment, one crane into the space the other leaves, which it could not reach while the other is still
-  there (out: a 1.87 m towards b in 3 s while b leaves 0.3 m in 5.5 s; back: a home in 6 s, b after it in 1.3 s):
+  there (out: a 1.87 m towards b in 3 s while b leaves 0.3 m in 5.5 s; back: a to 1.0 m in 3 s, b after it home in
+  1.3 s):
   the follower waits (its ``PlanInfo`` names the other), neither stops, no overlap, no residual swing;
 - ``runway:operator``: crane a's streamer in operator mode, its stick at full speed towards b and held there: the
   guard stops a short of the minimum without swing, refuses the stick towards b, and takes a away again.
@@ -43,11 +44,11 @@ MIN_DISTANCE = 0.2
 RUNWAY = {'runway': True, 'runway_min_distance': MIN_DISTANCE}
 MODEL = CraneParams()
 #: The convoys, out and back in turn: (the crane that goes first, the one that follows, crane -> (bridge goal m,
-#: duration s)). Found offline (runway.prediction and runway.schedule, checked on crane_sim): sent together, the
-#: follower would come within 0.15 m (out by ZV: a's load, leading as it brakes, of b's girder) and 0.06 m (back
-#: by NVF: b's girder of a's).
+#: duration s)). Found offline (crane-plan runway, checked on crane_sim): sent together, the follower would come
+#: within 0.15 m (out by ZV: a's load, leading as it brakes, of b's girder) and 0.06 m (back by NVF: b's girder
+#: of a's); it waits 0.6 s and 0.5 s.
 CONVOYS = ((B, A, {A: (1.87, 3.0), B: (0.3, 5.5)}),
-           (A, B, {A: (0.0, 6.0), B: (0.0, 1.3)}))
+           (A, B, {A: (1.0, 3.0), B: (0.0, 1.3)}))
 METHODS = ('zv', 'nvf')
 #: The operator situation: the bridge's stick (m/s: its operator limit), published at this rate (Hz).
 FULL_SPEED, STICK_RATE = 0.3, 20.0
@@ -131,6 +132,7 @@ def run_runway(env: dict, log_dir: Path, settings: Settings, log: Callable[[str]
             drivers[name] = CraneHarness(f'/{name}', nodes, log=log, node_name='crane_demo')
         for driver in drivers.values():
             driver.wait_until_up(settings.startup_timeout)
+        log(f'both cranes up ({", ".join(f"/{name}" for name in CRANES)}, each its own process group)')
         situations = _Situations(drivers, settings, log)
         if recorder is not None:
             stop_recording = recorder()
