@@ -6,7 +6,8 @@ travel, and the guard's verdict. Two runs of 10 s each, timed tick by tick:
 
 - ``operator``: operator mode, the stick at full speed (0.3 m/s) on the bridge towards a crane 2 m away (the
   guard stops it there, then refuses), the exact travel of the operator's stop asked each tick;
-- ``trajectory``: a bridge motion of 1.2 m in 6 s streamed by the trajectory source (the planned stop's bound).
+- ``trajectory``: a bridge motion of 1.2 m in 6 s streamed by the trajectory source (the planned stop's bound),
+  its own published occupancy (20 ms samples) followed, the others on their plans too: their footprints compared.
 
 Each with 1 and 3 other cranes. Median, p99 and max in microseconds, and beside them the source's own sample
 (``source_sample``: what the loop pays per tick anyway). Target: a median of at most 10 us. Prints one JSON object.
@@ -45,15 +46,17 @@ def summary(x) -> dict:
             'max_us': round(x[-1], 2)}
 
 
-def run(source, sample, neighbours: int) -> dict:
+def run(source, sample, neighbours: int, own=None) -> dict:
     g = guard()
+    if own is not None:
+        g.own(*own)
     others = [(f'c{k}', 1.95 + 3.0 * k, 2.05 + 3.0 * k) for k in range(neighbours)]
     watch, sampling, levels = [], [], set()
     for k in range(round(SECONDS * 1000)):
         stamp = k * TICK_NS
         for j, (name, low, high) in enumerate(others):
             if k % 20 == j:  # each heard every 20 ms (the executor's side: not timed)
-                g.heard(name, low, high, stamp)
+                g.heard(name, low, high, stamp, (low, high), own is not None)
         t0 = time.perf_counter_ns()
         setpoint = sample(k)
         t1 = time.perf_counter_ns()
@@ -93,7 +96,10 @@ def trajectory(neighbours: int) -> dict:
     def sample(k):
         tick[0] = k
         return stream.sample(k)
-    return run(stream, sample, neighbours)
+    samples = np.arange(0.0, 6.0 + 1e-9, 0.02)  # (its occupancy as the planner publishes it: every 20 ms)
+    u = samples / 6.0
+    own = (2 * TICK_NS, samples, 1.2 * u ** 3 * (10 - 15 * u + 6 * u * u))
+    return run(stream, sample, neighbours, own)
 
 
 def main():
