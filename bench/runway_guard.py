@@ -36,7 +36,7 @@ SECONDS = 10.0
 
 def guard() -> RunwayGuard:
     config = RunwayConfig(True, 'a', (0.0, 0.0), 0.2, 'wait', 0.5)
-    return RunwayGuard(config, JOINTS, TICK_NS * 1e-9, PlannedStop(first_period(MODEL), 0.5, 5.0), lambda: 0.1,
+    return RunwayGuard(config, JOINTS, TICK_NS * 1e-9, PlannedStop(first_period(MODEL), 0.5, 5.0),
                        LIMITS.max_velocity, LIMITS.max_acceleration, LIMITS.max_jerk)
 
 
