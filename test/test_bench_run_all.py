@@ -25,7 +25,6 @@ def test_no_json_object_is_none():
 def test_the_runway_guard_bench_runs_and_prints_its_figures():
     """A quick benchmark run whole (the guard's signature once changed under it unnoticed): its JSON, every run's
     figures; no bound on the times (the host's), only that they are times."""
-    import json
     import subprocess
     import sys
     bench = Path(__file__).parents[1] / 'bench' / 'runway_guard.py'
