@@ -68,7 +68,8 @@ STOP_REACH = 0.75
 WAKE = 0.01
 #: How far ahead (s) of that the guard's stop in trajectory mode takes over at the latest: the planned stop if
 #: the stop worker answers in time (its lead, 0.1 s, or 1.5 times as long as its last stop took to plan: the
-#: spatial crane's take 50-150 ms on a quiet host), else the braking ramp, ``RAMP_MARGIN`` before it.
+#: spatial crane's NVF stops take 0.2-0.3 s on an idle 2-core host, the first 0.8 s, so that the ramp is often
+#: what stops it), else the braking ramp, ``RAMP_MARGIN`` before it.
 GUARD_LEAD = 0.4
 RAMP_MARGIN = 0.03
 #: How far (m) the streamed girder may be from where its own published occupancy puts it and still follow its
