@@ -268,11 +268,12 @@ class CraneHarness:
     def wait_until_still(self, joints=('cart',), window: float = 0.5, timeout: float = 15.0):
         """Wait until ``joints`` stand still (within 1 um) over ``window`` s of joint_states (plant time), window
         after window: after a test that may have left the crane moving (a stick, a brake), instead of a fixed
-        sleep as long as the longest such motion. HarnessError if they still move after ``timeout`` s."""
+        sleep as long as the longest such motion. HarnessError if they still move after ``timeout`` s. The
+        joint_states read stay for ``states_between``: a caller may want the motion that came to rest."""
         deadline = time.monotonic() + timeout
         while True:
-            begin = self.now_ns()  # (states_between waits for the window's end, watching the nodes)
-            rows = state_columns(self.states_between(begin, begin + round(window * 1e9), timeout=30.0))
+            begin = self.now_ns()  # (_rows_between waits for the window's end, watching the nodes)
+            rows = state_columns(self._rows_between(begin, begin + round(window * 1e9), timeout=30.0))
             # (fewer rows than half the window's 50 Hz samples, a lagging plant: judged by the next window)
             if len(rows['stamp']) >= 25 * window and all(np.ptp(rows[j]) < 1e-6 for j in joints):
                 return
@@ -649,10 +650,16 @@ class CraneHarness:
     def states_between(self, begin_ns: int, end_ns: int, timeout: float = 3.0) -> np.ndarray:
         """joint_states stamped in [begin, end] (dropping everything older than ``end_ns``): rows of
         ``STATE_COLUMNS`` (``state_columns`` names them)."""
+        rows = self._rows_between(begin_ns, end_ns, timeout)
+        with self._lock:
+            self._states = [r for r in self._states if r[0] > end_ns]
+        return rows
+
+    def _rows_between(self, begin_ns: int, end_ns: int, timeout: float) -> np.ndarray:
+        """joint_states stamped in [begin, end], once one after ``end_ns`` has come; none dropped."""
         self.wait_for_state_after(end_ns, timeout)
         with self._lock:
             rows = [r for r in self._states if begin_ns <= r[0] <= end_ns]
-            self._states = [r for r in self._states if r[0] > end_ns]
         return np.array(rows).reshape(-1, len(STATE_COLUMNS))
 
     def close(self):

@@ -211,7 +211,7 @@ class _Situations:
             y0 = a.last_state()[4]
             stick.velocity = FULL_SPEED  # towards b, held
             a.wait_until(lambda: a.last_state()[4] > y0 + 0.05, 10.0, 'the stick never moved crane a')
-            _stood_still(a, 1.0, 30.0)  # (pushing on against the guard)
+            a.wait_until_still(joints=('bridge',), window=1.0, timeout=30.0)  # (pushing on against the guard)
             end = a.now_ns()
             t, found = self._measure(begin, end)
             stopped_at = found[A][1]['bridge'][-1]
@@ -251,22 +251,6 @@ class _Situations:
             masses = np.stack([m1[:, :2], m2[:, :2]], axis=1) + offset
             found[name] = (Footprint(rec['bridge'] + offset[1], masses), rec)
         return t, found
-
-
-def _stood_still(driver: CraneHarness, window: float, timeout: float) -> None:
-    """Wait until the bridge has stood still (within 1 um) for ``window`` s of joint_states, keeping them for
-    ``states_between`` (the harness's ``wait_until_still`` takes them)."""
-    seen = [None, 0]  # the bridge's position, and the stamp (ns) since which it has stood there
-
-    def still() -> bool:
-        last = driver.last_state()
-        if last is None:
-            return False
-        if seen[0] is None or abs(last[4] - seen[0]) > 1e-6:
-            seen[:] = [last[4], last[0]]
-            return False
-        return last[0] - seen[1] >= window * S
-    driver.wait_until(still, timeout, f'the bridge never stood still for {window:g} s')
 
 
 def _run(situation, method, follower, delay, waited_for, stopped, residual, message, begin, t, found) -> RunwayRun:
