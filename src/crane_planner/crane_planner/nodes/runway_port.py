@@ -56,8 +56,11 @@ class RunwayPort:
         self._node.create_subscription(OccupancyMsg, OCCUPANCY_TOPIC, self._on_occupancy, qos.RUNWAY_OCCUPANCY_QOS)
         # the other cranes drawn where their occupancies put them now, beside this planner's keep-out markers
         markers = self._node.create_publisher(MarkerArray, names.MARKERS_TOPIC, qos.MARKERS_QOS)
-        self._node.create_timer(MARKERS_PERIOD, lambda: self.book.others() and markers.publish(runway_markers(
-            self.book.others(), clock(), config().runway.offset, config().frame_id)))
+        def draw():
+            others = self.book.others()
+            if others:
+                markers.publish(runway_markers(others, clock(), config().runway.offset, config().frame_id))
+        self._node.create_timer(MARKERS_PERIOD, draw)
         executor = SingleThreadedExecutor()
         executor.add_node(self._node)
         self._spinning = spinning(executor)
