@@ -6,15 +6,18 @@ off), and crane_sim's independent spatial model replaying the plan.
 """
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from crane_msgs_py.crane.params import CraneParams
-from crane_planner.planning.dispatch import PlanOptions, SolverCache, plan
+from crane_planner.planning.continuation import first_period, problem_start
+from crane_planner.planning.dispatch import PlanOptions, SolverCache, VariationalRequest, plan
 from crane_planner.planning.dynamics import mass_positions
 from crane_planner.planning.mass_path import solved_mass_path
 from crane_planner.planning.problem import Weights
-from crane_planner.planning.straight import Line, spatial_angles
+from crane_planner.planning.straight import Line, planar_start, spatial_angles
+from crane_sim.simulator import SpatialSwing
+from planning.test_spatial_continuation import HANDOVER, NOMINAL, Replay, T, assert_at_rest, handover
 from planning.test_spatial_nvf import residual_mm
 
 P = CraneParams()
@@ -92,3 +95,73 @@ def test_a_move_of_the_bridge_alone_and_one_of_length_zero():
     assert residual_mm(p.axes, 3.0, P)[0] <= 0.1
     still = plan('nvf', 0.0, 3.0, P, variational=IN_PLANE, bridge=0.0)
     assert np.abs(still.axes['bridge'].evaluate(np.linspace(0, 3, 31)).position).max() < 1e-9
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-0.5, 0.5), st.floats(-0.5, 0.5), st.floats(-2.0, 2.0), st.floats(-2.0, 2.0),
+       st.floats(-np.pi, np.pi), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0))
+def test_a_start_in_one_vertical_plane_is_read_back_as_the_planar_state(psi1, psi2, dpsi1, dpsi2, alpha, v, a):
+    """Travel states along the line at ``alpha`` and the swing of ``spatial_angles`` in its plane: the planar
+    start is the projection and the planar swing; the same swing tipped out of the plane by 1e-6 rad is not."""
+    assume(abs(v) > 1e-3)  # (a state at rest and still lies in every vertical plane)
+    line = Line(1.0, np.cos(alpha), np.sin(alpha))
+    start = {'y': 0.01 * v, 'v': v, 'a': a, 'a_ref': 1.1 * a}
+    start = {**{c: k * line.cos for c, k in start.items()},
+             **{b: k * line.sin for b, k in zip(('yb', 'vb', 'ab', 'ab_ref'), start.values(), strict=True)}}
+    start.update(spatial_angles(psi1, psi2, dpsi1, dpsi2, line))
+    moves = {'cart': 0.4 * v * line.cos, 'bridge': 0.4 * v * line.sin}
+    got = planar_start(moves, start)
+    assert got is not None
+    back, request, planar = got
+    sign = np.sign(back.cos * line.cos + back.sin * line.sin)  # (the line's direction: its length >= 0)
+    assert (back.cos, back.sin) == pytest.approx((sign * line.cos, sign * line.sin), abs=1e-12)
+    assert request['cart'] == pytest.approx(abs(0.4 * v), abs=1e-12)
+    for name, value in (('v', v), ('a', a), ('a_ref', 1.1 * a)):
+        assert planar[name] == pytest.approx(sign * value, abs=1e-12)
+    # the planar swing is measured from the line's direction: mirrored with it
+    assert [planar[n] for n in ('theta1', 'theta2', 'dtheta1', 'dtheta2')] == pytest.approx(
+        [sign * x for x in (psi1, psi2, dpsi1, dpsi2)], abs=1e-9)
+    tipped = dict(start, phi2=start['phi2'] + 1e-6)
+    assert planar_start(moves, tipped) is None
+    assert planar_start({'cart': moves['cart'] - 1e-6 * line.sin, 'bridge': moves['bridge'] + 1e-6 * line.cos},
+                        start) is None  # (and a goal off the line)
+
+
+@pytest.mark.parametrize('bridge', [0.0, 0.4], ids=['bridge alone', 'diagonal'])
+def test_a_stop_from_a_state_in_one_vertical_plane_is_solved_there_and_is_the_coupled_stop(bridge):
+    """A 0.6 x ``bridge`` m move (or the bridge's 0.6 m alone) stopped at 40 % from crane_sim's true state
+    there: the free-end NVF stop solved in the plane is the coupled NLP's, and crane_sim ends it at rest
+    without swing."""
+    moves = dict(displacement=0.6, bridge=bridge) if bridge else dict(displacement=0.0, bridge=0.6)
+    running = plan('nvf', duration=T, params=P, variational=IN_PLANE, **moves)
+    period = first_period(P)
+
+    def request(state, start, model):
+        scale = {n: state.axis(n).velocity * period / 2 for n in ('cart', 'bridge')}
+        return VariationalRequest('plan', 'nvf', scale, period, model, PlanOptions(), start, free_end=True)
+    stops = {name: handover(solvers, P, running, HANDOVER, request)
+             for name, solvers in (('in plane', IN_PLANE), ('coupled', COUPLED))}
+    a, b = stops['in plane'][0], stops['coupled'][0]
+    assert a.info['solved_in_plane'] and 'solved_in_plane' not in b.info
+    assert abs(stops['in plane'][1].swing.phi1) > 0.005  # (swinging in the bridge's direction)
+    t = np.linspace(0.0, period, 201)
+    for name in ('cart', 'bridge'):
+        sa, sb = a.axes[name].evaluate(t), b.axes[name].evaluate(t)
+        assert sa.position == pytest.approx(sb.position, abs=1e-6), name
+        assert sa.acceleration == pytest.approx(sb.acceleration, abs=1e-4), name
+    assert_at_rest(a)
+    assert 1e3 * stops['in plane'][2].settle() <= 0.5
+
+
+def test_a_stop_from_a_state_out_of_its_plane_is_solved_coupled():
+    """The load pushed across the line of a bridge travel (phi and theta both swinging): coupled."""
+    running = plan('nvf', duration=3.0, params=P, variational=IN_PLANE, displacement=0.0, bridge=0.6)
+    replay = Replay(NOMINAL, SpatialSwing(theta1=0.02))
+    replay.play(running, 1.2)
+    state = replay.state(running, 1.2)
+    start, model = problem_start(state, P)
+    assert planar_start({'cart': 0.0, 'bridge': 0.1}, start) is None
+    period = first_period(P)
+    scale = {n: state.axis(n).velocity * period / 2 for n in ('cart', 'bridge')}
+    stop = IN_PLANE(VariationalRequest('plan', 'nvf', scale, period, model, PlanOptions(), start, free_end=True))
+    assert 'solved_in_plane' not in stop.info

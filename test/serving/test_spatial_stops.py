@@ -127,8 +127,10 @@ def test_the_stops_warm_up_with_a_bridge_builds_every_solver_a_stop_uses(running
     for request in warmups(PARAMS, bridge=True):
         cache(request)
     built = dict(cache._solvers)
-    plan_stop(cache, running, HANDOVER, PARAMS)
-    assert cache._solvers == built
+    forms = {key: set(solver._instances) for key, solver in built.items()}  # (each solver's NLPs, by model form)
+    stop = plan_stop(cache, running, HANDOVER, PARAMS)
+    assert stop.plan.info['solved_in_plane']  # (the diagonal's state lies in its vertical plane: the planar NLP)
+    assert cache._solvers == built and {key: set(s._instances) for key, s in built.items()} == forms
     lighter = SolverCache()
     assert StopWarmup(JOINTS, PARAMS)(lighter) is None and lighter._solvers.keys() == built.keys()
     rehearsed = StopRequest.rehearsal(JOINTS, PARAMS)(cache)

@@ -26,7 +26,7 @@ from .plan import AxesPlan, ModelPath, Plan, PlanError
 from .problem import AXIS_SCALES, AXIS_STATES, PROBLEM_PARAMETERS, Form, axis_displacements, breakpoints, displacements
 from .routing import NLP_EXTRA, Route, route_guess, via_nodes
 from .straight import applies as in_plane_applies
-from .straight import on_line, planar_displacement
+from .straight import on_line, planar_displacement, planar_start
 from .variational import VariationalSolver
 
 #: IPOPT's statuses for a solve stopped by its time cap (``max_solve_time``, else ``DirectSolver.max_cpu_time``).
@@ -273,11 +273,18 @@ class DirectSolver(VariationalSolver):
 
     def _solve(self, displacement, duration, params, frac, start: dict | None = None, free_end: bool = False):
         form = Form.of_request(params, displacement)
-        if (form.bridge and start is None and not free_end and self.straight_moves_in_their_plane
+        if (form.bridge and self.straight_moves_in_their_plane
                 and in_plane_applies(params, self.has_limits, self.weights.bridge)):
-            line, planar = planar_displacement(axis_displacements(displacement))
-            planar_form = Form.of_request(params, planar)
-            return on_line(self._solve(planar, duration, params, self.mesh(duration, params, planar_form)), line)
+            if start is None and not free_end:
+                line, planar = planar_displacement(axis_displacements(displacement))
+                planar_form = Form.of_request(params, planar)
+                return on_line(self._solve(planar, duration, params, self.mesh(duration, params, planar_form)),
+                               line)
+            reduced = None if start is None else planar_start(axis_displacements(displacement), start)
+            if reduced is not None:  # (a stop or a retarget from a state in one vertical plane)
+                line, planar, planar_from = reduced
+                frac_planar = self.mesh(duration, params, Form.of_request(params, planar))
+                return on_line(self._solve(planar, duration, params, frac_planar, planar_from, free_end), line)
         t_build, built = time.perf_counter(), form not in self._instances
         inst = self._instance(form)
         build_time = time.perf_counter() - t_build if built else 0.0

@@ -10,10 +10,16 @@ plane only, by the planar angles psi1, psi2, and the optimum of the coupled prob
 of the line's length, its reference shared by the cart (cos alpha) and the bridge (sin alpha). The planar
 NLP has half the states and solves in a fraction of the time (``bench/spatial.py`` times both).
 
+A motion from a state (a stop, a retarget) keeps the symmetry when the state lies in one vertical plane:
+every travel state of the cart and the bridge (the servo's lag, velocity, acceleration and its reference's)
+and the goal along one line, and both cables swinging in the vertical plane through it (``planar_start``;
+a motion of one axis alone is the common case: the runway guard's stop of a bridge travel). The motion
+then stays in that plane, and the planar optimum from the planar state is the coupled one.
+
 Where the symmetry breaks, the coupled problem is solved as it is (``applies``): joint damping (its
 dissipation function, ``dynamics.spatial_swing``, is written in theta and phi, not in the cable's angular
 velocity, so it is isotropic only for small swing), axis limits (a box in (x, y), not a disc), a start
-that is not at rest, keep-out boxes and via points. The hoist is along z and keeps the symmetry.
+out of one vertical plane, keep-out boxes and via points. The hoist is along z and keeps the symmetry.
 """
 from __future__ import annotations
 
@@ -59,6 +65,66 @@ def planar_displacement(moves: dict) -> tuple[Line, dict]:
     displacements by axis name (``problem.axis_displacements``: the cart's, the bridge's, maybe the hoist's)."""
     line = Line.of(moves[CART_JOINT], moves[BRIDGE_JOINT])
     return line, {CART_JOINT: line.length, **({HOIST_JOINT: moves[HOIST_JOINT]} if HOIST_JOINT in moves else {})}
+
+
+#: How far (rad, and m, m/s... for the travel states) a start may be off one vertical plane and still be planned on
+#: it: rounding (a model integrated along a straight motion keeps its plane to ~1e-15).
+IN_PLANE_TOLERANCE = 1e-9
+
+
+def planar_start(moves: dict, start: dict) -> tuple[Line, dict, dict] | None:
+    """(the line, the planar request, the planar start) of a motion from ``start`` (the spatial problem's
+    start states, SI, by ``dynamics`` name: ``continuation.problem_start``) with displacements ``moves`` by
+    axis name (a free end's: its scale), if the start lies in one vertical plane (module docstring); else None.
+
+    The line is along the travel states' largest pair (cart, bridge), or the upper cable's lean; the planar
+    travel states are their shares along it (the request's length >= 0), the planar swing the cables' angles
+    in its plane (``spatial_angles`` inverted, then checked by mapping them back)."""
+    pairs = [np.array([start.get(c, 0.0), start.get(b, 0.0)], dtype=float)
+             for c, b in zip(CART_STATES, BRIDGE_STATES, strict=True)]
+    pairs.append(np.array([moves.get(CART_JOINT, 0.0), moves.get(BRIDGE_JOINT, 0.0)], dtype=float))
+    theta1, theta2 = start.get('theta1', 0.0), start.get('theta2', 0.0)
+    phi1, phi2 = start.get('phi1', 0.0), start.get('phi2', 0.0)
+    lean = np.array([-math.sin(theta1) * math.cos(phi1), math.sin(phi1)])  # (the upper cable's, horizontal)
+    along = max(pairs, key=lambda p: float(np.hypot(*p)))
+    if not np.hypot(*along) > IN_PLANE_TOLERANCE:
+        along = lean if np.hypot(*lean) > IN_PLANE_TOLERANCE else np.array([1.0, 0.0])
+    u = along / np.hypot(*along)
+    if pairs[-1] @ u < 0.0:  # (the request's length is >= 0)
+        u = -u
+    if any(abs(p[0] * u[1] - p[1] * u[0]) > IN_PLANE_TOLERANCE for p in pairs):
+        return None
+    line = Line(float(pairs[-1] @ u), float(u[0]), float(u[1]))
+    psi = _planar_angles(theta1, theta2, phi1, phi2, start.get('dtheta1', 0.0), start.get('dtheta2', 0.0),
+                         start.get('dphi1', 0.0), start.get('dphi2', 0.0), line)
+    if psi is None:
+        return None
+    planar = {c: float(p @ u) for c, p in zip(CART_STATES, pairs[:-1], strict=True) if c in start}
+    planar.update({name: start[name] for name in HOIST_STATES if name in start})
+    planar.update(dict(zip(('theta1', 'theta2', 'dtheta1', 'dtheta2'), psi, strict=True)))
+    request = {CART_JOINT: line.length, **({HOIST_JOINT: moves[HOIST_JOINT]} if HOIST_JOINT in moves else {})}
+    return line, request, planar
+
+
+def _planar_angles(theta1, theta2, phi1, phi2, dtheta1, dtheta2, dphi1, dphi2, line: Line):
+    """(psi1, psi2, dpsi1, dpsi2): the planar swing in the plane of ``line`` whose ``spatial_angles`` are the
+    given ones (to ``IN_PLANE_TOLERANCE``), else None. Each cable's absolute in-plane angle from its direction
+    u(a, b) (``spatial_angles``), its rate by least squares from both angles' rates."""
+    absolute = []
+    for a, b, da, db in ((theta1, phi1, dtheta1, dphi1), (theta1 + theta2, phi1 + phi2, dtheta1 + dtheta2,
+                                                           dphi1 + dphi2)):
+        lean = -(-math.sin(a) * math.cos(b) * line.cos + math.sin(b) * line.sin)  # sin(Psi)
+        Psi = math.atan2(lean, math.cos(a) * math.cos(b))
+        ka, kb = line.cos / math.cos(b) ** 2, -line.sin * math.cos(Psi) / math.cos(b)  # d(a, b)/dPsi
+        absolute.append((Psi, (ka * da + kb * db) / (ka * ka + kb * kb)))
+    (Psi1, dPsi1), (Psi2, dPsi2) = absolute
+    psi = (Psi1, Psi2 - Psi1, dPsi1, dPsi2 - dPsi1)
+    back = spatial_angles(*psi, line)
+    given = dict(theta1=theta1, theta2=theta2, phi1=phi1, phi2=phi2, dtheta1=dtheta1, dtheta2=dtheta2,
+                 dphi1=dphi1, dphi2=dphi2)
+    if any(abs(float(back[name]) - value) > IN_PLANE_TOLERANCE for name, value in given.items()):
+        return None
+    return psi
 
 
 def on_line(planar: Plan, line: Line) -> AxesPlan:

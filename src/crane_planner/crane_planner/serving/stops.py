@@ -107,20 +107,25 @@ def plan_stop(variational, running, handover_ns: int, params: CraneParams, optio
 def warmups(params: CraneParams, hoist: bool = False, options=None, bridge: bool = False) -> list:
     """``VariationalRequest``s that build the solvers a stop uses: NVF from a moving, swinging state to rest
     anywhere (``transitions.stop``'s request), with a hoist the hoisting crane's, with a ``bridge`` the spatial
-    crane's (every axis of the crane planned together)."""
+    crane's (every axis of the crane planned together) and the planar crane's besides (a stop from a state in
+    one vertical plane, of one axis's travel say, is solved on that plane: ``planning.straight``)."""
     from ..planning.continuation import first_period, problem_start
     from ..planning.dispatch import PlanOptions, VariationalRequest, hoisting_options
     from .transitions import stop_options
     options = stop_options(PlanOptions() if options is None else options)
-    state = moving_state(params, (CART_JOINT, *((BRIDGE_JOINT,) if bridge else ()), *((HOIST_JOINT,) if hoist else ())))
-    start, model = problem_start(state, params)
-    duration = first_period(model)
-    # (as transitions' free end: the problem's scale)
-    ends = {name: s.velocity * duration / 2 for name, s in state.axes.items()}
-    displacement = ends[CART_JOINT] if len(ends) == 1 else ends
     if hoist:
         options = hoisting_options(options)
-    return [VariationalRequest('plan', 'nvf', displacement, duration, model, options, start, True)]
+    requests = []
+    for spatial in (True, False) if bridge else (False,):
+        state = moving_state(params, (CART_JOINT, *((BRIDGE_JOINT,) if spatial else ()),
+                                      *((HOIST_JOINT,) if hoist else ())))
+        start, model = problem_start(state, params)
+        duration = first_period(model)
+        # (as transitions' free end: the problem's scale)
+        ends = {name: s.velocity * duration / 2 for name, s in state.axes.items()}
+        displacement = ends[CART_JOINT] if len(ends) == 1 else ends
+        requests.append(VariationalRequest('plan', 'nvf', displacement, duration, model, options, start, True))
+    return requests
 
 
 def moving_state(params: CraneParams, joints):
