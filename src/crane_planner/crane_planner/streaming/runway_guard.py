@@ -67,9 +67,10 @@ STOP_REACH = 0.75
 #: How long (s) the guard's stop takes to be asked after the tick that decided it.
 WAKE = 0.01
 #: How far ahead (s) of that the guard's stop in trajectory mode takes over at the latest: the planned stop if
-#: the stop worker answers in time (its lead, 0.1 s, or 1.5 times as long as its last stop took to plan: the
-#: spatial crane's NVF stops take 0.2-0.3 s on an idle 2-core host, the first 0.8 s, so that the ramp is often
-#: what stops it), else the braking ramp, ``RAMP_MARGIN`` before it.
+#: the stop worker answers in time (its lead, 0.1 s, or 1.5 times as long as its last stop took to plan: a
+#: bridge travel's stop is solved on its vertical plane in 0.04-0.07 s on an idle 2-core host, a stop off one
+#: plane on the coupled NLP in 0.2-1.3 s; the rest is room for a loaded host), else the braking ramp,
+#: ``RAMP_MARGIN`` before it.
 GUARD_LEAD = 0.4
 RAMP_MARGIN = 0.03
 #: How far (m) the streamed girder may be from where its own published occupancy puts it and still follow its
