@@ -102,3 +102,20 @@ def test_knots_are_a_stamp_apart_when_the_duration_is_off_the_nanosecond_grid(du
     assert t[0] == 0.0 and t[-1] == duration
     assert np.diff(t).min() >= 1e-9 * (1 - 1e-6)
     assert t.size == 8  # the breakpoints of ZV's four shifted quintics: 0, 3 inside starts, 3 inside ends, T
+
+
+@pytest.mark.parametrize('off', [3e-10, -3e-10])
+def test_knots_of_several_axes_are_a_stamp_apart_when_one_axis_ends_off_the_grid_at_anothers_knot(off):
+    """A shaper's change of the bridge during its motion with the cart held: the held cart's plan ended at the
+    running motion's end, 1.398 s off the nanosecond grid, where a knot of the bridge's lies: two knots 0.3 ns
+    apart, one stamp for two poses (the handover's trajectory refused, the goal failed)."""
+    from crane_planner.planning.plan import AxesPlan
+    w = modal_frequencies(CraneParams())
+    bridge = shaped_plan('zv', 0.3, 3.0, w, 0.0)
+    breakpoint_ = float(knot_times(bridge)[3])
+    cart = shaped_plan('zv', 0.0, breakpoint_ + off, w, 0.0)  # (ends off the grid, at the bridge's knot)
+    plan = AxesPlan('zv', 0.0, 3.0, {}, axes={'cart': cart, 'bridge': bridge})
+    t = knot_times(plan)
+    assert t[0] == 0.0 and t[-1] == 3.0
+    assert np.diff(np.rint(t * 1e9)).min() >= 1  # (as the message carries them: whole nanoseconds)
+    assert np.isclose(t, breakpoint_, atol=1e-9).sum() == 1

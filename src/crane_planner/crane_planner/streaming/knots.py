@@ -49,13 +49,17 @@ def knot_times(plan, position_tol: float = POSITION_TOL, acceleration_tol: float
     strays from ``plan.evaluate`` by more than the tolerances (checked at
     ``_CHECKS`` interior points per segment, with margin ``_MARGIN``).
     """
-    axes = getattr(plan, 'axes', None)
-    if axes:  # several joints: every knot any of them needs (more knots only bring each closer)
-        return np.unique(np.concatenate([knot_times(axis, position_tol, acceleration_tol, min_spacing, resolution)
-                                         for axis in axes.values()]))
-
     def grid(x):
         return np.rint(np.asarray(x, dtype=float) / resolution) * resolution
+
+    axes = getattr(plan, 'axes', None)
+    if axes:  # several joints: every knot any of them needs (more knots only bring each closer)
+        every = np.concatenate([knot_times(axis, position_tol, acceleration_tol, min_spacing, resolution)
+                                for axis in axes.values()])
+        # each axis's own end is off the grid (its duration): an axis held after the others' motion ends where
+        # one of their knots lies, to within a stamp's resolution, and would carry its stamp twice
+        inner = np.unique(grid(every))
+        return np.union1d(inner[(inner >= resolution) & (inner <= plan.duration - resolution)], [0.0, plan.duration])
 
     t = np.unique(grid(np.clip(plan.breakpoints(), 0.0, plan.duration)))
     # a breakpoint at the end rounds to the grid up to half a step below T: it is the end knot
