@@ -168,3 +168,25 @@ def test_a_stop_with_a_hoist_continues_both_joints(solvers):
         assert trajectory.position[0, j] == pytest.approx(refs[j][0][0], abs=1e-9)
         assert trajectory.velocity[0, j] == pytest.approx(refs[j][1][0], abs=1e-7)
     assert np.abs(trajectory.velocity[-1]).max() < 1e-9
+
+
+@pytest.mark.parametrize('method', ['zv', 'zvd'])  # (EI leaves its residual by design: tested apart)
+@pytest.mark.parametrize('at', [0.15, 0.3, 0.5, 0.7])
+def test_a_shaped_motions_stop_ends_short_of_its_goal_sooner_than_it_and_without_swing(method, at):
+    """A shaped 0.6 m move in 3 s (no axis limits) stopped at ``at`` of it: its base braked as hard as the base
+    itself moves. It ends where the motion had not yet arrived (a base braked within the shaped reference's
+    lower peaks instead ran on from its own harder acceleration: ZV stopped at 15 % ended 0.275 m past the goal),
+    no later than the motion would have, and crane_sim's crane ends it at rest without swing."""
+    p = plan(method, 0.6, 3.0, PARAMS)
+    t = knot_times(p)
+    running = Running(('cart',), t, *knot_columns(p, t, [START]), ORIGIN, p)
+    handover = ORIGIN + round(at * 3.0 * 1e9)
+    stop = plan_stop(None, running, handover, PARAMS)  # (a shaper's: no solver)
+    trajectory = stop.trajectory()
+    where = running.at(handover)[0][0][0]
+    assert where < trajectory.end <= START + 0.6 + 1e-9  # (late in the base, the motion's own end)
+    assert at * 3.0 + trajectory.duration <= 3.0 + 1e-9
+    t, a = streamed(running, trajectory)
+    r = simulate(t, a, PARAMS)
+    after = t > at * 3.0 + trajectory.duration + 0.1  # (the servo, tau 10 ms, settles on the end)
+    assert np.abs(r.v[0, after]).max() < 1e-4 and np.abs(r.load_excursion[0, after]).max() < 1e-3
