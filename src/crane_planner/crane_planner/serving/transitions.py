@@ -26,7 +26,8 @@ does (contract "Motion from any state"):
   zero with a free end position make stops that wander metres) from the
   handover state to rest anywhere (``free_end``), every axis, or,
   for a motion a shaper made from rest, that shaper's base braked by ruckig
-  and reshaped (``continuation.shaped_stop``). The NVF stop is the shortest
+  within the axis's acceleration and jerk limits (without them, the base's
+  own peaks) and reshaped (``continuation.shaped_stop``). The NVF stop is the shortest
   of a few durations (from half the first swing mode's period, or the
   braking time, ``STOP_STEPS`` apart) whose peak acceleration stays within each axis's
   acceleration limit, or (a travel axis without one) within ``STOP_BRAKING`` times the running
