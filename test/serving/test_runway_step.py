@@ -248,8 +248,77 @@ def test_holds_are_published_once_per_place_and_not_over_a_claim():
 
 def test_what_is_published_changes_only_as_its_transitions_allow():
     step = RunwayStep(lambda: SimpleNamespace(runway=SimpleNamespace(on=True)), lambda: T0, lambda o: None)
-    with pytest.raises(IllegalTransition, match='nothing -> sent'):
-        step._change(Published.SENT)
+    with pytest.raises(IllegalTransition, match='nothing -> released'):
+        step._change(Published.RELEASED)
+
+
+class StopFollowing(Exception):
+    pass
+
+
+def bridge_motion_until(crane, ns, goal=0.6, duration=3.0):
+    """A ZV goal of the bridge to ``goal`` streaming, left at ``ns`` (its follower stopped there)."""
+    first = Move('zv', joint_names=('bridge',), goal=(goal,), duration=duration)
+    old = crane.goal('old', first)
+
+    def stop_following():
+        raise StopFollowing()
+    crane.at(ns, stop_following)
+    with pytest.raises(StopFollowing):
+        crane.execute(old, first)
+    return old
+
+
+def streamed_bridge(trajectory):
+    """(ROS times ns, the bridge's positions m) at a trajectory's knots."""
+    bridge = trajectory.samples[1]
+    return trajectory.stamp_ns + np.round(np.asarray(bridge.t) * 1e9).astype(np.int64), \
+        trajectory.starts[1] + np.asarray(bridge.position)
+
+
+def assert_published_as_streamed(crane, first, second):
+    """``second`` (a motion sent from a state) is ``first`` until its handover, then the handover's trajectory:
+    its girder where the bridge streams, its masses going on from where ``first`` had them."""
+    trajectory = crane.published[-1][1]
+    handover = trajectory.stamp_ns
+    assert second.start_ns == first.start_ns and second.published_ns > first.published_ns
+    before = np.arange(first.start_ns, handover, 5 * MS)
+    assert second.at(before).girder == pytest.approx(first.at(before).girder, abs=1e-9)
+    stamps, bridge = streamed_bridge(trajectory)
+    assert second.at(stamps).girder == pytest.approx(bridge, abs=2e-4)  # (its 20 ms samples, linear between)
+    # the swing at the handover predicted from there on (not from rest): where the first motion had the masses
+    assert np.abs(second.at([handover + 20 * MS]).masses - first.at([handover + 20 * MS]).masses).max() < 1e-3
+
+
+def test_a_goal_during_a_motion_is_published_from_its_handover_on_after_the_motion_it_takes_over():
+    crane = BridgeCrane()
+    bridge_motion_until(crane, T0 + 1_600 * MS)
+    new = Move('zv', joint_names=('bridge',), goal=(0.3,), duration=3.0)
+    goal = crane.goal('new', new)  # (a shaper's: handed over on arrival)
+    outcome, _ = crane.execute(goal, new)
+    assert outcome.success and 'taking over the motion' in outcome.message
+    crane.clock.sleep(0.05)
+    kinds = ['hold' if len(o.t) == 1 else 'motion' for o in crane.occupancies]
+    assert kinds == ['hold', 'motion', 'motion', 'hold']
+    first, second = crane.claims()
+    assert_published_as_streamed(crane, first, second)
+    assert second.footprint.girder[-1] == pytest.approx(0.3)
+    assert crane.holds()[-1].footprint.girder[0] == pytest.approx(0.3)
+
+
+def test_a_cancels_stop_is_published_and_the_hold_where_it_stopped():
+    crane = BridgeCrane()
+    first = Move('zv', joint_names=('bridge',), goal=(0.6,), duration=3.0)
+    goal = crane.goal('a', first)
+    canceled = []
+    crane.at(T0 + 1_600 * MS, lambda: canceled.append(True))
+    outcome, _ = crane.execute(goal, first, canceled=lambda: bool(canceled))
+    assert outcome.how == 'cancel' and 'stopped at' in outcome.message
+    crane.clock.sleep(0.05)
+    motion, stop = crane.claims()
+    assert_published_as_streamed(crane, motion, stop)
+    assert stop.footprint.girder[-1] == pytest.approx(crane.bridge) and 0.1 < crane.bridge < 0.6
+    assert crane.holds()[-1].footprint.girder[0] == pytest.approx(crane.bridge)
 
 
 def config(**values):

@@ -191,3 +191,31 @@ def test_an_nvf_goal_whose_plan_from_the_swing_fails_has_the_swing_damped_first_
     assert settle.samples[0].position[-1] == pytest.approx(0.0, abs=1e-9)  # the settle ends where it started
     assert outcome.plan.plan.method == 'nvf' and crane.hold == pytest.approx(0.3)
     assert any('no plan from the swing was made' in line for _, line in crane.log.lines)
+
+
+def test_on_a_runway_a_goal_from_the_swing_is_published_with_its_masses_from_the_swing(planner):
+    """A shared runway: the goal planned from the swing is published when sent (not placed: it starts at its
+    handover), its masses from the swing there, and a hold where it ends."""
+    from crane_planner.runway.occupancy import Occupancy
+    from crane_planner.serving.runway_step import RunwayStep
+    crane = Crane(planner=planner, method='nvf', runway=True, crane_name='crane_a')
+    published: list[Occupancy] = []
+    step = RunwayStep(lambda: crane.config, crane.clock, published.append)
+    crane.service.serving.runway = crane.service.runway = step
+    crane.at(T0 + 300 * MS, measuring(crane, SWUNG))
+    crane.clock.sleep(0.05)
+    goal = crane.goal('a', move(0.3, 2.5, method='nvf'))
+    outcome, _ = crane.execute(goal, move(0.3, 2.5, method='nvf'), settle=0.2)
+    assert outcome.success and 'from a swing of 8.6 mm' in outcome.message
+    crane.clock.sleep(0.05)
+    assert ['hold' if len(o.t) == 1 else 'motion' for o in published] == ['hold', 'motion', 'hold']
+    motion = published[1]
+    (sent_ns, trajectory), = crane.published
+    assert motion.published_ns == sent_ns
+    handover = trajectory.stamp_ns
+    # at the handover the load hangs aside by the swing (8.6 mm, as it swings freely), the hook by less
+    at = motion.at([handover])
+    load_aside = abs(float(at.masses[0, 1, 0]))
+    assert 0.005 < load_aside < 0.009 and abs(float(at.masses[0, 0, 0])) < load_aside
+    assert motion.at([motion.end_ns]).masses[0, :, 0] == pytest.approx([0.3, 0.3], abs=1e-4)
+    assert published[2].footprint.masses[0, 1, 0] == pytest.approx(0.3)

@@ -113,6 +113,19 @@ class Occupancy:
         return Occupancy(self.crane, self.published_ns, self.start_ns + round(delay * 1e9), self.t, self.footprint,
                          self.shape)
 
+    def spliced(self, later: 'Occupancy') -> 'Occupancy':
+        """This occupancy until ``later`` starts, then ``later`` (its crane, stamp and shape): a motion sent
+        from a state of the one this occupancy predicts, which the crane follows until its handover."""
+        cut = (later.start_ns - self.start_ns) * 1e-9
+        keep = self.t < cut - 1e-9
+        if not keep.any():
+            return later
+        t = np.concatenate((self.t[keep], cut + later.t))
+        f, g = self.footprint, later.footprint
+        return Occupancy(later.crane, later.published_ns, self.start_ns, t,
+                         Footprint(np.concatenate((f.girder[keep], g.girder)),
+                                   np.concatenate((f.masses[keep], g.masses))), later.shape)
+
     def largest_step(self) -> float:
         """The largest distance (m) the girder or a mass moves from one sample to the next."""
         f = self.footprint

@@ -17,14 +17,18 @@ SWING_LEFT = 1e-4
 
 
 def plan_occupancy(crane: str, plan: Plan, params: CraneParams, origin: dict, offset: tuple, start_ns: int,
-                   published_ns: int, shape: Shape, settle: float = DEFAULT_SETTLE) -> Occupancy:
+                   published_ns: int, shape: Shape, settle: float = DEFAULT_SETTLE,
+                   start: dict | None = None) -> Occupancy:
     """The occupancy of ``plan`` streamed from ``start_ns`` (its first knot), each travel axis from ``origin``
     (m, by joint name; the plan is relative), the crane's ``crane_base`` at ``offset`` (x, y) in ``runway``:
     the masses as the solver left them (``solved_mass_path``) or predicted (``predict_mass_path``) over the
     motion and ``settle`` s after, resampled every ``OCCUPANCY_STEP``; the girder where the bridge's reference
     puts it (at the origin's ``bridge``, or 0, without one). A plan that leaves the load swinging more than
-    ``SWING_LEFT`` ends at the rest below the trolley, ``shape``'s load half-size grown by that swing."""
-    path = solved_mass_path(plan, params, origin, settle) or predict_mass_path(plan, params, origin, settle)
+    ``SWING_LEFT`` ends at the rest below the trolley, ``shape``'s load half-size grown by that swing.
+    ``start``: the model's states where a plan from a moving, swinging state starts (``continuation.problem_start``,
+    with ``params`` its model); None: from rest."""
+    path = solved_mass_path(plan, params, origin, settle) or predict_mass_path(plan, params, origin, settle,
+                                                                               start=start)
     end = float(path.t[-1])
     grid = np.arange(0.0, end, OCCUPANCY_STEP)
     t = np.append(grid[grid < end - 1e-9], end)  # (arange may reach ``end`` itself by rounding: 2.3 / 0.02)

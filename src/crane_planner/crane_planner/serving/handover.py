@@ -69,6 +69,7 @@ class HandoverResult:
     values: dict
     handover_ns: int
     lead_growth: float = 1.0
+    state: Any = None  # the ``continuation.MotionState`` at the handover
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from crane_msgs_py.messages.names import CART_JOINT, STREAM_STATE_TOPIC
 
@@ -31,7 +32,8 @@ from .transitions import Trajectory
 @dataclass(frozen=True)
 class Planned:
     """A move planned: checked, its plan, its trajectory, its status values (/diagnostics), how long
-    its planning took (s; for a handover from the goal's arrival) and its place on a shared runway (None: none)."""
+    its planning took (s; for a handover from the goal's arrival), its place on a shared runway (None: none)
+    and the ``continuation.MotionState`` it starts from (None: from rest)."""
 
     checked: CheckedMove
     plan: Plan
@@ -39,6 +41,7 @@ class Planned:
     values: dict
     planning_s: float = 0.0
     placement: Placement | None = None
+    state: Any = None
 
 
 def plan_status(values: dict, planned: Planned | None, t0: float, solved: float, now: float,

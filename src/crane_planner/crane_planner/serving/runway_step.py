@@ -3,8 +3,11 @@ goal from rest started late enough to keep clear of them (contract "Cranes shari
 
 - **Published**: a goal's motion, once placed, is claimed: its occupancy (``runway.prediction.plan_occupancy``:
   from the trajectory's start, the settle window included) is published, stamped when it was first
-  published. With no goal claimed and the streamer holding, a ``holding`` occupancy where it holds: at
-  start-up once the hold is known, and after a goal ends (done, aborted, canceled, stopped).
+  published. A motion sent from a state (a goal during a motion, a goal from a swinging load, a cancel's
+  stop, a settle: ``RunwayStep.moving``) is published as it is sent, spliced after what the crane does until
+  its handover; it is not placed (a handover cannot wait). With no goal claimed and the streamer holding, a
+  ``holding`` occupancy where it holds: at start-up once the hold is known, after a goal ends (done,
+  aborted, canceled, stopped), and once the streamer holds after a published motion no goal ends (a settle).
 - **Kept**: the newest occupancy of every other crane, by name (``Neighbours``); an unusable one (the node
   says why) is ignored and counted.
 - **Placed** (``RunwayStep.place``, for a preview and a goal alike): the motion starts no earlier than the
@@ -28,6 +31,9 @@ import threading
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from crane_msgs_py.messages.names import HOIST_JOINT
+
+from ..planning.continuation import problem_start
 from ..planning.plan import Plan, PlanError
 from ..runway.guard import PLAN_MARGIN
 from ..runway.occupancy import Closest, Footprint, Occupancy, holding
@@ -144,13 +150,14 @@ class Published(enum.Enum):
 
 
 P = Published
-#: state -> the states it may change to (a new goal's claim replaces whatever was published).
+#: state -> the states it may change to (a new goal's claim replaces whatever was published; so does a motion
+#: sent from a state: ``RunwayStep.moving``).
 TRANSITIONS = {
-    P.NOTHING: {P.HOLD, P.CLAIMED},
-    P.HOLD: {P.HOLD, P.CLAIMED},
+    P.NOTHING: {P.HOLD, P.CLAIMED, P.SENT},
+    P.HOLD: {P.HOLD, P.CLAIMED, P.SENT},
     P.CLAIMED: {P.CLAIMED, P.SENT, P.RELEASED},
-    P.SENT: {P.CLAIMED, P.RELEASED},
-    P.RELEASED: {P.HOLD, P.CLAIMED},
+    P.SENT: {P.CLAIMED, P.SENT, P.RELEASED},
+    P.RELEASED: {P.HOLD, P.CLAIMED, P.SENT},
 }
 
 
@@ -176,10 +183,15 @@ class RunwayStep:
         self.state = P.NOTHING
         self._claim: tuple[Any, Placement] | None = None  # (goal key, its placement) while claimed or sent
         self._held: tuple | None = None  # the hold last published (cart, bridge), m
+        self.last: Occupancy | None = None  # what it published last
 
     @property
     def on(self) -> bool:
         return self._publish is not None and self._config().runway.on
+
+    def _out(self, occupancy: Occupancy) -> None:  # (under the lock)
+        self.last = occupancy
+        self._publish(occupancy)
 
     def _change(self, state: Published) -> None:
         if state not in TRANSITIONS[self.state]:
@@ -216,7 +228,7 @@ class RunwayStep:
         with self._lock:
             self._change(P.CLAIMED)
             self._claim = (key, claimed)
-            self._publish(claimed.occupancy)
+            self._out(claimed.occupancy)
         return claimed
 
     def recheck(self, key, placement: Placement) -> Placement | None:
@@ -240,8 +252,31 @@ class RunwayStep:
                 return again  # (a newer goal's claim replaced it: this one is being preempted)
             self._change(P.CLAIMED)
             self._claim = (key, again)
-            self._publish(again.occupancy)
+            self._out(again.occupancy)
         return again
+
+    def moving(self, key, plan: Plan, state, handover_ns: int, settle: float) -> Occupancy | None:
+        """A motion sent from a state (``state``: the ``continuation.MotionState`` at ``handover_ns``; ``plan``
+        relative to it, observed ``settle`` s after): a goal during a motion, a goal from a swinging load, a
+        cancel's stop, a settle. Its occupancy is published, stamped now, spliced after the motion or hold this
+        crane published before (which it follows until the handover), as the motion of ``key`` (``release``).
+        Not placed: a handover is due within its lead and cannot wait; the other cranes' planners plan around
+        it, and the guards judge it against theirs. None (nothing published) without a runway."""
+        if not self.on:
+            return None
+        config, now = self._config(), self._clock()
+        r = config.runway
+        start, model = problem_start(state, config.params)
+        origin = {name: s.position for name, s in state.axes.items() if name != HOIST_JOINT}
+        occupancy = plan_occupancy(r.crane, plan, model, origin, r.offset, handover_ns, now, r.shape, settle,
+                                   start=start)
+        with self._lock:
+            if self.last is not None and self.state in (P.SENT, P.HOLD):  # (what the crane does until then)
+                occupancy = self.last.spliced(occupancy)
+            self._change(P.SENT)
+            self._claim = (key, Placement(handover_ns, occupancy, 0.0, '', None, now))
+            self._out(occupancy)
+        return occupancy
 
     def sent(self, key) -> None:
         """The claimed goal's trajectory was sent: the crane moves as published."""
@@ -266,13 +301,15 @@ class RunwayStep:
         r = self._config().runway
         at = (float(hold.get('cart', 0.0)), float(hold.get('bridge', 0.0)))
         with self._lock:
+            now = self._clock()
+            if self.state is P.SENT and now >= self._claim[1].occupancy.end_ns:  # (a motion no goal ends: a settle)
+                self._claim = None
+                self._change(P.RELEASED)
             if self.state in (P.CLAIMED, P.SENT) or (self.state is P.HOLD and self._held == at):
                 return
             self._change(P.HOLD)
             self._held = at
-            now = self._clock()
-            self._publish(holding(r.crane, now, Footprint.at_rest(r.offset[1] + at[1], r.offset[0] + at[0]),
-                                  r.shape))
+            self._out(holding(r.crane, now, Footprint.at_rest(r.offset[1] + at[1], r.offset[0] + at[0]), r.shape))
 
 
 def startup_conflict(config: Config, others: list[Occupancy], bridge: float, now_ns: int) -> str | None:

@@ -109,6 +109,7 @@ def from_swing(serving: Serving, goal: Goal, move: Move, settle: float, feedback
     if not serving.timeline.send(running, together=lambda: serving.goals.send(goal, execution, running, canceled)):
         return unsent(serving, goal, planned)
     serving.publish(planned.trajectory)
+    serving.runway.moving(goal, plan, planned.state, checked.start_ns, settle)  # (on a runway: published)
     cart = checked.axes[CART_JOINT]
     what = (f'{checked.method}: {cart.start:g} -> {cart.goal:g} m in {plan.duration:.4g} s, from a swing of '
             f'{1e3 * swing:.1f} mm')
@@ -148,7 +149,8 @@ def _planned(serving: Serving, move: Move, swing: float, values: dict) -> Planne
     cart = checked.axes[CART_JOINT]
     values = {**values, 'method': checked.method, 'start': cart.start, 'goal': cart.goal,
               'duration': plan.duration, 'displacement': checked.displacement}
-    return Planned(checked, plan, trajectory_from(serving, plan, state, holding.joints, handover), values)
+    return Planned(checked, plan, trajectory_from(serving, plan, state, holding.joints, handover), values,
+                   state=state)
 
 
 def damped_first(serving: Serving, goal: Goal, move: Move, settle: float, feedback, canceled, t0: float,

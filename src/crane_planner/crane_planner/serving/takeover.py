@@ -82,6 +82,10 @@ def take_over(serving: Serving, goal: Goal, move: Move, settle: float, feedback,
                                      goal.execution.motion_start_ns)
     serving.timeline.send(running, together=lambda: serving.goals.take_over(goal, result.handover_ns, running)
                           or True)
+    if serving.runway.on:  # (its occupancy from the swing at the handover: a shaper's change was planned without)
+        state = result.state if family_of(checked.method) is not Family.SHAPER else transitions.handover_state(
+            take.running, result.handover_ns, serving.view.measured, serving.config().params)
+        serving.runway.moving(goal, plan, state, result.handover_ns, settle)
     cart = checked.axes[CART_JOINT]
     what = (f'{checked.method}: from {cart.start:g} m (taking over the motion) -> {cart.goal:g} m in '
             f'{plan.duration:.4g} s')
@@ -160,7 +164,7 @@ def preempting(serving: Serving, move: Move, running: Running, lead_scale: float
     values.update(method=checked.method, start=cart.start, goal=cart.goal, duration=plan.duration,
                   handover_lead=(handover - serving.clock()) * 1e-9)
     return HandoverResult(checked, plan, trajectory_from(serving, plan, state, running.joints, handover), values,
-                          handover, done.lead / asked)
+                          handover, done.lead / asked, state)
 
 
 def warm_handover(serving: Serving, rehearse: Callable[[Trajectory], Any]) -> None:
