@@ -312,6 +312,17 @@ class RunwayStep:
             self._out(holding(r.crane, now, Footprint.at_rest(r.offset[1] + at[1], r.offset[0] + at[0]), r.shape))
 
 
+def publish_motion(serving, key, plan: Plan, state, handover_ns: int, settle: float) -> None:
+    """``serving.runway.moving`` of a motion already sent (``state``: the state at its handover, or a function
+    that predicts it); should the prediction fail, a warning says so: the motion goes on unpublished (off its
+    plan, the guards judge it by its stopping envelope), never the goal failed for it."""
+    try:
+        serving.runway.moving(key, plan, state() if callable(state) else state, handover_ns, settle)
+    except (ValueError, ArithmeticError, RuntimeError) as exc:
+        serving.log.warn(f'runway: the motion sent from a state is not published ({exc}); the other cranes\' '
+                         'guards judge it by its stopping envelope')
+
+
 def startup_conflict(config: Config, others: list[Occupancy], bridge: float, now_ns: int) -> str | None:
     """At start-up: why ``runway_offset`` is refused (one line naming both cranes), or None. This crane's
     girder (at ``runway_offset`` plus the bridge's position ``bridge``, m) must keep ``runway_min_distance``

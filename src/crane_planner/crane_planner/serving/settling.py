@@ -22,6 +22,7 @@ from .goals import Goal
 from .handover import Verdict, taken
 from .moves import MoveError
 from .replanning import plan_from_running, trajectory_from
+from .runway_step import publish_motion
 from .stops import STOP_LEAD, plan_stop
 from .transitions import Running
 
@@ -56,7 +57,7 @@ def stop_motion(serving: Serving, goal: Goal, settle: float) -> str:
                           stream_timeout=config.stream_timeout)
     serving.timeline.send(stop, together=lambda: serving.goals.stopping(goal, stop, execution) or True)
     serving.publish(trajectory)
-    serving.runway.moving(goal, plan, state, handover, settle)  # (on a runway: published)
+    publish_motion(serving, goal, plan, state, handover, settle)  # (on a runway)
     # a stop ending after the motion would have (one near its end) is streamed with its change delayed to
     # the tick at or after its stamp: what a next handover must continue
     if taken(goal.execution, handover, config.stream_timeout, serving.sleep, serving.timer) is Verdict.TAKEN:
@@ -94,7 +95,7 @@ def settle(serving: Serving) -> Settled:
     running = trajectory.running(done.handover_ns, done.plan)
     serving.timeline.send(running)
     serving.publish(trajectory)
-    serving.runway.moving(object(), done.plan, done.state, done.handover_ns, DEFAULT_SETTLE)  # (on a runway)
+    publish_motion(serving, object(), done.plan, done.state, done.handover_ns, DEFAULT_SETTLE)  # (on a runway)
     swing = transitions.swing_of(done.state, config.params)
     return Settled(f'settling a swing of about {1e3 * swing:.1f} mm: a {done.plan.duration:.3g} s '
                    f'{done.plan.method} motion ending where the cart is held ({hold[CART_JOINT]:.6g} m)', swing,

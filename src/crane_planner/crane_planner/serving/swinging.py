@@ -35,6 +35,7 @@ from .moves import Move, MoveError, check_move, check_rests_keep_out
 from .preview import Planned, check_executable
 from .replanning import plan_from_running, retargeting, trajectory_from
 from .runner import Steps
+from .runway_step import publish_motion
 from .settling import settle as damp
 from .starting import from_rest
 from .transitions import Running
@@ -109,7 +110,7 @@ def from_swing(serving: Serving, goal: Goal, move: Move, settle: float, feedback
     if not serving.timeline.send(running, together=lambda: serving.goals.send(goal, execution, running, canceled)):
         return unsent(serving, goal, planned)
     serving.publish(planned.trajectory)
-    serving.runway.moving(goal, plan, planned.state, checked.start_ns, settle)  # (on a runway: published)
+    publish_motion(serving, goal, plan, planned.state, checked.start_ns, settle)  # (on a runway)
     cart = checked.axes[CART_JOINT]
     what = (f'{checked.method}: {cart.start:g} -> {cart.goal:g} m in {plan.duration:.4g} s, from a swing of '
             f'{1e3 * swing:.1f} mm')

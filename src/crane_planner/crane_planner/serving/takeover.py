@@ -28,6 +28,7 @@ from .moves import Move, MoveError, check_move, check_rests_keep_out
 from .preview import Planned
 from .replanning import plan_from_running, retargeting, trajectory_from
 from .runner import Steps
+from .runway_step import publish_motion
 from .swinging import until_held
 from .transitions import Running, Trajectory
 
@@ -83,9 +84,9 @@ def take_over(serving: Serving, goal: Goal, move: Move, settle: float, feedback,
     serving.timeline.send(running, together=lambda: serving.goals.take_over(goal, result.handover_ns, running)
                           or True)
     if serving.runway.on:  # (its occupancy from the swing at the handover: a shaper's change was planned without)
-        state = result.state if family_of(checked.method) is not Family.SHAPER else transitions.handover_state(
+        state = result.state if family_of(checked.method) is not Family.SHAPER else lambda: transitions.handover_state(
             take.running, result.handover_ns, serving.view.measured, serving.config().params)
-        serving.runway.moving(goal, plan, state, result.handover_ns, settle)
+        publish_motion(serving, goal, plan, state, result.handover_ns, settle)
     cart = checked.axes[CART_JOINT]
     what = (f'{checked.method}: from {cart.start:g} m (taking over the motion) -> {cart.goal:g} m in '
             f'{plan.duration:.4g} s')
