@@ -51,6 +51,28 @@ def test_an_occupancy_interpolates_between_its_samples_and_holds_outside_them():
         Occupancy('a', 0, 0, np.array([0.0, 1.0]), Footprint(np.array([0.0, math.nan]), f.masses), SHAPE)
 
 
+def test_an_occupancy_since_an_instant_and_spliced_with_a_later_one_is_each_where_it_holds():
+    """``since`` drops the samples before the one at or before the instant, and is the same from there on;
+    ``spliced`` is the first until the later one starts, then the later one."""
+    S = 1_000_000_000
+    t = np.arange(0.0, 2.01, 0.5)
+    girder = t ** 2  # (samples of a curve: the linear interpolation differs from it between them)
+    o = Occupancy('a', 0, S, t, Footprint(girder, np.zeros((len(t), 2, 2))), SHAPE)
+    cut = o.since(S + 1_200_000_000)
+    assert cut.start_ns == S + 1_000_000_000 and cut.t.tolist() == [0.0, 0.5, 1.0]
+    stamps = np.arange(S + 1_000_000_000, 4 * S, 10_000_000)
+    assert cut.at(stamps).girder == pytest.approx(o.at(stamps).girder, abs=1e-12)
+    assert o.since(0) is o and o.since(S) is o
+    later = Occupancy('a', 7, S + 1_700_000_000, np.array([0.0, 1.0]),
+                      Footprint(np.array([5.0, 6.0]), np.zeros((2, 2, 2))), SHAPE)
+    both = cut.spliced(later)
+    assert (both.published_ns, both.start_ns) == (7, cut.start_ns)
+    assert both.t.tolist() == pytest.approx([0.0, 0.5, 0.7, 1.7])  # (1.5 s, after the handover: dropped)
+    assert both.at([S + 1_500_000_000]).girder[0] == pytest.approx(2.25)  # the first's sample
+    assert both.at([S + 2_200_000_000]).girder[0] == pytest.approx(5.5)  # the later one's
+    assert later.spliced(later) is later  # (nothing of the first before the later one's start)
+
+
 @pytest.mark.parametrize('method', ['zv', 'nvf'])
 def test_a_plans_occupancy_follows_its_bridge_and_its_masses_as_crane_sim_simulates_them(method):
     """The occupancy's masses against crane_sim's batch simulation of the same reference (its own numpy model):

@@ -277,12 +277,15 @@ def streamed_bridge(trajectory):
 
 
 def assert_published_as_streamed(crane, first, second):
-    """``second`` (a motion sent from a state) is ``first`` until its handover, then the handover's trajectory:
-    its girder where the bridge streams, its masses going on from where ``first`` had them."""
+    """``second`` (a motion sent from a state) is ``first`` from when it was sent until its handover, then the
+    handover's trajectory: its girder where the bridge streams, its masses going on from where ``first`` had
+    them."""
     trajectory = crane.published[-1][1]
     handover = trajectory.stamp_ns
-    assert second.start_ns == first.start_ns and second.published_ns > first.published_ns
-    before = np.arange(first.start_ns, handover, 5 * MS)
+    # from the first's last sample before it was sent (the past dropped: a chain of them does not grow)
+    assert second.published_ns > first.published_ns
+    assert 0 <= second.published_ns - second.start_ns < 20 * MS and second.start_ns >= first.start_ns
+    before = np.arange(second.start_ns, handover, 5 * MS)
     assert second.at(before).girder == pytest.approx(first.at(before).girder, abs=1e-9)
     stamps, bridge = streamed_bridge(trajectory)
     assert second.at(stamps).girder == pytest.approx(bridge, abs=2e-4)  # (its 20 ms samples, linear between)
@@ -350,3 +353,23 @@ def test_a_crane_holding_in_the_way_heard_during_the_claim_window_aborts_the_goa
     assert goal.history[-1] is GoalState.HELD and goal.state is GoalState.ENDED
     crane.clock.sleep(0.05)
     assert crane.step.state is Published.HOLD and len(crane.holds()) == 2
+
+
+def test_a_motion_from_a_state_sent_while_a_goal_waits_in_its_claim_window_leaves_that_claim_published():
+    """A settle (a motion no goal ends) sent while a goal is held for its start: the goal's claim stands (its
+    motion is what the other cranes plan around; the settle is judged by its envelope), and the goal's motion
+    is published and followed as claimed."""
+    from crane_planner.planning.continuation import AxisState, MotionState
+    from crane_planner.planning.signals import Swing
+    crane = BridgeCrane()
+    start = T0 + 2 * SECOND
+    goal = crane.goal('a', towards_b(start))
+    settle = plan('nvf', 0.0, 1.0, P, bridge=0.0)
+    at_rest = MotionState({'cart': AxisState(0.0), 'bridge': AxisState(0.0)}, Swing.rest(spatial=True))
+    answers = []
+    crane.at(start - SECOND, lambda: answers.append(crane.step.moving(object(), settle, at_rest,
+                                                                      crane.clock() + 100 * MS, 1.0)))
+    outcome, _ = crane.execute(goal, towards_b(start))
+    assert outcome.success and answers == [None]
+    crane.clock.sleep(0.05)
+    assert ['hold' if len(o.t) == 1 else 'motion' for o in crane.occupancies] == ['hold', 'motion', 'hold']

@@ -113,6 +113,16 @@ class Occupancy:
         return Occupancy(self.crane, self.published_ns, self.start_ns + round(delay * 1e9), self.t, self.footprint,
                          self.shape)
 
+    def since(self, stamp_ns: int) -> 'Occupancy':
+        """The same from its last sample at or before ``stamp_ns`` on (what is past dropped; all of it if
+        ``stamp_ns`` is before its start)."""
+        k = int(np.searchsorted(self.t, (stamp_ns - self.start_ns) * 1e-9, side='right')) - 1
+        if k <= 0:
+            return self
+        f = self.footprint
+        return Occupancy(self.crane, self.published_ns, self.start_ns + round(float(self.t[k]) * 1e9),
+                         self.t[k:] - self.t[k], Footprint(f.girder[k:], f.masses[k:]), self.shape)
+
     def spliced(self, later: 'Occupancy') -> 'Occupancy':
         """This occupancy until ``later`` starts, then ``later`` (its crane, stamp and shape): a motion sent
         from a state of the one this occupancy predicts, which the crane follows until its handover."""

@@ -105,6 +105,11 @@ class Placement:
         return max(0.0, (self.start_ns - self.asked_ns) * 1e-9)
 
     @property
+    def end_ns(self) -> int:
+        """When its occupancy's last sample is reached (ns)."""
+        return self.base.end_ns + round(self.delay * 1e9)
+
+    @property
     def occupancy(self) -> Occupancy:
         """The occupancy as published: ``base`` delayed, with the claim's stamp."""
         return dataclasses.replace(self.base.delayed(self.delay), published_ns=self.published_ns)
@@ -184,13 +189,14 @@ class RunwayStep:
         self._claim: tuple[Any, Placement] | None = None  # (goal key, its placement) while claimed or sent
         self._held: tuple | None = None  # the hold last published (cart, bridge), m
         self.last: Occupancy | None = None  # what it published last
+        self._follows_last = False  # the crane moves (or stands) as ``last`` says: not a claim yet to be sent
 
     @property
     def on(self) -> bool:
         return self._publish is not None and self._config().runway.on
 
-    def _out(self, occupancy: Occupancy) -> None:  # (under the lock)
-        self.last = occupancy
+    def _out(self, occupancy: Occupancy, follows: bool = False) -> None:  # (under the lock)
+        self.last, self._follows_last = occupancy, follows
         self._publish(occupancy)
 
     def _change(self, state: Published) -> None:
@@ -271,11 +277,14 @@ class RunwayStep:
         occupancy = plan_occupancy(r.crane, plan, model, origin, r.offset, handover_ns, now, r.shape, settle,
                                    start=start)
         with self._lock:
-            if self.last is not None and self.state in (P.SENT, P.HOLD):  # (what the crane does until then)
-                occupancy = self.last.spliced(occupancy)
+            if self.state is P.CLAIMED:  # (a settle while a goal waits to start: that goal's claim stands)
+                return None
+            if self.last is not None and self._follows_last and (self.state is not P.RELEASED
+                                                                 or self.last.end_ns > now):
+                occupancy = self.last.since(now).spliced(occupancy)  # (what the crane does until the handover)
             self._change(P.SENT)
             self._claim = (key, Placement(handover_ns, occupancy, 0.0, '', None, now))
-            self._out(occupancy)
+            self._out(occupancy, follows=True)
         return occupancy
 
     def sent(self, key) -> None:
@@ -283,6 +292,7 @@ class RunwayStep:
         with self._lock:
             if self._claim is not None and self._claim[0] is key:
                 self._change(P.SENT)
+                self._follows_last = True
 
     def release(self, key) -> None:
         """The goal ``key`` ended: if its motion was the one published, a hold is published once the streamer
@@ -302,14 +312,15 @@ class RunwayStep:
         at = (float(hold.get('cart', 0.0)), float(hold.get('bridge', 0.0)))
         with self._lock:
             now = self._clock()
-            if self.state is P.SENT and now >= self._claim[1].occupancy.end_ns:  # (a motion no goal ends: a settle)
+            if self.state is P.SENT and now >= self._claim[1].end_ns:  # (a motion no goal ends: a settle)
                 self._claim = None
                 self._change(P.RELEASED)
             if self.state in (P.CLAIMED, P.SENT) or (self.state is P.HOLD and self._held == at):
                 return
             self._change(P.HOLD)
             self._held = at
-            self._out(holding(r.crane, now, Footprint.at_rest(r.offset[1] + at[1], r.offset[0] + at[0]), r.shape))
+            self._out(holding(r.crane, now, Footprint.at_rest(r.offset[1] + at[1], r.offset[0] + at[0]), r.shape),
+                      follows=True)
 
 
 def publish_motion(serving, key, plan: Plan, state, handover_ns: int, settle: float) -> None:

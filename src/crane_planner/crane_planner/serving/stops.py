@@ -135,8 +135,9 @@ def moving_state(params: CraneParams, joints):
     from ..planning.continuation import AxisState, MotionState
     from ..planning.signals import Swing
     axes = {name: AxisState(params.L1) if name == HOIST_JOINT else AxisState(0.0, 0.1, 0.05) for name in joints}
-    # the load lags the acceleration: theta > 0, phi < 0 (``Problem.initial_guess``)
-    out_of_plane = dict(phi1=-0.02, phi2=0.0, dphi1=0.05, dphi2=0.0) if BRIDGE_JOINT in axes else {}
+    # the load lags the acceleration: theta > 0, phi < 0 (``Problem.initial_guess``); with a bridge out of the
+    # vertical plane of the travel (phi not theta's), so that the coupled NLP is built, not the planar one
+    out_of_plane = dict(phi1=-0.01, phi2=0.0, dphi1=0.05, dphi2=0.0) if BRIDGE_JOINT in axes else {}
     return MotionState(axes, Swing(theta1=0.02, dtheta1=-0.05, **out_of_plane))
 
 
