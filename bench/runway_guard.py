@@ -6,8 +6,9 @@ travel, and the guard's verdict. Two runs of 10 s each, timed tick by tick:
 
 - ``operator``: operator mode, the stick at full speed (0.3 m/s) on the bridge towards a crane 2 m away (the
   guard stops it there, then refuses), the exact travel of the operator's stop asked each tick;
-- ``trajectory``: a bridge motion of 1.2 m in 6 s streamed by the trajectory source (the planned stop's bound),
-  its own published occupancy (20 ms samples) followed, the others on their plans too: their footprints compared.
+- ``trajectory``: a bridge motion of 1.2 m in 6 s streamed by the trajectory source (the reach of its stops looked
+  up in the motion's ``StopTable``, whose making on the accepting thread is timed apart: ``stop_table_ms``), its
+  own published occupancy (20 ms samples) followed, the others on their plans too: their footprints compared.
 
 Each with 1 and 3 other cranes. Median, p99 and max in microseconds, and beside them the source's own sample
 (``source_sample``: what the loop pays per tick anyway). Target: a median of at most 10 us. Prints one JSON object.
@@ -46,10 +47,15 @@ def summary(x) -> dict:
             'max_us': round(x[-1], 2)}
 
 
-def run(source, sample, neighbours: int, own=None) -> dict:
+def run(source, sample, neighbours: int, own=None, motion=None) -> dict:
     g = guard()
     if own is not None:
         g.own(*own)
+    table_ms = None
+    if motion is not None:  # (its stops tabulated as the stream accepted it: the accepting thread's cost)
+        t0 = time.perf_counter_ns()
+        g.accepted(motion)
+        table_ms = round((time.perf_counter_ns() - t0) * 1e-6, 2)
     others = [(f'c{k}', 1.95 + 3.0 * k, 2.05 + 3.0 * k) for k in range(neighbours)]
     watch, sampling, levels = [], [], set()
     for k in range(round(SECONDS * 1000)):
@@ -65,8 +71,11 @@ def run(source, sample, neighbours: int, own=None) -> dict:
         sampling.append((t1 - t0) * 1e-3)
         watch.append((t2 - t1) * 1e-3)
         levels.add(g.verdict.level.name.lower())
-    return {'watch': summary(watch), 'source_sample': summary(sampling), 'levels_seen': sorted(levels),
-            'ticks': len(watch)}
+    result = {'watch': summary(watch), 'source_sample': summary(sampling), 'levels_seen': sorted(levels),
+              'ticks': len(watch)}
+    if table_ms is not None:
+        result['stop_table_ms'] = table_ms
+    return result
 
 
 def operator(neighbours: int) -> dict:
@@ -91,7 +100,7 @@ def trajectory(neighbours: int) -> dict:
     v = 1.2 / 6.0 * 30 * s ** 2 * (1 - s) ** 2
     a = 1.2 / 36.0 * 60 * s * (1 - 3 * s + 2 * s * s)
     zero = np.zeros_like(t)
-    stream.accept(t, *(np.column_stack([zero, x]) for x in (p, v, a)), 2 * TICK_NS, 0)
+    motion = stream.accept(t, *(np.column_stack([zero, x]) for x in (p, v, a)), 2 * TICK_NS, 0)
 
     def sample(k):
         tick[0] = k
@@ -99,7 +108,7 @@ def trajectory(neighbours: int) -> dict:
     samples = np.arange(0.0, 6.0 + 1e-9, 0.02)  # (its occupancy as the planner publishes it: every 20 ms)
     u = samples / 6.0
     own = (2 * TICK_NS, samples, 1.2 * u ** 3 * (10 - 15 * u + 6 * u * u))
-    return run(stream, sample, neighbours, own)
+    return run(stream, sample, neighbours, own, motion)
 
 
 def main():

@@ -60,6 +60,7 @@ class RunwayPort:
                                        limits.max_acceleration, limits.max_jerk or 1e9)
         streamer.watches = (core,)
         stream = streamer.stream
+        stream.on_accept = core.accepted  # (every trajectory's stops tabulated as it is accepted)
 
         def now() -> int:
             return node.get_clock().now().nanoseconds

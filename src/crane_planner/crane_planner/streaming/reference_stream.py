@@ -168,6 +168,9 @@ class ReferenceStream:
         # (sample) or checked before one is handed over (_install): a few bytecodes on either side.
         self._last_tick = -1
         self._sampling = threading.Lock()
+        #: Called with each motion accepted (on the accepting thread, once it is sampled whole): the runway
+        #: guard tabulates where its stops may go (``runway_guard.RunwayGuard.accepted``).
+        self.on_accept: Callable[[Motion], None] | None = None
 
     @property
     def hold(self):
@@ -295,7 +298,7 @@ class ReferenceStream:
             if self._state is not RUNNING:
                 raise ValueError('the stream has not started yet')
             if self._motion is not None or self._incoming is not None:
-                return self._filled(self._handover(interps, start_ns, duration_ns, sampled))
+                return self._told(self._filled(self._handover(interps, start_ns, duration_ns, sampled)))
             hold = np.atleast_1d(self._hold)
             if np.max(np.abs(p - hold)) > self.start_tolerance:
                 jump = p - hold
@@ -312,7 +315,12 @@ class ReferenceStream:
                 else:
                     late = epoch + first * period - start_ns
             self._incoming = self._sampled(interps, first, offset, duration_ns, late)
-        return self._filled(self._incoming)
+        return self._told(self._filled(self._incoming))
+
+    def _told(self, motion: Motion) -> Motion:
+        if self.on_accept is not None:
+            self.on_accept(motion)
+        return motion
 
     def _sampled(self, interps, first: int, offset: int, duration_ns: int, late: int,
                  handover: bool = False) -> Motion:

@@ -15,11 +15,14 @@ widened by how far the stop it would run now travels:
   bridge held at zero: braked by ruckig within the bridge's operator limits,
   then played out by the shaper), exactly (``OperatorStream.stopping_travel``);
 - in trajectory mode the planned stop (``serving.stops`` in the stop worker,
-  ``PlannedStop``): the motion goes on for ``GUARD_LEAD`` (and ``WAKE``),
-  then an NVF stop to rest anywhere travels at most ``STOP_REACH`` times the
-  velocity then times the first mode's period (the largest measured over NVF,
-  RVF and ZV motions stopped at 20-70 %: 0.72), or the fallback braking ramp
-  within ``fault_deceleration`` and ``fault_jerk``, whichever goes further.
+  ``PlannedStop``): the motion goes on as streamed for up to ``GUARD_LEAD``
+  (and ``WAKE``), then an NVF stop to rest anywhere travels at most
+  ``PlannedStop.stop`` (``STOP_REACH`` and its terms, measured), or the fallback
+  braking ramp within ``fault_deceleration`` and ``fault_jerk``, whichever goes
+  further: tabulated for each trajectory as the stream accepts it
+  (``StopTable``, ``accepted``: ``ReferenceStream.on_accept``), looked up each
+  tick; until a trajectory's table is there, extrapolated at constant
+  acceleration (``PlannedStop.travel``).
 
 The crane follows its plan (``follows_plan``, said on ``/runway/state``) while
 trajectory mode streams its girder within ``PLANNED_TOLERANCE`` of where its
@@ -51,6 +54,8 @@ import time
 from collections import deque
 from typing import Callable
 
+import numpy as np
+
 from crane_msgs_py.crane.braking import stopping_distance
 from crane_msgs_py.messages.names import BRIDGE_JOINT, CART_JOINT
 
@@ -61,9 +66,18 @@ from .operator import OperatorStream
 from .source import Setpoint, Source
 from .stop_request import MotionStop
 
-#: The planned stop's travel (trajectory mode) in units of the velocity at its handover times the first mode's
-#: period: the largest measured over NVF, RVF and ZV motions of the bridge stopped at 20-70 % of them was 0.72.
+#: The planned stop's travel (trajectory mode) from a handover at velocity v and acceleration a is at most
+#: ``STOP_REACH`` |v| T1 + ``STOP_REACH_ACCELERATION`` |a| T1^2 + ``STOP_REACH_SWING`` (T1 the first mode's
+#: period). Measured over 1,225 stops of NVF, RVF, ZV, ZVD and EI motions (0.3-2 m in 2-5 s, peaks up to
+#: 2.5 m/s^2) every 0.1 s from start to end: |v| T1 alone bounds it by 0.72 mid-motion, but not where the
+#: acceleration is large beside the velocity (RVF's dips: 0.40 m from 0.08 m/s at 1.9 m/s^2, 2.8 times the
+#: velocity's term) nor at the end of a motion that leaves a swing (EI: 10 mm with the axes all but at rest);
+#: with 0.75 the acceleration's coefficient needed 0.06 and the swing's 12 mm, here with margin.
 STOP_REACH = 0.75
+STOP_REACH_ACCELERATION = 0.07
+STOP_REACH_SWING = 0.015
+#: The grid (ns) on which a trajectory's stop reach is tabulated (``StopTable``).
+TABLE_STEP_NS = 10_000_000
 #: How long (s) the guard's stop takes to be asked after the tick that decided it.
 WAKE = 0.01
 #: How far ahead (s) of that the guard's stop in trajectory mode takes over at the latest: the planned stop if
@@ -90,13 +104,57 @@ class PlannedStop:
     def __init__(self, first_period: float, deceleration: float, jerk: float):
         self.first_period, self.deceleration, self.jerk = first_period, deceleration, jerk
 
+    def stop(self, v: float, a: float) -> float:
+        """The signed travel of a stop taking over from a reference at ``v`` (m/s), ``a`` (m/s^2): the planned
+        stop's bound (``STOP_REACH``...) or the braking ramp's distance, whichever goes further; 0 at rest (to
+        rounding: a motion's end is at rest to 1e-17)."""
+        if abs(v) < 1e-9 and abs(a) < 1e-9:
+            return 0.0
+        T1 = self.first_period
+        planned = STOP_REACH * abs(v) * T1 + STOP_REACH_ACCELERATION * abs(a) * T1 * T1 + STOP_REACH_SWING
+        ramp = abs(stopping_distance(v, a, self.deceleration, self.jerk))
+        return math.copysign(max(planned, ramp), v if v else a)
+
     def travel(self, v: float, a: float, lead: float) -> float:
         """The signed travel from a reference at ``v`` (m/s), ``a`` (m/s^2) whose stop takes over ``lead`` s
-        later (the motion goes on meanwhile, at that acceleration)."""
-        v_h = v + a * lead
-        stop = STOP_REACH * abs(v_h) * self.first_period
-        ramp = abs(stopping_distance(v_h, a, self.deceleration, self.jerk))
-        return v * lead + a * lead * lead / 2.0 + math.copysign(max(stop, ramp), v_h if v_h else a)
+        later, the motion going on meanwhile at that acceleration: the guard's estimate until the motion's
+        ``StopTable`` is there (an extrapolation: a jerky motion goes further within the lead)."""
+        return v * lead + a * lead * lead / 2.0 + self.stop(v + a * lead, a)
+
+    def table(self, motion, joint: int, lead: float, step_ns: int = TABLE_STEP_NS) -> 'StopTable':
+        """The ``StopTable`` of ``motion`` (a ``reference_stream.Motion``) for its joint ``joint`` (the
+        bridge's column) with stops taking over up to ``lead`` s after each instant."""
+        interp = motion.interps[joint]
+        lead_ns = round(lead * 1e9)
+        end_ns = motion.start_ns + round(motion.duration * 1e9)
+        n = (end_ns + lead_ns - (motion.start_ns - lead_ns)) // step_ns + 3
+        stamps = motion.start_ns - lead_ns + step_ns * np.arange(n, dtype=np.int64)
+        # the motion's own time at those stamps (its interpolants hold their ends outside their knots)
+        p, v, a = interp(motion.interps[0].t[0] + (stamps - motion.origin_ns) * 1e-9)
+        reached = p + np.array([self.stop(vi, ai) for vi, ai in zip(v.tolist(), a.tolist(), strict=True)])
+        w = lead_ns // step_ns + 2  # (the samples from each one to the first at or past it plus the lead)
+        padded = np.concatenate((reached, np.full(w - 1, reached[-1])))
+        windows = np.lib.stride_tricks.sliding_window_view(padded, w)
+        return StopTable(motion, int(stamps[0]), step_ns, np.minimum(windows.min(axis=1), p),
+                         np.maximum(windows.max(axis=1), p))
+
+
+class StopTable:
+    """Where a trajectory's stops may take the girder's reference (the joint's own positions, m): from the
+    stamp ``start_ns + k step_ns``, a stop taking over at any instant within the guard's lead after it (the
+    motion followed exactly until then, not extrapolated) ends between ``low[k]`` and ``high[k]``
+    (``PlannedStop.stop`` of the reference's state at each instant on the grid). Held at its ends outside."""
+
+    def __init__(self, motion, start_ns: int, step_ns: int, low: np.ndarray, high: np.ndarray):
+        self.motion, self.start_ns, self.step_ns = motion, start_ns, step_ns
+        self._low, self._high = low.tolist(), high.tolist()  # (lists: a tick reads two floats)
+        self._last = len(self._low) - 2
+
+    def at(self, stamp_ns: int) -> tuple[float, float]:
+        """(lowest, highest) position (m) a stop may reach from ``stamp_ns`` (between two grid stamps: both)."""
+        k = min(max((stamp_ns - self.start_ns) // self.step_ns, 0), self._last)
+        low, high = self._low, self._high
+        return min(low[k], low[k + 1]), max(high[k], high[k + 1])
 
 
 def first_period(model) -> float:
@@ -137,6 +195,7 @@ class RunwayGuard:
         self.footprint = Reach(-math.inf, math.inf)  # what it covers now, no travel
         self.follows_plan = False  # it follows its own published occupancy (``own``)
         self._own: tuple | None = None  # (start ns, sample times s, girder y m) of its newest occupancy
+        self._tables: tuple = ()  # the two newest trajectories' StopTables (``accepted``): the one streaming, the next
         self.last = (0.0, 0.0, None)  # the girder's y and velocity, and the setpoint, at the last tick
         self.changes = 0  # verdicts that changed level, crane or refusal (the port reports each)
         self.stopping = False  # a stop of a motion towards a crane was asked, and the stream is not at rest yet
@@ -191,6 +250,18 @@ class RunwayGuard:
             planned = girder[k - 1] + w * (girder[k] - girder[k - 1])
         return abs(y - planned) <= PLANNED_TOLERANCE
 
+    def accepted(self, motion) -> None:
+        """A trajectory the stream accepted (``ReferenceStream.on_accept``, on the accepting thread): its
+        ``StopTable``, which the loop uses while that motion is the stream's. A failure leaves the loop's
+        extrapolation (``PlannedStop.travel``)."""
+        if self.bridge is None:
+            return
+        try:
+            table = self.planned.table(motion, self.bridge, GUARD_LEAD + WAKE)
+        except (ValueError, IndexError, ArithmeticError):
+            return
+        self._tables = (table, *self._tables[:1])
+
     def measured(self, hook: tuple, load: tuple, girder: float | None = None) -> None:
         """The masses' horizontal offsets (m) from the suspension point, (dx, dy) each, and the girder's y in
         ``runway`` (m; None: no bridge measured), from joint_states."""
@@ -231,6 +302,7 @@ class RunwayGuard:
             self._refuse(self.verdict.blocked)
         b = self.bridge
         y0 = self.offset[1]
+        behind = 0.0
         if b is None:
             y, v, travel = y0, 0.0, 0.0
         else:
@@ -238,9 +310,19 @@ class RunwayGuard:
             if self._operator:  # (the stick's zero taken from the next tick: one tick more)
                 travel = source.stopping_travel(b) + v * self.period
             else:
-                travel = self.planned.travel(v, a, GUARD_LEAD + WAKE) if (v or a) else 0.0
+                motion = getattr(source, 'last_motion', None)
+                table = next((t for t in self._tables if t.motion is motion), None)
+                if table is not None:
+                    low, high = table.at(stamp_ns)
+                    at = setpoint.position[b]
+                    travel, behind = max(0.0, high - at), min(0.0, low - at)
+                else:
+                    travel = self.planned.travel(v, a, GUARD_LEAD + WAKE) if (v or a) else 0.0
         _, dy1, _, dy2 = self._measured
-        mine = self.mine = envelope(y, (y + dy1, y + dy2), self.shape, travel)
+        mine = envelope(y, (y + dy1, y + dy2), self.shape, travel)
+        if behind < 0.0:  # (a trajectory's stop that may go back as well)
+            mine = Reach(mine.low + behind, mine.high)
+        self.mine = mine
         # what it covers now, as measured: the axes follow their reference late (the servo, Eq. 6, and the
         # controller's playout), by a tenth of a second and centimetres at speed
         at = y if self._girder is None else self._girder
