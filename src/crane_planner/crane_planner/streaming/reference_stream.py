@@ -298,24 +298,27 @@ class ReferenceStream:
             if self._state is not RUNNING:
                 raise ValueError('the stream has not started yet')
             if self._motion is not None or self._incoming is not None:
-                return self._told(self._filled(self._handover(interps, start_ns, duration_ns, sampled)))
-            hold = np.atleast_1d(self._hold)
-            if np.max(np.abs(p - hold)) > self.start_tolerance:
-                jump = p - hold
-                raise ValueError(f'it starts at {position_text(tuple(p) if several else p[0])} m, not at the hold '
-                                 f'position {position_text(self._hold)} m (a jump of '
-                                 f'{position_text(tuple(jump) if several else jump[0])} m)')
-            epoch = self._epoch_ns
-            first = self._tick() + 2  # a tick the loop cannot have reached yet
-            offset = late = 0  # offset: time (ns) into the motion at the first tick
-            if start_ns:
-                due = -(-(start_ns - epoch) // period)  # first tick at or after the start
-                if due >= first:
-                    first, offset = due, epoch + due * period - start_ns
-                else:
-                    late = epoch + first * period - start_ns
-            self._incoming = self._sampled(interps, first, offset, duration_ns, late)
-        return self._told(self._filled(self._incoming))
+                motion = self._filled(self._handover(interps, start_ns, duration_ns, sampled))
+            else:
+                hold = np.atleast_1d(self._hold)
+                if np.max(np.abs(p - hold)) > self.start_tolerance:
+                    jump = p - hold
+                    raise ValueError(f'it starts at {position_text(tuple(p) if several else p[0])} m, not at the hold '
+                                     f'position {position_text(self._hold)} m (a jump of '
+                                     f'{position_text(tuple(jump) if several else jump[0])} m)')
+                epoch = self._epoch_ns
+                first = self._tick() + 2  # a tick the loop cannot have reached yet
+                offset = late = 0  # offset: time (ns) into the motion at the first tick
+                if start_ns:
+                    due = -(-(start_ns - epoch) // period)  # first tick at or after the start
+                    if due >= first:
+                        first, offset = due, epoch + due * period - start_ns
+                    else:
+                        late = epoch + first * period - start_ns
+                self._incoming = self._sampled(interps, first, offset, duration_ns, late)
+                motion = None
+        # (told outside the lock: the loop takes the lock at a handover's first tick)
+        return self._told(self._filled(self._incoming) if motion is None else motion)
 
     def _told(self, motion: Motion) -> Motion:
         if self.on_accept is not None:

@@ -314,8 +314,8 @@ class RunwayGuard:
                 table = next((t for t in self._tables if t.motion is motion), None)
                 if table is not None:
                     low, high = table.at(stamp_ns)
-                    at = setpoint.position[b]
-                    travel, behind = max(0.0, high - at), min(0.0, low - at)
+                    streamed = setpoint.position[b]
+                    travel, behind = max(0.0, high - streamed), min(0.0, low - streamed)
                 else:
                     travel = self.planned.travel(v, a, GUARD_LEAD + WAKE) if (v or a) else 0.0
         _, dy1, _, dy2 = self._measured
