@@ -87,6 +87,14 @@ class BaseProfile:
         shift = _SHIFT_MASK * np.vander(dx, ORDER + 1, increasing=True)[:, _SHIFT_POWER]
         return np.einsum('imn,in->im', shift, self.coefficients[k])
 
+    def peaks(self) -> tuple[float, float]:
+        """(peak |acceleration|, peak |jerk|) over [0, duration], sampled on each piece (polynomials of degree
+        <= 5: to ~1e-4 relative)."""
+        edges = np.append(self.breaks, self.duration)
+        t = np.concatenate([np.linspace(a, b, 97) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a])
+        c = self.taylor(t)
+        return float(np.abs(2.0 * c[:, 2]).max()), float(np.abs(6.0 * c[:, 3]).max())
+
     def along(self, displacement: float) -> 'BaseProfile':
         """The same motion in time, scaled to reach ``displacement`` (m): another axis's share of a straight move.
 

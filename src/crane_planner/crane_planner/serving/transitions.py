@@ -400,7 +400,7 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
             _, amax, jmax = options.limits_of(name)
             # without a limit, as hard as the base itself moves (the shaped reference's peaks are lower: a base
             # braked within those from its own harder acceleration ran on far past the motion's goal)
-            peaks = _base_peaks(p.base) if amax is None or jmax is None else None
+            peaks = p.base.peaks() if amax is None or jmax is None else None
             accel, jerk = amax or peaks[0], jmax or peaks[1]
             braked = shaped_stop(p, t0, accel, jerk) if accel > 0.0 else p  # (an axis the motion holds: held)
             # (the shaped plan is relative to the motion's start, the knots absolute: the continuation, relative
@@ -435,16 +435,6 @@ def stop(variational, running: Running, handover_ns: int, state: MotionState, me
         speeds = ', '.join(f'{name} {s.velocity:.3g} m/s' for name, s in state.axes.items())
         raise PlanError(f'{method}: no stop within the axis limits from {speeds}')
     return last  # the longest tried: its peak above the braking target, within the axis limits
-
-
-def _base_peaks(base) -> tuple[float, float]:
-    """(peak |acceleration|, peak |jerk|) of a shaped plan's base (``profiles.BaseProfile``), sampled on each
-    of its pieces (polynomials of degree <= 5: to ~1e-4 relative)."""
-    edges = np.append(base.breaks, base.duration)
-    t = np.concatenate([np.linspace(a, b, 97) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a])
-    pieces = np.minimum(np.searchsorted(edges, t, side='right') - 1, len(base.breaks) - 1)
-    c = base.taylor(t, pieces)
-    return float(np.abs(2.0 * c[:, 2]).max()), float(np.abs(6.0 * c[:, 3]).max())
 
 
 def stop_options(options: PlanOptions) -> PlanOptions:
